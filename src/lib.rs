@@ -1,0 +1,12 @@
+//! voxlab: a research sandbox for ray tracing in voxel space.
+//!
+//! The rendering model is fixed by DESIGN section 1 and implemented twice: by the wgpu
+//! compute kernel (`gpu`, WGSL under `shaders/`) and by the f64 reference (`cpu`), the
+//! oracle of the tests.
+
+pub mod cpu;
+pub mod render;
+pub mod scene;
+
+pub use render::{Frame, RayStats, RenderOutput, RenderSettings};
+pub use scene::Scene;

@@ -1,0 +1,119 @@
+//! What both tracers share: render settings, the radiance frame and ray statistics.
+
+use std::time::Duration;
+
+/// Settings that are not part of the scene (DESIGN section 1, baseline constants).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    /// Reflection and refraction have separate depth limits (seed: 4 and 4).
+    pub max_reflection_depth: u32,
+    pub max_refraction_depth: u32,
+    /// Inverse-square falloff of point lights.
+    pub falloff: bool,
+    /// `E = I / max(d^2, d_min^2)`: `d_min` in world units, so a light at distance 0 stays finite.
+    pub falloff_min_distance: f64,
+    /// Secondary and shadow rays start this many voxel widths off the surface (seed: 0.001).
+    pub ray_offset: f64,
+}
+
+/// Largest depth limit accepted: the ray stack holds `max_reflection + max_refraction + 1`
+/// entries, and the ray tree grows as 2^depth.
+pub const MAX_DEPTH_LIMIT: u32 = 16;
+
+/// Largest image side accepted.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+impl Default for RenderSettings {
+    /// The seed's settings: 512x512, depth 4/4, falloff on.
+    fn default() -> Self {
+        Self {
+            width: 512,
+            height: 512,
+            max_reflection_depth: 4,
+            max_refraction_depth: 4,
+            falloff: true,
+            falloff_min_distance: 0.01,
+            ray_offset: 0.001,
+        }
+    }
+}
+
+impl RenderSettings {
+    /// Entries of the ray stack: a depth-first walk of the ray tree pushes at most two
+    /// children per level and pops one, so depth limits a and b need a + b + 1 slots.
+    pub fn ray_stack_size(&self) -> u32 {
+        self.max_reflection_depth + self.max_refraction_depth + 1
+    }
+}
+
+/// Linear RGB radiance per pixel, rows from the top. f32 is enough for storage; the CPU
+/// reference computes in f64 and rounds once at the end.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f32; 3]>,
+}
+
+impl Frame {
+    pub fn new(width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            pixels: vec![[0.0; 3]; width as usize * height as usize],
+        }
+    }
+
+    pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
+        self.pixels[(y * self.width + x) as usize]
+    }
+
+    /// The displayed value: radiance clamped to [0, 1] (the seed's framebuffer; no tone mapping).
+    pub fn to_rgb8(&self) -> Vec<u8> {
+        self.pixels
+            .iter()
+            .flat_map(|p| p.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8))
+            .collect()
+    }
+
+    pub fn all_finite(&self) -> bool {
+        self.pixels.iter().all(|p| p.iter().all(|c| c.is_finite()))
+    }
+}
+
+/// Rays and voxel steps, counted by the tracer (not estimated).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayStats {
+    pub primary: u64,
+    /// Reflection and refraction rays.
+    pub secondary: u64,
+    pub shadow: u64,
+    /// DDA steps from one voxel to the next, over all rays.
+    pub voxel_steps: u64,
+}
+
+impl RayStats {
+    pub fn total_rays(&self) -> u64 {
+        self.primary + self.secondary + self.shadow
+    }
+}
+
+impl std::ops::AddAssign for RayStats {
+    fn add_assign(&mut self, o: Self) {
+        self.primary += o.primary;
+        self.secondary += o.secondary;
+        self.shadow += o.shadow;
+        self.voxel_steps += o.voxel_steps;
+    }
+}
+
+/// One rendered frame with what it cost.
+#[derive(Clone, Debug)]
+pub struct RenderOutput {
+    pub frame: Frame,
+    pub stats: RayStats,
+    /// Time of the trace alone (uploads and readback excluded where the backend can tell).
+    pub trace_time: Duration,
+}
