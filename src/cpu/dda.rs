@@ -1,0 +1,204 @@
+//! Ray/box entry and Amanatides-Woo voxel traversal in f64 world coordinates.
+//!
+//! J. Amanatides and A. Woo, "A fast voxel traversal algorithm for ray tracing",
+//! Eurographics 1987. The rules (entry voxel, tie-breaking, limits) are those of
+//! `src/trace_contract.md`, which the WGSL kernel implements too.
+
+use glam::{DVec3, IVec3};
+
+use crate::scene::Grid;
+
+/// One voxel on a ray's path.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Visit {
+    pub voxel: IVec3,
+    /// Distance along the ray at which the ray enters this voxel (0 for the start voxel
+    /// of a ray that starts inside the grid).
+    pub t_enter: f64,
+    /// Outward normal of the face the ray entered through; zero for a start voxel.
+    pub normal: DVec3,
+}
+
+/// The voxels a ray visits, in order, until it leaves the grid or reaches `t_limit`.
+/// `steps` counts moves from one voxel to the next (the "voxel steps" of the benchmarks).
+pub struct Dda<'a> {
+    grid: &'a Grid,
+    voxel: IVec3,
+    step: IVec3,
+    t_max: DVec3,
+    t_delta: DVec3,
+    t_limit: f64,
+    pending: Option<Visit>,
+    done: bool,
+    pub steps: u64,
+}
+
+/// Index of the smallest component, ties to the lowest axis.
+fn argmin(v: DVec3) -> usize {
+    if v.x <= v.y && v.x <= v.z {
+        0
+    } else if v.y <= v.z {
+        1
+    } else {
+        2
+    }
+}
+
+/// Index of the largest component, ties to the lowest axis.
+fn argmax(v: DVec3) -> usize {
+    if v.x >= v.y && v.x >= v.z {
+        0
+    } else if v.y >= v.z {
+        1
+    } else {
+        2
+    }
+}
+
+fn axis(a: usize) -> DVec3 {
+    let mut e = DVec3::ZERO;
+    e[a] = 1.0;
+    e
+}
+
+impl<'a> Dda<'a> {
+    /// Starts a traversal of `grid` by the ray `origin + t dir` (`dir` need not be unit;
+    /// distances are in units of `|dir|`), visiting voxels entered at `t < t_limit`.
+    pub fn new(grid: &'a Grid, origin: DVec3, dir: DVec3, t_limit: f64) -> Self {
+        let mut dda = Self {
+            grid,
+            voxel: IVec3::ZERO,
+            step: IVec3::ZERO,
+            t_max: DVec3::INFINITY,
+            t_delta: DVec3::INFINITY,
+            t_limit,
+            pending: None,
+            done: true,
+            steps: 0,
+        };
+        let lo = grid.world_min();
+        let hi = grid.world_max();
+        let dims = grid.dims().as_ivec3();
+        let local = grid.to_local(origin);
+        let inside = (0..3).all(|a| local[a] >= 0.0 && local[a] < dims[a] as f64);
+
+        let (voxel, t_start, normal) = if inside {
+            (local.floor().as_ivec3().min(dims - 1), 0.0, DVec3::ZERO)
+        } else {
+            // Slabs; an axis the ray does not move along is all or nothing, so no 0 * inf.
+            let mut near = DVec3::NEG_INFINITY;
+            let mut far = DVec3::INFINITY;
+            for a in 0..3 {
+                if dir[a] == 0.0 {
+                    if origin[a] < lo[a] || origin[a] > hi[a] {
+                        return dda;
+                    }
+                } else {
+                    let t1 = (lo[a] - origin[a]) / dir[a];
+                    let t2 = (hi[a] - origin[a]) / dir[a];
+                    near[a] = t1.min(t2);
+                    far[a] = t1.max(t2);
+                }
+            }
+            let t_enter = near.max_element().max(0.0);
+            let t_exit = far.min_element();
+            if t_enter > t_exit {
+                return dda;
+            }
+            let a = argmax(near);
+            let p = grid.to_local(origin + t_enter * dir);
+            let v = p.floor().as_ivec3().clamp(IVec3::ZERO, dims - 1);
+            let n = -dir[a].signum() * axis(a);
+            (v, t_enter, n)
+        };
+        if t_start >= t_limit {
+            return dda;
+        }
+
+        let h = grid.voxel_size();
+        for a in 0..3 {
+            if dir[a] > 0.0 {
+                dda.step[a] = 1;
+                let boundary = lo[a] + h * (voxel[a] + 1) as f64;
+                dda.t_max[a] = (boundary - origin[a]) / dir[a];
+                dda.t_delta[a] = h / dir[a];
+            } else if dir[a] < 0.0 {
+                dda.step[a] = -1;
+                let boundary = lo[a] + h * voxel[a] as f64;
+                dda.t_max[a] = (boundary - origin[a]) / dir[a];
+                dda.t_delta[a] = -h / dir[a];
+            }
+        }
+        dda.voxel = voxel;
+        dda.pending = Some(Visit {
+            voxel,
+            t_enter: t_start,
+            normal,
+        });
+        dda.done = false;
+        dda
+    }
+}
+
+impl Iterator for Dda<'_> {
+    type Item = Visit;
+
+    fn next(&mut self) -> Option<Visit> {
+        if let Some(v) = self.pending.take() {
+            return Some(v);
+        }
+        if self.done {
+            return None;
+        }
+        let a = argmin(self.t_max);
+        let t = self.t_max[a];
+        if !(t < self.t_limit) {
+            self.done = true;
+            return None;
+        }
+        self.voxel[a] += self.step[a];
+        self.t_max[a] += self.t_delta[a];
+        self.steps += 1;
+        if !self.grid.contains(self.voxel) {
+            self.done = true;
+            return None;
+        }
+        Some(Visit {
+            voxel: self.voxel,
+            t_enter: t,
+            normal: -(self.step[a] as f64) * axis(a),
+        })
+    }
+}
+
+/// The first voxel on the ray whose material differs from `medium`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub voxel: IVec3,
+    pub t: f64,
+    pub normal: DVec3,
+    pub material: u8,
+}
+
+/// Casts a ray travelling in `medium`: the start voxel of a ray that starts inside the
+/// grid is never a hit. Returns the hit (if any) and the voxel steps taken.
+pub fn cast(grid: &Grid, origin: DVec3, dir: DVec3, medium: u8) -> (Option<Hit>, u64) {
+    let mut dda = Dda::new(grid, origin, dir, f64::INFINITY);
+    let mut hit = None;
+    while let Some(v) = dda.next() {
+        if v.normal == DVec3::ZERO {
+            continue; // start voxel: the ray is in its medium by definition
+        }
+        let m = grid.get(v.voxel);
+        if m != medium {
+            hit = Some(Hit {
+                voxel: v.voxel,
+                t: v.t_enter,
+                normal: v.normal,
+                material: m,
+            });
+            break;
+        }
+    }
+    (hit, dda.steps)
+}
