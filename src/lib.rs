@@ -5,6 +5,8 @@
 //! oracle of the tests.
 
 pub mod cpu;
+pub mod experiment;
+pub mod output;
 pub mod render;
 pub mod scene;
 

@@ -1,0 +1,856 @@
+//! Experiment files: TOML in, a validated [`Experiment`] (scene, render settings,
+//! features) out.
+//!
+//! Parsing is two-step: serde (with `deny_unknown_fields` everywhere) reads the text
+//! into raw structs that mirror the file, then `build` checks every value against its
+//! allowed range and assembles the scene. Serde's errors carry a byte span; our own
+//! validation errors know the key path instead, and look it up in a `toml_edit` parse of
+//! the same text to find the line. Either way every message starts with `file:line:`.
+//!
+//! The file format is documented by example in `experiments/baseline.toml`.
+
+use std::fmt;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use glam::{DVec3, IVec3, UVec3};
+use serde::Deserialize;
+
+use crate::render::{MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RenderSettings};
+use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
+use crate::scene::{Grid, Light, MAX_VOXELS, Material, PointLight, SEED_SHININESS, Scene};
+
+/// Grid side of the seed scene (`[scene] size` when neither `size` nor `dims` is given).
+pub const SEED_SIZE: u32 = 16;
+
+/// Feature switches. Every feature's "off" is the baseline; the baseline has none yet,
+/// so the table is empty and any key in it is an error (later issues add fields here).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Features {}
+
+/// A validated experiment: everything a tracer needs to render it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Experiment {
+    /// The `name` key, else the file's stem; names the default output `out/<name>.png`.
+    pub name: String,
+    /// The file it was read from (`None` for built-in experiments).
+    pub source_path: Option<PathBuf>,
+    pub scene: Scene,
+    pub settings: RenderSettings,
+    pub features: Features,
+}
+
+/// Why an experiment could not be loaded. Every variant's message names the file; all
+/// but `Io` also name the line.
+#[derive(Debug, thiserror::Error)]
+pub enum ExperimentError {
+    #[error("cannot read experiment file {}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// The text is not TOML.
+    #[error("{}: malformed TOML: {message}", location(file, *line))]
+    Syntax {
+        file: String,
+        line: Option<usize>,
+        message: String,
+    },
+    /// A key that the format does not have.
+    #[error("{}: unknown key `{key}`; allowed keys here: {allowed}", location(file, *line))]
+    UnknownKey {
+        file: String,
+        line: Option<usize>,
+        key: String,
+        allowed: String,
+    },
+    /// A key with a value of the wrong type or outside its range, or a missing key.
+    #[error("{}: {key}{message}", location(file, *line))]
+    Invalid {
+        file: String,
+        line: Option<usize>,
+        /// Dotted path, e.g. `render.width` or `lights[1].intensity`.
+        key: String,
+        /// Starts with ` = <value as written>: ` where a value exists, else `: `.
+        message: String,
+    },
+}
+
+impl ExperimentError {
+    /// The line the error points at (1-based), if it has one.
+    pub fn line(&self) -> Option<usize> {
+        match self {
+            Self::Io { .. } => None,
+            Self::Syntax { line, .. }
+            | Self::UnknownKey { line, .. }
+            | Self::Invalid { line, .. } => *line,
+        }
+    }
+}
+
+fn location(file: &str, line: Option<usize>) -> String {
+    match line {
+        Some(l) => format!("{file}:{l}"),
+        None => file.to_string(),
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The file as written (serde). Everything optional has its default in `build`, where the
+// defaults depend on the grid (the seed's camera and lights are relative to it).
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawExperiment {
+    name: Option<String>,
+    #[allow(dead_code)] // free text for the reader; kept so the key is allowed
+    description: Option<String>,
+    #[serde(default)]
+    scene: RawScene,
+    #[serde(default)]
+    camera: RawCamera,
+    /// Absent: the seed's lights. `lights = []`: no lights at all.
+    lights: Option<Vec<RawLight>>,
+    #[serde(default)]
+    materials: Vec<RawMaterial>,
+    #[serde(default)]
+    render: RawRender,
+    #[serde(default)]
+    features: Features,
+}
+
+/// Where the voxels come from. Only generators exist so far; file sources
+/// (`vox = "path"`, `mesh = "path"`) will be further keys of `[scene]`, exclusive with
+/// `generator`.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum Generator {
+    /// The seed report's scene (section 3.2) at any grid size.
+    #[default]
+    Seed,
+    /// An all-void grid, to be filled by `[[scene.boxes]]`.
+    Empty,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    #[serde(default)]
+    generator: Generator,
+    size: Option<i64>,
+    dims: Option<[i64; 3]>,
+    voxel_size: Option<f64>,
+    origin: Option<[f64; 3]>,
+    #[serde(default)]
+    boxes: Vec<RawBox>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBox {
+    min: [i64; 3],
+    max: [i64; 3],
+    material: MaterialRef,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged, expecting = "a material name (string) or index (integer)")]
+enum MaterialRef {
+    Index(i64),
+    Name(String),
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCamera {
+    target: Option<[f64; 3]>,
+    distance: Option<f64>,
+    yaw_deg: Option<f64>,
+    pitch_deg: Option<f64>,
+    vfov_deg: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum LightType {
+    Point,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLight {
+    #[serde(rename = "type")]
+    kind: LightType,
+    position: [f64; 3],
+    color: Option<[f64; 3]>,
+    intensity: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMaterial {
+    name: String,
+    albedo: Option<[f64; 3]>,
+    kd: Option<f64>,
+    ks: Option<f64>,
+    shininess: Option<f64>,
+    kr: Option<f64>,
+    kt: Option<f64>,
+    ior: Option<f64>,
+    sigma: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRender {
+    width: Option<i64>,
+    height: Option<i64>,
+    max_reflection_depth: Option<i64>,
+    max_refraction_depth: Option<i64>,
+    falloff: Option<bool>,
+    falloff_min_distance: Option<f64>,
+    ray_offset: Option<f64>,
+    ambient: Option<[f64; 3]>,
+}
+
+// ---------------------------------------------------------------------------------------
+
+impl Experiment {
+    /// The seed's scene at 16^3, 512x512, depth 4/4, every feature off: what
+    /// `experiments/baseline.toml` describes and what `voxlab` renders by default.
+    pub fn seed_default() -> Self {
+        Self {
+            name: "seed".to_string(),
+            source_path: None,
+            scene: seed_scene(SEED_SIZE).expect("the seed scene at its own size is valid"),
+            settings: RenderSettings::default(),
+            features: Features::default(),
+        }
+    }
+
+    /// Reads and validates an experiment file.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, ExperimentError> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|source| ExperimentError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut e = Self::from_str(&text, path)?;
+        e.source_path = Some(path.to_path_buf());
+        Ok(e)
+    }
+
+    /// Parses and validates experiment text; `path` names it in messages and gives the
+    /// default name (its stem). `source_path` stays `None`: nothing was read from disk.
+    pub fn from_str(text: &str, path: impl AsRef<Path>) -> Result<Self, ExperimentError> {
+        let path = path.as_ref();
+        let ctx = Ctx::new(text, path);
+        let raw: RawExperiment = toml::from_str(text).map_err(|e| ctx.serde_error(&e))?;
+        build(raw, &ctx)
+    }
+}
+
+/// What error messages need: the file's name, and the text to find lines in.
+struct Ctx<'a> {
+    file: String,
+    stem: String,
+    text: &'a str,
+    /// `None` only if toml_edit rejects what toml accepted; lines are then left out.
+    doc: Option<toml_edit::Document<String>>,
+}
+
+impl<'a> Ctx<'a> {
+    fn new(text: &'a str, path: &Path) -> Self {
+        Self {
+            file: path.display().to_string(),
+            stem: path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "experiment".to_string()),
+            text,
+            doc: toml_edit::Document::parse(text.to_string()).ok(),
+        }
+    }
+
+    fn line_of(&self, offset: usize) -> usize {
+        let offset = offset.min(self.text.len());
+        self.text.as_bytes()[..offset]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+            + 1
+    }
+
+    /// The span of the value at `path`, or of the nearest enclosing item that has one
+    /// (a missing key points at its table).
+    fn span_of(&self, path: &str) -> Option<Range<usize>> {
+        let doc = self.doc.as_ref()?;
+        let mut item = doc.as_item();
+        let mut best = None;
+        for seg in path.split('.') {
+            let (key, index) = match seg.split_once('[') {
+                Some((k, rest)) => (k, rest.trim_end_matches(']').parse::<usize>().ok()),
+                None => (seg, None),
+            };
+            let Some((k, child)) = get_key_value(item, key) else {
+                break;
+            };
+            best = child.span().or(k.span()).or(best);
+            item = child;
+            if let Some(i) = index {
+                match item.get(i) {
+                    Some(child) => {
+                        best = child.span().or(best);
+                        item = child;
+                    }
+                    None => break,
+                }
+            }
+        }
+        best
+    }
+
+    /// The value as written in the file, for messages (`nan`, `-1`, `[0, 0, 0]`).
+    fn raw_value(&self, path: &str) -> Option<String> {
+        let doc = self.doc.as_ref()?;
+        let mut item = doc.as_item();
+        for seg in path.split('.') {
+            let (key, index) = match seg.split_once('[') {
+                Some((k, rest)) => (k, rest.trim_end_matches(']').parse::<usize>().ok()),
+                None => (seg, None),
+            };
+            item = get_key_value(item, key)?.1;
+            if let Some(i) = index {
+                item = item.get(i)?;
+            }
+        }
+        let span = item.as_value()?.span()?;
+        self.text.get(span).map(|s| s.trim().to_string())
+    }
+
+    /// `key = value: what is allowed`, at the key's line.
+    fn invalid(&self, key: &str, requirement: impl fmt::Display) -> ExperimentError {
+        let message = match self.raw_value(key) {
+            Some(v) => format!(" = {v}: {requirement}"),
+            None => format!(": {requirement}"),
+        };
+        ExperimentError::Invalid {
+            file: self.file.clone(),
+            line: self.span_of(key).map(|s| self.line_of(s.start)),
+            key: key.to_string(),
+            message,
+        }
+    }
+
+    /// Converts serde's error (type mismatches, unknown or missing keys, bad syntax) into
+    /// ours, naming the key at its span.
+    fn serde_error(&self, e: &toml::de::Error) -> ExperimentError {
+        let span = e.span();
+        let line = span.as_ref().map(|s| self.line_of(s.start));
+        let msg = e.message().trim().to_string();
+        let Some(doc) = self.doc.as_ref() else {
+            return ExperimentError::Syntax {
+                file: self.file.clone(),
+                line,
+                message: msg,
+            };
+        };
+        let key = span
+            .as_ref()
+            .and_then(|s| path_at(doc.as_item(), s, ""))
+            .unwrap_or_default();
+        if let Some(rest) = msg.strip_prefix("unknown field `") {
+            let (name, expected) = rest.split_once('`').unwrap_or((rest, ""));
+            let allowed = allowed_list(expected);
+            // The span covers the unknown key itself, so `key` already ends with it.
+            let key = if key.is_empty() {
+                name.to_string()
+            } else {
+                key
+            };
+            return ExperimentError::UnknownKey {
+                file: self.file.clone(),
+                line,
+                key,
+                allowed,
+            };
+        }
+        if key.is_empty() {
+            // Top-level problems (a missing top-level key) have no key to name.
+            return ExperimentError::Invalid {
+                file: self.file.clone(),
+                line,
+                key: "(top level)".to_string(),
+                message: format!(": {msg}"),
+            };
+        }
+        ExperimentError::Invalid {
+            file: self.file.clone(),
+            line,
+            message: match self.raw_value(&key) {
+                Some(v) => format!(" = {v}: {msg}"),
+                None => format!(": {msg}"),
+            },
+            key,
+        }
+    }
+}
+
+/// Serde lists the expected fields as ", expected one of `a`, `b`" or ", expected `a`"
+/// or ", there are no fields"; keep just the names.
+fn allowed_list(expected: &str) -> String {
+    let names: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
+    if names.is_empty() {
+        "none (this table has no keys yet)".to_string()
+    } else {
+        names.join(", ")
+    }
+}
+
+fn get_key_value<'d>(
+    item: &'d toml_edit::Item,
+    key: &str,
+) -> Option<(&'d toml_edit::Key, &'d toml_edit::Item)> {
+    match item {
+        toml_edit::Item::Table(t) => t.get_key_value(key),
+        toml_edit::Item::Value(toml_edit::Value::InlineTable(t)) => t.get_key_value(key),
+        _ => None,
+    }
+}
+
+fn contains(outer: &Range<usize>, inner: &Range<usize>) -> bool {
+    outer.start <= inner.start && inner.start < outer.end.max(outer.start + 1)
+}
+
+/// The dotted path of the innermost key or value whose span holds `span`.
+fn path_at(item: &toml_edit::Item, span: &Range<usize>, prefix: &str) -> Option<String> {
+    let keys: Vec<String> = match item {
+        toml_edit::Item::Table(t) => t.iter().map(|(k, _)| k.to_string()).collect(),
+        toml_edit::Item::Value(toml_edit::Value::InlineTable(t)) => {
+            t.iter().map(|(k, _)| k.to_string()).collect()
+        }
+        toml_edit::Item::ArrayOfTables(_) | toml_edit::Item::Value(toml_edit::Value::Array(_)) => {
+            let mut i = 0;
+            while let Some(child) = item.get(i) {
+                let path = format!("{prefix}[{i}]");
+                if let Some(p) = path_at(child, span, &path) {
+                    return Some(p);
+                }
+                if child.span().is_some_and(|s| contains(&s, span)) {
+                    return Some(path);
+                }
+                i += 1;
+            }
+            return None;
+        }
+        _ => return None,
+    };
+    for k in keys {
+        let Some((key, child)) = get_key_value(item, &k) else {
+            continue;
+        };
+        let path = if prefix.is_empty() {
+            k.clone()
+        } else {
+            format!("{prefix}.{k}")
+        };
+        if let Some(p) = path_at(child, span, &path) {
+            return Some(p);
+        }
+        let hit = |s: Option<Range<usize>>| s.is_some_and(|s| contains(&s, span));
+        if hit(key.span()) || hit(child.span()) {
+            return Some(path);
+        }
+    }
+    None
+}
+
+// ---------------------------------------------------------------------------------------
+// Validation and assembly.
+
+fn finite(ctx: &Ctx, key: &str, v: f64) -> Result<f64, ExperimentError> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(ctx.invalid(key, "must be a finite number"))
+    }
+}
+
+/// A float in a range; `what` names the range for the message (e.g. "> 0").
+fn float_where(
+    ctx: &Ctx,
+    key: &str,
+    v: f64,
+    ok: impl Fn(f64) -> bool,
+    what: &str,
+) -> Result<f64, ExperimentError> {
+    if v.is_finite() && ok(v) {
+        Ok(v)
+    } else {
+        Err(ctx.invalid(key, format!("must be a finite number {what}")))
+    }
+}
+
+fn vec3_where(
+    ctx: &Ctx,
+    key: &str,
+    v: [f64; 3],
+    ok: impl Fn(f64) -> bool,
+    what: &str,
+) -> Result<DVec3, ExperimentError> {
+    if v.iter().all(|&c| c.is_finite() && ok(c)) {
+        Ok(DVec3::from_array(v))
+    } else {
+        Err(ctx.invalid(
+            key,
+            format!("every component must be a finite number {what}"),
+        ))
+    }
+}
+
+fn int_in(
+    ctx: &Ctx,
+    key: &str,
+    v: i64,
+    range: std::ops::RangeInclusive<i64>,
+) -> Result<u32, ExperimentError> {
+    if range.contains(&v) {
+        // Every range used here lies within u32.
+        Ok(v as u32)
+    } else {
+        Err(ctx.invalid(
+            key,
+            format!("must be an integer in {}..={}", range.start(), range.end()),
+        ))
+    }
+}
+
+fn build(raw: RawExperiment, ctx: &Ctx) -> Result<Experiment, ExperimentError> {
+    let name = match raw.name {
+        Some(n) => {
+            let ok = !n.is_empty()
+                && n.len() <= 128
+                && !n.starts_with('.')
+                && n.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c));
+            if !ok {
+                return Err(ctx.invalid(
+                    "name",
+                    "must be 1 to 128 characters from A-Z a-z 0-9 - _ . (not starting with '.'): it names the output file",
+                ));
+            }
+            n
+        }
+        None => ctx.stem.clone(),
+    };
+
+    // Render settings first: the ambient colour belongs to the scene.
+    let r = &raw.render;
+    let d = RenderSettings::default();
+    let side = 1..=MAX_IMAGE_SIDE as i64;
+    let depth = 0..=MAX_DEPTH_LIMIT as i64;
+    let settings = RenderSettings {
+        width: r.width.map_or(Ok(d.width), |v| {
+            int_in(ctx, "render.width", v, side.clone())
+        })?,
+        height: r
+            .height
+            .map_or(Ok(d.height), |v| int_in(ctx, "render.height", v, side))?,
+        max_reflection_depth: r
+            .max_reflection_depth
+            .map_or(Ok(d.max_reflection_depth), |v| {
+                int_in(ctx, "render.max_reflection_depth", v, depth.clone())
+            })?,
+        max_refraction_depth: r
+            .max_refraction_depth
+            .map_or(Ok(d.max_refraction_depth), |v| {
+                int_in(ctx, "render.max_refraction_depth", v, depth)
+            })?,
+        falloff: r.falloff.unwrap_or(d.falloff),
+        falloff_min_distance: r
+            .falloff_min_distance
+            .map_or(Ok(d.falloff_min_distance), |v| {
+                float_where(ctx, "render.falloff_min_distance", v, |x| x > 0.0, "> 0")
+            })?,
+        ray_offset: r.ray_offset.map_or(Ok(d.ray_offset), |v| {
+            float_where(
+                ctx,
+                "render.ray_offset",
+                v,
+                |x| (0.0..1.0).contains(&x),
+                "in [0, 1) (voxel widths)",
+            )
+        })?,
+    };
+    let ambient = match r.ambient {
+        Some(a) => vec3_where(ctx, "render.ambient", a, |x| x >= 0.0, ">= 0")?,
+        None => SEED_AMBIENT,
+    };
+
+    let grid = build_grid(&raw.scene, ctx)?;
+    let c = grid.centre();
+    let w = grid.width();
+
+    let seed_cam = seed_camera(c, w);
+    let cam = &raw.camera;
+    let mut camera = seed_cam.clone();
+    if let Some(t) = cam.target {
+        camera.target = vec3_where(ctx, "camera.target", t, |_| true, "")?;
+    }
+    if let Some(v) = cam.distance {
+        camera.distance = float_where(ctx, "camera.distance", v, |x| x > 0.0, "> 0")?;
+    }
+    // Degrees are divided by 180 before multiplying by pi, so round numbers give the
+    // very radians the seed writes as fractions of pi (36 deg == 0.2 * PI bit for bit).
+    let rad = |deg: f64| deg / 180.0 * std::f64::consts::PI;
+    if let Some(v) = cam.yaw_deg {
+        camera.yaw = rad(finite(ctx, "camera.yaw_deg", v)?);
+    }
+    if let Some(v) = cam.pitch_deg {
+        camera.pitch = rad(float_where(
+            ctx,
+            "camera.pitch_deg",
+            v,
+            |x| (-90.0..=90.0).contains(&x),
+            "in [-90, 90]",
+        )?);
+    }
+    if let Some(v) = cam.vfov_deg {
+        camera.vfov = rad(float_where(
+            ctx,
+            "camera.vfov_deg",
+            v,
+            |x| x > 0.0 && x < 180.0,
+            "in (0, 180)",
+        )?);
+    }
+
+    let lights = match &raw.lights {
+        None => seed_lights(c, w),
+        Some(ls) => ls
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                let key = |k: &str| format!("lights[{i}].{k}");
+                let LightType::Point = l.kind;
+                Ok(Light::Point(PointLight {
+                    position: vec3_where(ctx, &key("position"), l.position, |_| true, "")?,
+                    color: match l.color {
+                        Some(col) => vec3_where(ctx, &key("color"), col, |x| x >= 0.0, ">= 0")?,
+                        None => DVec3::ONE,
+                    },
+                    intensity: float_where(
+                        ctx,
+                        &key("intensity"),
+                        l.intensity,
+                        |x| x >= 0.0,
+                        ">= 0",
+                    )?,
+                }))
+            })
+            .collect::<Result<_, ExperimentError>>()?,
+    };
+
+    let materials = build_materials(&raw.materials, ctx)?;
+    let mut scene = Scene {
+        grid,
+        materials,
+        lights,
+        camera,
+        ambient,
+    };
+    fill_boxes(&mut scene, &raw.scene.boxes, ctx)?;
+    // Everything above checks its own key; this catches what only the whole can tell
+    // (a future generator using more materials than are defined).
+    scene.validate().map_err(|e| ctx.invalid("scene", e))?;
+
+    Ok(Experiment {
+        name,
+        source_path: None,
+        scene,
+        settings,
+        features: raw.features,
+    })
+}
+
+fn build_grid(s: &RawScene, ctx: &Ctx) -> Result<Grid, ExperimentError> {
+    let dims = match (s.size, s.dims) {
+        (Some(_), Some(_)) => {
+            return Err(ctx.invalid(
+                "scene.dims",
+                "give either scene.size or scene.dims, not both",
+            ));
+        }
+        (Some(n), None) => UVec3::splat(int_in(ctx, "scene.size", n, 1..=i64::from(u32::MAX))?),
+        (None, Some(d)) => {
+            if !d.iter().all(|&n| (1..=i64::from(u32::MAX)).contains(&n)) {
+                return Err(ctx.invalid(
+                    "scene.dims",
+                    format!("every dimension must be an integer in 1..={}", u32::MAX),
+                ));
+            }
+            UVec3::new(d[0] as u32, d[1] as u32, d[2] as u32)
+        }
+        (None, None) => UVec3::splat(SEED_SIZE),
+    };
+    let count = dims.as_u64vec3().element_product();
+    if count > MAX_VOXELS {
+        let key = if s.size.is_some() {
+            "scene.size"
+        } else {
+            "scene.dims"
+        };
+        return Err(ctx.invalid(
+            key,
+            format!(
+                "{}x{}x{} = {count} voxels; at most {MAX_VOXELS} are allowed (scene::MAX_VOXELS)",
+                dims.x, dims.y, dims.z
+            ),
+        ));
+    }
+    let voxel_size = match s.voxel_size {
+        Some(v) => float_where(ctx, "scene.voxel_size", v, |x| x > 0.0, "> 0")?,
+        None => 1.0,
+    };
+    let origin = match s.origin {
+        Some(o) => vec3_where(ctx, "scene.origin", o, |_| true, "")?,
+        None => DVec3::ZERO,
+    };
+    let grid = match s.generator {
+        Generator::Seed => seed_grid(dims, voxel_size, origin),
+        Generator::Empty => Grid::new(dims, voxel_size, origin),
+    };
+    grid.map_err(|e| ctx.invalid("scene", e))
+}
+
+/// The seed palette, then each `[[materials]]` entry in order: a name already in the
+/// palette overrides that material (keys left out keep its values), a new name is
+/// appended (keys left out take the defaults documented in baseline.toml).
+fn build_materials(raw: &[RawMaterial], ctx: &Ctx) -> Result<Vec<Material>, ExperimentError> {
+    let mut palette = crate::scene::seed_palette();
+    let mut seen: Vec<&str> = Vec::new();
+    for (i, m) in raw.iter().enumerate() {
+        let key = |k: &str| format!("materials[{i}].{k}");
+        if m.name.is_empty() {
+            return Err(ctx.invalid(&key("name"), "must not be empty"));
+        }
+        if seen.contains(&m.name.as_str()) {
+            return Err(ctx.invalid(&key("name"), "is defined twice in [[materials]]"));
+        }
+        seen.push(&m.name);
+        let existing = palette.iter().position(|p| p.name == m.name);
+        if existing == Some(0) {
+            return Err(ctx.invalid(
+                &key("name"),
+                "material 0 (void) is empty space and cannot be changed",
+            ));
+        }
+        let mut mat = match existing {
+            Some(idx) => palette[idx].clone(),
+            None => Material {
+                name: m.name.clone(),
+                albedo: DVec3::ONE,
+                kd: 0.0,
+                ks: 0.0,
+                shininess: SEED_SHININESS,
+                kr: 0.0,
+                kt: 0.0,
+                ior: 1.0,
+                sigma: None,
+                // Fields the file cannot set yet keep void's (neutral) values.
+                ..palette[0].clone()
+            },
+        };
+        let unit = |k: &str, v: Option<f64>, cur: f64| match v {
+            Some(v) => float_where(ctx, &key(k), v, |x| (0.0..=1.0).contains(&x), "in [0, 1]"),
+            None => Ok(cur),
+        };
+        if let Some(a) = m.albedo {
+            mat.albedo = vec3_where(ctx, &key("albedo"), a, |x| x >= 0.0, ">= 0")?;
+        }
+        mat.kd = unit("kd", m.kd, mat.kd)?;
+        mat.ks = unit("ks", m.ks, mat.ks)?;
+        mat.kr = unit("kr", m.kr, mat.kr)?;
+        mat.kt = unit("kt", m.kt, mat.kt)?;
+        if let Some(v) = m.shininess {
+            mat.shininess = float_where(ctx, &key("shininess"), v, |x| x >= 0.0, ">= 0")?;
+        }
+        if let Some(v) = m.ior {
+            mat.ior = float_where(ctx, &key("ior"), v, |x| x > 0.0, "> 0")?;
+        }
+        if let Some(s) = m.sigma {
+            mat.sigma = Some(vec3_where(
+                ctx,
+                &key("sigma"),
+                s,
+                |x| x >= 0.0,
+                ">= 0 (absorption per world unit)",
+            )?);
+        }
+        match existing {
+            Some(idx) => palette[idx] = mat,
+            None => {
+                if palette.len() >= 256 {
+                    return Err(ctx.invalid(
+                        &key("name"),
+                        "too many materials: at most 256 including void (u8 indices)",
+                    ));
+                }
+                palette.push(mat);
+            }
+        }
+    }
+    Ok(palette)
+}
+
+fn fill_boxes(scene: &mut Scene, boxes: &[RawBox], ctx: &Ctx) -> Result<(), ExperimentError> {
+    let dims = scene.grid.dims();
+    for (i, b) in boxes.iter().enumerate() {
+        let key = |k: &str| format!("scene.boxes[{i}].{k}");
+        let n = scene.materials.len();
+        let material = match &b.material {
+            MaterialRef::Index(idx) => {
+                int_in(ctx, &key("material"), *idx, 0..=(n as i64 - 1))? as u8
+            }
+            MaterialRef::Name(name) => match scene.materials.iter().position(|m| &m.name == name) {
+                Some(idx) => idx as u8,
+                None => {
+                    let names: Vec<&str> =
+                        scene.materials.iter().map(|m| m.name.as_str()).collect();
+                    return Err(ctx.invalid(
+                        &key("material"),
+                        format!("no such material; defined: {}", names.join(", ")),
+                    ));
+                }
+            },
+        };
+        for a in 0..3 {
+            let dim = i64::from(dims[a]);
+            if !(0 <= b.min[a] && b.min[a] <= b.max[a] && b.max[a] <= dim) {
+                let bad = if (0..=dim).contains(&b.min[a]) {
+                    "max"
+                } else {
+                    "min"
+                };
+                return Err(ctx.invalid(
+                    &key(bad),
+                    format!(
+                        "the box must satisfy 0 <= min <= max <= dims = [{}, {}, {}] on every axis (min inclusive, max exclusive)",
+                        dims.x, dims.y, dims.z
+                    ),
+                ));
+            }
+        }
+        for z in b.min[2]..b.max[2] {
+            for y in b.min[1]..b.max[1] {
+                for x in b.min[0]..b.max[0] {
+                    scene
+                        .grid
+                        .set(IVec3::new(x as i32, y as i32, z as i32), material);
+                }
+            }
+        }
+    }
+    Ok(())
+}

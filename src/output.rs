@@ -1,0 +1,187 @@
+//! Writing frames to image files, and reading them back (tests, golden images).
+//!
+//! - `.png`: the displayed value, as the seed's framebuffer stored it: radiance clamped
+//!   to [0, 1], 8 bits, no tone mapping and no gamma (`Frame::to_rgb8`).
+//! - `.exr`: linear f32 RGB radiance, unclamped, for analysis.
+//!
+//! Files are written to a temporary file in the target directory and renamed into
+//! place, so a failed write never leaves a partial image under the requested name.
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use image::{ImageFormat, Rgb32FImage, RgbImage};
+
+use crate::render::Frame;
+
+/// The file formats a frame can be written as, chosen by the path's extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// 8-bit clamped colour.
+    Png,
+    /// Linear f32 radiance.
+    Exr,
+}
+
+impl OutputFormat {
+    /// The format for `path`'s extension (case-insensitive), or an error naming the path.
+    pub fn from_path(path: &Path) -> Result<Self, OutputError> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("png") => Ok(Self::Png),
+            Some("exr") => Ok(Self::Exr),
+            _ => Err(OutputError::UnknownExtension {
+                path: path.to_path_buf(),
+            }),
+        }
+    }
+
+    fn image_format(self) -> ImageFormat {
+        match self {
+            Self::Png => ImageFormat::Png,
+            Self::Exr => ImageFormat::OpenExr,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    #[error(
+        "cannot write {}: unknown image extension; use .png (8-bit, clamped) or .exr (linear radiance)",
+        path.display()
+    )]
+    UnknownExtension { path: PathBuf },
+    #[error("cannot create directory {} for {}: {source}", dir.display(), path.display())]
+    CreateDir {
+        dir: PathBuf,
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("cannot write {}: {source}", path.display())]
+    Write {
+        path: PathBuf,
+        source: image::ImageError,
+    },
+    #[error("cannot write {}: {source}", path.display())]
+    Rename {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("cannot read {}: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: image::ImageError,
+    },
+    #[error("cannot read {}: {source}", path.display())]
+    Open {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// Writes `frame` to `path` in the format its extension names (`.png` or `.exr`),
+/// creating missing parent directories. Nothing appears under `path` unless the whole
+/// image was written.
+pub fn write_frame(frame: &Frame, path: impl AsRef<Path>) -> Result<(), OutputError> {
+    let path = path.as_ref();
+    let format = OutputFormat::from_path(path)?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&dir).map_err(|source| OutputError::CreateDir {
+        dir: dir.clone(),
+        path: path.to_path_buf(),
+        source,
+    })?;
+
+    let tmp = temp_path(&dir, path);
+    let written = match format {
+        OutputFormat::Png => {
+            let img = RgbImage::from_raw(frame.width, frame.height, frame.to_rgb8())
+                .expect("a Frame holds width * height pixels");
+            img.save_with_format(&tmp, format.image_format())
+        }
+        OutputFormat::Exr => {
+            let data = frame.pixels.iter().flatten().copied().collect();
+            let img = Rgb32FImage::from_raw(frame.width, frame.height, data)
+                .expect("a Frame holds width * height pixels");
+            img.save_with_format(&tmp, format.image_format())
+        }
+    };
+    if let Err(source) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(OutputError::Write {
+            path: path.to_path_buf(),
+            source,
+        });
+    }
+    std::fs::rename(&tmp, path).map_err(|source| {
+        let _ = std::fs::remove_file(&tmp);
+        OutputError::Rename {
+            path: path.to_path_buf(),
+            source,
+        }
+    })
+}
+
+/// A hidden name in the target's directory (a rename across file systems is not atomic),
+/// unique per process and call so concurrent writers never share one.
+fn temp_path(dir: &Path, path: &Path) -> PathBuf {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "frame".to_string());
+    // The format is passed explicitly, so the temporary suffix need not be an image one.
+    dir.join(format!(".{name}.{}.{n}.tmp", std::process::id()))
+}
+
+fn read(path: &Path, format: ImageFormat) -> Result<image::DynamicImage, OutputError> {
+    let file = File::open(path).map_err(|source| OutputError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    image::load(BufReader::new(file), format).map_err(|source| OutputError::Read {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Reads a PNG into a frame with values `byte / 255` (what `write_frame` stored, so a
+/// round trip gives the clamped, 8-bit-quantised frame).
+pub fn read_png(path: impl AsRef<Path>) -> Result<Frame, OutputError> {
+    let img = read(path.as_ref(), ImageFormat::Png)?.to_rgb8();
+    Ok(Frame {
+        width: img.width(),
+        height: img.height(),
+        pixels: img
+            .pixels()
+            .map(|p| p.0.map(|c| f32::from(c) / 255.0))
+            .collect(),
+    })
+}
+
+/// Reads an EXR's RGB channels as linear radiance (bit-exact for what `write_frame` wrote).
+pub fn read_exr(path: impl AsRef<Path>) -> Result<Frame, OutputError> {
+    let img = read(path.as_ref(), ImageFormat::OpenExr)?.into_rgb32f();
+    Ok(Frame {
+        width: img.width(),
+        height: img.height(),
+        pixels: img.pixels().map(|p| p.0).collect(),
+    })
+}
+
+/// Reads a `.png` or `.exr` by its extension.
+pub fn read_frame(path: impl AsRef<Path>) -> Result<Frame, OutputError> {
+    let path = path.as_ref();
+    match OutputFormat::from_path(path)? {
+        OutputFormat::Png => read_png(path),
+        OutputFormat::Exr => read_exr(path),
+    }
+}
