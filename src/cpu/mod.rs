@@ -112,21 +112,21 @@ pub fn trace_ray(
         if m.kt > 0.0 {
             let eta = scene.materials[ray.medium as usize].ior
                 / scene.materials[hit.material as usize].ior;
-            let c = -n.dot(ray.dir);
-            let k = 1.0 - eta * eta * (1.0 - c * c);
-            if k < 0.0 {
+            match refract(ray.dir, n, eta) {
                 // Total internal reflection: the refracted share goes to the reflection.
-                reflection_weight += m.kt;
-            } else if ray.refraction_depth < settings.max_refraction_depth {
-                stats.secondary += 1;
-                stack.push(StackRay {
-                    origin: p - eps * n,
-                    dir: (eta * ray.dir + (eta * c - k.sqrt()) * n).normalize(),
-                    throughput: ray.throughput * m.kt,
-                    reflection_depth: ray.reflection_depth,
-                    refraction_depth: ray.refraction_depth + 1,
-                    medium: hit.material,
-                });
+                None => reflection_weight += m.kt,
+                Some(_) if ray.refraction_depth >= settings.max_refraction_depth => {}
+                Some(refracted) => {
+                    stats.secondary += 1;
+                    stack.push(StackRay {
+                        origin: p - eps * n,
+                        dir: refracted,
+                        throughput: ray.throughput * m.kt,
+                        reflection_depth: ray.reflection_depth,
+                        refraction_depth: ray.refraction_depth + 1,
+                        medium: hit.material,
+                    });
+                }
             }
         }
         if reflection_weight > 0.0 && ray.reflection_depth < settings.max_reflection_depth {
@@ -142,6 +142,15 @@ pub fn trace_ray(
         }
     }
     color
+}
+
+/// Snell's law in vector form (`sin t1 / sin t2 = n2 / n1`, `eta = n1 / n2`) for a unit
+/// direction `d` and a unit normal `n` facing against it; `None` under total internal
+/// reflection.
+pub fn refract(d: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
+    let c = -n.dot(d);
+    let k = 1.0 - eta * eta * (1.0 - c * c);
+    (k >= 0.0).then(|| (eta * d + (eta * c - k.sqrt()) * n).normalize())
 }
 
 /// Phong with inverse-square falloff, summed over the lights, times the albedo.
