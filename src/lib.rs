@@ -6,7 +6,9 @@
 
 pub mod cpu;
 pub mod experiment;
+pub mod gpu;
 pub mod output;
+pub mod plan;
 pub mod render;
 pub mod scene;
 

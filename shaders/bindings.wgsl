@@ -1,0 +1,23 @@
+// Every resource of the tracer. The host's bind group layout lists all of them; a
+// variant that leaves code out simply does not reference some.
+#define_import_path voxlab::bindings
+
+#import voxlab::types::{Params, Material, PointLight}
+
+@group(0) @binding(0) var<uniform> params: Params;
+// One material index per voxel, exactly dims in size (R8Uint).
+@group(0) @binding(1) var grid: texture_3d<u32>;
+@group(0) @binding(2) var<storage, read> materials: array<Material>;
+@group(0) @binding(3) var<storage, read> lights: array<PointLight>;
+// Linear radiance per pixel, rows from the top; w is unused.
+@group(0) @binding(4) var<storage, read_write> output: array<vec4<f32>>;
+// Ray counters as 64-bit (lo, hi) pairs: primary, secondary, shadow, voxel steps.
+@group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, 8>;
+
+fn voxel_material(v: vec3<i32>) -> u32 {
+    return textureLoad(grid, v, 0).r;
+}
+
+fn voxel_inside(v: vec3<i32>) -> bool {
+    return all(v >= vec3<i32>(0)) && all(v < vec3<i32>(params.dims));
+}

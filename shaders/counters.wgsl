@@ -1,0 +1,56 @@
+// Ray counting (COUNT_RAYS). Counts accumulate per invocation in private memory and are
+// added to the global 64-bit counters once at the end, so the atomics stay few. Without
+// COUNT_RAYS every function is empty and the compiler drops the calls.
+#define_import_path voxlab::counters
+
+#import voxlab::bindings::counters
+
+// primary, secondary, shadow, voxel steps. One invocation's counts fit u32 easily.
+var<private> local_counts: vec4<u32>;
+
+fn count_primary() {
+#ifdef COUNT_RAYS
+    local_counts.x += 1u;
+#endif
+}
+
+fn count_secondary() {
+#ifdef COUNT_RAYS
+    local_counts.y += 1u;
+#endif
+}
+
+fn count_shadow() {
+#ifdef COUNT_RAYS
+    local_counts.z += 1u;
+#endif
+}
+
+fn count_step() {
+#ifdef COUNT_RAYS
+    local_counts.w += 1u;
+#endif
+}
+
+#ifdef COUNT_RAYS
+// A 64-bit add from two u32 atomics: the old low word tells exactly whether this add
+// carried, because each atomicAdd is applied alone.
+fn add64(i: u32, v: u32) {
+    if v == 0u {
+        return;
+    }
+    let old = atomicAdd(&counters[2u * i], v);
+    if old + v < old {
+        atomicAdd(&counters[2u * i + 1u], 1u);
+    }
+}
+#endif
+
+fn flush_counts() {
+#ifdef COUNT_RAYS
+    add64(0u, local_counts.x);
+    add64(1u, local_counts.y);
+    add64(2u, local_counts.z);
+    add64(3u, local_counts.w);
+#endif
+}

@@ -1,0 +1,44 @@
+// Shadow visibility, `min-kt` transmittance (the seed's O1 compromise as its code does
+// it): the smallest kt of the voxels a shadow segment crosses; void transmits fully and
+// nothing outside the grid absorbs. Contract: "Shading a hit", shadow ray.
+#define_import_path voxlab::shadow
+
+#import voxlab::bindings::{materials, voxel_material, voxel_inside}
+#import voxlab::traversal::{enter, dda_init, dda_axis, dda_advance, max_steps}
+
+fn kt_of(m: u32) -> f32 {
+    if m == 0u {
+        return 1.0;
+    }
+    return materials[m].kt;
+}
+
+// Transmittance of the segment from q along d (unit) of length len > 0: every voxel
+// whose entry distance is below len counts, the start voxel included.
+fn transmittance(q: vec3<f32>, d: vec3<f32>, len: f32) -> f32 {
+    let e = enter(q, d);
+    if !e.valid || !(e.t < len) {
+        return 1.0;
+    }
+    var v = kt_of(voxel_material(e.voxel));
+    if v <= 0.0 {
+        return 0.0;
+    }
+    var s = dda_init(q, d, e.voxel);
+    let n = max_steps();
+    for (var i = 0u; i < n; i++) {
+        let a = dda_axis(s.t_max);
+        if !(s.t_max[a] < len) {
+            break;
+        }
+        dda_advance(&s, a);
+        if !voxel_inside(s.voxel) {
+            break;
+        }
+        v = min(v, kt_of(voxel_material(s.voxel)));
+        if v <= 0.0 {
+            return 0.0;
+        }
+    }
+    return v;
+}

@@ -1,0 +1,134 @@
+// The Whitted tracer's entry point: one invocation per pixel walks the ray tree depth
+// first with an explicit stack (WGSL has no recursion). As the composition is linear,
+// adding throughput * local at every hit gives the seed's ray-tree image exactly.
+// Contract: "Primary rays", "Shading a hit", "Stack".
+//
+// Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, COUNT_RAYS, RAY_STACK_SIZE.
+
+#import voxlab::types::{BIG, Material}
+#import voxlab::bindings::{params, materials, output}
+#import voxlab::traversal::cast_ray
+#import voxlab::counters::{count_primary, count_secondary, flush_counts}
+#ifdef SHADOWS
+#import voxlab::shading::local_light
+#endif
+
+struct RayEntry {
+    origin: vec3<f32>,
+    // Reflection depth a and refraction depth b of the contract.
+    depth_reflection: u32,
+    dir: vec3<f32>,
+    depth_refraction: u32,
+    throughput: vec3<f32>,
+    medium: u32,
+}
+
+var<private> stack: array<RayEntry, #{RAY_STACK_SIZE}>;
+var<private> sp: u32;
+
+fn push(r: RayEntry) {
+    // The plan sizes the stack to the depth limits, so this never drops a ray; the test
+    // only keeps a wrong size from writing out of bounds.
+    if sp < #{RAY_STACK_SIZE}u {
+        stack[sp] = r;
+        sp += 1u;
+        count_secondary();
+    }
+}
+
+// Pushes the refraction ray, then the reflection ray (contract order), for a hit of
+// ray r at p with normal n on voxel material h, shaded by s.
+fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, h: u32, s: Material) {
+    let d = r.dir;
+    var w_r = s.kr;
+    if s.kt > 0.0 {
+        let eta = materials[r.medium].ior / materials[h].ior;
+        let c = -dot(n, d);
+        let k = 1.0 - eta * eta * (1.0 - c * c);
+        if k < 0.0 {
+            // Total internal reflection: the refracted share goes to the reflection.
+            w_r += s.kt;
+        } else {
+#ifdef REFRACTION
+            if r.depth_refraction < params.max_refraction_depth {
+                var t: RayEntry;
+                t.origin = p - params.eps * n;
+                t.dir = normalize(eta * d + (eta * c - sqrt(k)) * n);
+                t.throughput = r.throughput * s.kt;
+                t.depth_reflection = r.depth_reflection;
+                t.depth_refraction = r.depth_refraction + 1u;
+                t.medium = h;
+                push(t);
+            }
+#endif
+        }
+    }
+#ifdef REFLECTION
+    if w_r > 0.0 && r.depth_reflection < params.max_reflection_depth {
+        var f: RayEntry;
+        f.origin = p + params.eps * n;
+        f.dir = d - 2.0 * dot(d, n) * n;
+        f.throughput = r.throughput * w_r;
+        f.depth_reflection = r.depth_reflection + 1u;
+        f.depth_refraction = r.depth_refraction;
+        f.medium = r.medium;
+        push(f);
+    }
+#endif
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= params.width || gid.y >= params.height {
+        return;
+    }
+    // Pixel centre, rows from the top (CameraFrame::primary_dir).
+    let sx = 2.0 * (f32(gid.x) + 0.5) / f32(params.width) - 1.0;
+    let sy = 1.0 - 2.0 * (f32(gid.y) + 0.5) / f32(params.height);
+    let dir = normalize(params.forward + sx * params.right_scaled + sy * params.up_scaled);
+
+    var primary: RayEntry;
+    primary.origin = params.eye;
+    primary.dir = dir;
+    primary.throughput = vec3<f32>(1.0);
+    primary.depth_reflection = 0u;
+    primary.depth_refraction = 0u;
+    primary.medium = params.eye_medium;
+    count_primary();
+
+    var radiance = params.ambient;
+    sp = 0u;
+    stack[0] = primary;
+    sp = 1u;
+    while sp > 0u {
+        sp -= 1u;
+        let r = stack[sp];
+        let hit = cast_ray(r.origin, r.dir, r.medium, BIG);
+        if !hit.hit {
+            continue;
+        }
+        let p = r.origin + hit.t * r.dir;
+        let n = hit.normal;
+        // Passing into void, the ray is shaded by the medium it leaves, so the inside
+        // face of glass shades as glass.
+        var si = hit.material;
+        if si == 0u {
+            si = r.medium;
+        }
+        let s = materials[si];
+#ifdef SHADOWS
+        radiance += r.throughput * local_light(p, n, r.dir, s);
+#endif
+        // No `#if A || B` in naga_oil: spawn whenever either kind of secondary ray is in.
+#ifdef REFLECTION
+        spawn(r, p, n, hit.material, s);
+#else
+#ifdef REFRACTION
+        spawn(r, p, n, hit.material, s);
+#endif
+#endif
+    }
+
+    output[gid.y * params.width + gid.x] = vec4<f32>(radiance, 1.0);
+    flush_counts();
+}

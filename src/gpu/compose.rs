@@ -1,0 +1,131 @@
+//! Shader composition: the WGSL files under `shaders/` (one per concern) are joined by
+//! naga_oil's `Composer` into one `naga::Module` per plan variant, validated by naga, and
+//! handed to wgpu as IR (`ShaderSource::Naga`), so no WGSL text is re-parsed by wgpu.
+
+use std::collections::HashMap;
+
+use naga::valid::{Capabilities, ValidationFlags, Validator};
+use naga_oil::compose::{ComposableModuleDescriptor, Composer, NagaModuleDescriptor};
+
+use crate::plan::Plan;
+
+/// Importable modules in dependency order (each imports only modules above it).
+/// Embedded at build time so the tracer does not depend on the working directory.
+const MODULES: &[(&str, &str)] = &[
+    (
+        "shaders/types.wgsl",
+        include_str!("../../shaders/types.wgsl"),
+    ),
+    (
+        "shaders/bindings.wgsl",
+        include_str!("../../shaders/bindings.wgsl"),
+    ),
+    (
+        "shaders/counters.wgsl",
+        include_str!("../../shaders/counters.wgsl"),
+    ),
+    (
+        "shaders/traversal.wgsl",
+        include_str!("../../shaders/traversal.wgsl"),
+    ),
+    (
+        "shaders/shadow.wgsl",
+        include_str!("../../shaders/shadow.wgsl"),
+    ),
+    (
+        "shaders/shading.wgsl",
+        include_str!("../../shaders/shading.wgsl"),
+    ),
+];
+
+/// The entry point's file; its entry point is `main`.
+const TRACE: (&str, &str) = (
+    "shaders/trace.wgsl",
+    include_str!("../../shaders/trace.wgsl"),
+);
+
+pub const ENTRY_POINT: &str = "main";
+
+#[derive(Debug, thiserror::Error)]
+pub enum ShaderError {
+    #[error("composing the tracer shader ({defs}):\n{message}")]
+    Compose { defs: String, message: String },
+    #[error("validating the composed tracer shader ({defs}):\n{message}")]
+    Validate { defs: String, message: String },
+}
+
+fn defs_string(plan: &Plan) -> String {
+    plan.shader_defs()
+        .iter()
+        .map(|(k, v)| format!("{k}={v:?}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Composes and validates the tracer kernel for `plan`. Pure CPU: no device needed.
+pub fn compose_shader(plan: &Plan) -> Result<naga::Module, ShaderError> {
+    let defs: HashMap<_, _> = plan.shader_defs().into_iter().collect();
+    let fail = |message: String| ShaderError::Compose {
+        defs: defs_string(plan),
+        message,
+    };
+    let mut composer = Composer::default();
+    for (path, source) in MODULES {
+        if let Err(e) = composer.add_composable_module(ComposableModuleDescriptor {
+            source,
+            file_path: path,
+            shader_defs: defs.clone(),
+            ..Default::default()
+        }) {
+            return Err(fail(e.emit_to_string(&composer)));
+        }
+    }
+    let module = composer
+        .make_naga_module(NagaModuleDescriptor {
+            source: TRACE.1,
+            file_path: TRACE.0,
+            shader_defs: defs,
+            ..Default::default()
+        })
+        .map_err(|e| fail(e.emit_to_string(&composer)))?;
+    validate(&module).map_err(|message| ShaderError::Validate {
+        defs: defs_string(plan),
+        message,
+    })?;
+    Ok(module)
+}
+
+/// Validation with the capabilities of plain WebGPU: the kernel needs nothing more.
+pub fn validate(module: &naga::Module) -> Result<naga::valid::ModuleInfo, String> {
+    Validator::new(ValidationFlags::all(), Capabilities::empty())
+        .validate(module)
+        .map_err(|e| format!("{e:?}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_plan_variant_composes_and_validates() {
+        for stack in [1, 9] {
+            for plan in Plan::all_variants(stack) {
+                let module = compose_shader(&plan).unwrap_or_else(|e| panic!("{e}"));
+                assert!(
+                    module.entry_points.iter().any(|e| e.name == ENTRY_POINT),
+                    "no entry point for {plan}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn left_out_code_is_absent() {
+        // Without REFLECTION, REFRACTION and SHADOWS the module has no transmittance walk.
+        let bare = &Plan::all_variants(1)[0];
+        let full = Plan::all_variants(9).pop().unwrap();
+        let n_bare = compose_shader(bare).unwrap().functions.len();
+        let n_full = compose_shader(&full).unwrap().functions.len();
+        assert!(n_bare < n_full, "bare {n_bare} functions, full {n_full}");
+    }
+}

@@ -1,0 +1,695 @@
+//! The GPU tracer: a wgpu compute kernel (WGSL under `shaders/`, composed per [`Plan`])
+//! that implements `src/trace_contract.md` in f32, in grid-local coordinates.
+
+mod compose;
+
+pub use compose::{ENTRY_POINT, ShaderError, compose_shader, validate};
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+use std::time::Instant;
+
+use anyhow::{Context, Result, anyhow, bail};
+use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
+
+use crate::plan::{Plan, ShaderDefs};
+use crate::render::{
+    Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings,
+};
+use crate::scene::{Light, Scene};
+
+/// Side of the square workgroup (`@workgroup_size(8, 8, 1)` in `shaders/trace.wgsl`).
+const WORKGROUP: u32 = 8;
+
+/// `Params` of `shaders/types.wgsl`, in WGSL uniform layout (vec3 aligned to 16 bytes,
+/// a scalar filling its fourth lane).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct GpuParams {
+    eye: [f32; 3],
+    width: u32,
+    forward: [f32; 3],
+    height: u32,
+    right_scaled: [f32; 3],
+    num_lights: u32,
+    up_scaled: [f32; 3],
+    max_reflection_depth: u32,
+    dims: [u32; 3],
+    max_refraction_depth: u32,
+    ambient: [f32; 3],
+    eye_medium: u32,
+    eps: f32,
+    voxel_size: f32,
+    falloff_min_dist_sq: f32,
+    falloff: u32,
+}
+
+/// `Material` of `shaders/types.wgsl` (48-byte array stride).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct GpuMaterial {
+    albedo: [f32; 3],
+    kd: f32,
+    ks: f32,
+    shininess: f32,
+    kr: f32,
+    kt: f32,
+    ior: f32,
+    _pad: [f32; 3],
+}
+
+/// `PointLight` of `shaders/types.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct GpuLight {
+    position: [f32; 3],
+    _pad0: f32,
+    radiance: [f32; 3],
+    _pad1: f32,
+}
+
+const COUNTER_BYTES: u64 = 8 * 4;
+
+// The WGSL uniform struct is 112 bytes (7 rows of 16).
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 112);
+const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 48);
+
+fn f3(v: DVec3) -> [f32; 3] {
+    [v.x as f32, v.y as f32, v.z as f32]
+}
+
+/// The grid as it sits on the device, with the host copy it was made from so a render
+/// can tell whether it changed.
+struct GridUpload {
+    dims: glam::UVec3,
+    data: Vec<u8>,
+    view: wgpu::TextureView,
+}
+
+/// Buffers sized by the image or the scene, reused while they are large enough.
+struct Buffers {
+    pixels: u64,
+    output: wgpu::Buffer,
+    readback: wgpu::Buffer,
+}
+
+pub struct GpuTracer {
+    adapter: wgpu::Adapter,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    layout: wgpu::BindGroupLayout,
+    pipeline_layout: wgpu::PipelineLayout,
+    pipelines: HashMap<ShaderDefs, wgpu::ComputePipeline>,
+    params: wgpu::Buffer,
+    counters: wgpu::Buffer,
+    counters_readback: wgpu::Buffer,
+    materials: Option<(u64, wgpu::Buffer)>,
+    lights: Option<(u64, wgpu::Buffer)>,
+    grid: Option<GridUpload>,
+    buffers: Option<Buffers>,
+    /// The plan of the latest render, for printing and reports.
+    last_plan: Option<Plan>,
+}
+
+/// Hardware before software, and the primary backends before GL.
+fn adapter_rank(info: &wgpu::AdapterInfo) -> (u32, u32) {
+    let backend = match info.backend {
+        wgpu::Backend::Vulkan => 0,
+        wgpu::Backend::Metal | wgpu::Backend::Dx12 => 1,
+        _ => 2,
+    };
+    let kind = match info.device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Cpu => 3,
+        wgpu::DeviceType::Other => 4,
+    };
+    (backend, kind)
+}
+
+fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl GpuTracer {
+    /// Finds an adapter (any backend, Vulkan preferred; software adapters such as
+    /// lavapipe allowed) that runs compute shaders. An error if there is none.
+    pub fn new() -> Result<Self> {
+        // WGPU_BACKEND (e.g. "vulkan", "gl") narrows the search; otherwise the primary
+        // backends first, and GL only when they have nothing (probing GL needs a display
+        // connection and complains loudly on headless machines).
+        let searches = match wgpu::Backends::from_env() {
+            Some(b) => vec![b],
+            None => vec![wgpu::Backends::PRIMARY, wgpu::Backends::SECONDARY],
+        };
+        let mut adapters = Vec::new();
+        for backends in searches {
+            let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+                backends,
+                ..wgpu::InstanceDescriptor::new_without_display_handle()
+            });
+            adapters = pollster::block_on(instance.enumerate_adapters(backends))
+                .into_iter()
+                .filter(|a| {
+                    a.get_downlevel_capabilities()
+                        .flags
+                        .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
+                })
+                .collect();
+            if !adapters.is_empty() {
+                break;
+            }
+        }
+        adapters.sort_by_key(|a| adapter_rank(&a.get_info()));
+        let adapter = adapters.into_iter().next().ok_or_else(|| {
+            anyhow!(
+                "no GPU adapter with compute shaders found (wgpu, all backends{}). On Linux \
+                 install a Vulkan driver; Mesa's software lavapipe is the Debian package \
+                 `mesa-vulkan-drivers`",
+                if std::env::var_os("WGPU_BACKEND").is_some() {
+                    ", narrowed by WGPU_BACKEND"
+                } else {
+                    ""
+                }
+            )
+        })?;
+        // The adapter's own limits, so the largest grid and image the device allows can
+        // be used (the defaults would cap 3D textures at 2048).
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("voxlab"),
+            required_limits: limits,
+            ..Default::default()
+        }))
+        .with_context(|| format!("opening a device on {}", adapter.get_info().name))?;
+
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("voxlab tracer"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Uint,
+                        view_dimension: wgpu::TextureViewDimension::D3,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                storage_entry(2, true),
+                storage_entry(3, true),
+                storage_entry(4, false),
+                storage_entry(5, false),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("voxlab tracer"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("params"),
+            size: std::mem::size_of::<GpuParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let counters = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ray counters"),
+            size: COUNTER_BYTES,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let counters_readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ray counters readback"),
+            size: COUNTER_BYTES,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Ok(Self {
+            adapter,
+            device,
+            queue,
+            layout,
+            pipeline_layout,
+            pipelines: HashMap::new(),
+            params,
+            counters,
+            counters_readback,
+            materials: None,
+            lights: None,
+            grid: None,
+            buffers: None,
+            last_plan: None,
+        })
+    }
+
+    pub fn adapter_info(&self) -> wgpu::AdapterInfo {
+        self.adapter.get_info()
+    }
+
+    /// One line naming the adapter, its type, backend and driver.
+    pub fn adapter_summary(&self) -> String {
+        let i = self.adapter.get_info();
+        format!(
+            "{} ({:?}, {:?}, driver {} {})",
+            i.name, i.device_type, i.backend, i.driver, i.driver_info
+        )
+    }
+
+    /// Largest 3D texture side this device allows: the largest grid side.
+    pub fn max_grid_side(&self) -> u32 {
+        self.device.limits().max_texture_dimension_3d
+    }
+
+    /// The plan of the latest render.
+    pub fn last_plan(&self) -> Option<&Plan> {
+        self.last_plan.as_ref()
+    }
+
+    /// Renders without ray counting; `stats` are zero.
+    pub fn render(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<RenderOutput> {
+        self.render_with(scene, settings, false)
+    }
+
+    /// Renders with ray counting compiled in (`COUNT_RAYS`), so `stats` are filled.
+    pub fn render_counted(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+    ) -> Result<RenderOutput> {
+        self.render_with(scene, settings, true)
+    }
+
+    fn check(&self, scene: &Scene, settings: &RenderSettings) -> Result<()> {
+        scene.validate()?;
+        let (w, h) = (settings.width, settings.height);
+        if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
+            bail!("image size {w}x{h}: each side must be in 1..={MAX_IMAGE_SIDE}");
+        }
+        for (name, d) in [
+            ("max_reflection_depth", settings.max_reflection_depth),
+            ("max_refraction_depth", settings.max_refraction_depth),
+        ] {
+            if d > MAX_DEPTH_LIMIT {
+                bail!("{name} {d}: at most {MAX_DEPTH_LIMIT}");
+            }
+        }
+        let limits = self.device.limits();
+        let dims = scene.grid.dims();
+        let side = self.max_grid_side();
+        if dims.max_element() > side {
+            bail!(
+                "grid {}x{}x{} does not fit this device: max_texture_dimension_3d is {side} \
+                 on {}",
+                dims.x,
+                dims.y,
+                dims.z,
+                self.adapter.get_info().name
+            );
+        }
+        let groups = w.div_ceil(WORKGROUP).max(h.div_ceil(WORKGROUP));
+        if groups > limits.max_compute_workgroups_per_dimension {
+            bail!(
+                "image {w}x{h} needs {groups} workgroups per dimension; the device allows {} \
+                 (max_compute_workgroups_per_dimension)",
+                limits.max_compute_workgroups_per_dimension
+            );
+        }
+        let out_bytes = w as u64 * h as u64 * 16;
+        let max_out = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        if out_bytes > max_out {
+            bail!(
+                "image {w}x{h} needs a {out_bytes}-byte radiance buffer; the device allows \
+                 {max_out} (max_storage_buffer_binding_size / max_buffer_size)"
+            );
+        }
+        Ok(())
+    }
+
+    fn pipeline(&mut self, plan: &Plan) -> Result<&wgpu::ComputePipeline> {
+        let key = plan.shader_defs();
+        if !self.pipelines.contains_key(&key) {
+            let module = compose_shader(plan)?;
+            let shader = self
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("voxlab trace"),
+                    source: wgpu::ShaderSource::Naga(Cow::Owned(module)),
+                });
+            let pipeline = self
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("voxlab trace"),
+                    layout: Some(&self.pipeline_layout),
+                    module: &shader,
+                    entry_point: Some(ENTRY_POINT),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+            self.pipelines.insert(key.clone(), pipeline);
+        }
+        Ok(&self.pipelines[&key])
+    }
+
+    /// Uploads the grid unless the device already holds exactly this one.
+    fn upload_grid(&mut self, scene: &Scene) {
+        let dims = scene.grid.dims();
+        let data = scene.grid.data();
+        if let Some(g) = &self.grid
+            && g.dims == dims
+            && g.data == data
+        {
+            return;
+        }
+        let size = wgpu::Extent3d {
+            width: dims.x,
+            height: dims.y,
+            depth_or_array_layers: dims.z,
+        };
+        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("voxel grid"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D3,
+            format: wgpu::TextureFormat::R8Uint,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        // write_texture takes tightly packed rows (no 256-byte row alignment, which only
+        // buffer-to-texture copies need): x-fastest, as the grid stores them.
+        self.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            data,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(dims.x),
+                rows_per_image: Some(dims.y),
+            },
+            size,
+        );
+        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        self.grid = Some(GridUpload {
+            dims,
+            data: data.to_vec(),
+            view,
+        });
+    }
+
+    /// A storage buffer of at least `bytes`, kept while large enough.
+    fn storage(
+        device: &wgpu::Device,
+        slot: &mut Option<(u64, wgpu::Buffer)>,
+        bytes: u64,
+        label: &str,
+    ) -> wgpu::Buffer {
+        if let Some((cap, b)) = slot
+            && *cap >= bytes
+        {
+            return b.clone();
+        }
+        let b = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        *slot = Some((bytes, b.clone()));
+        b
+    }
+
+    fn output_buffers(&mut self, pixels: u64) -> (wgpu::Buffer, wgpu::Buffer) {
+        if let Some(b) = &self.buffers
+            && b.pixels == pixels
+        {
+            return (b.output.clone(), b.readback.clone());
+        }
+        let output = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("radiance"),
+            size: pixels * 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("radiance readback"),
+            size: pixels * 16,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        self.buffers = Some(Buffers {
+            pixels,
+            output: output.clone(),
+            readback: readback.clone(),
+        });
+        (output, readback)
+    }
+
+    fn params(scene: &Scene, settings: &RenderSettings) -> GpuParams {
+        let grid = &scene.grid;
+        let vs = grid.voxel_size();
+        let cam = scene.camera.frame();
+        let aspect = settings.width as f64 / settings.height as f64;
+        // Directions keep their length in local coordinates (a uniform scale), so only
+        // the eye is transformed; everything in f64 before the one rounding to f32.
+        GpuParams {
+            eye: f3(grid.to_local(cam.eye)),
+            width: settings.width,
+            forward: f3(cam.forward),
+            height: settings.height,
+            right_scaled: f3(cam.right * (cam.tan_half_vfov * aspect)),
+            num_lights: scene.lights.len() as u32,
+            up_scaled: f3(cam.up * cam.tan_half_vfov),
+            max_reflection_depth: settings.max_reflection_depth,
+            dims: grid.dims().to_array(),
+            max_refraction_depth: settings.max_refraction_depth,
+            ambient: f3(scene.ambient),
+            eye_medium: scene.medium_at(cam.eye) as u32,
+            // eps = ray_offset * voxel_size in world units is ray_offset voxels.
+            eps: settings.ray_offset as f32,
+            voxel_size: vs as f32,
+            falloff_min_dist_sq: (settings.falloff_min_distance * settings.falloff_min_distance)
+                as f32,
+            falloff: settings.falloff as u32,
+        }
+    }
+
+    fn render_with(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        count: bool,
+    ) -> Result<RenderOutput> {
+        self.check(scene, settings)?;
+        let plan = Plan::new(scene, settings).with_counting(count);
+        self.pipeline(&plan)?;
+        self.upload_grid(scene);
+
+        let params = Self::params(scene, settings);
+        self.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+
+        let materials: Vec<GpuMaterial> = scene
+            .materials
+            .iter()
+            .map(|m| GpuMaterial {
+                albedo: f3(m.albedo),
+                kd: m.kd as f32,
+                ks: m.ks as f32,
+                shininess: m.shininess as f32,
+                kr: m.kr as f32,
+                kt: m.kt as f32,
+                ior: m.ior as f32,
+                _pad: [0.0; 3],
+            })
+            .collect();
+        let grid = &scene.grid;
+        let mut lights: Vec<GpuLight> = scene
+            .lights
+            .iter()
+            .map(|l| match l {
+                Light::Point(p) => GpuLight {
+                    position: f3(grid.to_local(p.position)),
+                    _pad0: 0.0,
+                    radiance: f3(p.color * p.intensity),
+                    _pad1: 0.0,
+                },
+            })
+            .collect();
+        // A binding cannot be empty: a scene without lights binds one unused entry.
+        if lights.is_empty() {
+            lights.push(GpuLight::zeroed());
+        }
+        let mat_bytes: &[u8] = bytemuck::cast_slice(&materials);
+        let light_bytes: &[u8] = bytemuck::cast_slice(&lights);
+        let mat_buf = Self::storage(
+            &self.device,
+            &mut self.materials,
+            mat_bytes.len() as u64,
+            "materials",
+        );
+        let light_buf = Self::storage(
+            &self.device,
+            &mut self.lights,
+            light_bytes.len() as u64,
+            "lights",
+        );
+        self.queue.write_buffer(&mat_buf, 0, mat_bytes);
+        self.queue.write_buffer(&light_buf, 0, light_bytes);
+        self.queue
+            .write_buffer(&self.counters, 0, &[0u8; COUNTER_BYTES as usize]);
+
+        let pixels = settings.width as u64 * settings.height as u64;
+        let (output, readback) = self.output_buffers(pixels);
+        let grid_view = &self.grid.as_ref().expect("grid uploaded").view;
+        let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("voxlab tracer"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(grid_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: mat_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: light_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: output.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: self.counters.as_entire_binding(),
+                },
+            ],
+        });
+
+        // Finish the uploads first so the timed submission holds the trace alone.
+        self.queue.submit([]);
+        self.wait()?;
+
+        let pipeline = &self.pipelines[&plan.shader_defs()];
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("voxlab trace"),
+            });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("voxlab trace"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups(
+                settings.width.div_ceil(WORKGROUP),
+                settings.height.div_ceil(WORKGROUP),
+                1,
+            );
+        }
+        let start = Instant::now();
+        self.queue.submit([encoder.finish()]);
+        self.wait()?;
+        let trace_time = start.elapsed();
+
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("voxlab readback"),
+            });
+        encoder.copy_buffer_to_buffer(&output, 0, &readback, 0, pixels * 16);
+        encoder.copy_buffer_to_buffer(&self.counters, 0, &self.counters_readback, 0, COUNTER_BYTES);
+        self.queue.submit([encoder.finish()]);
+
+        let radiance: Vec<[f32; 4]> = self.read(&readback, pixels * 16)?;
+        let counts: Vec<u32> = self.read(&self.counters_readback, COUNTER_BYTES)?;
+        let c = |i: usize| counts[2 * i] as u64 | (counts[2 * i + 1] as u64) << 32;
+        let stats = if count {
+            RayStats {
+                primary: c(0),
+                secondary: c(1),
+                shadow: c(2),
+                voxel_steps: c(3),
+            }
+        } else {
+            RayStats::default()
+        };
+
+        let mut frame = Frame::new(settings.width, settings.height);
+        for (dst, src) in frame.pixels.iter_mut().zip(&radiance) {
+            *dst = [src[0], src[1], src[2]];
+        }
+        self.last_plan = Some(plan);
+        Ok(RenderOutput {
+            frame,
+            stats,
+            trace_time,
+        })
+    }
+
+    fn wait(&self) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| anyhow!("waiting for the GPU: {e}"))?;
+        Ok(())
+    }
+
+    /// Maps `buffer` (already copied into), reads `bytes` as `T`s, unmaps.
+    fn read<T: Pod>(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<T>> {
+        let slice = buffer.slice(..bytes);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.wait()?;
+        rx.recv()
+            .context("buffer mapping was dropped")?
+            .map_err(|e| anyhow!("mapping a readback buffer: {e}"))?;
+        let out = {
+            let view = slice
+                .get_mapped_range()
+                .map_err(|e| anyhow!("reading a mapped buffer: {e:?}"))?;
+            bytemuck::cast_slice(&view).to_vec()
+        };
+        buffer.unmap();
+        Ok(out)
+    }
+}

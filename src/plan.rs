@@ -1,0 +1,317 @@
+//! What a scene and its settings need from the tracer (DESIGN section 4).
+//!
+//! A [`Plan`] decides which code the GPU kernel is composed with: code a scene cannot
+//! reach is left out of the shader (not branched around), and the ray stack is sized to
+//! the depth limits. Leaving code out must never change the image, so every rule below
+//! errs on the side of keeping code: a flag is dropped only when the dropped code provably
+//! contributes nothing for this scene and these settings.
+//!
+//! To add a feature (area lights, Beer-Lambert, cone tracing): add a field, decide it in
+//! [`Plan::new`] with a reason when it is left out, name its shader def in
+//! [`Plan::shader_defs`], and list it in [`Plan::FLAGS`] so the composition test covers it.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use naga_oil::compose::ShaderDefValue;
+
+use crate::render::RenderSettings;
+use crate::scene::{Material, Scene, VOID};
+
+/// Shader defs of one kernel variant, ordered so they can key a pipeline cache.
+pub type ShaderDefs = BTreeMap<String, ShaderDefValue>;
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Plan {
+    /// Reflection rays (`REFLECTION`): some lit-or-not material reflects (kr > 0), or
+    /// transmits where total internal reflection is possible (TIR adds kt to the
+    /// reflection weight), and the reflection depth limit is above 0.
+    pub reflection: bool,
+    /// Refraction rays (`REFRACTION`): some material transmits and the refraction depth
+    /// limit is above 0.
+    pub refraction: bool,
+    /// Local lighting with shadow rays (`SHADOWS`): some material is lit and there is a
+    /// light. Without it the local term is zero for every hit, so it is left out whole.
+    pub shadows: bool,
+    /// Ray counters (`COUNT_RAYS`): chosen by the caller, not by the scene.
+    pub count_rays: bool,
+    /// Entries of the explicit ray stack (`RAY_STACK_SIZE`).
+    pub ray_stack_size: u32,
+    /// What was left out and why, in plain words.
+    pub reasons: Vec<String>,
+}
+
+/// Materials a ray can shade with: every non-void index the grid holds. Void never
+/// shades (a ray passing into void is shaded by the medium it leaves).
+fn shading_materials(scene: &Scene) -> Vec<(usize, &Material)> {
+    let used = scene.grid.materials_used();
+    scene
+        .materials
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| i != VOID as usize && used[i])
+        .collect()
+}
+
+/// Whether some hit could undergo total internal reflection: a transition from medium m
+/// to hit material h with ior(m) > ior(h) (so eta > 1) whose shading material transmits.
+/// Media are any used material or void; equal iors give eta = 1 and k = c^2 >= 0, never
+/// TIR, in f32 as in f64.
+fn tir_possible(scene: &Scene) -> bool {
+    let used = scene.grid.materials_used();
+    let ior = |i: usize| scene.materials.get(i).map_or(1.0, |m| m.ior);
+    let kt = |i: usize| scene.materials.get(i).map_or(0.0, |m| m.kt);
+    let media: Vec<usize> = (0..scene.materials.len())
+        .filter(|&i| i == VOID as usize || used[i])
+        .collect();
+    media.iter().any(|&m| {
+        media.iter().any(|&h| {
+            let s = if h == VOID as usize { m } else { h };
+            m != h && s != VOID as usize && kt(s) > 0.0 && ior(m) > ior(h)
+        })
+    })
+}
+
+impl Plan {
+    /// Shader flags in the order they are printed and enumerated by tests.
+    pub const FLAGS: [&'static str; 4] = ["REFLECTION", "REFRACTION", "SHADOWS", "COUNT_RAYS"];
+
+    /// The plan for rendering `scene` with `settings`, without ray counting.
+    pub fn new(scene: &Scene, settings: &RenderSettings) -> Self {
+        let mats = shading_materials(scene);
+        let mut reasons = Vec::new();
+
+        let reflects = mats.iter().any(|(_, m)| m.kr > 0.0);
+        let tir = tir_possible(scene);
+        let reflection = if settings.max_reflection_depth == 0 {
+            reasons.push("reflection: max_reflection_depth is 0".to_string());
+            false
+        } else if !reflects && !tir {
+            reasons.push(
+                "reflection: no material in the grid has kr > 0, and no transmitting \
+                 material can meet total internal reflection"
+                    .to_string(),
+            );
+            false
+        } else {
+            true
+        };
+
+        let transmits = mats.iter().any(|(_, m)| m.kt > 0.0);
+        let refraction = if settings.max_refraction_depth == 0 {
+            reasons.push("refraction: max_refraction_depth is 0".to_string());
+            false
+        } else if !transmits {
+            reasons.push("refraction: no material in the grid has kt > 0".to_string());
+            false
+        } else {
+            true
+        };
+
+        let lit = mats.iter().any(|(_, m)| m.is_lit());
+        let shadows = if scene.lights.is_empty() {
+            reasons.push("shadows and local lighting: the scene has no lights".to_string());
+            false
+        } else if !lit {
+            reasons.push(
+                "shadows and local lighting: no material in the grid has kd > 0 or ks > 0"
+                    .to_string(),
+            );
+            false
+        } else {
+            true
+        };
+
+        // Depth-first: a pop that pushes two children grows the stack by one per level,
+        // so both kinds need a + b + 1 slots; one kind alone pushes at most one child per
+        // pop and never holds more than one entry.
+        let ray_stack_size = if reflection && refraction {
+            settings.ray_stack_size()
+        } else {
+            if settings.ray_stack_size() > 1 {
+                reasons.push(format!(
+                    "ray stack: 1 entry instead of {} ({})",
+                    settings.ray_stack_size(),
+                    if reflection || refraction {
+                        "only one kind of secondary ray"
+                    } else {
+                        "no secondary rays"
+                    }
+                ));
+            }
+            1
+        };
+
+        Self {
+            reflection,
+            refraction,
+            shadows,
+            count_rays: false,
+            ray_stack_size,
+            reasons,
+        }
+    }
+
+    /// The same plan with ray counting compiled in or out.
+    pub fn with_counting(mut self, count_rays: bool) -> Self {
+        self.count_rays = count_rays;
+        self
+    }
+
+    /// The value of a flag of [`Plan::FLAGS`] by name.
+    pub fn flag(&self, name: &str) -> bool {
+        match name {
+            "REFLECTION" => self.reflection,
+            "REFRACTION" => self.refraction,
+            "SHADOWS" => self.shadows,
+            "COUNT_RAYS" => self.count_rays,
+            _ => false,
+        }
+    }
+
+    /// Sets a flag of [`Plan::FLAGS`] by name (for tests that enumerate variants).
+    pub fn set_flag(&mut self, name: &str, on: bool) {
+        match name {
+            "REFLECTION" => self.reflection = on,
+            "REFRACTION" => self.refraction = on,
+            "SHADOWS" => self.shadows = on,
+            "COUNT_RAYS" => self.count_rays = on,
+            _ => panic!("unknown plan flag {name}"),
+        }
+    }
+
+    /// Every combination of flags with the given stack size (2^FLAGS variants).
+    pub fn all_variants(ray_stack_size: u32) -> Vec<Plan> {
+        (0..1u32 << Self::FLAGS.len())
+            .map(|bits| {
+                let mut p = Plan {
+                    reflection: false,
+                    refraction: false,
+                    shadows: false,
+                    count_rays: false,
+                    ray_stack_size,
+                    reasons: Vec::new(),
+                };
+                for (i, f) in Self::FLAGS.iter().enumerate() {
+                    p.set_flag(f, bits & (1 << i) != 0);
+                }
+                p
+            })
+            .collect()
+    }
+
+    /// The naga_oil shader defs of this variant: one boolean def per flag that is on,
+    /// and the stack size as an integer def. Also the key of the pipeline cache.
+    pub fn shader_defs(&self) -> ShaderDefs {
+        let mut defs = ShaderDefs::new();
+        for f in Self::FLAGS {
+            if self.flag(f) {
+                defs.insert(f.to_string(), ShaderDefValue::Bool(true));
+            }
+        }
+        defs.insert(
+            "RAY_STACK_SIZE".to_string(),
+            ShaderDefValue::UInt(self.ray_stack_size.max(1)),
+        );
+        defs
+    }
+}
+
+impl fmt::Display for Plan {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let on: Vec<&str> = Self::FLAGS
+            .iter()
+            .copied()
+            .filter(|n| self.flag(n))
+            .collect();
+        write!(
+            f,
+            "plan: [{}] ray stack {}",
+            if on.is_empty() {
+                "primary only".to_string()
+            } else {
+                on.join(", ")
+            },
+            self.ray_stack_size
+        )?;
+        for r in &self.reasons {
+            write!(f, "\n  left out: {r}")?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Light, seed_ids, seed_scene};
+
+    #[test]
+    fn seed_scene_needs_everything() {
+        let s = seed_scene(16).unwrap();
+        let p = Plan::new(&s, &RenderSettings::default());
+        assert!(p.reflection && p.refraction && p.shadows && !p.count_rays);
+        assert_eq!(p.ray_stack_size, 9);
+        assert!(p.reasons.is_empty(), "{p}");
+    }
+
+    #[test]
+    fn depth_zero_and_no_lights_leave_everything_out() {
+        let mut s = seed_scene(16).unwrap();
+        s.lights.clear();
+        let settings = RenderSettings {
+            max_reflection_depth: 0,
+            max_refraction_depth: 0,
+            ..Default::default()
+        };
+        let p = Plan::new(&s, &settings);
+        assert!(!p.reflection && !p.refraction && !p.shadows);
+        assert_eq!(p.ray_stack_size, 1);
+        // Depth 0/0 needs one stack entry anyway: three reasons, no stack note.
+        assert_eq!(p.reasons.len(), 3, "{p}");
+        assert_eq!(p.shader_defs().len(), 1);
+    }
+
+    #[test]
+    fn transmission_keeps_reflection_for_tir() {
+        // No material reflects, but glass (ior 1.5) meets void (ior 1): TIR adds kt to
+        // the reflection weight, so the reflection path must stay.
+        let mut s = seed_scene(16).unwrap();
+        for m in &mut s.materials {
+            m.kr = 0.0;
+        }
+        let p = Plan::new(&s, &RenderSettings::default());
+        assert!(p.reflection, "{p}");
+
+        // With every ior equal TIR is impossible and no reflection remains.
+        for m in &mut s.materials {
+            m.ior = 1.0;
+        }
+        let p = Plan::new(&s, &RenderSettings::default());
+        assert!(!p.reflection && p.refraction, "{p}");
+        assert_eq!(p.ray_stack_size, 1);
+    }
+
+    #[test]
+    fn only_materials_in_the_grid_count() {
+        let mut s = seed_scene(16).unwrap();
+        for v in s.grid.data_mut() {
+            if *v != seed_ids::SOLID {
+                *v = VOID;
+            }
+        }
+        let p = Plan::new(&s, &RenderSettings::default());
+        // Solid reflects (kr 0.2) but has kt 0.
+        assert!(p.reflection && !p.refraction && p.shadows, "{p}");
+        s.lights.retain(|l| !matches!(l, Light::Point(_)));
+        assert!(!Plan::new(&s, &RenderSettings::default()).shadows);
+    }
+
+    #[test]
+    fn all_variants_are_distinct() {
+        let v = Plan::all_variants(3);
+        assert_eq!(v.len(), 16);
+        let keys: std::collections::HashSet<_> = v.iter().map(|p| p.shader_defs()).collect();
+        assert_eq!(keys.len(), 16);
+    }
+}
