@@ -348,7 +348,12 @@ impl<'a> Ctx<'a> {
     fn serde_error(&self, e: &toml::de::Error) -> ExperimentError {
         let span = e.span();
         let line = span.as_ref().map(|s| self.line_of(s.start));
-        let msg = e.message().trim().to_string();
+        // Serde names Rust types; a researcher writing TOML thinks in integers and numbers.
+        let msg = e
+            .message()
+            .trim()
+            .replace("expected i64", "expected an integer")
+            .replace("expected f64", "expected a number");
         let Some(doc) = self.doc.as_ref() else {
             return ExperimentError::Syntax {
                 file: self.file.clone(),
