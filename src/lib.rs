@@ -5,6 +5,7 @@
 //! oracle of the tests.
 
 pub mod cpu;
+pub mod metrics;
 pub mod experiment;
 pub mod gpu;
 pub mod output;

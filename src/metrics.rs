@@ -1,0 +1,121 @@
+//! Image error measures shared by the tests, the golden-image checks and the reports.
+
+use crate::render::Frame;
+
+/// How two images differ, per channel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImageDiff {
+    pub rmse: f64,
+    /// `10 log10(1 / mse)`: peak 1, the displayed range. Infinite for equal images.
+    pub psnr: f64,
+    pub mean_abs: f64,
+    pub max_abs: f64,
+    /// Pixels whose largest channel difference exceeds the threshold given to `compare`.
+    pub pixels_over: usize,
+    pub pixel_count: usize,
+    pub threshold: f64,
+}
+
+impl ImageDiff {
+    pub fn fraction_over(&self) -> f64 {
+        self.pixels_over as f64 / self.pixel_count.max(1) as f64
+    }
+}
+
+impl std::fmt::Display for ImageDiff {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "rmse {:.3e}, psnr {:.2} dB, mean |d| {:.3e}, max |d| {:.3e}, {} of {} pixels ({:.3} %) over {:.4}",
+            self.rmse,
+            self.psnr,
+            self.mean_abs,
+            self.max_abs,
+            self.pixels_over,
+            self.pixel_count,
+            100.0 * self.fraction_over(),
+            self.threshold
+        )
+    }
+}
+
+/// Which values are compared.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Domain {
+    /// Linear radiance as traced.
+    Linear,
+    /// The displayed value, clamped to [0, 1] as in the PNG output.
+    Display,
+}
+
+/// Compares two frames of the same size; `None` if the sizes differ.
+pub fn compare(a: &Frame, b: &Frame, domain: Domain, threshold: f64) -> Option<ImageDiff> {
+    if (a.width, a.height) != (b.width, b.height) {
+        return None;
+    }
+    let map = |c: f32| match domain {
+        Domain::Linear => c as f64,
+        Domain::Display => (c as f64).clamp(0.0, 1.0),
+    };
+    let (mut sq, mut abs, mut max) = (0.0f64, 0.0f64, 0.0f64);
+    let mut over = 0;
+    for (pa, pb) in a.pixels.iter().zip(&b.pixels) {
+        let mut pixel_max = 0.0f64;
+        for c in 0..3 {
+            let d = (map(pa[c]) - map(pb[c])).abs();
+            // NaN must count as the largest difference, never vanish in a max().
+            let d = if d.is_nan() { f64::INFINITY } else { d };
+            sq += d * d;
+            abs += d;
+            pixel_max = pixel_max.max(d);
+        }
+        max = max.max(pixel_max);
+        if pixel_max > threshold {
+            over += 1;
+        }
+    }
+    let n = (a.pixels.len() * 3).max(1) as f64;
+    let mse = sq / n;
+    Some(ImageDiff {
+        rmse: mse.sqrt(),
+        psnr: 10.0 * (1.0 / mse).log10(),
+        mean_abs: abs / n,
+        max_abs: max,
+        pixels_over: over,
+        pixel_count: a.pixels.len(),
+        threshold,
+    })
+}
+
+/// A visual difference image: |a - b| per channel of the displayed values, scaled by
+/// `gain` so small differences are visible.
+pub fn difference_image(a: &Frame, b: &Frame, gain: f32) -> Frame {
+    let mut out = Frame::new(a.width, a.height);
+    for ((o, pa), pb) in out.pixels.iter_mut().zip(&a.pixels).zip(&b.pixels) {
+        for c in 0..3 {
+            o[c] = ((pa[c].clamp(0.0, 1.0) - pb[c].clamp(0.0, 1.0)).abs() * gain).min(1.0);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn measures_a_known_difference() {
+        let a = Frame::new(2, 1);
+        let mut b = Frame::new(2, 1);
+        b.pixels[1] = [0.3, 0.0, 0.0];
+        let d = compare(&a, &b, Domain::Linear, 0.1).unwrap();
+        assert!((d.rmse - (0.09f64 / 6.0).sqrt()).abs() < 1e-7);
+        assert!((d.max_abs - 0.3).abs() < 1e-7);
+        assert_eq!((d.pixels_over, d.pixel_count), (1, 2));
+        b.pixels[0] = [f32::NAN, 0.0, 0.0];
+        let d = compare(&a, &b, Domain::Linear, 0.1).unwrap();
+        assert_eq!(d.max_abs, f64::INFINITY);
+        assert_eq!(d.pixels_over, 2);
+        assert!(compare(&a, &Frame::new(1, 2), Domain::Linear, 0.1).is_none());
+    }
+}
