@@ -1,0 +1,165 @@
+//! The baseline benchmark: the seed scene at several grid sizes, on the GPU and the CPU
+//! reference in one run, so their ratio is measured under the same machine load.
+//!
+//! Times are medians over several frames after a warm-up frame. Ray and voxel-step
+//! counts are counted by the tracers (a separate counted frame on the GPU, so counting
+//! does not slow the timed frames), not estimated.
+
+use std::time::Duration;
+
+use anyhow::Result;
+
+use crate::gpu::GpuTracer;
+use crate::render::{RayStats, RenderSettings};
+use crate::scene::{Scene, seed_scene};
+
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    pub sizes: Vec<u32>,
+    pub settings: RenderSettings,
+    /// Timed frames per backend and size (after one warm-up frame).
+    pub gpu_runs: usize,
+    pub cpu_runs: usize,
+    /// Skip the CPU reference (e.g. on a fast GPU where only GPU figures are wanted).
+    pub cpu: bool,
+}
+
+impl Default for BenchOptions {
+    /// The issue's benchmark: seed scene, 512x512, depth 4/4, grids 16, 64 and 256.
+    fn default() -> Self {
+        Self {
+            sizes: vec![16, 64, 256],
+            settings: RenderSettings::default(),
+            gpu_runs: 5,
+            cpu_runs: 3,
+            cpu: true,
+        }
+    }
+}
+
+/// One backend at one grid size.
+#[derive(Clone, Debug)]
+pub struct BenchRow {
+    pub grid: u32,
+    pub backend: &'static str,
+    pub median: Duration,
+    pub stats: RayStats,
+    /// Bytes the grid occupies on the device per voxel (R8Uint texture: 1).
+    pub bytes_per_voxel: f64,
+}
+
+impl BenchRow {
+    pub fn ms(&self) -> f64 {
+        self.median.as_secs_f64() * 1e3
+    }
+    pub fn mrays_per_s(&self) -> f64 {
+        self.stats.total_rays() as f64 / self.median.as_secs_f64() / 1e6
+    }
+    pub fn msteps_per_s(&self) -> f64 {
+        self.stats.voxel_steps as f64 / self.median.as_secs_f64() / 1e6
+    }
+}
+
+fn median(mut times: Vec<Duration>) -> Duration {
+    times.sort();
+    times[times.len() / 2]
+}
+
+fn bench_gpu(gpu: &mut GpuTracer, scene: &Scene, opts: &BenchOptions) -> Result<BenchRow> {
+    let s = &opts.settings;
+    // The counted frame doubles as warm-up: it uploads the grid and builds the counting
+    // pipeline; the first plain frame builds the timed pipeline and is discarded.
+    let counted = gpu.render_counted(scene, s)?;
+    gpu.render(scene, s)?;
+    let mut times = Vec::with_capacity(opts.gpu_runs);
+    for _ in 0..opts.gpu_runs.max(1) {
+        times.push(gpu.render(scene, s)?.trace_time);
+    }
+    Ok(BenchRow {
+        grid: scene.grid.dims().x,
+        backend: "gpu",
+        median: median(times),
+        stats: counted.stats,
+        bytes_per_voxel: 1.0,
+    })
+}
+
+fn bench_cpu(scene: &Scene, opts: &BenchOptions) -> BenchRow {
+    let s = &opts.settings;
+    let warm = crate::cpu::render(scene, s);
+    let mut times = Vec::with_capacity(opts.cpu_runs);
+    for _ in 0..opts.cpu_runs.max(1) {
+        times.push(crate::cpu::render(scene, s).trace_time);
+    }
+    BenchRow {
+        grid: scene.grid.dims().x,
+        backend: "cpu",
+        median: median(times),
+        stats: warm.stats,
+        bytes_per_voxel: 1.0,
+    }
+}
+
+/// Runs the benchmark, printing each row as soon as it is measured (`progress`), and
+/// returns all rows. A missing GPU is an error: the ratio is the point of the run.
+pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<Vec<BenchRow>> {
+    let mut gpu = GpuTracer::new()?;
+    let mut rows = Vec::new();
+    for &n in &opts.sizes {
+        let scene = seed_scene(n)?;
+        let row = bench_gpu(&mut gpu, &scene, opts)?;
+        progress(&row);
+        rows.push(row);
+        if opts.cpu {
+            let row = bench_cpu(&scene, opts);
+            progress(&row);
+            rows.push(row);
+        }
+    }
+    Ok(rows)
+}
+
+/// The table the README quotes: one line per grid size and backend, then the ratio.
+pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> String {
+    let mut out = format!(
+        "seed scene, {}x{}, depth {}/{}; GPU: {adapter}; CPU: {}\n\n\
+         | grid | backend | median ms/frame | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | grid bytes/voxel |\n\
+         |---:|---|---:|---:|---:|---:|---:|---:|\n",
+        settings.width,
+        settings.height,
+        settings.max_reflection_depth,
+        settings.max_refraction_depth,
+        crate::cpu::backend_summary(),
+    );
+    for r in rows {
+        out += &format!(
+            "| {}^3 | {} | {:.1} | {:.2} | {:.1} | {} ({} + {} + {}) | {} | {} |\n",
+            r.grid,
+            r.backend,
+            r.ms(),
+            r.mrays_per_s(),
+            r.msteps_per_s(),
+            r.stats.total_rays(),
+            r.stats.primary,
+            r.stats.secondary,
+            r.stats.shadow,
+            r.stats.voxel_steps,
+            r.bytes_per_voxel,
+        );
+    }
+    let mut ratios = String::new();
+    for g in rows.iter().filter(|r| r.backend == "gpu") {
+        if let Some(c) = rows.iter().find(|r| r.backend == "cpu" && r.grid == g.grid) {
+            ratios += &format!(
+                "{}^3: GPU is {:.2}x the CPU's speed (time ratio CPU/GPU)\n",
+                g.grid,
+                c.median.as_secs_f64() / g.median.as_secs_f64()
+            );
+        }
+    }
+    if !ratios.is_empty() {
+        out += "\n";
+        out += &ratios;
+    }
+    out
+}
