@@ -27,6 +27,9 @@ pub struct Material {
     /// Absorption per world unit (RGB) for distance-weighted transmittance; `None`
     /// takes the default that makes one voxel transmit `kt`.
     pub sigma: Option<DVec3>,
+    /// Emitted radiance (RGB), added to the local term of a hit: C += emission.
+    /// Zero for every non-emissive material (MagicaVoxel `_emit` sets it).
+    pub emission: DVec3,
 }
 
 impl Material {
@@ -53,6 +56,7 @@ impl Material {
             kt,
             ior,
             sigma: None,
+            emission: DVec3::ZERO,
         }
     }
 }

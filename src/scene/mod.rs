@@ -4,13 +4,18 @@ mod camera;
 mod grid;
 mod light;
 mod material;
+pub mod mesh;
 pub mod seed;
+pub mod vox;
+pub mod voxelize;
 
 pub use camera::{CameraFrame, OrbitCamera};
 pub use grid::{Grid, MAX_VOXELS, VOID};
 pub use light::{Light, PointLight};
 pub use material::{MIN_KT_FOR_SIGMA, Material, SEED_SHININESS, seed_ids, seed_palette};
+pub use mesh::{Resolution, VoxelizeOptions, Voxelized, load_mesh, voxelize_mesh};
 pub use seed::{seed_scene, seed_scene_dims};
+pub use vox::{LoadError, LoadErrorKind, VoxScene, load_vox, write_vox};
 
 use glam::DVec3;
 

@@ -1,0 +1,438 @@
+//! Mesh import (OBJ, glTF/GLB) and voxelization into a voxlab grid.
+//!
+//! The grid's corner is the mesh's bounding-box minimum and its voxel size is in the
+//! mesh's units. Every voxel a triangle touches is solid (conservative, exact
+//! separating-axis test, see [`super::voxelize`]); a closed mesh is then filled. A mesh
+//! is closed when, after welding vertices at identical positions, every edge is shared
+//! by exactly two triangles; otherwise only its surface shell is kept and a warning
+//! says so. Closedness is judged over the whole file, not per object.
+//!
+//! Conservative voxels cover the surface, so the solid's volume exceeds the mesh's by
+//! roughly a shell of half a voxel times the surface area (about 7 % for a sphere 64
+//! voxels across); it converges as 1 / resolution.
+//!
+//! Materials: each mesh material becomes one voxlab material, its albedo the OBJ/MTL
+//! diffuse colour `Kd` or the glTF base colour factor (textures are not sampled), with
+//! the matte parameters of [`super::vox::diffuse_material`]. Faces without a material
+//! get a grey one. [`VoxelizeOptions::material`] replaces them all with one material.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use glam::{DMat4, DVec3};
+
+use super::vox::{LoadError, LoadErrorKind, diffuse_material};
+use super::voxelize::{boundary_edge_count, fill_interior, grid_layout, voxelize_triangles};
+use super::{Grid, Material, seed_palette};
+
+/// Largest voxel count along the longest axis that [`Resolution::Count`] accepts.
+pub const MAX_RESOLUTION: u32 = 1 << 16;
+
+/// Albedo of faces that name no material.
+pub const DEFAULT_MESH_ALBEDO: f64 = 0.8;
+
+/// How finely to voxelize.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Resolution {
+    /// This many voxels along the mesh's longest bounding-box axis.
+    Count(u32),
+    /// Voxels of this width, in the mesh's units.
+    VoxelSize(f64),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct VoxelizeOptions {
+    pub resolution: Resolution,
+    /// One material for the whole mesh instead of the file's own.
+    pub material: Option<Material>,
+}
+
+impl VoxelizeOptions {
+    pub fn count(n: u32) -> Self {
+        Self {
+            resolution: Resolution::Count(n),
+            material: None,
+        }
+    }
+}
+
+/// A voxelized mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Voxelized {
+    pub grid: Grid,
+    /// Index 0 is void.
+    pub materials: Vec<Material>,
+    /// Things the caller should tell the user (an open mesh, skipped primitives).
+    pub warnings: Vec<String>,
+    /// Whether the mesh was closed and its interior filled.
+    pub closed: bool,
+    pub triangle_count: usize,
+    /// Voxels touched by the surface, and voxels filled inside it.
+    pub shell_voxels: usize,
+    pub interior_voxels: usize,
+}
+
+/// A triangle soup with one material per triangle.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriangleMesh {
+    pub triangles: Vec<[DVec3; 3]>,
+    /// Index into `materials` per triangle.
+    pub material_of: Vec<usize>,
+    pub materials: Vec<Material>,
+    pub warnings: Vec<String>,
+}
+
+impl TriangleMesh {
+    fn material_slot(
+        &mut self,
+        slots: &mut HashMap<Option<usize>, usize>,
+        key: Option<usize>,
+        make: impl FnOnce() -> Material,
+    ) -> usize {
+        *slots.entry(key).or_insert_with(|| {
+            self.materials.push(make());
+            self.materials.len() - 1
+        })
+    }
+}
+
+/// Loads an OBJ (`.obj`) or glTF (`.gltf`, `.glb`) file as triangles, with node
+/// transforms applied (glTF: every mesh of the default scene, or of the first scene,
+/// or every mesh untransformed if the file has no scene).
+pub fn load_mesh(path: impl AsRef<Path>) -> Result<TriangleMesh, LoadError> {
+    let path = path.as_ref();
+    let fail = |kind| LoadError::new(path, kind);
+    // Read errors first, so a missing file says so rather than a parser's guess.
+    std::fs::metadata(path).map_err(|e| fail(LoadErrorKind::Read(e)))?;
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let mesh = match ext.as_str() {
+        "obj" => load_obj(path),
+        "gltf" | "glb" => load_gltf(path),
+        _ => Err(LoadErrorKind::InvalidMesh(format!(
+            "unknown mesh format {:?}: expected .obj, .gltf or .glb",
+            ext
+        ))),
+    }
+    .map_err(fail)?;
+    if let Some(t) = mesh
+        .triangles
+        .iter()
+        .find(|t| !t.iter().all(|p| p.is_finite()))
+    {
+        return Err(fail(LoadErrorKind::InvalidMesh(format!(
+            "a vertex is not finite: triangle {:?}",
+            t
+        ))));
+    }
+    Ok(mesh)
+}
+
+fn load_obj(path: &Path) -> Result<TriangleMesh, LoadErrorKind> {
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let (models, mtl) = tobj::load_obj(path, &options)
+        .map_err(|e| LoadErrorKind::InvalidMesh(format!("OBJ: {e}")))?;
+    let mut mesh = TriangleMesh::default();
+    let mtl = match mtl {
+        Ok(m) => m,
+        Err(e) => {
+            // A missing or broken .mtl should not lose the geometry.
+            if !models.iter().all(|m| m.mesh.material_id.is_none()) {
+                mesh.warnings.push(format!(
+                    "{}: the material library could not be read ({e}); default material used",
+                    path.display()
+                ));
+            }
+            Vec::new()
+        }
+    };
+    let mut slots = HashMap::new();
+    for model in &models {
+        let m = &model.mesh;
+        let n = m.positions.len() / 3;
+        let key = m.material_id.filter(|&i| i < mtl.len());
+        let slot = mesh.material_slot(&mut slots, key, || match key {
+            Some(i) => {
+                let mat = &mtl[i];
+                let kd = mat.diffuse.unwrap_or([DEFAULT_MESH_ALBEDO as f32; 3]);
+                diffuse_material(
+                    mat.name.clone(),
+                    DVec3::new(kd[0] as f64, kd[1] as f64, kd[2] as f64),
+                )
+            }
+            None => diffuse_material("mesh default", DVec3::splat(DEFAULT_MESH_ALBEDO)),
+        });
+        let p = |i: u32| {
+            let i = i as usize * 3;
+            DVec3::new(
+                m.positions[i] as f64,
+                m.positions[i + 1] as f64,
+                m.positions[i + 2] as f64,
+            )
+        };
+        for f in m.indices.chunks(3) {
+            if f.len() < 3 {
+                continue;
+            }
+            if let Some(&bad) = f.iter().find(|&&i| i as usize >= n) {
+                return Err(LoadErrorKind::InvalidMesh(format!(
+                    "OBJ object {:?}: face vertex {} out of range (the object has {n} vertices)",
+                    model.name,
+                    bad as usize + 1
+                )));
+            }
+            mesh.triangles.push([p(f[0]), p(f[1]), p(f[2])]);
+            mesh.material_of.push(slot);
+        }
+    }
+    Ok(mesh)
+}
+
+fn load_gltf(path: &Path) -> Result<TriangleMesh, LoadErrorKind> {
+    let invalid = |what: String| LoadErrorKind::InvalidMesh(format!("glTF: {what}"));
+    let bytes = std::fs::read(path).map_err(LoadErrorKind::Read)?;
+    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| invalid(e.to_string()))?;
+    let buffers = gltf::import_buffers(&gltf.document, path.parent(), gltf.blob.clone())
+        .map_err(|e| invalid(e.to_string()))?;
+    // The gltf crate validates the document, but its accessor readers index buffers
+    // directly; a hostile file must give an error, not abort the caller.
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        gltf_triangles(&gltf.document, &buffers)
+    }))
+    .unwrap_or_else(|_| Err("its accessors point outside their buffers".into()))
+    .map_err(invalid)
+}
+
+fn gltf_triangles(
+    doc: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+) -> Result<TriangleMesh, String> {
+    let mut mesh = TriangleMesh::default();
+    let mut slots = HashMap::new();
+    let mut add = |m: gltf::Mesh, xf: DMat4, mesh: &mut TriangleMesh| -> Result<(), String> {
+        for prim in m.primitives() {
+            use gltf::mesh::Mode;
+            let mode = prim.mode();
+            if !matches!(
+                mode,
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+            ) {
+                mesh.warnings.push(format!(
+                    "mesh {}: a {mode:?} primitive has no surface and was skipped",
+                    m.index()
+                ));
+                continue;
+            }
+            let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+            let Some(pos) = reader.read_positions() else {
+                continue;
+            };
+            let pos: Vec<DVec3> = pos
+                .map(|p| xf.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)))
+                .collect();
+            let idx: Vec<u32> = match reader.read_indices() {
+                Some(i) => i.into_u32().collect(),
+                None => (0..pos.len() as u32).collect(),
+            };
+            if let Some(&bad) = idx.iter().find(|&&i| i as usize >= pos.len()) {
+                return Err(format!(
+                    "mesh {}: index {bad} out of range ({} vertices)",
+                    m.index(),
+                    pos.len()
+                ));
+            }
+            let material = prim.material();
+            let slot = mesh.material_slot(&mut slots, material.index(), || {
+                let c = material.pbr_metallic_roughness().base_color_factor();
+                // Material names need the gltf crate's "names" feature, not enabled.
+                let name = match material.index() {
+                    Some(i) => format!("gltf material {i}"),
+                    None => "gltf default".to_string(),
+                };
+                diffuse_material(name, DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64))
+            });
+            let tri = |a: u32, b: u32, c: u32| [pos[a as usize], pos[b as usize], pos[c as usize]];
+            let n = idx.len();
+            match mode {
+                Mode::Triangles => {
+                    for f in idx.chunks_exact(3) {
+                        mesh.triangles.push(tri(f[0], f[1], f[2]));
+                    }
+                }
+                Mode::TriangleStrip => {
+                    for k in 0..n.saturating_sub(2) {
+                        // Every other triangle of a strip is wound the other way.
+                        let (a, b) = if k % 2 == 0 { (k, k + 1) } else { (k + 1, k) };
+                        mesh.triangles.push(tri(idx[a], idx[b], idx[k + 2]));
+                    }
+                }
+                _ => {
+                    for k in 1..n.saturating_sub(1) {
+                        mesh.triangles.push(tri(idx[0], idx[k], idx[k + 1]));
+                    }
+                }
+            }
+            mesh.material_of.resize(mesh.triangles.len(), slot);
+        }
+        Ok(())
+    };
+
+    let scene = doc.default_scene().or_else(|| doc.scenes().next());
+    match scene {
+        Some(scene) => {
+            // Explicit stack with depth: glTF forbids cycles, but the file may lie.
+            let mut stack: Vec<(gltf::Node, DMat4, usize)> =
+                scene.nodes().map(|n| (n, DMat4::IDENTITY, 0)).collect();
+            let mut visited = 0usize;
+            while let Some((node, parent, depth)) = stack.pop() {
+                visited += 1;
+                if depth > 256 || visited > 1 << 20 {
+                    return Err("the node hierarchy is too deep or cyclic".into());
+                }
+                let m = node.transform().matrix();
+                let local = DMat4::from_cols_array_2d(&m.map(|c| c.map(|x| x as f64)));
+                let xf = parent * local;
+                if let Some(m) = node.mesh() {
+                    add(m, xf, &mut mesh)?;
+                }
+                for c in node.children() {
+                    stack.push((c, xf, depth + 1));
+                }
+            }
+        }
+        None => {
+            for m in doc.meshes() {
+                add(m, DMat4::IDENTITY, &mut mesh)?;
+            }
+        }
+    }
+    Ok(mesh)
+}
+
+/// Loads a mesh file and voxelizes it; see the module documentation.
+pub fn voxelize_mesh(
+    path: impl AsRef<Path>,
+    options: &VoxelizeOptions,
+) -> Result<Voxelized, LoadError> {
+    let path = path.as_ref();
+    let mut mesh = load_mesh(path)?;
+    let mut v = voxelize(&mesh, options).map_err(|k| LoadError::new(path, k))?;
+    for w in v.warnings.iter_mut() {
+        *w = format!("{}: {w}", path.display());
+    }
+    let mut warnings = std::mem::take(&mut mesh.warnings);
+    warnings.append(&mut v.warnings);
+    v.warnings = warnings;
+    Ok(v)
+}
+
+/// Voxelizes a triangle soup (the in-memory half of [`voxelize_mesh`]).
+pub fn voxelize(
+    mesh: &TriangleMesh,
+    options: &VoxelizeOptions,
+) -> Result<Voxelized, LoadErrorKind> {
+    let tris = &mesh.triangles;
+    if tris.is_empty() {
+        return Err(LoadErrorKind::EmptyMesh(
+            "it has no triangles (no faces)".into(),
+        ));
+    }
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for t in tris {
+        for p in t {
+            if !p.is_finite() {
+                return Err(LoadErrorKind::InvalidMesh(format!(
+                    "vertex {p} is not finite"
+                )));
+            }
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+    }
+    let extent = hi - lo;
+    let longest = extent.max_element();
+    if longest <= 0.0 {
+        return Err(LoadErrorKind::EmptyMesh(format!(
+            "all {} triangles collapse to the single point {lo}",
+            tris.len()
+        )));
+    }
+    let voxel_size = match options.resolution {
+        Resolution::Count(n) => {
+            if !(1..=MAX_RESOLUTION).contains(&n) {
+                return Err(LoadErrorKind::InvalidOption(format!(
+                    "resolution {n}: the voxel count along the longest axis must be in \
+                     1..={MAX_RESOLUTION}"
+                )));
+            }
+            longest / n as f64
+        }
+        Resolution::VoxelSize(s) => {
+            if !(s.is_finite() && s > 0.0) {
+                return Err(LoadErrorKind::InvalidOption(format!(
+                    "voxel size {s}: must be a finite number > 0 (in the mesh's units; \
+                     the mesh is {} x {} x {})",
+                    extent.x, extent.y, extent.z
+                )));
+            }
+            s
+        }
+    };
+    let dims = grid_layout(extent, voxel_size).map_err(LoadErrorKind::TooLarge)?;
+    let mut grid = Grid::new(dims, voxel_size, lo).map_err(|e| LoadErrorKind::TooLarge(e.0))?;
+
+    let mut materials = vec![seed_palette()[0].clone()];
+    let ids: Vec<u8> = match &options.material {
+        Some(m) => {
+            materials.push(m.clone());
+            vec![1; tris.len()]
+        }
+        None => {
+            if mesh.materials.len() > 255 {
+                return Err(LoadErrorKind::TooLarge(format!(
+                    "the mesh has {} materials; at most 255 fit voxlab's u8 indices \
+                     (give one material to override them)",
+                    mesh.materials.len()
+                )));
+            }
+            materials.extend(mesh.materials.iter().cloned());
+            mesh.material_of.iter().map(|&i| (i + 1) as u8).collect()
+        }
+    };
+    if ids.len() != tris.len() {
+        return Err(LoadErrorKind::InvalidMesh(
+            "the triangle and material counts differ".into(),
+        ));
+    }
+
+    let shell_voxels = voxelize_triangles(&mut grid, tris, &ids);
+    let open_edges = boundary_edge_count(tris);
+    let mut warnings = Vec::new();
+    let interior_voxels = if open_edges == 0 {
+        fill_interior(&mut grid)
+    } else {
+        warnings.push(format!(
+            "the mesh is not closed ({open_edges} edges are not shared by exactly two \
+             triangles): only its surface shell was voxelized, the inside is left empty"
+        ));
+        0
+    };
+    Ok(Voxelized {
+        grid,
+        materials,
+        warnings,
+        closed: open_edges == 0,
+        triangle_count: tris.len(),
+        shell_voxels,
+        interior_voxels,
+    })
+}
