@@ -103,6 +103,8 @@ pub fn trace_ray(
         };
         let m = &scene.materials[shade_id as usize];
 
+        // Emission is seen, not cast: emissive voxels light nothing else.
+        color += ray.throughput * m.emission;
         if m.is_lit() {
             let local = direct_light(scene, settings, p, n, ray.dir, shade_id, stats);
             color += ray.throughput * local;
