@@ -753,19 +753,16 @@ fn build_materials(raw: &[RawMaterial], ctx: &Ctx) -> Result<Vec<Material>, Expe
         }
         let mut mat = match existing {
             Some(idx) => palette[idx].clone(),
-            None => Material {
-                name: m.name.clone(),
-                albedo: DVec3::ONE,
-                kd: 0.0,
-                ks: 0.0,
-                shininess: SEED_SHININESS,
-                kr: 0.0,
-                kt: 0.0,
-                ior: 1.0,
-                sigma: None,
-                // Fields the file cannot set yet keep void's (neutral) values.
-                ..palette[0].clone()
-            },
+            // Built from void's clone so fields the file cannot set yet (whatever later
+            // issues add to Material) get void's neutral values.
+            None => {
+                let mut new = palette[0].clone();
+                new.name = m.name.clone();
+                new.albedo = DVec3::ONE;
+                (new.kd, new.ks, new.shininess) = (0.0, 0.0, SEED_SHININESS);
+                (new.kr, new.kt, new.ior, new.sigma) = (0.0, 0.0, 1.0, None);
+                new
+            }
         };
         let unit = |k: &str, v: Option<f64>, cur: f64| match v {
             Some(v) => float_where(ctx, &key(k), v, |x| (0.0..=1.0).contains(&x), "in [0, 1]"),
