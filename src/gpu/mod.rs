@@ -509,8 +509,22 @@ impl GpuTracer {
         settings: &RenderSettings,
         count: bool,
     ) -> Result<RenderOutput> {
-        self.check(scene, settings)?;
         let plan = Plan::new(scene, settings).with_counting(count);
+        self.render_plan(scene, settings, plan)
+    }
+
+    /// Renders with a given kernel variant instead of the scene's own plan: for
+    /// ablations, and for tests that check that leaving code out changes nothing. A plan
+    /// that leaves out code the scene needs gives a wrong image, not an error; a stack
+    /// smaller than the depth limits need drops rays.
+    pub fn render_plan(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        plan: Plan,
+    ) -> Result<RenderOutput> {
+        let count = plan.count_rays;
+        self.check(scene, settings)?;
         self.pipeline(&plan)?;
         self.upload_grid(scene);
 
