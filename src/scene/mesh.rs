@@ -242,6 +242,17 @@ fn gltf_triangles(
                 Some(i) => i.into_u32().collect(),
                 None => (0..pos.len() as u32).collect(),
             };
+            // The readers stop quietly at the end of a buffer view: a short read is
+            // a file that claims more data than it holds.
+            let want_pos = prim.get(&gltf::Semantic::Positions).map(|a| a.count());
+            let want_idx = prim.indices().map(|a| a.count());
+            if want_pos.is_some_and(|n| n != pos.len()) || want_idx.is_some_and(|n| n != idx.len())
+            {
+                return Err(format!(
+                    "mesh {}: an accessor claims more elements than its buffer view holds",
+                    m.index()
+                ));
+            }
             if let Some(&bad) = idx.iter().find(|&&i| i as usize >= pos.len()) {
                 return Err(format!(
                     "mesh {}: index {bad} out of range ({} vertices)",
