@@ -3,7 +3,8 @@
 // adding throughput * local at every hit gives the seed's ray-tree image exactly.
 // Contract: "Primary rays", "Shading a hit", "Stack".
 //
-// Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, COUNT_RAYS, RAY_STACK_SIZE.
+// Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, EMISSION, COUNT_RAYS,
+// RAY_STACK_SIZE.
 
 #import voxlab::types::{BIG, Material}
 #import voxlab::bindings::{params, materials, output}
@@ -116,6 +117,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             si = r.medium;
         }
         let s = materials[si];
+#ifdef EMISSION
+        // Emission is seen, not cast: an emissive voxel lights nothing else.
+        radiance += r.throughput * s.emission;
+#endif
 #ifdef SHADOWS
         radiance += r.throughput * local_light(p, n, r.dir, s);
 #endif

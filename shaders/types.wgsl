@@ -41,6 +41,9 @@ struct Material {
     pad_a: f32,
     pad_b: f32,
     pad_c: f32,
+    // Radiance the voxel emits towards the viewer (seen, not cast).
+    emission: vec3<f32>,
+    pad_d: f32,
 }
 
 struct PointLight {

@@ -33,6 +33,9 @@ pub struct Plan {
     /// Local lighting with shadow rays (`SHADOWS`): some material is lit and there is a
     /// light. Without it the local term is zero for every hit, so it is left out whole.
     pub shadows: bool,
+    /// Emission (`EMISSION`): some material in the grid emits. Adding zero changes
+    /// nothing, so it is left out when none does.
+    pub emission: bool,
     /// Ray counters (`COUNT_RAYS`): chosen by the caller, not by the scene.
     pub count_rays: bool,
     /// Entries of the explicit ray stack (`RAY_STACK_SIZE`).
@@ -74,7 +77,13 @@ fn tir_possible(scene: &Scene) -> bool {
 
 impl Plan {
     /// Shader flags in the order they are printed and enumerated by tests.
-    pub const FLAGS: [&'static str; 4] = ["REFLECTION", "REFRACTION", "SHADOWS", "COUNT_RAYS"];
+    pub const FLAGS: [&'static str; 5] = [
+        "REFLECTION",
+        "REFRACTION",
+        "SHADOWS",
+        "EMISSION",
+        "COUNT_RAYS",
+    ];
 
     /// The plan for rendering `scene` with `settings`, without ray counting.
     pub fn new(scene: &Scene, settings: &RenderSettings) -> Self {
@@ -122,6 +131,11 @@ impl Plan {
             true
         };
 
+        let emission = mats.iter().any(|(_, m)| m.emission != glam::DVec3::ZERO);
+        if !emission {
+            reasons.push("emission: no material in the grid emits".to_string());
+        }
+
         // Depth-first: a pop that pushes two children grows the stack by one per level,
         // so both kinds need a + b + 1 slots; one kind alone pushes at most one child per
         // pop and never holds more than one entry.
@@ -146,6 +160,7 @@ impl Plan {
             reflection,
             refraction,
             shadows,
+            emission,
             count_rays: false,
             ray_stack_size,
             reasons,
@@ -164,6 +179,7 @@ impl Plan {
             "REFLECTION" => self.reflection,
             "REFRACTION" => self.refraction,
             "SHADOWS" => self.shadows,
+            "EMISSION" => self.emission,
             "COUNT_RAYS" => self.count_rays,
             _ => false,
         }
@@ -175,6 +191,7 @@ impl Plan {
             "REFLECTION" => self.reflection = on,
             "REFRACTION" => self.refraction = on,
             "SHADOWS" => self.shadows = on,
+            "EMISSION" => self.emission = on,
             "COUNT_RAYS" => self.count_rays = on,
             _ => panic!("unknown plan flag {name}"),
         }
@@ -188,6 +205,7 @@ impl Plan {
                     reflection: false,
                     refraction: false,
                     shadows: false,
+                    emission: false,
                     count_rays: false,
                     ray_stack_size,
                     reasons: Vec::new(),
@@ -252,7 +270,8 @@ mod tests {
         let p = Plan::new(&s, &RenderSettings::default());
         assert!(p.reflection && p.refraction && p.shadows && !p.count_rays);
         assert_eq!(p.ray_stack_size, 9);
-        assert!(p.reasons.is_empty(), "{p}");
+        assert!(!p.emission);
+        assert_eq!(p.reasons.len(), 1, "{p}");
     }
 
     #[test]
@@ -267,8 +286,8 @@ mod tests {
         let p = Plan::new(&s, &settings);
         assert!(!p.reflection && !p.refraction && !p.shadows);
         assert_eq!(p.ray_stack_size, 1);
-        // Depth 0/0 needs one stack entry anyway: three reasons, no stack note.
-        assert_eq!(p.reasons.len(), 3, "{p}");
+        // Depth 0/0 needs one stack entry anyway: no stack note.
+        assert_eq!(p.reasons.len(), 4, "{p}");
         assert_eq!(p.shader_defs().len(), 1);
     }
 
@@ -310,8 +329,8 @@ mod tests {
     #[test]
     fn all_variants_are_distinct() {
         let v = Plan::all_variants(3);
-        assert_eq!(v.len(), 16);
+        assert_eq!(v.len(), 32);
         let keys: std::collections::HashSet<_> = v.iter().map(|p| p.shader_defs()).collect();
-        assert_eq!(keys.len(), 16);
+        assert_eq!(keys.len(), 32);
     }
 }

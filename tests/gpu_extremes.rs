@@ -168,7 +168,7 @@ fn depth_limits_zero_and_deep() {
 fn full_matches_plan(gpu: &mut GpuTracer, name: &str, scene: &Scene, s: &RenderSettings) {
     let plan = Plan::new(scene, s);
     let mut full = plan.clone();
-    for f in ["REFLECTION", "REFRACTION", "SHADOWS"] {
+    for f in ["REFLECTION", "REFRACTION", "SHADOWS", "EMISSION"] {
         full.set_flag(f, true);
     }
     full.ray_stack_size = s.ray_stack_size();
@@ -229,4 +229,22 @@ fn leaving_code_out_never_changes_the_image() {
         m.ks = 0.0;
     }
     full_matches_plan(&mut gpu, "unlit", &scene, &s);
+}
+
+#[test]
+fn emission_is_seen_not_cast() {
+    let mut scene = seed_scene(16).unwrap();
+    let mut gpu = tracer();
+    // The semi-solid cube glows; an unlit emitter must show too.
+    scene.materials[2].emission = DVec3::new(0.8, 0.3, 0.1);
+    assert!(Plan::new(&scene, &settings(48)).emission);
+    agree(&mut gpu, "emissive semi-solid", &scene, &settings(64));
+    scene.materials[2].kd = 0.0;
+    scene.materials[2].ks = 0.0;
+    agree(
+        &mut gpu,
+        "emissive, unlit semi-solid",
+        &scene,
+        &settings(64),
+    );
 }

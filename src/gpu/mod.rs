@@ -45,7 +45,7 @@ struct GpuParams {
     falloff: u32,
 }
 
-/// `Material` of `shaders/types.wgsl` (48-byte array stride).
+/// `Material` of `shaders/types.wgsl` (64-byte array stride).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 struct GpuMaterial {
@@ -57,6 +57,8 @@ struct GpuMaterial {
     kt: f32,
     ior: f32,
     _pad: [f32; 3],
+    emission: [f32; 3],
+    _pad_e: f32,
 }
 
 /// `PointLight` of `shaders/types.wgsl`.
@@ -73,7 +75,7 @@ const COUNTER_BYTES: u64 = 8 * 4;
 
 // The WGSL uniform struct is 112 bytes (7 rows of 16).
 const _: () = assert!(std::mem::size_of::<GpuParams>() == 112);
-const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 48);
+const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
 
 fn f3(v: DVec3) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
@@ -544,6 +546,8 @@ impl GpuTracer {
                 kt: m.kt as f32,
                 ior: m.ior as f32,
                 _pad: [0.0; 3],
+                emission: f3(m.emission),
+                _pad_e: 0.0,
             })
             .collect();
         let grid = &scene.grid;
