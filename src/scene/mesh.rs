@@ -136,7 +136,6 @@ fn load_obj(path: &Path) -> Result<TriangleMesh, LoadErrorKind> {
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let (models, mtl) = tobj::load_obj(path, &options)
         .map_err(|e| LoadErrorKind::InvalidMesh(format!("OBJ: {e}")))?;
