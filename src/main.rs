@@ -34,6 +34,8 @@ struct Cli {
 enum Command {
     /// Render an experiment file to an image.
     Render(RenderArgs),
+    /// Voxelize a mesh (OBJ, glTF, GLB) and write it as a MagicaVoxel .vox file.
+    Voxelize(VoxelizeArgs),
     // Further subcommands (bench, stress, ablate, voxelize) go here, one variant each,
     // with their own Args struct and `cmd_*` function.
 }
@@ -44,6 +46,20 @@ struct RenderArgs {
     experiment: PathBuf,
     #[command(flatten)]
     opts: RenderOpts,
+}
+
+#[derive(Args, Debug)]
+struct VoxelizeArgs {
+    /// The mesh: .obj (with its .mtl), .gltf or .glb.
+    mesh: PathBuf,
+    /// Voxels along the mesh's longest axis.
+    #[arg(long, value_name = "N",
+          value_parser = clap::value_parser!(u32)
+              .range(1..=voxlab::scene::mesh::MAX_RESOLUTION as i64))]
+    resolution: u32,
+    /// The .vox file to write (grids over 256 per side become several placed models).
+    #[arg(long, value_name = "PATH")]
+    out: PathBuf,
 }
 
 /// Overrides shared by every render.
@@ -80,6 +96,7 @@ fn main() -> ExitCode {
         Some(Command::Render(args)) => Experiment::load(&args.experiment)
             .map_err(anyhow::Error::from)
             .and_then(|e| cmd_render(e, &args.opts)),
+        Some(Command::Voxelize(args)) => cmd_voxelize(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -145,6 +162,38 @@ impl Renderer {
             }
         }
     }
+}
+
+fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
+    use voxlab::scene::{VoxelizeOptions, voxelize_mesh, write_vox};
+    let start = Instant::now();
+    let v = voxelize_mesh(&a.mesh, &VoxelizeOptions::count(a.resolution))?;
+    for w in &v.warnings {
+        eprintln!("warning: {w}");
+    }
+    write_vox(&a.out, &v.grid, &v.materials)?;
+    let d = v.grid.dims();
+    println!(
+        "{}: {} triangles -> {}x{}x{} voxels of size {} ({} on the surface, {} filled{}), \
+         {} materials, {:.2} s; wrote {}",
+        a.mesh.display(),
+        v.triangle_count,
+        d.x,
+        d.y,
+        d.z,
+        v.grid.voxel_size(),
+        v.shell_voxels,
+        v.interior_voxels,
+        if v.closed {
+            ""
+        } else {
+            ": open mesh, not filled"
+        },
+        v.materials.len() - 1,
+        start.elapsed().as_secs_f64(),
+        a.out.display()
+    );
+    Ok(())
 }
 
 fn cmd_render(mut e: Experiment, opts: &RenderOpts) -> Result<()> {
