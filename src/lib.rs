@@ -12,7 +12,8 @@ pub mod gpu;
 pub mod output;
 pub mod plan;
 pub mod render;
+pub mod sampling;
 pub mod scene;
 
-pub use render::{Frame, RayStats, RenderOutput, RenderSettings};
+pub use render::{Features, Frame, RayStats, RenderOutput, RenderSettings, Transmittance};
 pub use scene::Scene;

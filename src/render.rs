@@ -2,6 +2,35 @@
 
 use std::time::Duration;
 
+/// How a shadow segment through semi-transparent voxels is attenuated (DESIGN section 1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Transmittance {
+    /// The seed's O1 as its code does it: the smallest kt of the voxels crossed.
+    #[default]
+    MinKt,
+    /// Distance-weighted: `T = exp(-sum sigma_m len_m)` per RGB channel, with the exact
+    /// length of the segment inside each voxel.
+    BeerLambert,
+}
+
+impl Transmittance {
+    pub fn name(self) -> &'static str {
+        match self {
+            Transmittance::MinKt => "min-kt",
+            Transmittance::BeerLambert => "beer-lambert",
+        }
+    }
+}
+
+/// Extensions beyond the seed. `Features::default()` is the baseline: every one off.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Features {
+    /// Sample area lights over their shape (soft shadows). Off: each area light acts as
+    /// a point light at its centre.
+    pub area_lights: bool,
+    pub transmittance: Transmittance,
+}
+
 /// Settings that are not part of the scene (DESIGN section 1, baseline constants).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -16,7 +45,18 @@ pub struct RenderSettings {
     pub falloff_min_distance: f64,
     /// Secondary and shadow rays start this many voxel widths off the surface (seed: 0.001).
     pub ray_offset: f64,
+    pub features: Features,
+    /// Samples per pixel, light and frame on each sampled area light (stratified).
+    pub light_samples: u32,
+    /// Frames accumulated into the image; each draws new light samples. The total
+    /// samples per pixel and area light are `spp * light_samples`.
+    pub spp: u32,
+    /// Seeds the sample hash, so two experiments can draw independent samples.
+    pub seed: u32,
 }
+
+/// Largest `light_samples` and `spp` accepted.
+pub const MAX_SAMPLES: u32 = 1 << 16;
 
 /// Largest depth limit accepted: the ray stack holds `max_reflection + max_refraction + 1`
 /// entries, and the ray tree grows as 2^depth.
@@ -36,6 +76,10 @@ impl Default for RenderSettings {
             falloff: true,
             falloff_min_distance: 0.01,
             ray_offset: 0.001,
+            features: Features::default(),
+            light_samples: 1,
+            spp: 1,
+            seed: 0,
         }
     }
 }

@@ -2,7 +2,7 @@
 //! the Phong formula of DESIGN section 1, Snell's law, and total internal reflection.
 
 use glam::{DVec3, IVec3, UVec3};
-use voxlab::cpu::{refract, trace_ray};
+use voxlab::cpu::{SampleKey, refract, trace_ray};
 use voxlab::scene::{Grid, Light, Material, OrbitCamera, PointLight, Scene, seed_scene};
 use voxlab::{RayStats, RenderSettings};
 
@@ -87,7 +87,14 @@ fn lit_unoccluded_point_equals_closed_form_phong() {
         let target = DVec3::new(0.31, 0.0, 0.17);
         let d = (target - frame.eye).normalize();
         let mut stats = RayStats::default();
-        let c = trace_ray(&scene, &settings, frame.eye, d, &mut stats);
+        let c = trace_ray(
+            &scene,
+            &settings,
+            SampleKey::default(),
+            frame.eye,
+            d,
+            &mut stats,
+        );
 
         // DESIGN section 1, by hand.
         let m = &scene.materials[1];
@@ -118,6 +125,7 @@ fn occluded_light_gives_ambient_only() {
     let c = trace_ray(
         &scene,
         &RenderSettings::default(),
+        SampleKey::default(),
         frame.eye,
         d,
         &mut RayStats::default(),
@@ -190,13 +198,20 @@ fn total_internal_reflection_sends_kt_to_the_reflection() {
     // weighted kr + kt = 1: the pixel equals the reflected ray's own radiance.
     let (scene, eye, d) = tir_setup(60.0);
     let mut stats = RayStats::default();
-    let c = trace_ray(&scene, &settings, eye, d, &mut stats);
+    let c = trace_ray(&scene, &settings, SampleKey::default(), eye, d, &mut stats);
     assert_eq!(stats.secondary, 1, "TIR spawns no refraction ray");
     let p = eye + (0.5 / d.y) * d;
     let reflected = DVec3::new(d.x, -d.y, d.z);
     let eps = settings.ray_offset;
     let mut s2 = RayStats::default();
-    let c_reflected = trace_ray(&scene, &settings, p - eps * DVec3::Y, reflected, &mut s2);
+    let c_reflected = trace_ray(
+        &scene,
+        &settings,
+        SampleKey::default(),
+        p - eps * DVec3::Y,
+        reflected,
+        &mut s2,
+    );
     let expected = scene.ambient + 1.0 * (c_reflected - scene.ambient);
     assert!(rel_err(c, expected) < 1e-12, "{c} vs {expected}");
     assert!(
@@ -207,6 +222,6 @@ fn total_internal_reflection_sends_kt_to_the_reflection() {
     // 20 degrees: below the critical angle, a refraction and a reflection ray (kr = 0.1).
     let (scene, eye, d) = tir_setup(20.0);
     let mut stats = RayStats::default();
-    trace_ray(&scene, &settings, eye, d, &mut stats);
+    trace_ray(&scene, &settings, SampleKey::default(), eye, d, &mut stats);
     assert!(stats.secondary >= 2);
 }

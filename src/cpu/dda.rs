@@ -31,6 +31,9 @@ pub struct Dda<'a> {
     pending: Option<Visit>,
     done: bool,
     pub steps: u64,
+    /// Where the last visited voxel ends along the ray once the traversal is over: the
+    /// grid's exit or `t_limit`, whichever comes first.
+    pub t_end: f64,
 }
 
 /// Index of the smallest component, ties to the lowest axis.
@@ -75,6 +78,7 @@ impl<'a> Dda<'a> {
             pending: None,
             done: true,
             steps: 0,
+            t_end: 0.0,
         };
         let lo = grid.world_min();
         let hi = grid.world_max();
@@ -152,8 +156,9 @@ impl Iterator for Dda<'_> {
         }
         let a = argmin(self.t_max);
         let t = self.t_max[a];
-        if !(t < self.t_limit) {
+        if t >= self.t_limit || t.is_nan() {
             self.done = true;
+            self.t_end = self.t_limit;
             return None;
         }
         self.voxel[a] += self.step[a];
@@ -161,6 +166,7 @@ impl Iterator for Dda<'_> {
         self.steps += 1;
         if !self.grid.contains(self.voxel) {
             self.done = true;
+            self.t_end = t;
             return None;
         }
         Some(Visit {

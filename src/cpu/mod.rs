@@ -12,8 +12,9 @@ use rayon::prelude::*;
 
 pub use dda::{Dda, Hit, Visit, cast};
 
-use crate::render::{Frame, RayStats, RenderOutput, RenderSettings};
-use crate::scene::{Light, Scene};
+use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Transmittance};
+use crate::sampling::light_sample;
+use crate::scene::{Light, Material, Scene};
 
 /// What the CPU backend is, for printing next to a GPU adapter's name.
 pub fn backend_summary() -> String {
@@ -23,12 +24,14 @@ pub fn backend_summary() -> String {
     )
 }
 
-/// Renders the scene; every pixel is traced independently, so the image does not depend
-/// on the thread count.
+/// Renders the scene: `settings.spp` frames, each tracing every pixel independently
+/// (so the image does not depend on the thread count), averaged in f64 so accumulation
+/// never drifts.
 pub fn render(scene: &Scene, settings: &RenderSettings) -> RenderOutput {
     let start = Instant::now();
     let frame_cam = scene.camera.frame();
     let (w, h) = (settings.width, settings.height);
+    let frames = settings.spp.max(1);
     let rows: Vec<(Vec<[f32; 3]>, RayStats)> = (0..h)
         .into_par_iter()
         .map(|j| {
@@ -36,7 +39,15 @@ pub fn render(scene: &Scene, settings: &RenderSettings) -> RenderOutput {
             let row = (0..w)
                 .map(|i| {
                     let dir = frame_cam.primary_dir(i, j, w, h);
-                    let c = trace_ray(scene, settings, frame_cam.eye, dir, &mut stats);
+                    let mut sum = DVec3::ZERO;
+                    for frame in 0..frames {
+                        let key = SampleKey {
+                            pixel: j * w + i,
+                            frame,
+                        };
+                        sum += trace_ray(scene, settings, key, frame_cam.eye, dir, &mut stats);
+                    }
+                    let c = sum / frames as f64;
                     [c.x as f32, c.y as f32, c.z as f32]
                 })
                 .collect();
@@ -57,6 +68,15 @@ pub fn render(scene: &Scene, settings: &RenderSettings) -> RenderOutput {
     }
 }
 
+/// What the light samples of one primary ray depend on (see `crate::sampling`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SampleKey {
+    /// `row * width + column`.
+    pub pixel: u32,
+    /// The accumulation frame, `0..spp`.
+    pub frame: u32,
+}
+
 /// One entry of the explicit ray stack (the recursion of Whitted's model unrolled).
 struct StackRay {
     origin: DVec3,
@@ -71,6 +91,7 @@ struct StackRay {
 pub fn trace_ray(
     scene: &Scene,
     settings: &RenderSettings,
+    key: SampleKey,
     eye: DVec3,
     dir: DVec3,
     stats: &mut RayStats,
@@ -106,7 +127,7 @@ pub fn trace_ray(
         // Emission is seen, not cast: emissive voxels light nothing else.
         color += ray.throughput * m.emission;
         if m.is_lit() {
-            let local = direct_light(scene, settings, p, n, ray.dir, shade_id, stats);
+            let local = direct_light(scene, settings, key, p, n, ray.dir, shade_id, stats);
             color += ray.throughput * local;
         }
 
@@ -155,10 +176,13 @@ pub fn refract(d: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
     (k >= 0.0).then(|| (eta * d + (eta * c - k.sqrt()) * n).normalize())
 }
 
-/// Phong with inverse-square falloff, summed over the lights, times the albedo.
+/// Phong with inverse-square falloff, summed over the lights (an area light over its
+/// samples), times the albedo.
+#[allow(clippy::too_many_arguments)]
 fn direct_light(
     scene: &Scene,
     settings: &RenderSettings,
+    key: SampleKey,
     p: DVec3,
     n: DVec3,
     d: DVec3,
@@ -169,29 +193,88 @@ fn direct_light(
     let eps = settings.ray_offset * scene.grid.voxel_size();
     let q = p + eps * n;
     let mut sum = DVec3::ZERO;
-    for light in &scene.lights {
-        let Light::Point(pl) = light;
-        stats.shadow += 1;
-        let v = shadow_min_kt(scene, q, pl.position, stats);
-        if v == 0.0 {
-            continue;
+    for (j, light) in scene.lights.iter().enumerate() {
+        let radiance = light.color() * light.intensity();
+        match light {
+            Light::Area(a) if settings.features.area_lights && !a.is_degenerate() => {
+                let count = settings.light_samples.max(1);
+                let mut light_sum = DVec3::ZERO;
+                for k in 0..count {
+                    let (s, t) =
+                        light_sample(settings.seed, key.pixel, key.frame, j as u32, k, count);
+                    let x = a.sample_point(s, t);
+                    light_sum +=
+                        point_contribution(scene, settings, m, q, p, n, d, x, radiance, stats);
+                }
+                sum += light_sum / count as f64;
+            }
+            // Point lights, and area lights with sampling off or of size 0: the centre.
+            _ => {
+                sum += point_contribution(
+                    scene,
+                    settings,
+                    m,
+                    q,
+                    p,
+                    n,
+                    d,
+                    light.position(),
+                    radiance,
+                    stats,
+                );
+            }
         }
-        let to_light = pl.position - p;
-        let dl = to_light.length();
-        let l = if dl > 0.0 { to_light / dl } else { n };
-        let radiance = pl.color * pl.intensity;
-        let e = if settings.falloff {
-            radiance / (dl * dl).max(settings.falloff_min_distance.powi(2))
-        } else {
-            radiance
-        };
-        let diffuse = n.dot(l).max(0.0);
-        let r = l - 2.0 * n.dot(l) * n;
-        let rd = r.dot(d);
-        let spec = if rd > 0.0 { rd.powf(m.shininess) } else { 0.0 };
-        sum += v * e * (m.kd * diffuse + m.ks * spec);
     }
     m.albedo * sum
+}
+
+/// One point emitter at `x` of radiance `radiance` (colour times intensity) seen from the
+/// hit point `p` (shadow ray from `q`): `V E (kd diffuse + ks specular)`, before albedo.
+#[allow(clippy::too_many_arguments)]
+fn point_contribution(
+    scene: &Scene,
+    settings: &RenderSettings,
+    m: &Material,
+    q: DVec3,
+    p: DVec3,
+    n: DVec3,
+    d: DVec3,
+    x: DVec3,
+    radiance: DVec3,
+    stats: &mut RayStats,
+) -> DVec3 {
+    stats.shadow += 1;
+    let v = shadow_transmittance(scene, settings.features.transmittance, q, x, stats);
+    if v == DVec3::ZERO {
+        return DVec3::ZERO;
+    }
+    let to_light = x - p;
+    let dl = to_light.length();
+    let l = if dl > 0.0 { to_light / dl } else { n };
+    let e = if settings.falloff {
+        radiance / (dl * dl).max(settings.falloff_min_distance.powi(2))
+    } else {
+        radiance
+    };
+    let diffuse = n.dot(l).max(0.0);
+    let r = l - 2.0 * n.dot(l) * n;
+    let rd = r.dot(d);
+    let spec = if rd > 0.0 { rd.powf(m.shininess) } else { 0.0 };
+    v * e * (m.kd * diffuse + m.ks * spec)
+}
+
+/// Transmittance (RGB) of the shadow segment from `q` to `light` under `model`.
+pub fn shadow_transmittance(
+    scene: &Scene,
+    model: Transmittance,
+    q: DVec3,
+    light: DVec3,
+    stats: &mut RayStats,
+) -> DVec3 {
+    match model {
+        Transmittance::MinKt => DVec3::splat(shadow_min_kt(scene, q, light, stats)),
+        Transmittance::BeerLambert => shadow_beer_lambert(scene, q, light, stats),
+    }
 }
 
 /// `min-kt` transmittance of the segment from `q` to `light` (the seed's O1 as its code
@@ -212,4 +295,42 @@ pub fn shadow_min_kt(scene: &Scene, q: DVec3, light: DVec3, stats: &mut RayStats
     }
     stats.voxel_steps += dda.steps;
     t
+}
+
+/// Beer-Lambert transmittance `exp(-sum sigma_m len_m)` per channel, with `len_m` the
+/// exact length of the segment inside each voxel from the DDA (no fixed-step marching,
+/// so any sigma is exact and stable). The optical depth is summed first and exponentiated
+/// once: an optical depth of 1e4 gives exactly 0, never a negative or NaN value. A
+/// material with kt = 0 is opaque under every model.
+pub fn shadow_beer_lambert(scene: &Scene, q: DVec3, light: DVec3, stats: &mut RayStats) -> DVec3 {
+    let to_light = light - q;
+    let len = to_light.length();
+    if len == 0.0 {
+        return DVec3::ONE;
+    }
+    let grid = &scene.grid;
+    let mut dda = Dda::new(grid, q, to_light / len, len);
+    let mut depth = DVec3::ZERO;
+    // The voxel being crossed and where the segment entered it.
+    let mut inside: Option<(DVec3, f64)> = None;
+    let mut opaque = false;
+    for v in dda.by_ref() {
+        let m = &scene.materials[grid.get(v.voxel) as usize];
+        if m.kt <= 0.0 {
+            opaque = true;
+            break;
+        }
+        if let Some((sigma, t0)) = inside {
+            depth += sigma * (v.t_enter - t0);
+        }
+        inside = Some((m.absorption(grid.voxel_size()), v.t_enter));
+    }
+    stats.voxel_steps += dda.steps;
+    if opaque {
+        return DVec3::ZERO;
+    }
+    if let Some((sigma, t0)) = inside {
+        depth += sigma * (dda.t_end.min(len) - t0);
+    }
+    (-depth).exp()
 }

@@ -1,4 +1,4 @@
-//! Light sources.
+//! Light sources: point lights (the baseline) and area lights (rectangle, disk, sphere).
 
 use glam::DVec3;
 
@@ -9,10 +9,44 @@ pub struct PointLight {
     pub intensity: f64,
 }
 
-/// Every light kind voxlab knows. Point lights are the baseline; area lights extend this.
+/// The shape of an area light, in its own frame (`u`, `v` span the plane of a rectangle
+/// or disk; `n` is its normal).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AreaShape {
+    /// Full side lengths along `u` and `v`.
+    Rect {
+        width: f64,
+        height: f64,
+    },
+    Disk {
+        radius: f64,
+    },
+    Sphere {
+        radius: f64,
+    },
+}
+
+/// An area light: a point light spread uniformly over a shape. Every point of it emits
+/// isotropically (no cosine at the emitter), so a light of size 0 is exactly the point
+/// light at its centre (DESIGN section 1's degenerate setting), and `intensity` is the
+/// whole light's, shared equally by its samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AreaLight {
+    pub shape: AreaShape,
+    pub position: DVec3,
+    /// Normal of a rectangle or disk (unit); ignored by spheres.
+    pub normal: DVec3,
+    /// Turn of the rectangle about its normal, radians, from the default frame.
+    pub rotation: f64,
+    pub color: DVec3,
+    pub intensity: f64,
+}
+
+/// Every light kind voxlab knows.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Light {
     Point(PointLight),
+    Area(AreaLight),
 }
 
 impl Light {
@@ -20,6 +54,75 @@ impl Light {
     pub fn position(&self) -> DVec3 {
         match self {
             Light::Point(p) => p.position,
+            Light::Area(a) => a.position,
+        }
+    }
+    pub fn color(&self) -> DVec3 {
+        match self {
+            Light::Point(p) => p.color,
+            Light::Area(a) => a.color,
+        }
+    }
+    pub fn intensity(&self) -> f64 {
+        match self {
+            Light::Point(p) => p.intensity,
+            Light::Area(a) => a.intensity,
+        }
+    }
+    /// An area light with a non-zero extent (one that needs sampling).
+    pub fn is_area(&self) -> bool {
+        matches!(self, Light::Area(a) if !a.is_degenerate())
+    }
+}
+
+impl AreaLight {
+    /// The default tangent frame of a normal: `u = normalize(helper x n)`, `v = n x u`,
+    /// with helper +y unless the normal is nearly parallel to it (then +x), turned by
+    /// `rotation` about `n`.
+    pub fn frame(&self) -> (DVec3, DVec3, DVec3) {
+        let n = self.normal.normalize();
+        let helper = if n.y.abs() < 0.999 {
+            DVec3::Y
+        } else {
+            DVec3::X
+        };
+        let u0 = helper.cross(n).normalize();
+        let v0 = n.cross(u0);
+        let (s, c) = self.rotation.sin_cos();
+        (c * u0 + s * v0, -s * u0 + c * v0, n)
+    }
+
+    /// Size 0: the light is its centre.
+    pub fn is_degenerate(&self) -> bool {
+        match self.shape {
+            AreaShape::Rect { width, height } => width == 0.0 && height == 0.0,
+            AreaShape::Disk { radius } | AreaShape::Sphere { radius } => radius == 0.0,
+        }
+    }
+
+    /// The point for sample coordinates `(s, t)` in [0, 1)^2, uniform in area:
+    /// rectangle `c + (s - 1/2) w u + (t - 1/2) h v`; disk by polar mapping
+    /// `r = R sqrt(s)`, `phi = 2 pi t`; sphere surface by `z = 1 - 2 s`, `phi = 2 pi t`
+    /// (Archimedes' hat-box theorem) in world axes.
+    pub fn sample_point(&self, s: f64, t: f64) -> DVec3 {
+        let c = self.position;
+        match self.shape {
+            AreaShape::Rect { width, height } => {
+                let (u, v, _) = self.frame();
+                c + (s - 0.5) * width * u + (t - 0.5) * height * v
+            }
+            AreaShape::Disk { radius } => {
+                let (u, v, _) = self.frame();
+                let r = radius * s.sqrt();
+                let (sp, cp) = (std::f64::consts::TAU * t).sin_cos();
+                c + r * (cp * u + sp * v)
+            }
+            AreaShape::Sphere { radius } => {
+                let z = 1.0 - 2.0 * s;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let (sp, cp) = (std::f64::consts::TAU * t).sin_cos();
+                c + radius * DVec3::new(r * cp, r * sp, z)
+            }
         }
     }
 }

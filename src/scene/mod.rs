@@ -11,7 +11,7 @@ pub mod voxelize;
 
 pub use camera::{CameraFrame, OrbitCamera};
 pub use grid::{Grid, MAX_VOXELS, VOID};
-pub use light::{Light, PointLight};
+pub use light::{AreaLight, AreaShape, Light, PointLight};
 pub use material::{MIN_KT_FOR_SIGMA, Material, SEED_SHININESS, seed_ids, seed_palette};
 pub use mesh::{Resolution, VoxelizeOptions, Voxelized, load_mesh, voxelize_mesh};
 pub use seed::{seed_scene, seed_scene_dims};
