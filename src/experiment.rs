@@ -16,18 +16,32 @@ use std::path::{Path, PathBuf};
 use glam::{DVec3, IVec3, UVec3};
 use serde::Deserialize;
 
-use crate::render::{MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RenderSettings};
+use crate::render::{
+    Features, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, RenderSettings, Transmittance,
+};
 use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
-use crate::scene::{Grid, Light, MAX_VOXELS, Material, PointLight, SEED_SHININESS, Scene};
+use crate::scene::{
+    AreaLight, AreaShape, Grid, Light, MAX_VOXELS, Material, PointLight, SEED_SHININESS, Scene,
+};
 
 /// Grid side of the seed scene (`[scene] size` when neither `size` nor `dims` is given).
 pub const SEED_SIZE: u32 = 16;
 
-/// Feature switches. Every feature's "off" is the baseline; the baseline has none yet,
-/// so the table is empty and any key in it is an error (later issues add fields here).
+/// `[features]` as written: every extension's switch, all off by default (the baseline).
 #[derive(Clone, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Features {}
+struct RawFeatures {
+    area_lights: Option<bool>,
+    transmittance: Option<TransmittanceName>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+enum TransmittanceName {
+    #[serde(rename = "min-kt")]
+    MinKt,
+    #[serde(rename = "beer-lambert")]
+    BeerLambert,
+}
 
 /// A validated experiment: everything a tracer needs to render it.
 #[derive(Clone, Debug, PartialEq)]
@@ -37,8 +51,8 @@ pub struct Experiment {
     /// The file it was read from (`None` for built-in experiments).
     pub source_path: Option<PathBuf>,
     pub scene: Scene,
+    /// Render settings, the feature switches (`settings.features`) included.
     pub settings: RenderSettings,
-    pub features: Features,
 }
 
 /// Why an experiment could not be loaded. Every variant's message names the file; all
@@ -117,7 +131,7 @@ struct RawExperiment {
     #[serde(default)]
     render: RawRender,
     #[serde(default)]
-    features: Features,
+    features: RawFeatures,
 }
 
 /// Where the voxels come from. Only generators exist so far; file sources
@@ -175,6 +189,9 @@ struct RawCamera {
 #[serde(rename_all = "lowercase")]
 enum LightType {
     Point,
+    Rect,
+    Disk,
+    Sphere,
 }
 
 #[derive(Debug, Deserialize)]
@@ -185,6 +202,14 @@ struct RawLight {
     position: [f64; 3],
     color: Option<[f64; 3]>,
     intensity: f64,
+    /// Rectangles and disks: the facing direction (any length > 0).
+    normal: Option<[f64; 3]>,
+    /// Rectangles: full side lengths along the light's u and v axes.
+    size: Option<[f64; 2]>,
+    /// Disks and spheres.
+    radius: Option<f64>,
+    /// Rectangles and disks: turn about the normal.
+    rotation_deg: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -199,6 +224,7 @@ struct RawMaterial {
     kt: Option<f64>,
     ior: Option<f64>,
     sigma: Option<[f64; 3]>,
+    emission: Option<[f64; 3]>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -212,6 +238,9 @@ struct RawRender {
     falloff_min_distance: Option<f64>,
     ray_offset: Option<f64>,
     ambient: Option<[f64; 3]>,
+    light_samples: Option<i64>,
+    spp: Option<i64>,
+    seed: Option<i64>,
 }
 
 // ---------------------------------------------------------------------------------------
@@ -225,7 +254,6 @@ impl Experiment {
             source_path: None,
             scene: seed_scene(SEED_SIZE).expect("the seed scene at its own size is valid"),
             settings: RenderSettings::default(),
-            features: Features::default(),
         }
     }
 
@@ -587,6 +615,22 @@ fn build(raw: RawExperiment, ctx: &Ctx) -> Result<Experiment, ExperimentError> {
                 "in [0, 1) (voxel widths)",
             )
         })?,
+        features: Features {
+            area_lights: raw.features.area_lights.unwrap_or(false),
+            transmittance: match raw.features.transmittance {
+                None | Some(TransmittanceName::MinKt) => Transmittance::MinKt,
+                Some(TransmittanceName::BeerLambert) => Transmittance::BeerLambert,
+            },
+        },
+        light_samples: r.light_samples.map_or(Ok(d.light_samples), |v| {
+            int_in(ctx, "render.light_samples", v, 1..=MAX_SAMPLES as i64)
+        })?,
+        spp: r.spp.map_or(Ok(d.spp), |v| {
+            int_in(ctx, "render.spp", v, 1..=MAX_SAMPLES as i64)
+        })?,
+        seed: r.seed.map_or(Ok(d.seed), |v| {
+            int_in(ctx, "render.seed", v, 0..=u32::MAX as i64)
+        })?,
     };
     let ambient = match r.ambient {
         Some(a) => vec3_where(ctx, "render.ambient", a, |x| x >= 0.0, ">= 0")?,
@@ -638,21 +682,7 @@ fn build(raw: RawExperiment, ctx: &Ctx) -> Result<Experiment, ExperimentError> {
             .enumerate()
             .map(|(i, l)| {
                 let key = |k: &str| format!("lights[{i}].{k}");
-                let LightType::Point = l.kind;
-                Ok(Light::Point(PointLight {
-                    position: vec3_where(ctx, &key("position"), l.position, |_| true, "")?,
-                    color: match l.color {
-                        Some(col) => vec3_where(ctx, &key("color"), col, |x| x >= 0.0, ">= 0")?,
-                        None => DVec3::ONE,
-                    },
-                    intensity: float_where(
-                        ctx,
-                        &key("intensity"),
-                        l.intensity,
-                        |x| x >= 0.0,
-                        ">= 0",
-                    )?,
-                }))
+                build_light(l, ctx, &key)
             })
             .collect::<Result<_, ExperimentError>>()?,
     };
@@ -675,8 +705,117 @@ fn build(raw: RawExperiment, ctx: &Ctx) -> Result<Experiment, ExperimentError> {
         source_path: None,
         scene,
         settings,
-        features: raw.features,
     })
+}
+
+/// One `[[lights]]` entry. Keys that do not belong to the light's type are errors, so a
+/// `radius` on a rectangle never passes silently.
+fn build_light(
+    l: &RawLight,
+    ctx: &Ctx,
+    key: &dyn Fn(&str) -> String,
+) -> Result<Light, ExperimentError> {
+    let allowed: &[&str] = match l.kind {
+        LightType::Point => &[],
+        LightType::Rect => &["normal", "size", "rotation_deg"],
+        LightType::Disk => &["normal", "radius", "rotation_deg"],
+        LightType::Sphere => &["radius"],
+    };
+    for (name, given) in [
+        ("normal", l.normal.is_some()),
+        ("size", l.size.is_some()),
+        ("radius", l.radius.is_some()),
+        ("rotation_deg", l.rotation_deg.is_some()),
+    ] {
+        if given && !allowed.contains(&name) {
+            let mut keys = vec!["type", "position", "color", "intensity"];
+            keys.extend_from_slice(allowed);
+            return Err(ctx.invalid(
+                &key(name),
+                format!(
+                    "is not a key of a {:?} light; allowed: {}",
+                    l.kind,
+                    keys.join(", ")
+                ),
+            ));
+        }
+    }
+    let position = vec3_where(ctx, &key("position"), l.position, |_| true, "")?;
+    let color = match l.color {
+        Some(col) => vec3_where(ctx, &key("color"), col, |x| x >= 0.0, ">= 0")?,
+        None => DVec3::ONE,
+    };
+    let intensity = float_where(ctx, &key("intensity"), l.intensity, |x| x >= 0.0, ">= 0")?;
+    let non_negative = |k: &str, v: f64| float_where(ctx, &key(k), v, |x| x >= 0.0, ">= 0");
+    let shape = match l.kind {
+        LightType::Point => {
+            return Ok(Light::Point(PointLight {
+                position,
+                color,
+                intensity,
+            }));
+        }
+        LightType::Rect => {
+            let [w, h] = l.size.ok_or_else(|| {
+                ctx.invalid(
+                    &key("size"),
+                    "is required for a rect light: [width, height], each >= 0",
+                )
+            })?;
+            if !(w.is_finite() && h.is_finite() && w >= 0.0 && h >= 0.0) {
+                return Err(ctx.invalid(&key("size"), "both sides must be finite numbers >= 0"));
+            }
+            AreaShape::Rect {
+                width: w,
+                height: h,
+            }
+        }
+        LightType::Disk => AreaShape::Disk {
+            radius: non_negative(
+                "radius",
+                l.radius.ok_or_else(|| {
+                    ctx.invalid(
+                        &key("radius"),
+                        "is required for a disk light: a finite number >= 0",
+                    )
+                })?,
+            )?,
+        },
+        LightType::Sphere => AreaShape::Sphere {
+            radius: non_negative(
+                "radius",
+                l.radius.ok_or_else(|| {
+                    ctx.invalid(
+                        &key("radius"),
+                        "is required for a sphere light: a finite number >= 0",
+                    )
+                })?,
+            )?,
+        },
+    };
+    // Rectangles and disks face down (-y) unless told otherwise.
+    let normal = match l.normal {
+        Some(n) => {
+            let v = vec3_where(ctx, &key("normal"), n, |_| true, "")?;
+            if v.length_squared() == 0.0 || !v.length_squared().is_finite() {
+                return Err(ctx.invalid(&key("normal"), "must be a finite, non-zero vector"));
+            }
+            v.normalize()
+        }
+        None => -DVec3::Y,
+    };
+    let rotation = match l.rotation_deg {
+        Some(v) => finite(ctx, &key("rotation_deg"), v)? / 180.0 * std::f64::consts::PI,
+        None => 0.0,
+    };
+    Ok(Light::Area(AreaLight {
+        shape,
+        position,
+        normal,
+        rotation,
+        color,
+        intensity,
+    }))
 }
 
 fn build_grid(s: &RawScene, ctx: &Ctx) -> Result<Grid, ExperimentError> {
@@ -789,6 +928,9 @@ fn build_materials(raw: &[RawMaterial], ctx: &Ctx) -> Result<Vec<Material>, Expe
                 |x| x >= 0.0,
                 ">= 0 (absorption per world unit)",
             )?);
+        }
+        if let Some(e) = m.emission {
+            mat.emission = vec3_where(ctx, &key("emission"), e, |x| x >= 0.0, ">= 0 (radiance)")?;
         }
         match existing {
             Some(idx) => palette[idx] = mat,

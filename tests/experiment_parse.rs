@@ -34,7 +34,7 @@ fn baseline_file_is_the_seed_default() {
     let d = Experiment::seed_default();
     assert_eq!(e.scene, d.scene);
     assert_eq!(e.settings, d.settings);
-    assert_eq!(e.features, d.features);
+    assert_eq!(e.settings.features, d.settings.features);
     assert_eq!(e.name, "baseline");
     assert_eq!(e.source_path.as_deref(), Some(std::path::Path::new(path)));
     assert_eq!(d.settings.width, 512);
@@ -116,7 +116,9 @@ ambient = [0, 0, 0]
     assert!((e.scene.camera.pitch + std::f64::consts::PI / 6.0).abs() < 1e-15);
     assert!((e.scene.camera.vfov - std::f64::consts::PI / 3.0).abs() < 1e-15);
     assert_eq!(e.scene.lights.len(), 1);
-    let Light::Point(l) = &e.scene.lights[0];
+    let Light::Point(l) = &e.scene.lights[0] else {
+        panic!("a point light")
+    };
     assert_eq!(l.color, DVec3::ONE);
     assert_eq!(l.intensity, 2.5);
     let s = &e.settings;

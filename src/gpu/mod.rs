@@ -17,7 +17,7 @@ use crate::plan::{Plan, ShaderDefs};
 use crate::render::{
     Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings,
 };
-use crate::scene::{Light, Scene};
+use crate::scene::Scene;
 
 /// Side of the square workgroup (`@workgroup_size(8, 8, 1)` in `shaders/trace.wgsl`).
 const WORKGROUP: u32 = 8;
@@ -307,6 +307,14 @@ impl GpuTracer {
 
     fn check(&self, scene: &Scene, settings: &RenderSettings) -> Result<()> {
         scene.validate()?;
+        if settings.features.transmittance != crate::render::Transmittance::MinKt
+            || (settings.features.area_lights && scene.lights.iter().any(|l| l.is_area()))
+        {
+            bail!(
+                "the GPU kernel does not implement area-light sampling or beer-lambert yet; \
+                 render with --backend cpu"
+            );
+        }
         let (w, h) = (settings.width, settings.height);
         if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
             bail!("image size {w}x{h}: each side must be in 1..={MAX_IMAGE_SIDE}");
@@ -554,13 +562,13 @@ impl GpuTracer {
         let mut lights: Vec<GpuLight> = scene
             .lights
             .iter()
-            .map(|l| match l {
-                Light::Point(p) => GpuLight {
-                    position: f3(grid.to_local(p.position)),
-                    _pad0: 0.0,
-                    radiance: f3(p.color * p.intensity),
-                    _pad1: 0.0,
-                },
+            // Area lights act as point lights at their centres until the kernel samples
+            // them (`check` refuses renders that would need the sampling).
+            .map(|l| GpuLight {
+                position: f3(grid.to_local(l.position())),
+                _pad0: 0.0,
+                radiance: f3(l.color() * l.intensity()),
+                _pad1: 0.0,
             })
             .collect();
         // A binding cannot be empty: a scene without lights binds one unused entry.
