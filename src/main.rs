@@ -36,6 +36,9 @@ enum Command {
     Render(RenderArgs),
     /// Voxelize a mesh (OBJ, glTF, GLB) and write it as a MagicaVoxel .vox file.
     Voxelize(VoxelizeArgs),
+    /// Benchmark the baseline: the seed scene at several grid sizes, GPU and CPU in one
+    /// run (median ms per frame, counted rays and voxel steps per second, GPU/CPU ratio).
+    Bench(BenchArgs),
     // Further subcommands (bench, stress, ablate, voxelize) go here, one variant each,
     // with their own Args struct and `cmd_*` function.
 }
@@ -60,6 +63,27 @@ struct VoxelizeArgs {
     /// The .vox file to write (grids over 256 per side become several placed models).
     #[arg(long, value_name = "PATH")]
     out: PathBuf,
+}
+
+#[derive(Args, Debug)]
+struct BenchArgs {
+    /// Grid sizes of the seed scene (N^3).
+    #[arg(long, value_delimiter = ',', default_values_t = [16u32, 64, 256],
+          value_parser = clap::value_parser!(u32).range(1..=4096))]
+    sizes: Vec<u32>,
+    /// Image width and height in pixels.
+    #[arg(long, default_value_t = 512,
+          value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
+    size: u32,
+    /// Timed GPU frames per grid size (after a warm-up frame).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    gpu_runs: u32,
+    /// Timed CPU frames per grid size (after a warm-up frame).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    cpu_runs: u32,
+    /// Leave the CPU reference out (no ratio).
+    #[arg(long)]
+    no_cpu: bool,
 }
 
 /// Overrides shared by every render.
@@ -97,6 +121,7 @@ fn main() -> ExitCode {
             .map_err(anyhow::Error::from)
             .and_then(|e| cmd_render(e, &args.opts)),
         Some(Command::Voxelize(args)) => cmd_voxelize(&args),
+        Some(Command::Bench(args)) => cmd_bench(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -162,6 +187,34 @@ impl Renderer {
             }
         }
     }
+}
+
+fn cmd_bench(a: &BenchArgs) -> Result<()> {
+    let mut opts = voxlab::bench::BenchOptions {
+        sizes: a.sizes.clone(),
+        gpu_runs: a.gpu_runs as usize,
+        cpu_runs: a.cpu_runs as usize,
+        cpu: !a.no_cpu,
+        ..Default::default()
+    };
+    opts.settings.width = a.size;
+    opts.settings.height = a.size;
+    let adapter = GpuTracer::new()
+        .context("the benchmark compares GPU and CPU and needs a GPU adapter")?
+        .adapter_summary();
+    eprintln!("GPU: {adapter}\nCPU: {}", voxlab::cpu::backend_summary());
+    let rows = voxlab::bench::run(&opts, |r| {
+        eprintln!(
+            "  {}^3 {}: {:.1} ms/frame, {:.2} Mrays/s, {:.1} Msteps/s",
+            r.grid,
+            r.backend,
+            r.ms(),
+            r.mrays_per_s(),
+            r.msteps_per_s()
+        )
+    })?;
+    println!("{}", voxlab::bench::table(&rows, &adapter, &opts.settings));
+    Ok(())
 }
 
 fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
