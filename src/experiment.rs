@@ -150,14 +150,24 @@ enum Generator {
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawScene {
-    #[serde(default)]
-    generator: Generator,
+    /// Absent: the seed generator, unless `vox` or `mesh` gives the voxels.
+    generator: Option<Generator>,
     size: Option<i64>,
     dims: Option<[i64; 3]>,
     voxel_size: Option<f64>,
     origin: Option<[f64; 3]>,
     #[serde(default)]
     boxes: Vec<RawBox>,
+    /// A MagicaVoxel file (relative to the experiment file) instead of a generator.
+    vox: Option<String>,
+    /// With `vox`: load only this model (0-based), unmoved.
+    model: Option<i64>,
+    /// A mesh (OBJ, glTF, GLB; relative to the experiment file) to voxelize.
+    mesh: Option<String>,
+    /// With `mesh`: voxels along its longest axis (or give `voxel_size` instead).
+    resolution: Option<i64>,
+    /// With `mesh`: one material (name or index) for all its voxels.
+    material: Option<MaterialRef>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -637,7 +647,10 @@ fn build(raw: RawExperiment, ctx: &Ctx) -> Result<Experiment, ExperimentError> {
         None => SEED_AMBIENT,
     };
 
-    let grid = build_grid(&raw.scene, ctx)?;
+    let (grid, file_palette) = match load_scene_file(&raw.scene, ctx)? {
+        Some((g, p)) => (g, Some(p)),
+        None => (build_grid(&raw.scene, ctx)?, None),
+    };
     let c = grid.centre();
     let w = grid.width();
 
@@ -687,7 +700,7 @@ fn build(raw: RawExperiment, ctx: &Ctx) -> Result<Experiment, ExperimentError> {
             .collect::<Result<_, ExperimentError>>()?,
     };
 
-    let materials = build_materials(&raw.materials, ctx)?;
+    let materials = build_materials(file_palette, &raw.materials, ctx)?;
     let mut scene = Scene {
         grid,
         materials,
@@ -695,6 +708,7 @@ fn build(raw: RawExperiment, ctx: &Ctx) -> Result<Experiment, ExperimentError> {
         camera,
         ambient,
     };
+    apply_mesh_material(&mut scene, &raw.scene, ctx)?;
     fill_boxes(&mut scene, &raw.scene.boxes, ctx)?;
     // Everything above checks its own key; this catches what only the whole can tell
     // (a future generator using more materials than are defined).
@@ -818,6 +832,159 @@ fn build_light(
     }))
 }
 
+/// `[scene] vox = "path"` (optional `model`) or `mesh = "path"` (`resolution` or
+/// `voxel_size`, optional `material`): the grid and the palette come from the file
+/// (relative paths start at the experiment file's directory). `voxel_size` rescales a
+/// `.vox` grid; `origin` moves either. With a mesh `material`, the palette is the
+/// seed's (plus `[[materials]]`), as for a generator. Mesh warnings (an open mesh)
+/// are printed to stderr. `None` when the scene comes from a generator.
+fn load_scene_file(
+    s: &RawScene,
+    ctx: &Ctx,
+) -> Result<Option<(Grid, Vec<Material>)>, ExperimentError> {
+    use crate::scene::mesh::MAX_RESOLUTION;
+    use crate::scene::{Resolution, VoxelizeOptions, load_vox, voxelize_mesh};
+    let not_without = |present: bool, key: &str, needs: &str| {
+        if present {
+            Err(ctx.invalid(key, format!("only applies with scene.{needs}")))
+        } else {
+            Ok(())
+        }
+    };
+    not_without(s.model.is_some() && s.vox.is_none(), "scene.model", "vox")?;
+    not_without(
+        s.resolution.is_some() && s.mesh.is_none(),
+        "scene.resolution",
+        "mesh",
+    )?;
+    not_without(
+        s.material.is_some() && s.mesh.is_none(),
+        "scene.material",
+        "mesh",
+    )?;
+    let key = match (&s.vox, &s.mesh) {
+        (None, None) => return Ok(None),
+        (Some(_), Some(_)) => {
+            return Err(ctx.invalid(
+                "scene.mesh",
+                "give either scene.vox or scene.mesh, not both",
+            ));
+        }
+        (Some(_), None) => "scene.vox",
+        (None, Some(_)) => "scene.mesh",
+    };
+    for (present, k) in [
+        (s.generator.is_some(), "scene.generator"),
+        (s.size.is_some(), "scene.size"),
+        (s.dims.is_some(), "scene.dims"),
+    ] {
+        if present {
+            return Err(ctx.invalid(k, format!("not used with {key}: the file gives the voxels")));
+        }
+    }
+    let dir = Path::new(&ctx.file).parent().unwrap_or(Path::new(""));
+    let (grid, palette) = if let Some(p) = &s.vox {
+        let model = match s.model {
+            Some(m) => Some(int_in(ctx, "scene.model", m, 0..=i64::from(u32::MAX))? as usize),
+            None => None,
+        };
+        let v = load_vox(dir.join(p), model).map_err(|e| ctx.invalid(key, e))?;
+        let mut grid = v.grid;
+        if let Some(vs) = s.voxel_size {
+            let vs = float_where(ctx, "scene.voxel_size", vs, |x| x > 0.0, "> 0")?;
+            let mut g = Grid::new(grid.dims(), vs, grid.origin())
+                .map_err(|e| ctx.invalid("scene.voxel_size", e))?;
+            g.data_mut().copy_from_slice(grid.data());
+            grid = g;
+        }
+        (grid, v.materials)
+    } else {
+        let p = s.mesh.as_deref().unwrap_or_default();
+        let resolution = match (s.resolution, s.voxel_size) {
+            (Some(_), Some(_)) => {
+                return Err(ctx.invalid(
+                    "scene.voxel_size",
+                    "give either scene.resolution or scene.voxel_size for a mesh, not both",
+                ));
+            }
+            (Some(n), None) => Resolution::Count(int_in(
+                ctx,
+                "scene.resolution",
+                n,
+                1..=i64::from(MAX_RESOLUTION),
+            )?),
+            (None, Some(v)) => {
+                Resolution::VoxelSize(float_where(ctx, "scene.voxel_size", v, |x| x > 0.0, "> 0")?)
+            }
+            (None, None) => {
+                return Err(ctx.invalid(
+                    "scene.mesh",
+                    "needs scene.resolution (voxels along the longest axis) or scene.voxel_size",
+                ));
+            }
+        };
+        // With a material given, every voxel is material 1 for now; the index in the
+        // final palette is set once `[[materials]]` are known (apply_mesh_material).
+        let options = VoxelizeOptions {
+            resolution,
+            material: s
+                .material
+                .as_ref()
+                .map(|_| crate::scene::seed_palette()[1].clone()),
+        };
+        let v = voxelize_mesh(dir.join(p), &options).map_err(|e| ctx.invalid(key, e))?;
+        for w in &v.warnings {
+            eprintln!("warning: {}: {w}", ctx.file);
+        }
+        let palette = match s.material {
+            Some(_) => crate::scene::seed_palette(),
+            None => v.materials,
+        };
+        (v.grid, palette)
+    };
+    let grid = match s.origin {
+        Some(o) => {
+            let origin = vec3_where(ctx, "scene.origin", o, |_| true, "")?;
+            let mut g = Grid::new(grid.dims(), grid.voxel_size(), origin)
+                .map_err(|e| ctx.invalid("scene.origin", e))?;
+            g.data_mut().copy_from_slice(grid.data());
+            g
+        }
+        None => grid,
+    };
+    Ok(Some((grid, palette)))
+}
+
+/// A mesh's `material`, resolved in the final palette, given to all its voxels.
+fn apply_mesh_material(scene: &mut Scene, s: &RawScene, ctx: &Ctx) -> Result<(), ExperimentError> {
+    let (Some(_), Some(r)) = (&s.mesh, &s.material) else {
+        return Ok(());
+    };
+    let n = scene.materials.len();
+    let k = match r {
+        MaterialRef::Index(i) => int_in(ctx, "scene.material", *i, 1..=(n as i64 - 1))? as u8,
+        MaterialRef::Name(name) => match scene.materials.iter().position(|m| &m.name == name) {
+            Some(0) => {
+                return Err(ctx.invalid("scene.material", "void cannot be a mesh's material"));
+            }
+            Some(i) => i as u8,
+            None => {
+                let names: Vec<&str> = scene.materials.iter().map(|m| m.name.as_str()).collect();
+                return Err(ctx.invalid(
+                    "scene.material",
+                    format!("no such material; defined: {}", names.join(", ")),
+                ));
+            }
+        },
+    };
+    for m in scene.grid.data_mut() {
+        if *m != 0 {
+            *m = k;
+        }
+    }
+    Ok(())
+}
+
 fn build_grid(s: &RawScene, ctx: &Ctx) -> Result<Grid, ExperimentError> {
     let dims = match (s.size, s.dims) {
         (Some(_), Some(_)) => {
@@ -861,7 +1028,7 @@ fn build_grid(s: &RawScene, ctx: &Ctx) -> Result<Grid, ExperimentError> {
         Some(o) => vec3_where(ctx, "scene.origin", o, |_| true, "")?,
         None => DVec3::ZERO,
     };
-    let grid = match s.generator {
+    let grid = match s.generator.unwrap_or_default() {
         Generator::Seed => seed_grid(dims, voxel_size, origin),
         Generator::Empty => Grid::new(dims, voxel_size, origin),
     };
@@ -871,8 +1038,13 @@ fn build_grid(s: &RawScene, ctx: &Ctx) -> Result<Grid, ExperimentError> {
 /// The seed palette, then each `[[materials]]` entry in order: a name already in the
 /// palette overrides that material (keys left out keep its values), a new name is
 /// appended (keys left out take the defaults documented in baseline.toml).
-fn build_materials(raw: &[RawMaterial], ctx: &Ctx) -> Result<Vec<Material>, ExperimentError> {
-    let mut palette = crate::scene::seed_palette();
+fn build_materials(
+    base: Option<Vec<Material>>,
+    raw: &[RawMaterial],
+    ctx: &Ctx,
+) -> Result<Vec<Material>, ExperimentError> {
+    // A `.vox` or mesh scene starts from the file's palette instead of the seed's.
+    let mut palette = base.unwrap_or_else(crate::scene::seed_palette);
     let mut seen: Vec<&str> = Vec::new();
     for (i, m) in raw.iter().enumerate() {
         let key = |k: &str| format!("materials[{i}].{k}");

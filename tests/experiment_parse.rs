@@ -315,8 +315,8 @@ fn unknown_keys_list_the_allowed_ones() {
         ],
     );
     assert_has(
-        &err("[scene]\ngenerator = \"seed\"\nvox = \"a.vox\""),
-        &["x.toml:3:", "scene.vox", "generator, size, dims"],
+        &err("[scene]\ngenerator = \"seed\"\nvox_file = \"a.vox\""),
+        &["x.toml:3:", "scene.vox_file", "generator, size, dims"],
     );
     assert_has(
         &err("\n[cam]\ndistance = 3"),
