@@ -57,13 +57,13 @@ fn check_ray(g: &Grid, o: DVec3, d: DVec3) {
     let visits: Vec<_> = Dda::new(g, o, d, f64::INFINITY).collect();
     // Every voxel the ray crosses for a positive length is visited ...
     for v in all_voxels(g) {
-        if let Some((t0, t1)) = voxel_interval_grown(g, v, o, d, -TOL) {
-            if t1 - t0 > TOL {
-                assert!(
-                    visits.iter().any(|x| x.voxel == v),
-                    "ray {o} {d}: voxel {v} crossed on [{t0}, {t1}] but not visited; visits {visits:?}"
-                );
-            }
+        if let Some((t0, t1)) = voxel_interval_grown(g, v, o, d, -TOL)
+            && t1 - t0 > TOL
+        {
+            assert!(
+                visits.iter().any(|x| x.voxel == v),
+                "ray {o} {d}: voxel {v} crossed on [{t0}, {t1}] but not visited; visits {visits:?}"
+            );
         }
     }
     for (k, x) in visits.iter().enumerate() {

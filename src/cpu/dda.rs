@@ -191,7 +191,7 @@ pub struct Hit {
 pub fn cast(grid: &Grid, origin: DVec3, dir: DVec3, medium: u8) -> (Option<Hit>, u64) {
     let mut dda = Dda::new(grid, origin, dir, f64::INFINITY);
     let mut hit = None;
-    while let Some(v) = dda.next() {
+    for v in dda.by_ref() {
         if v.normal == DVec3::ZERO {
             continue; // start voxel: the ray is in its medium by definition
         }
