@@ -2,17 +2,20 @@
 // variant that leaves code out simply does not reference some.
 #define_import_path voxlab::bindings
 
-#import voxlab::types::{Params, Material, PointLight}
+#import voxlab::types::{Params, Material, Light}
 
 @group(0) @binding(0) var<uniform> params: Params;
 // One material index per voxel, exactly dims in size (R8Uint).
 @group(0) @binding(1) var grid: texture_3d<u32>;
 @group(0) @binding(2) var<storage, read> materials: array<Material>;
-@group(0) @binding(3) var<storage, read> lights: array<PointLight>;
+@group(0) @binding(3) var<storage, read> lights: array<Light>;
 // Linear radiance per pixel, rows from the top; w is unused.
 @group(0) @binding(4) var<storage, read_write> output: array<vec4<f32>>;
 // Ray counters as 64-bit (lo, hi) pairs: primary, secondary, shadow, voxel steps.
 @group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, 8>;
+// ACCUMULATE: the Kahan compensation of the running sum in `output`, per pixel (rgb).
+// A one-entry dummy is bound when the plan does not accumulate.
+@group(0) @binding(6) var<storage, read_write> compensation: array<vec4<f32>>;
 
 fn voxel_material(v: vec3<i32>) -> u32 {
     return textureLoad(grid, v, 0).r;

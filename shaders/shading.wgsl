@@ -1,49 +1,102 @@
 // Local lighting of a hit: Phong with inverse-square falloff, each light weighted by its
-// shadow visibility. Contract: "Shading a hit", local light.
+// shadow transmittance. A point light is one emitter at its centre; with AREA_LIGHTS a
+// sampled area light is `light_samples` emitters at its sample points, each shaded in
+// full (diffuse, specular, falloff, shadow) and sharing the light's intensity equally.
+// Contract: "Shading a hit", local light, and "Area lights".
 #define_import_path voxlab::shading
 
-#import voxlab::types::Material
+#import voxlab::types::{Material, Light, LIGHT_POINT}
 #import voxlab::bindings::{params, lights}
-#import voxlab::shadow::transmittance
 #import voxlab::counters::count_shadow
+#import voxlab::sampling::SampleKey
+#ifdef BEER_LAMBERT
+#import voxlab::shadow_beer_lambert::transmittance_rgb
+#else
+#import voxlab::shadow::transmittance
+#endif
+#ifdef AREA_LIGHTS
+#import voxlab::sampling::light_sample
+#import voxlab::area_lights::sample_point
+#endif
 
-// The unweighted local radiance at p (normal n, ray direction d) of shading material s.
-fn local_light(p: vec3<f32>, n: vec3<f32>, d: vec3<f32>, s: Material) -> vec3<f32> {
+// Transmittance (RGB) of the shadow segment from q to the emitter at x.
+fn shadow_to(q: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
+    let to_light = x - q;
+    let len = length(to_light);
+    if !(len > 0.0) {
+        return vec3<f32>(1.0);
+    }
+#ifdef BEER_LAMBERT
+    return transmittance_rgb(q, to_light / len, len);
+#else
+    return vec3<f32>(transmittance(q, to_light / len, len));
+#endif
+}
+
+// One point emitter at x of radiance `radiance` seen from the hit p (normal n, ray
+// direction d; shadow ray from q): V E (kd diffuse + ks specular), before albedo. As
+// crate::cpu::point_contribution.
+fn point_contribution(
+    q: vec3<f32>,
+    p: vec3<f32>,
+    n: vec3<f32>,
+    d: vec3<f32>,
+    x: vec3<f32>,
+    radiance: vec3<f32>,
+    s: Material,
+) -> vec3<f32> {
+    count_shadow();
+    let vis = shadow_to(q, x);
+    if all(vis == vec3<f32>(0.0)) {
+        return vec3<f32>(0.0);
+    }
+    let lp = x - p;
+    let dl = length(lp);
+    var l = n;
+    if dl > 0.0 {
+        l = lp / dl;
+    }
+    var e = radiance;
+    if params.falloff != 0u {
+        // dl is in voxels; the falloff distance is in world units.
+        let vs2 = params.voxel_size * params.voxel_size;
+        e = e / max(dl * dl * vs2, params.falloff_min_dist_sq);
+    }
+    let nl = dot(n, l);
+    let diffuse = max(0.0, nl);
+    let r = l - 2.0 * nl * n;
+    let rd = dot(r, d);
+    var spec = 0.0;
+    if rd > 0.0 {
+        spec = pow(rd, s.shininess);
+    }
+    return vis * e * (s.kd * diffuse + s.ks * spec);
+}
+
+// The unweighted local radiance at p (normal n, ray direction d) of shading material s,
+// for the primary ray of `key` (which picks the area-light samples).
+fn local_light(p: vec3<f32>, n: vec3<f32>, d: vec3<f32>, s: Material, key: SampleKey) -> vec3<f32> {
     var local = vec3<f32>(0.0);
     if !(s.kd > 0.0 || s.ks > 0.0) {
         return local;
     }
     let q = p + params.eps * n;
-    let vs2 = params.voxel_size * params.voxel_size;
     for (var j = 0u; j < params.num_lights; j++) {
         let light = lights[j];
-        let to_light = light.position - q;
-        let len = length(to_light);
-        count_shadow();
-        var vis = 1.0;
-        if len > 0.0 {
-            vis = transmittance(q, to_light / len, len);
+#ifdef AREA_LIGHTS
+        if light.kind != LIGHT_POINT {
+            let count = max(params.light_samples, 1u);
+            var sum = vec3<f32>(0.0);
+            for (var k = 0u; k < count; k++) {
+                let st = light_sample(params.seed, key, j, k, count);
+                let x = sample_point(light, st);
+                sum += point_contribution(q, p, n, d, x, light.radiance, s);
+            }
+            local += sum / f32(count);
+            continue;
         }
-        let lp = light.position - p;
-        let dl = length(lp);
-        var l = n;
-        if dl > 0.0 {
-            l = lp / dl;
-        }
-        var e = light.radiance;
-        if params.falloff != 0u {
-            // dl is in voxels; the falloff distance is in world units.
-            e = e / max(dl * dl * vs2, params.falloff_min_dist_sq);
-        }
-        let nl = dot(n, l);
-        let diffuse = max(0.0, nl);
-        let r = l - 2.0 * nl * n;
-        let rd = dot(r, d);
-        var spec = 0.0;
-        if rd > 0.0 {
-            spec = pow(rd, s.shininess);
-        }
-        local += vis * e * (s.kd * diffuse + s.ks * spec);
+#endif
+        local += point_contribution(q, p, n, d, light.position, light.radiance, s);
     }
     return local * s.albedo;
 }

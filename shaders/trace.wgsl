@@ -3,13 +3,19 @@
 // adding throughput * local at every hit gives the seed's ray-tree image exactly.
 // Contract: "Primary rays", "Shading a hit", "Stack".
 //
-// Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, EMISSION, COUNT_RAYS,
-// RAY_STACK_SIZE.
+// Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, EMISSION, AREA_LIGHTS,
+// BEER_LAMBERT, ACCUMULATE, COUNT_RAYS, RAY_STACK_SIZE. The shadow and light models live
+// in their own files (shading.wgsl composes them); this file only walks the ray tree and
+// loops over the frames of a dispatch.
 
 #import voxlab::types::{BIG, Material}
 #import voxlab::bindings::{params, materials, output}
 #import voxlab::traversal::cast_ray
 #import voxlab::counters::{count_primary, count_secondary, flush_counts}
+#import voxlab::sampling::SampleKey
+#ifdef ACCUMULATE
+#import voxlab::accumulate::{Sum, load_sum, add, store_sum}
+#endif
 #ifdef SHADOWS
 #import voxlab::shading::local_light
 #endif
@@ -78,16 +84,8 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, h: u32, s: Material) {
 #endif
 }
 
-@compute @workgroup_size(8, 8, 1)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= params.width || gid.y >= params.height {
-        return;
-    }
-    // Pixel centre, rows from the top (CameraFrame::primary_dir).
-    let sx = 2.0 * (f32(gid.x) + 0.5) / f32(params.width) - 1.0;
-    let sy = 1.0 - 2.0 * (f32(gid.y) + 0.5) / f32(params.height);
-    let dir = normalize(params.forward + sx * params.right_scaled + sy * params.up_scaled);
-
+// Radiance of the primary ray along dir (ambient included) for one frame.
+fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
     var primary: RayEntry;
     primary.origin = params.eye;
     primary.dir = dir;
@@ -122,7 +120,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         radiance += r.throughput * s.emission;
 #endif
 #ifdef SHADOWS
-        radiance += r.throughput * local_light(p, n, r.dir, s);
+        radiance += r.throughput * local_light(p, n, r.dir, s, key);
 #endif
         // No `#if A || B` in naga_oil: spawn whenever either kind of secondary ray is in.
 #ifdef REFLECTION
@@ -133,7 +131,34 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
 #endif
 #endif
     }
+    return radiance;
+}
 
-    output[gid.y * params.width + gid.x] = vec4<f32>(radiance, 1.0);
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= params.width || gid.y >= params.height {
+        return;
+    }
+    // Pixel centre, rows from the top (CameraFrame::primary_dir).
+    let sx = 2.0 * (f32(gid.x) + 0.5) / f32(params.width) - 1.0;
+    let sy = 1.0 - 2.0 * (f32(gid.y) + 0.5) / f32(params.height);
+    let dir = normalize(params.forward + sx * params.right_scaled + sy * params.up_scaled);
+    let i = gid.y * params.width + gid.x;
+    var key: SampleKey;
+    key.pixel = i;
+    key.frame = params.frame_begin;
+
+#ifdef ACCUMULATE
+    // Frames frame_begin .. frame_begin + frame_count, added to the running sum.
+    var acc = load_sum(i);
+    for (var f = 0u; f < params.frame_count; f++) {
+        key.frame = params.frame_begin + f;
+        add(&acc, trace_pixel(dir, key));
+    }
+    store_sum(i, acc);
+#else
+    // One frame: the image itself.
+    output[i] = vec4<f32>(trace_pixel(dir, key), 1.0);
+#endif
     flush_counts();
 }

@@ -28,6 +28,13 @@ struct Params {
     // d_min^2 in world units; falloff is off when this is negative.
     falloff_min_dist_sq: f32,
     falloff: u32,
+    // Area-light sampling (AREA_LIGHTS): samples per pixel, light and frame; the hash seed.
+    light_samples: u32,
+    seed: u32,
+    // The frames this dispatch traces: frame_begin .. frame_begin + frame_count. With
+    // ACCUMULATE, frame_begin > 0 continues the sums already in the buffers.
+    frame_begin: u32,
+    frame_count: u32,
 }
 
 struct Material {
@@ -38,18 +45,37 @@ struct Material {
     kr: f32,
     kt: f32,
     ior: f32,
-    pad_a: f32,
-    pad_b: f32,
-    pad_c: f32,
+    // Beer-Lambert absorption per voxel unit (sigma per world unit times voxel_size,
+    // converted on the host), RGB; scalars so the 64-byte layout keeps its rows.
+    sigma_r: f32,
+    sigma_g: f32,
+    sigma_b: f32,
     // Radiance the voxel emits towards the viewer (seen, not cast).
     emission: vec3<f32>,
     pad_d: f32,
 }
 
-struct PointLight {
+// Light kinds: a point (also an area light of size 0 or with sampling off), or a shape
+// sampled by AREA_LIGHTS. Without AREA_LIGHTS every light is its centre.
+const LIGHT_POINT: u32 = 0u;
+const LIGHT_RECT: u32 = 1u;
+const LIGHT_DISK: u32 = 2u;
+const LIGHT_SPHERE: u32 = 3u;
+
+struct Light {
+    // Centre.
     position: vec3<f32>,
-    pad_a: f32,
+    kind: u32,
     // colour * intensity, multiplied on the host.
     radiance: vec3<f32>,
+    pad_a: f32,
+    // The shape's axes in voxel units, scaled by its size on the host in f64
+    // (src/gpu/mod.rs, `GpuLight`): rectangle u * width and v * height; disk u * radius
+    // and v * radius; sphere radius times the world axes x, y (and z in axis_n).
+    axis_u: vec3<f32>,
     pad_b: f32,
+    axis_v: vec3<f32>,
+    pad_c: f32,
+    axis_n: vec3<f32>,
+    pad_d: f32,
 }

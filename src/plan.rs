@@ -15,7 +15,7 @@ use std::fmt;
 
 use naga_oil::compose::ShaderDefValue;
 
-use crate::render::RenderSettings;
+use crate::render::{RenderSettings, Transmittance};
 use crate::scene::{Material, Scene, VOID};
 
 /// Shader defs of one kernel variant, ordered so they can key a pipeline cache.
@@ -36,6 +36,20 @@ pub struct Plan {
     /// Emission (`EMISSION`): some material in the grid emits. Adding zero changes
     /// nothing, so it is left out when none does.
     pub emission: bool,
+    /// Area-light sampling (`AREA_LIGHTS`): `features.area_lights` is on, some light is
+    /// an area light of non-zero size, and local lighting is in. Without it every light
+    /// is a point at its centre (the baseline).
+    pub area_lights: bool,
+    /// Beer-Lambert shadow transmittance (`BEER_LAMBERT`): `transmittance =
+    /// "beer-lambert"`, local lighting is in, and some material a shadow segment can cross
+    /// attenuates by distance (0 < kt < 1, or a non-zero sigma on a material that is not
+    /// opaque). Without such a material `min-kt` gives the same transmittance (0 or 1
+    /// exactly), so its cheaper walk is used.
+    pub beer_lambert: bool,
+    /// Progressive accumulation over frames (`ACCUMULATE`): area lights are sampled and
+    /// `spp > 1`. Allocates the compensation buffer. Without sampling every frame is the
+    /// same image, so one frame is rendered whatever `spp` says.
+    pub accumulate: bool,
     /// Ray counters (`COUNT_RAYS`): chosen by the caller, not by the scene.
     pub count_rays: bool,
     /// Entries of the explicit ray stack (`RAY_STACK_SIZE`).
@@ -75,13 +89,29 @@ fn tir_possible(scene: &Scene) -> bool {
     })
 }
 
+/// Whether Beer-Lambert can differ from min-kt: some material a shadow segment can
+/// cross (any used by the grid, and void) is neither opaque (kt <= 0: both give 0) nor
+/// fully transparent without absorption (kt >= 1 and sigma = 0: both give 1).
+fn attenuates_by_distance(scene: &Scene) -> bool {
+    let used = scene.grid.materials_used();
+    let vs = scene.grid.voxel_size();
+    scene.materials.iter().enumerate().any(|(i, m)| {
+        (used[i] || i == VOID as usize)
+            && m.kt > 0.0
+            && (m.kt < 1.0 || m.absorption(vs) != glam::DVec3::ZERO)
+    })
+}
+
 impl Plan {
     /// Shader flags in the order they are printed and enumerated by tests.
-    pub const FLAGS: [&'static str; 5] = [
+    pub const FLAGS: [&'static str; 8] = [
         "REFLECTION",
         "REFRACTION",
         "SHADOWS",
         "EMISSION",
+        "AREA_LIGHTS",
+        "BEER_LAMBERT",
+        "ACCUMULATE",
         "COUNT_RAYS",
     ];
 
@@ -136,6 +166,54 @@ impl Plan {
             reasons.push("emission: no material in the grid emits".to_string());
         }
 
+        let sampled_lights = scene.lights.iter().filter(|l| l.is_area()).count();
+        let area_lights = if !settings.features.area_lights {
+            if sampled_lights > 0 {
+                reasons.push(format!(
+                    "area lights: features.area_lights is off; {sampled_lights} area \
+                     light(s) act as point lights at their centres"
+                ));
+            }
+            false
+        } else if sampled_lights == 0 {
+            reasons.push(
+                "area lights: area_lights on but the scene has no area light of non-zero \
+                 size"
+                    .to_string(),
+            );
+            false
+        } else if !shadows {
+            reasons.push("area lights: no local lighting to sample them for".to_string());
+            false
+        } else {
+            true
+        };
+
+        let beer_lambert = if settings.features.transmittance != Transmittance::BeerLambert {
+            false
+        } else if !shadows {
+            reasons.push("beer-lambert: no shadow rays".to_string());
+            false
+        } else if !attenuates_by_distance(scene) {
+            reasons.push(
+                "beer-lambert: every material a shadow ray can cross is opaque or fully \
+                 transparent without absorption, where min-kt gives the same 0 or 1"
+                    .to_string(),
+            );
+            false
+        } else {
+            true
+        };
+
+        let accumulate = area_lights && settings.spp > 1;
+        if !area_lights && settings.spp > 1 {
+            reasons.push(format!(
+                "accumulation: spp {} but nothing is sampled, so every frame is the same \
+                 image; rendered once",
+                settings.spp
+            ));
+        }
+
         // Depth-first: a pop that pushes two children grows the stack by one per level,
         // so both kinds need a + b + 1 slots; one kind alone pushes at most one child per
         // pop and never holds more than one entry.
@@ -161,9 +239,22 @@ impl Plan {
             refraction,
             shadows,
             emission,
+            area_lights,
+            beer_lambert,
+            accumulate,
             count_rays: false,
             ray_stack_size,
             reasons,
+        }
+    }
+
+    /// Frames the image is accumulated over: `spp` when area lights are sampled, else 1
+    /// (every frame would be the same image). Both tracers render this many.
+    pub fn frames(&self, settings: &RenderSettings) -> u32 {
+        if self.accumulate {
+            settings.spp.max(1)
+        } else {
+            1
         }
     }
 
@@ -180,6 +271,9 @@ impl Plan {
             "REFRACTION" => self.refraction,
             "SHADOWS" => self.shadows,
             "EMISSION" => self.emission,
+            "AREA_LIGHTS" => self.area_lights,
+            "BEER_LAMBERT" => self.beer_lambert,
+            "ACCUMULATE" => self.accumulate,
             "COUNT_RAYS" => self.count_rays,
             _ => false,
         }
@@ -192,6 +286,9 @@ impl Plan {
             "REFRACTION" => self.refraction = on,
             "SHADOWS" => self.shadows = on,
             "EMISSION" => self.emission = on,
+            "AREA_LIGHTS" => self.area_lights = on,
+            "BEER_LAMBERT" => self.beer_lambert = on,
+            "ACCUMULATE" => self.accumulate = on,
             "COUNT_RAYS" => self.count_rays = on,
             _ => panic!("unknown plan flag {name}"),
         }
@@ -206,6 +303,9 @@ impl Plan {
                     refraction: false,
                     shadows: false,
                     emission: false,
+                    area_lights: false,
+                    beer_lambert: false,
+                    accumulate: false,
                     count_rays: false,
                     ray_stack_size,
                     reasons: Vec::new(),
@@ -329,8 +429,8 @@ mod tests {
     #[test]
     fn all_variants_are_distinct() {
         let v = Plan::all_variants(3);
-        assert_eq!(v.len(), 32);
+        assert_eq!(v.len(), 256);
         let keys: std::collections::HashSet<_> = v.iter().map(|p| p.shader_defs()).collect();
-        assert_eq!(keys.len(), 32);
+        assert_eq!(keys.len(), 256);
     }
 }

@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 pub use dda::{Dda, Hit, Visit, cast};
 
+use crate::plan::Plan;
 use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Transmittance};
 use crate::sampling::light_sample;
 use crate::scene::{Light, Material, Scene};
@@ -26,12 +27,13 @@ pub fn backend_summary() -> String {
 
 /// Renders the scene: `settings.spp` frames, each tracing every pixel independently
 /// (so the image does not depend on the thread count), averaged in f64 so accumulation
-/// never drifts.
+/// never drifts. When nothing is sampled every frame is the same image, so one is
+/// rendered ([`Plan::frames`], as the GPU does).
 pub fn render(scene: &Scene, settings: &RenderSettings) -> RenderOutput {
     let start = Instant::now();
     let frame_cam = scene.camera.frame();
     let (w, h) = (settings.width, settings.height);
-    let frames = settings.spp.max(1);
+    let frames = Plan::new(scene, settings).frames(settings);
     let rows: Vec<(Vec<[f32; 3]>, RayStats)> = (0..h)
         .into_par_iter()
         .map(|j| {

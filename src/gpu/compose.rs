@@ -25,12 +25,28 @@ const MODULES: &[(&str, &str)] = &[
         include_str!("../../shaders/counters.wgsl"),
     ),
     (
+        "shaders/sampling.wgsl",
+        include_str!("../../shaders/sampling.wgsl"),
+    ),
+    (
         "shaders/traversal.wgsl",
         include_str!("../../shaders/traversal.wgsl"),
     ),
     (
         "shaders/shadow.wgsl",
         include_str!("../../shaders/shadow.wgsl"),
+    ),
+    (
+        "shaders/shadow_beer_lambert.wgsl",
+        include_str!("../../shaders/shadow_beer_lambert.wgsl"),
+    ),
+    (
+        "shaders/area_lights.wgsl",
+        include_str!("../../shaders/area_lights.wgsl"),
+    ),
+    (
+        "shaders/accumulate.wgsl",
+        include_str!("../../shaders/accumulate.wgsl"),
     ),
     (
         "shaders/shading.wgsl",

@@ -17,7 +17,7 @@ use crate::plan::{Plan, ShaderDefs};
 use crate::render::{
     Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings,
 };
-use crate::scene::Scene;
+use crate::scene::{AreaShape, Light, Scene};
 
 /// Side of the square workgroup (`@workgroup_size(8, 8, 1)` in `shaders/trace.wgsl`).
 const WORKGROUP: u32 = 8;
@@ -43,6 +43,10 @@ struct GpuParams {
     voxel_size: f32,
     falloff_min_dist_sq: f32,
     falloff: u32,
+    light_samples: u32,
+    seed: u32,
+    frame_begin: u32,
+    frame_count: u32,
 }
 
 /// `Material` of `shaders/types.wgsl` (64-byte array stride).
@@ -56,26 +60,46 @@ struct GpuMaterial {
     kr: f32,
     kt: f32,
     ior: f32,
-    _pad: [f32; 3],
+    /// Beer-Lambert absorption per voxel unit (per world unit times voxel_size).
+    sigma: [f32; 3],
     emission: [f32; 3],
     _pad_e: f32,
 }
 
-/// `PointLight` of `shaders/types.wgsl`.
+/// `Light` of `shaders/types.wgsl`: the centre, colour times intensity, and for a
+/// sampled area light its kind and axes scaled by its size, in voxel units.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 struct GpuLight {
     position: [f32; 3],
-    _pad0: f32,
+    kind: u32,
     radiance: [f32; 3],
+    _pad0: f32,
+    axis_u: [f32; 3],
     _pad1: f32,
+    axis_v: [f32; 3],
+    _pad2: f32,
+    axis_n: [f32; 3],
+    _pad3: f32,
 }
+
+/// `LIGHT_*` of `shaders/types.wgsl`.
+const LIGHT_POINT: u32 = 0;
+const LIGHT_RECT: u32 = 1;
+const LIGHT_DISK: u32 = 2;
+const LIGHT_SPHERE: u32 = 3;
+
+/// Pixel-frames traced by one dispatch at most: a render of many frames is split into
+/// dispatches of whole frames (the sums carry over in the buffers), so no single
+/// dispatch runs long enough to trip a driver's watchdog.
+const PIXEL_FRAMES_PER_DISPATCH: u64 = 1 << 20;
 
 const COUNTER_BYTES: u64 = 8 * 4;
 
-// The WGSL uniform struct is 112 bytes (7 rows of 16).
-const _: () = assert!(std::mem::size_of::<GpuParams>() == 112);
+// The WGSL uniform struct is 128 bytes (8 rows of 16).
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 128);
 const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
+const _: () = assert!(std::mem::size_of::<GpuLight>() == 80);
 
 fn f3(v: DVec3) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
@@ -108,6 +132,10 @@ pub struct GpuTracer {
     counters_readback: wgpu::Buffer,
     materials: Option<(u64, wgpu::Buffer)>,
     lights: Option<(u64, wgpu::Buffer)>,
+    /// Kahan compensation per pixel, only while a plan accumulates (`ACCUMULATE`).
+    compensation: Option<(u64, wgpu::Buffer)>,
+    /// Bound in its place when the plan does not accumulate (a binding cannot be empty).
+    compensation_dummy: wgpu::Buffer,
     grid: Option<GridUpload>,
     buffers: Option<Buffers>,
     /// The plan of the latest render, for printing and reports.
@@ -223,6 +251,7 @@ impl GpuTracer {
                 storage_entry(3, true),
                 storage_entry(4, false),
                 storage_entry(5, false),
+                storage_entry(6, false),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -250,6 +279,12 @@ impl GpuTracer {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let compensation_dummy = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("compensation (unused)"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
         Ok(Self {
             adapter,
             device,
@@ -262,6 +297,8 @@ impl GpuTracer {
             counters_readback,
             materials: None,
             lights: None,
+            compensation: None,
+            compensation_dummy,
             grid: None,
             buffers: None,
             last_plan: None,
@@ -307,14 +344,6 @@ impl GpuTracer {
 
     fn check(&self, scene: &Scene, settings: &RenderSettings) -> Result<()> {
         scene.validate()?;
-        if settings.features.transmittance != crate::render::Transmittance::MinKt
-            || (settings.features.area_lights && scene.lights.iter().any(|l| l.is_area()))
-        {
-            bail!(
-                "the GPU kernel does not implement area-light sampling or beer-lambert yet; \
-                 render with --backend cpu"
-            );
-        }
         let (w, h) = (settings.width, settings.height);
         if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
             bail!("image size {w}x{h}: each side must be in 1..={MAX_IMAGE_SIDE}");
@@ -458,6 +487,23 @@ impl GpuTracer {
         b
     }
 
+    /// The compensation buffer of an accumulating render, kept while large enough.
+    fn compensation_buffer(&mut self, bytes: u64) -> wgpu::Buffer {
+        if let Some((cap, b)) = &self.compensation
+            && *cap >= bytes
+        {
+            return b.clone();
+        }
+        let b = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("compensation"),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        self.compensation = Some((bytes, b.clone()));
+        b
+    }
+
     fn output_buffers(&mut self, pixels: u64) -> (wgpu::Buffer, wgpu::Buffer) {
         if let Some(b) = &self.buffers
             && b.pixels == pixels
@@ -510,7 +556,45 @@ impl GpuTracer {
             falloff_min_dist_sq: (settings.falloff_min_distance * settings.falloff_min_distance)
                 as f32,
             falloff: settings.falloff as u32,
+            light_samples: settings.light_samples.max(1),
+            seed: settings.seed,
+            frame_begin: 0,
+            frame_count: 1,
         }
+    }
+
+    /// A light as the kernel sees it. Point lights, area lights of size 0 and area
+    /// lights with sampling off are points at their centres (exactly the baseline's
+    /// upload); sampled ones carry their kind and their axes scaled by their size, from
+    /// AreaLight::frame in f64, divided by the voxel size into voxel units.
+    fn light(scene: &Scene, settings: &RenderSettings, light: &Light) -> GpuLight {
+        let grid = &scene.grid;
+        let mut g = GpuLight {
+            position: f3(grid.to_local(light.position())),
+            kind: LIGHT_POINT,
+            radiance: f3(light.color() * light.intensity()),
+            ..GpuLight::zeroed()
+        };
+        let Light::Area(a) = light else { return g };
+        if !(settings.features.area_lights && light.is_area()) {
+            return g;
+        }
+        let local = |v: DVec3| f3(v / grid.voxel_size());
+        let (u, v, n) = a.frame();
+        let (kind, axes) = match a.shape {
+            AreaShape::Rect { width, height } => (LIGHT_RECT, [u * width, v * height, n]),
+            AreaShape::Disk { radius } => (LIGHT_DISK, [u * radius, v * radius, n]),
+            // The sphere is sampled in world axes.
+            AreaShape::Sphere { radius } => (
+                LIGHT_SPHERE,
+                [DVec3::X * radius, DVec3::Y * radius, DVec3::Z * radius],
+            ),
+        };
+        g.kind = kind;
+        g.axis_u = local(axes[0]);
+        g.axis_v = local(axes[1]);
+        g.axis_n = local(axes[2]);
+        g
     }
 
     fn render_with(
@@ -538,7 +622,17 @@ impl GpuTracer {
         self.pipeline(&plan)?;
         self.upload_grid(scene);
 
-        let params = Self::params(scene, settings);
+        // Frames in dispatches of whole frames; the first dispatch's params are written
+        // with the uploads, the others' before their own submissions.
+        let pixels = settings.width as u64 * settings.height as u64;
+        let frames = plan.frames(settings);
+        let per_dispatch = if plan.accumulate {
+            (PIXEL_FRAMES_PER_DISPATCH / pixels).clamp(1, frames as u64) as u32
+        } else {
+            1
+        };
+        let mut params = Self::params(scene, settings);
+        params.frame_count = per_dispatch;
         self.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
 
@@ -553,23 +647,16 @@ impl GpuTracer {
                 kr: m.kr as f32,
                 kt: m.kt as f32,
                 ior: m.ior as f32,
-                _pad: [0.0; 3],
+                // Per world unit times world units per voxel: per voxel unit.
+                sigma: f3(m.absorption(scene.grid.voxel_size()) * scene.grid.voxel_size()),
                 emission: f3(m.emission),
                 _pad_e: 0.0,
             })
             .collect();
-        let grid = &scene.grid;
         let mut lights: Vec<GpuLight> = scene
             .lights
             .iter()
-            // Area lights act as point lights at their centres until the kernel samples
-            // them (`check` refuses renders that would need the sampling).
-            .map(|l| GpuLight {
-                position: f3(grid.to_local(l.position())),
-                _pad0: 0.0,
-                radiance: f3(l.color() * l.intensity()),
-                _pad1: 0.0,
-            })
+            .map(|l| Self::light(scene, settings, l))
             .collect();
         // A binding cannot be empty: a scene without lights binds one unused entry.
         if lights.is_empty() {
@@ -594,8 +681,14 @@ impl GpuTracer {
         self.queue
             .write_buffer(&self.counters, 0, &[0u8; COUNTER_BYTES as usize]);
 
-        let pixels = settings.width as u64 * settings.height as u64;
         let (output, readback) = self.output_buffers(pixels);
+        let compensation = if plan.accumulate {
+            Some(self.compensation_buffer(pixels * 16))
+        } else {
+            // Only accumulating renders hold one.
+            self.compensation = None;
+            None
+        };
         let grid_view = &self.grid.as_ref().expect("grid uploaded").view;
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("voxlab tracer"),
@@ -625,6 +718,13 @@ impl GpuTracer {
                     binding: 5,
                     resource: self.counters.as_entire_binding(),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: compensation
+                        .as_ref()
+                        .unwrap_or(&self.compensation_dummy)
+                        .as_entire_binding(),
+                },
             ],
         });
 
@@ -633,39 +733,67 @@ impl GpuTracer {
         self.wait()?;
 
         let pipeline = &self.pipelines[&plan.shader_defs()];
-        let mut encoder = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("voxlab trace"),
-            });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("voxlab trace"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(
-                settings.width.div_ceil(WORKGROUP),
-                settings.height.div_ceil(WORKGROUP),
-                1,
-            );
-        }
         let start = Instant::now();
-        self.queue.submit([encoder.finish()]);
+        let mut begin = 0u32;
+        while begin < frames {
+            let count = per_dispatch.min(frames - begin);
+            if begin > 0 {
+                params.frame_begin = begin;
+                params.frame_count = count;
+                self.queue
+                    .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            }
+            let mut encoder = self
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("voxlab trace"),
+                });
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("voxlab trace"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &bind_group, &[]);
+                pass.dispatch_workgroups(
+                    settings.width.div_ceil(WORKGROUP),
+                    settings.height.div_ceil(WORKGROUP),
+                    1,
+                );
+            }
+            self.queue.submit([encoder.finish()]);
+            begin += count;
+        }
         self.wait()?;
         let trace_time = start.elapsed();
 
-        let mut encoder = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("voxlab readback"),
-            });
-        encoder.copy_buffer_to_buffer(&output, 0, &readback, 0, pixels * 16);
-        encoder.copy_buffer_to_buffer(&self.counters, 0, &self.counters_readback, 0, COUNTER_BYTES);
-        self.queue.submit([encoder.finish()]);
-
+        let copy = |from: &wgpu::Buffer| {
+            let mut encoder = self
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("voxlab readback"),
+                });
+            encoder.copy_buffer_to_buffer(from, 0, &readback, 0, pixels * 16);
+            encoder.copy_buffer_to_buffer(
+                &self.counters,
+                0,
+                &self.counters_readback,
+                0,
+                COUNTER_BYTES,
+            );
+            self.queue.submit([encoder.finish()]);
+        };
+        copy(&output);
         let radiance: Vec<[f32; 4]> = self.read(&readback, pixels * 16)?;
+        // With ACCUMULATE the buffers hold the sum of the frames and its compensation:
+        // the image is (sum + compensation) / frames, in f64, rounded once.
+        let compensation: Option<Vec<[f32; 4]>> = match &compensation {
+            Some(b) => {
+                copy(b);
+                Some(self.read(&readback, pixels * 16)?)
+            }
+            None => None,
+        };
         let counts: Vec<u32> = self.read(&self.counters_readback, COUNTER_BYTES)?;
         let c = |i: usize| counts[2 * i] as u64 | (counts[2 * i + 1] as u64) << 32;
         let stats = if count {
@@ -680,8 +808,18 @@ impl GpuTracer {
         };
 
         let mut frame = Frame::new(settings.width, settings.height);
-        for (dst, src) in frame.pixels.iter_mut().zip(&radiance) {
-            *dst = [src[0], src[1], src[2]];
+        match &compensation {
+            None => {
+                for (dst, src) in frame.pixels.iter_mut().zip(&radiance) {
+                    *dst = [src[0], src[1], src[2]];
+                }
+            }
+            Some(comp) => {
+                let n = frames as f64;
+                for ((dst, sum), c) in frame.pixels.iter_mut().zip(&radiance).zip(comp) {
+                    *dst = std::array::from_fn(|k| ((sum[k] as f64 + c[k] as f64) / n) as f32);
+                }
+            }
         }
         self.last_plan = Some(plan);
         Ok(RenderOutput {
