@@ -163,3 +163,97 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     }
     out
 }
+
+/// One mesh voxelized at one resolution: the median of several runs.
+#[derive(Clone, Debug)]
+pub struct VoxelizeRow {
+    pub mesh: String,
+    pub triangles: usize,
+    pub resolution: u32,
+    pub dims: glam::UVec3,
+    pub solid_voxels: usize,
+    pub median: Duration,
+}
+
+/// A closed torus of `rings x segments x 2` triangles (major radius 1, minor 0.35): a
+/// synthetic mesh of a chosen size for the voxelization benchmark.
+pub fn torus_mesh(rings: u32, segments: u32) -> crate::scene::mesh::TriangleMesh {
+    use glam::DVec3;
+    use std::f64::consts::TAU;
+    let point = |i: u32, j: u32| {
+        let (su, cu) = (TAU * (i % rings) as f64 / rings as f64).sin_cos();
+        let (sv, cv) = (TAU * (j % segments) as f64 / segments as f64).sin_cos();
+        let r = 1.0 + 0.35 * cv;
+        DVec3::new(r * cu, 0.35 * sv, r * su)
+    };
+    let mut triangles = Vec::with_capacity((2 * rings * segments) as usize);
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b, c, d) = (
+                point(i, j),
+                point(i + 1, j),
+                point(i + 1, j + 1),
+                point(i, j + 1),
+            );
+            triangles.push([a, b, c]);
+            triangles.push([a, c, d]);
+        }
+    }
+    crate::scene::mesh::TriangleMesh {
+        material_of: vec![0; triangles.len()],
+        materials: vec![crate::scene::seed_palette()[3].clone()],
+        triangles,
+        warnings: Vec::new(),
+    }
+}
+
+/// Times the voxelization (surface + interior fill) of `mesh` at `resolution`.
+pub fn bench_voxelize(
+    name: &str,
+    mesh: &crate::scene::mesh::TriangleMesh,
+    resolution: u32,
+    runs: usize,
+) -> Result<VoxelizeRow> {
+    let opts = crate::scene::VoxelizeOptions::count(resolution);
+    let mut times = Vec::new();
+    let mut last = None;
+    for _ in 0..runs.max(1) {
+        let start = std::time::Instant::now();
+        let v = crate::scene::mesh::voxelize(mesh, &opts)
+            .map_err(|k| anyhow::anyhow!("{name}: {k}"))?;
+        times.push(start.elapsed());
+        last = Some(v);
+    }
+    let v = last.expect("at least one run");
+    Ok(VoxelizeRow {
+        mesh: name.to_string(),
+        triangles: v.triangle_count,
+        resolution,
+        dims: v.grid.dims(),
+        solid_voxels: v.shell_voxels + v.interior_voxels,
+        median: median(times),
+    })
+}
+
+pub fn voxelize_table(rows: &[VoxelizeRow]) -> String {
+    let mut out = String::from(
+        "| mesh | triangles | resolution | grid | solid voxels | median ms | grid Mvoxels/s |\n\
+         |---|---:|---:|---|---:|---:|---:|\n",
+    );
+    for r in rows {
+        let s = r.median.as_secs_f64();
+        out += &format!(
+            "| {} | {} | {} | {}x{}x{} | {} | {:.1} | {:.2} |\n",
+            r.mesh,
+            r.triangles,
+            r.resolution,
+            r.dims.x,
+            r.dims.y,
+            r.dims.z,
+            r.solid_voxels,
+            s * 1e3,
+            r.dims.as_dvec3().element_product() / s / 1e6
+        );
+    }
+    out
+}

@@ -84,6 +84,14 @@ struct BenchArgs {
     /// Leave the CPU reference out (no ratio).
     #[arg(long)]
     no_cpu: bool,
+    /// Benchmark mesh voxelization instead: this mesh and a 50,000-triangle torus, each
+    /// at --voxelize-resolution.
+    #[arg(long, value_name = "MESH", num_args = 0..=1,
+          default_missing_value = "../shared/data/bunny.obj")]
+    voxelize: Option<PathBuf>,
+    #[arg(long, default_value_t = 256,
+          value_parser = clap::value_parser!(u32).range(1..=voxlab::scene::mesh::MAX_RESOLUTION as i64))]
+    voxelize_resolution: u32,
 }
 
 /// Overrides shared by every render.
@@ -190,6 +198,24 @@ impl Renderer {
 }
 
 fn cmd_bench(a: &BenchArgs) -> Result<()> {
+    if let Some(mesh_path) = &a.voxelize {
+        let bunny = voxlab::scene::load_mesh(mesh_path)?;
+        // 250 x 100 quads: exactly 50,000 triangles.
+        let torus = voxlab::bench::torus_mesh(250, 100);
+        let n = a.voxelize_resolution;
+        let mut rows = Vec::new();
+        for (name, mesh) in [
+            (mesh_path.display().to_string(), &bunny),
+            ("torus".to_string(), &torus),
+        ] {
+            let row = voxlab::bench::bench_voxelize(&name, mesh, n, 3)?;
+            eprintln!("  {name} at {n}: {:.1} ms", row.median.as_secs_f64() * 1e3);
+            rows.push(row);
+        }
+        println!("voxelization (conservative surface + interior fill), median of 3 runs\n");
+        println!("{}", voxlab::bench::voxelize_table(&rows));
+        return Ok(());
+    }
     let mut opts = voxlab::bench::BenchOptions {
         sizes: a.sizes.clone(),
         gpu_runs: a.gpu_runs as usize,
