@@ -132,6 +132,10 @@ struct RawExperiment {
     render: RawRender,
     #[serde(default)]
     features: RawFeatures,
+    /// `[ablate]`: the sweep of `voxlab ablate`, validated there (`crate::ablate`), so
+    /// the same file also renders with `voxlab render`.
+    #[allow(dead_code)]
+    ablate: Option<toml::Table>,
 }
 
 /// Where the voxels come from. Only generators exist so far; file sources
