@@ -14,6 +14,7 @@ pub mod plan;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod stress;
 
 pub use render::{Features, Frame, RayStats, RenderOutput, RenderSettings, Transmittance};
 pub use scene::Scene;

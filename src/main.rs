@@ -39,6 +39,9 @@ enum Command {
     /// Benchmark the baseline: the seed scene at several grid sizes, GPU and CPU in one
     /// run (median ms per frame, counted rays and voxel steps per second, GPU/CPU ratio).
     Bench(BenchArgs),
+    /// Stress suite (DESIGN section 5): stiff and extreme cases on the GPU and the CPU
+    /// reference; prints the table and writes it as stress.md and stress.csv.
+    Stress(StressArgs),
     // Further subcommands (bench, stress, ablate, voxelize) go here, one variant each,
     // with their own Args struct and `cmd_*` function.
 }
@@ -94,6 +97,20 @@ struct BenchArgs {
     voxelize_resolution: u32,
 }
 
+#[derive(Args, Debug)]
+struct StressArgs {
+    /// Directory for stress.md and stress.csv.
+    #[arg(long, value_name = "DIR", default_value = "out/stress")]
+    out: PathBuf,
+    /// Side of the large-cube case (the seed scene at N^3; 0 leaves it out).
+    #[arg(long, value_name = "N", default_value_t = 512,
+          value_parser = clap::value_parser!(u32).range(0..=1290))]
+    cube: u32,
+    /// Run only the cases whose name contains this text.
+    #[arg(long, value_name = "TEXT")]
+    only: Option<String>,
+}
+
 /// Overrides shared by every render.
 #[derive(Args, Debug)]
 struct RenderOpts {
@@ -130,6 +147,7 @@ fn main() -> ExitCode {
             .and_then(|e| cmd_render(e, &args.opts)),
         Some(Command::Voxelize(args)) => cmd_voxelize(&args),
         Some(Command::Bench(args)) => cmd_bench(&args),
+        Some(Command::Stress(args)) => cmd_stress(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -240,6 +258,44 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         )
     })?;
     println!("{}", voxlab::bench::table(&rows, &adapter, &opts.settings));
+    Ok(())
+}
+
+fn cmd_stress(a: &StressArgs) -> Result<()> {
+    // A missing adapter is reported in every row (and fails them), not hidden.
+    let mut gpu = match GpuTracer::new() {
+        Ok(t) => Some(t),
+        Err(e) => {
+            eprintln!("warning: no GPU adapter ({e:#}); every case will fail its GPU half");
+            None
+        }
+    };
+    let adapter = gpu
+        .as_ref()
+        .map(|t| t.adapter_summary())
+        .unwrap_or_else(|| "none".to_string());
+    let opts = voxlab::stress::SuiteOptions {
+        max_grid_side: gpu.as_ref().map_or(4096, |t| t.max_grid_side()),
+        cube: (a.cube > 0).then_some(a.cube),
+    };
+    let mut cases = voxlab::stress::cases(&opts)?;
+    if let Some(f) = &a.only {
+        cases.retain(|c| c.name.contains(f.as_str()));
+        anyhow::ensure!(!cases.is_empty(), "no stress case name contains {f:?}");
+    }
+    eprintln!("GPU: {adapter}\nCPU: {}", voxlab::cpu::backend_summary());
+    let rows = voxlab::stress::run(gpu.as_mut(), &cases, |r| {
+        eprintln!("  {}: {:?}", r.name, r.verdict())
+    });
+    let table = voxlab::stress::markdown(&rows, &adapter);
+    println!("{table}");
+    let (md, csv) = voxlab::stress::write_tables(&a.out, &rows, &adapter)?;
+    println!("wrote {} and {}", md.display(), csv.display());
+    let failed = rows
+        .iter()
+        .filter(|r| matches!(r.verdict(), voxlab::stress::Verdict::Fail(_)))
+        .count();
+    anyhow::ensure!(failed == 0, "{failed} stress case(s) failed");
     Ok(())
 }
 

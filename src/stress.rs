@@ -1,0 +1,899 @@
+//! The stress suite (DESIGN section 5, issue 6): stiff and extreme cases rendered by the
+//! GPU kernel (f32) and by the CPU reference (f64), with every pixel checked for being
+//! finite and the GPU image compared with the oracle.
+//!
+//! Cases come from two places: the experiment files under `experiments/stress/`
+//! (compiled in, so the suite does not depend on the working directory, and each can be
+//! rendered alone with `voxlab render`), and cases generated here, where a case needs a
+//! computed camera, a device limit or a grid no file should spell out.
+//!
+//! Tolerance: on the displayed value (radiance clamped to [0, 1], as in the PNG), a
+//! pixel differs when any channel differs by more than 2/255. Some pixels are
+//! ill-conditioned: their rays pass through voxel edges or corners (a lattice eye,
+//! axis-aligned views), where f32 and f64 each pick one of the touching voxels and both
+//! are right. The suite finds them by turning every primary ray of the oracle by
+//! [`CONDITION_TURN`] either way; a pixel whose oracle value then changes beyond the
+//! tolerance is counted apart. A case passes when both images are finite and at most
+//! `max_bad` (0.5 %) of the other pixels differ.
+
+use std::fmt::Write as _;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use glam::{DVec3, IVec3, UVec3};
+
+use crate::experiment::Experiment;
+use crate::gpu::GpuTracer;
+use crate::metrics::{Domain, ImageDiff, compare};
+use crate::render::{Frame, RenderSettings, Transmittance};
+use crate::scene::{
+    AreaLight, AreaShape, Grid, Light, PointLight, Scene, seed_ids, seed_scene, seed_scene_dims,
+};
+
+/// A pixel differs from the oracle when a displayed channel differs by more than this.
+pub const TOLERANCE: f64 = 2.0 / 255.0;
+
+/// The camera turn (radians, either way) that tells ill-conditioned pixels: about 30
+/// times the f32 rounding of a direction, so every ray that f32 can move across a voxel
+/// edge or corner is caught, and a band of about 1e-4 voxels around the edges at the
+/// distances of these scenes.
+pub const CONDITION_TURN: f64 = 2e-6;
+
+/// Fraction of differing pixels a case may have unless it states its own.
+pub const DEFAULT_MAX_BAD: f64 = 0.005;
+
+/// The stress experiment files, by name (file stem) and text.
+pub const STRESS_FILES: &[(&str, &str)] = &[
+    (
+        "eye_on_lattice",
+        include_str!("../experiments/stress/eye_on_lattice.toml"),
+    ),
+    (
+        "camera_in_glass",
+        include_str!("../experiments/stress/camera_in_glass.toml"),
+    ),
+    (
+        "beer_lambert_thin",
+        include_str!("../experiments/stress/beer_lambert_thin.toml"),
+    ),
+    (
+        "beer_lambert_thick",
+        include_str!("../experiments/stress/beer_lambert_thick.toml"),
+    ),
+    (
+        "grid_17x9x24",
+        include_str!("../experiments/stress/grid_17x9x24.toml"),
+    ),
+    (
+        "far_origin_1e6",
+        include_str!("../experiments/stress/far_origin_1e6.toml"),
+    ),
+];
+
+/// One stress case: a scene, its settings, and how many differing pixels it may have.
+#[derive(Clone, Debug)]
+pub struct StressCase {
+    pub name: String,
+    /// What is stiff about it, in a few words.
+    pub what: String,
+    /// `experiments/stress/<file>.toml` or `generated`.
+    pub source: String,
+    pub scene: Scene,
+    pub settings: RenderSettings,
+    pub max_bad: f64,
+}
+
+/// What the generated cases depend on.
+#[derive(Clone, Debug)]
+pub struct SuiteOptions {
+    /// The device's largest grid side (`GpuTracer::max_grid_side`): one case is a grid
+    /// `max_grid_side x 8 x 8`.
+    pub max_grid_side: u32,
+    /// Side of the large cube case (the seed scene at N^3); `None` leaves it out.
+    pub cube: Option<u32>,
+}
+
+impl Default for SuiteOptions {
+    /// Lavapipe's limit, and no large cube (the tests' setting).
+    fn default() -> Self {
+        Self {
+            max_grid_side: 4096,
+            cube: None,
+        }
+    }
+}
+
+fn settings(width: u32, height: u32) -> RenderSettings {
+    RenderSettings {
+        width,
+        height,
+        ..Default::default()
+    }
+}
+
+fn seed16() -> Scene {
+    seed_scene(16).expect("the seed scene at 16^3 is valid")
+}
+
+/// Points the orbit camera: `eye = target + distance (sin yaw cos pitch, sin pitch,
+/// cos yaw cos pitch)`, exact for yaw = pitch = 0.
+fn aim(scene: &mut Scene, target: DVec3, distance: f64, yaw_deg: f64, pitch_deg: f64, vfov: f64) {
+    let c = &mut scene.camera;
+    c.target = target;
+    c.distance = distance;
+    c.yaw = yaw_deg.to_radians();
+    c.pitch = pitch_deg.to_radians();
+    c.vfov = vfov.to_radians();
+}
+
+fn point(position: DVec3, color: DVec3, intensity: f64) -> Light {
+    Light::Point(PointLight {
+        position,
+        color,
+        intensity,
+    })
+}
+
+fn case(name: &str, what: &str, scene: Scene, settings: RenderSettings) -> StressCase {
+    StressCase {
+        name: name.to_string(),
+        what: what.to_string(),
+        source: "generated".to_string(),
+        scene,
+        settings,
+        max_bad: DEFAULT_MAX_BAD,
+    }
+}
+
+/// A 32 x 8 x 32 grid with a solid floor (y = 0) under a glass layer (y = 1), two solid
+/// pillars and a glass block on it.
+fn slab_scene() -> Scene {
+    let mut scene = seed16();
+    let mut grid = Grid::new(UVec3::new(32, 8, 32), 1.0, DVec3::ZERO).unwrap();
+    let fill = |g: &mut Grid, lo: IVec3, hi: IVec3, m: u8| {
+        for z in lo.z..hi.z {
+            for y in lo.y..hi.y {
+                for x in lo.x..hi.x {
+                    g.set(IVec3::new(x, y, z), m);
+                }
+            }
+        }
+    };
+    fill(
+        &mut grid,
+        IVec3::ZERO,
+        IVec3::new(32, 1, 32),
+        seed_ids::SOLID,
+    );
+    fill(
+        &mut grid,
+        IVec3::new(0, 1, 0),
+        IVec3::new(32, 2, 32),
+        seed_ids::GLASS,
+    );
+    fill(
+        &mut grid,
+        IVec3::new(6, 2, 6),
+        IVec3::new(8, 7, 8),
+        seed_ids::SOLID,
+    );
+    fill(
+        &mut grid,
+        IVec3::new(20, 2, 10),
+        IVec3::new(23, 6, 13),
+        seed_ids::SOLID,
+    );
+    fill(
+        &mut grid,
+        IVec3::new(12, 2, 18),
+        IVec3::new(18, 5, 22),
+        seed_ids::SEMI_SOLID,
+    );
+    scene.grid = grid;
+    scene.lights = vec![
+        // Low: its light grazes the glass top at a few degrees.
+        point(
+            DVec3::new(-40.0, 2.5, 16.0),
+            DVec3::new(1.0, 0.9, 0.8),
+            4000.0,
+        ),
+        point(DVec3::new(16.0, 30.0, 20.0), DVec3::ONE, 1500.0),
+    ];
+    scene
+}
+
+/// The cases generated in code (the experiment files come on top, see [`cases`]).
+pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
+    let mut out = Vec::new();
+    let c16 = DVec3::splat(8.0);
+
+    // Axis-parallel rays: yaw 0, pitch 0 and an odd image give exactly zero x or y
+    // components in the centre column and row; the centre ray runs along x = y = 8.
+    let mut s = seed16();
+    aim(&mut s, c16, 40.0, 0.0, 0.0, 36.87);
+    out.push(case(
+        "axis-parallel",
+        "looking down -z, zero direction components",
+        s,
+        settings(65, 65),
+    ));
+    // Straight down the y axis: on the image diagonals |dx| == |dy| exactly, so those
+    // rays run through voxel edges and which voxel a secondary ray starts in depends on
+    // how its hit point rounds (f32 against f64): ill-conditioned pixels.
+    let mut s = seed16();
+    aim(&mut s, c16, 40.0, 0.0, 90.0, 36.87);
+    out.push(case(
+        "axis-down",
+        "looking straight down -y (pitch 90)",
+        s,
+        settings(65, 65),
+    ));
+    // The eye exactly on the grid's corner (16, 16, 16), looking along its edge: rays
+    // with dx, dy < 0 enter the corner voxel at t = 0 through an edge or the corner.
+    let mut s = seed16();
+    aim(&mut s, DVec3::new(16.0, 16.0, 0.0), 16.0, 0.0, 0.0, 90.0);
+    out.push(case(
+        "eye-on-grid-corner",
+        "eye on the grid's corner, rays enter at t = 0",
+        s,
+        settings(65, 65),
+    ));
+    // The eye on the open front face's plane z = 16 (outside by the contract's `<`),
+    // looking in: every ray enters the box at t = 0 through a face, edge or corner.
+    let mut s = seed16();
+    aim(&mut s, DVec3::new(8.0, 8.0, 0.0), 16.0, 0.0, 0.0, 90.0);
+    out.push(case(
+        "eye-on-grid-face",
+        "eye on the grid's face plane z = 16",
+        s,
+        settings(65, 65),
+    ));
+    // Grazing: the eye on the glass layer's top plane y = 2, looking level: the lower
+    // half of the image meets the glass at angles down to 0 (refraction near grazing),
+    // the centre row runs in the plane itself; the low light grazes the glass too.
+    let mut s = slab_scene();
+    aim(&mut s, DVec3::new(16.0, 2.0, 16.0), 24.0, 30.0, 0.0, 50.0);
+    out.push(case(
+        "grazing",
+        "eye in a face plane, rays and light grazing glass",
+        s,
+        settings(65, 65),
+    ));
+    // Inside the glass layer, looking slightly up: the glass -> void face is met beyond
+    // the critical angle (total internal reflection) and near it.
+    let mut s = slab_scene();
+    aim(&mut s, DVec3::new(16.0, 1.5, 4.0), 20.0, 0.0, 2.0, 60.0);
+    out.push(case(
+        "inside-glass-tir",
+        "eye inside a glass layer, TIR at grazing angles",
+        s,
+        settings(64, 64),
+    ));
+    // Inside a voxel: the eye in the semi-solid cube [7, 9)^3.
+    let mut s = seed16();
+    aim(&mut s, DVec3::new(8.3, 7.6, 7.95), 0.5, 0.0, 0.0, 90.0);
+    out.push(case(
+        "camera-in-voxel",
+        "eye inside the semi-solid cube",
+        s,
+        settings(64, 64),
+    ));
+    // Outside looking away: the same eye as the seed's, turned around.
+    let mut s = seed16();
+    let eye = s.camera.eye();
+    s.camera.target = eye + (eye - s.camera.target);
+    s.camera.yaw += std::f64::consts::PI;
+    s.camera.pitch = -s.camera.pitch;
+    out.push(case(
+        "looking-away",
+        "eye outside the grid, looking away",
+        s,
+        settings(32, 32),
+    ));
+    // Lights inside occupied voxels: in the semi-solid cube and in a solid frame voxel.
+    let mut s = seed16();
+    s.lights = vec![
+        point(c16 + DVec3::splat(0.25), DVec3::ONE, 50.0),
+        point(DVec3::new(0.5, 0.5, 8.5), DVec3::new(1.0, 0.5, 0.2), 50.0),
+        s.lights[0].clone(),
+    ];
+    out.push(case(
+        "light-in-voxel",
+        "lights inside a semi-solid and a solid voxel",
+        s,
+        settings(64, 64),
+    ));
+    // Lights at distance 0 from hit points: on the frame's corner (16, 16, 16) and on
+    // the inner face of the back pane, where 1/d^2 is held by falloff_min_distance.
+    let mut s = seed16();
+    s.lights = vec![
+        point(DVec3::new(16.0, 16.0, 16.0), DVec3::ONE, 30.0),
+        point(DVec3::new(5.0, 5.0, 1.0), DVec3::new(0.3, 0.6, 1.0), 5.0),
+    ];
+    out.push(case(
+        "light-on-surface",
+        "lights at distance 0 from surfaces (falloff_min_distance)",
+        s,
+        settings(64, 64),
+    ));
+    // Far-away lights: 1e4 and 1e6 grid widths away, intensities scaled to match.
+    let mut s = seed16();
+    let w = s.grid.width();
+    s.lights = vec![
+        point(
+            c16 + 1e4 * w * DVec3::new(0.3, 1.0, 0.6),
+            DVec3::ONE,
+            1e8 * w * w,
+        ),
+        point(
+            c16 + 1e6 * w * DVec3::new(-0.5, 0.7, 1.0),
+            DVec3::new(0.6, 0.7, 1.0),
+            1e12 * w * w,
+        ),
+    ];
+    out.push(case(
+        "light-far",
+        "lights 1e4 and 1e6 grid widths away",
+        s,
+        settings(64, 64),
+    ));
+    // Index of refraction 1 everywhere: refraction is a straight continuation.
+    let mut s = seed16();
+    for m in &mut s.materials {
+        m.ior = 1.0;
+    }
+    out.push(case("ior-1", "ior 1.0 everywhere", s, settings(64, 64)));
+    // Far above glass: total internal reflection inside glass and semi-solid.
+    let mut s = seed16();
+    s.materials[seed_ids::GLASS as usize].ior = 6.0;
+    s.materials[seed_ids::SEMI_SOLID as usize].ior = 4.0;
+    out.push(case(
+        "ior-6-tir",
+        "ior 6 and 4: total internal reflection",
+        s,
+        settings(64, 64),
+    ));
+    // Depth limits 0 and large.
+    for (d, side) in [(0u32, 64u32), (8, 48), (16, 32)] {
+        let st = RenderSettings {
+            max_reflection_depth: d,
+            max_refraction_depth: d,
+            ..settings(side, side)
+        };
+        out.push(case(
+            &format!("depth-{d}"),
+            &format!("reflection and refraction depth {d}/{d}"),
+            seed16(),
+            st,
+        ));
+    }
+    // Soft shadows: a rectangle light, stratified samples over two frames, beer-lambert.
+    let mut s = seed16();
+    s.lights.push(Light::Area(AreaLight {
+        shape: AreaShape::Rect {
+            width: 6.0,
+            height: 4.0,
+        },
+        position: DVec3::new(8.0, 22.0, 12.0),
+        normal: DVec3::NEG_Y,
+        rotation: 0.3,
+        color: DVec3::ONE,
+        intensity: 300.0,
+    }));
+    let mut st = settings(48, 48);
+    st.features.area_lights = true;
+    st.features.transmittance = Transmittance::BeerLambert;
+    st.light_samples = 4;
+    st.spp = 2;
+    out.push(case(
+        "area-light",
+        "rect area light, 4 samples x 2 frames, beer-lambert",
+        s,
+        st,
+    ));
+    // Grids: one voxel; the device's longest side.
+    out.push(case(
+        "grid-1x1x1",
+        "a grid of one voxel",
+        seed_scene_dims(UVec3::ONE)?,
+        settings(32, 32),
+    ));
+    let side = opts.max_grid_side;
+    let mut s = seed_scene_dims(UVec3::new(side, 8, 8))?;
+    // Looking down the tube from beyond its +x end, through the pane's hole: primary
+    // rays walk the whole length before they meet the far pane.
+    let len = side as f64;
+    aim(
+        &mut s,
+        DVec3::new(0.5 * len, 4.0, 4.0),
+        0.5 * len + 12.0,
+        90.0,
+        0.0,
+        20.0,
+    );
+    out.push(case(
+        &format!("grid-{side}x8x8"),
+        "longest side = max_texture_dimension_3d",
+        s,
+        settings(48, 48),
+    ));
+    if let Some(n) = opts.cube {
+        out.push(case(
+            &format!("grid-{n}^3"),
+            "a large cube (the seed scene at N^3)",
+            seed_scene(n)?,
+            settings(32, 32),
+        ));
+    }
+    // Far from the origin (1e6 is an experiment file).
+    let mut s = seed16();
+    let origin = DVec3::new(1e5, 1e5, -1e5);
+    s.grid = crate::scene::seed::seed_grid(UVec3::splat(16), 1.0, origin)?;
+    let (c, w) = (s.grid.centre(), s.grid.width());
+    s.lights = crate::scene::seed::seed_lights(c, w);
+    s.camera = crate::scene::seed::seed_camera(c, w);
+    out.push(case(
+        "far-origin-1e5",
+        "seed scene with the grid at (1e5, 1e5, -1e5)",
+        s,
+        settings(64, 64),
+    ));
+    Ok(out)
+}
+
+/// The cases of the experiment files under `experiments/stress/`.
+pub fn file_cases() -> Result<Vec<StressCase>> {
+    STRESS_FILES
+        .iter()
+        .map(|(stem, text)| {
+            let path = format!("experiments/stress/{stem}.toml");
+            let e = Experiment::from_str(text, &path)?;
+            let what = description(text).unwrap_or_else(|| e.name.clone());
+            Ok(StressCase {
+                name: e.name,
+                what,
+                source: path,
+                scene: e.scene,
+                settings: e.settings,
+                max_bad: DEFAULT_MAX_BAD,
+            })
+        })
+        .collect()
+}
+
+/// The `description = "..."` line of an experiment file (the loader keeps it for the
+/// reader only).
+fn description(text: &str) -> Option<String> {
+    let v: toml::Table = toml::from_str(text).ok()?;
+    v.get("description")?.as_str().map(str::to_string)
+}
+
+/// Every case: the files first, then the generated ones.
+pub fn cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
+    let mut all = file_cases()?;
+    all.extend(generated_cases(opts)?);
+    Ok(all)
+}
+
+/// What the GPU made of a case.
+#[derive(Clone, Debug)]
+pub enum GpuResult {
+    Rendered {
+        frame: Frame,
+        time: Duration,
+    },
+    /// The kernel refused a feature it does not implement (the suite picks the case up
+    /// once it does).
+    Unsupported(String),
+    /// Any other error.
+    Failed(String),
+    /// No adapter was given to the suite.
+    NoAdapter,
+}
+
+/// One row of the table.
+#[derive(Clone, Debug)]
+pub struct StressRow {
+    pub name: String,
+    pub what: String,
+    pub source: String,
+    pub image: (u32, u32),
+    pub grid: UVec3,
+    /// Bytes of the grid on the device (an R8Uint 3D texture: one per voxel).
+    pub grid_bytes: u64,
+    pub cpu_finite: bool,
+    pub cpu_time: Duration,
+    pub gpu: GpuResult,
+    /// GPU against CPU, displayed values, threshold [`TOLERANCE`].
+    pub diff: Option<ImageDiff>,
+    /// Pixels where the oracle itself is unstable: turning the camera by
+    /// [`CONDITION_TURN`] radians either way changes the CPU image there beyond
+    /// [`TOLERANCE`] (rays through voxel edges and corners, where f32 and f64 may pick
+    /// different voxels and both be right).
+    pub ill_conditioned: usize,
+    /// Pixels beyond [`TOLERANCE`] among the others: these are the tracer's errors.
+    pub over_well_conditioned: usize,
+    /// Mean FLIP error (nv-flip) of the GPU image against the oracle's.
+    pub flip_mean: Option<f64>,
+    pub max_bad: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    Pass,
+    /// The GPU does not implement a feature of the case; the CPU image was checked.
+    Unsupported,
+    Fail(String),
+}
+
+impl StressRow {
+    pub fn gpu_finite(&self) -> Option<bool> {
+        match &self.gpu {
+            GpuResult::Rendered { frame, .. } => Some(frame.all_finite()),
+            _ => None,
+        }
+    }
+
+    pub fn verdict(&self) -> Verdict {
+        if !self.cpu_finite {
+            return Verdict::Fail("CPU image not finite".into());
+        }
+        match &self.gpu {
+            GpuResult::Unsupported(_) => return Verdict::Unsupported,
+            GpuResult::Failed(e) => return Verdict::Fail(format!("GPU error: {e}")),
+            GpuResult::NoAdapter => return Verdict::Fail("no GPU adapter".into()),
+            GpuResult::Rendered { .. } => {}
+        }
+        if self.gpu_finite() != Some(true) {
+            return Verdict::Fail("GPU image not finite".into());
+        }
+        let n = (self.image.0 as usize * self.image.1 as usize).max(1);
+        let frac = self.over_well_conditioned as f64 / n as f64;
+        if frac > self.max_bad {
+            return Verdict::Fail(format!(
+                "{:.2} % of well-conditioned pixels over {}/255 (limit {} %)",
+                100.0 * frac,
+                (TOLERANCE * 255.0).round(),
+                100.0 * self.max_bad
+            ));
+        }
+        Verdict::Pass
+    }
+
+    fn verdict_text(&self) -> String {
+        match self.verdict() {
+            Verdict::Pass => "pass".into(),
+            Verdict::Unsupported => "GPU: unsupported".into(),
+            Verdict::Fail(why) => format!("FAIL: {why}"),
+        }
+    }
+}
+
+/// A GPU error that only says a feature is missing from the kernel.
+fn is_unsupported(message: &str) -> bool {
+    let m = message.to_lowercase();
+    m.contains("does not implement") || m.contains("unsupported") || m.contains("not supported")
+}
+
+/// Renders one case on both backends and compares.
+pub fn run_case(gpu: Option<&mut GpuTracer>, case: &StressCase) -> StressRow {
+    let cpu = crate::cpu::render(&case.scene, &case.settings);
+    let unstable = ill_conditioned(case, &cpu.frame);
+    let gpu_result = match gpu {
+        None => GpuResult::NoAdapter,
+        // The first dispatch of a kernel variant includes the driver's compile on some
+        // drivers (lavapipe JITs there): a warm-up render first, then the timed one.
+        Some(t) => match t
+            .render(&case.scene, &case.settings)
+            .and_then(|_| t.render(&case.scene, &case.settings))
+        {
+            Ok(out) => GpuResult::Rendered {
+                frame: out.frame,
+                time: out.trace_time,
+            },
+            Err(e) => {
+                let msg = format!("{e:#}");
+                if is_unsupported(&msg) {
+                    GpuResult::Unsupported(msg)
+                } else {
+                    GpuResult::Failed(msg)
+                }
+            }
+        },
+    };
+    let diff = match &gpu_result {
+        GpuResult::Rendered { frame, .. } => compare(frame, &cpu.frame, Domain::Display, TOLERANCE),
+        _ => None,
+    };
+    let over_well_conditioned = match &gpu_result {
+        GpuResult::Rendered { frame, .. } => frame
+            .pixels
+            .iter()
+            .zip(&cpu.frame.pixels)
+            .zip(&unstable)
+            .filter(|((g, c), u)| !**u && pixel_diff(g, c) > TOLERANCE)
+            .count(),
+        _ => 0,
+    };
+    let flip = match &gpu_result {
+        GpuResult::Rendered { frame, .. } => Some(flip_mean(&cpu.frame, frame)),
+        _ => None,
+    };
+    let dims = case.scene.grid.dims();
+    StressRow {
+        name: case.name.clone(),
+        what: case.what.clone(),
+        source: case.source.clone(),
+        image: (case.settings.width, case.settings.height),
+        grid: dims,
+        grid_bytes: case.scene.grid.voxel_count() as u64,
+        cpu_finite: cpu.frame.all_finite(),
+        cpu_time: cpu.trace_time,
+        gpu: gpu_result,
+        diff,
+        ill_conditioned: unstable.iter().filter(|&&u| u).count(),
+        over_well_conditioned,
+        flip_mean: flip,
+        max_bad: case.max_bad,
+    }
+}
+
+/// Mean FLIP error (NVIDIA's implementation) of `test` against `reference`, on the
+/// displayed 8-bit images, at FLIP's default viewing (67 pixels per degree).
+pub fn flip_mean(reference: &Frame, test: &Frame) -> f64 {
+    let (w, h) = (reference.width, reference.height);
+    let r = nv_flip::FlipImageRgb8::with_data(w, h, &reference.to_rgb8());
+    let t = nv_flip::FlipImageRgb8::with_data(w, h, &test.to_rgb8());
+    let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
+    nv_flip::FlipPool::from_image(&map).mean() as f64
+}
+
+/// Largest displayed-channel difference of two pixels (NaN counts as infinite).
+fn pixel_diff(a: &[f32; 3], b: &[f32; 3]) -> f64 {
+    (0..3)
+        .map(|c| {
+            let d = (a[c].clamp(0.0, 1.0) as f64 - b[c].clamp(0.0, 1.0) as f64).abs();
+            if d.is_nan() { f64::INFINITY } else { d }
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Which pixels of the oracle move beyond [`TOLERANCE`] when every primary ray turns by
+/// [`CONDITION_TURN`] one way or the other. The eye stays exactly where it is (so its
+/// medium does too): the rays are traced from it with the reference's `trace_ray`.
+pub fn ill_conditioned(case: &StressCase, oracle: &Frame) -> Vec<bool> {
+    use rayon::prelude::*;
+    let cam = case.scene.camera.frame();
+    let (w, h) = (case.settings.width, case.settings.height);
+    // Across the view, and generic so it does not run along a lattice axis.
+    let across = (0.8 * cam.right + 0.6 * cam.up) * CONDITION_TURN;
+    let frames = crate::plan::Plan::new(&case.scene, &case.settings).frames(&case.settings);
+    (0..h)
+        .into_par_iter()
+        .flat_map_iter(|j| {
+            let mut stats = crate::RayStats::default();
+            (0..w)
+                .map(move |i| {
+                    let dir = cam.primary_dir(i, j, w, h);
+                    let mut unstable = false;
+                    for sign in [-1.0, 1.0] {
+                        let d = (dir + sign * across).normalize();
+                        let mut sum = DVec3::ZERO;
+                        for frame in 0..frames {
+                            let key = crate::cpu::SampleKey {
+                                pixel: j * w + i,
+                                frame,
+                            };
+                            sum += crate::cpu::trace_ray(
+                                &case.scene,
+                                &case.settings,
+                                key,
+                                cam.eye,
+                                d,
+                                &mut stats,
+                            );
+                        }
+                        let c = sum / frames as f64;
+                        let p = [c.x as f32, c.y as f32, c.z as f32];
+                        unstable |= pixel_diff(&p, &oracle.get(i, j)) > TOLERANCE;
+                    }
+                    unstable
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// Runs every case, calling `progress` after each.
+pub fn run(
+    mut gpu: Option<&mut GpuTracer>,
+    cases: &[StressCase],
+    mut progress: impl FnMut(&StressRow),
+) -> Vec<StressRow> {
+    cases
+        .iter()
+        .map(|c| {
+            let row = run_case(gpu.as_deref_mut(), c);
+            progress(&row);
+            row
+        })
+        .collect()
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+fn bytes_text(b: u64) -> String {
+    if b >= 1 << 20 {
+        format!("{:.1} MiB", b as f64 / (1u64 << 20) as f64)
+    } else if b >= 1 << 10 {
+        format!("{:.1} KiB", b as f64 / 1024.0)
+    } else {
+        format!("{b} B")
+    }
+}
+
+fn finite_text(f: Option<bool>) -> &'static str {
+    match f {
+        Some(true) => "yes",
+        Some(false) => "NO",
+        None => "-",
+    }
+}
+
+/// The columns of both tables.
+const HEADER: [&str; 16] = [
+    "case",
+    "what",
+    "image",
+    "grid",
+    "grid bytes",
+    "CPU finite",
+    "GPU finite",
+    "px > 2/255",
+    "ill-cond px",
+    "well-cond px > 2/255",
+    "max |d|",
+    "mean |d|",
+    "FLIP mean",
+    "GPU ms",
+    "CPU ms",
+    "verdict",
+];
+
+fn cells(r: &StressRow, markdown: bool) -> Vec<String> {
+    let gpu_ms = match &r.gpu {
+        GpuResult::Rendered { time, .. } => format!("{:.2}", ms(*time)),
+        _ => "-".into(),
+    };
+    let (over, max, mean) = match r.diff {
+        Some(d) => (
+            if markdown {
+                format!("{} ({:.2} %)", d.pixels_over, 100.0 * d.fraction_over())
+            } else {
+                d.pixels_over.to_string()
+            },
+            format!("{:.2e}", d.max_abs),
+            format!("{:.2e}", d.mean_abs),
+        ),
+        None => ("-".into(), "-".into(), "-".into()),
+    };
+    vec![
+        r.name.clone(),
+        r.what.clone(),
+        format!("{}x{}", r.image.0, r.image.1),
+        format!("{}x{}x{}", r.grid.x, r.grid.y, r.grid.z),
+        if markdown {
+            bytes_text(r.grid_bytes)
+        } else {
+            r.grid_bytes.to_string()
+        },
+        finite_text(Some(r.cpu_finite)).into(),
+        finite_text(r.gpu_finite()).into(),
+        over,
+        r.ill_conditioned.to_string(),
+        if r.diff.is_some() {
+            r.over_well_conditioned.to_string()
+        } else {
+            "-".into()
+        },
+        max,
+        mean,
+        r.flip_mean
+            .map(|f| format!("{f:.4}"))
+            .unwrap_or_else(|| "n/a".into()),
+        gpu_ms,
+        format!("{:.2}", ms(r.cpu_time)),
+        r.verdict_text(),
+    ]
+}
+
+/// The table as markdown, with a header naming the device and the tolerance.
+pub fn markdown(rows: &[StressRow], adapter: &str) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "Stress suite: GPU `{adapter}` (f32) against the CPU reference (f64).\n\
+         A pixel differs when a displayed channel (clamped to [0, 1]) differs by more \
+         than 2/255; a case passes when both images are finite and at most 0.5 % of its \
+         well-conditioned pixels differ. max/mean |d| are per channel on displayed values. \
+         FLIP: mean of NVIDIA FLIP (nv-flip, 8-bit displayed images, 67 px/degree). \
+         ill-cond px: pixels where the oracle itself changes beyond 2/255 when every \
+         primary ray turns by 2e-6 rad either way (rays through voxel edges and corners, \
+         where f32 and f64 may each pick a different, equally right voxel); the verdict \
+         counts the differing pixels among the others. \
+         Times: the trace alone, after a warm-up render (uploads excluded).\n"
+    );
+    let _ = writeln!(s, "| {} |", HEADER.join(" | "));
+    let _ = writeln!(s, "|{}", "---|".repeat(HEADER.len()));
+    for r in rows {
+        let c: Vec<String> = cells(r, true)
+            .into_iter()
+            .map(|x| x.replace('|', "\\|"))
+            .collect();
+        let _ = writeln!(s, "| {} |", c.join(" | "));
+    }
+    let fails = rows
+        .iter()
+        .filter(|r| matches!(r.verdict(), Verdict::Fail(_)))
+        .count();
+    let unsupported = rows
+        .iter()
+        .filter(|r| r.verdict() == Verdict::Unsupported)
+        .count();
+    let _ = writeln!(
+        s,
+        "\n{} cases: {} pass, {} GPU-unsupported, {} fail.",
+        rows.len(),
+        rows.len() - fails - unsupported,
+        unsupported,
+        fails
+    );
+    s
+}
+
+fn csv_field(x: &str) -> String {
+    if x.contains([',', '"', '\n']) {
+        format!("\"{}\"", x.replace('"', "\"\""))
+    } else {
+        x.to_string()
+    }
+}
+
+/// The table as CSV (plain numbers: bytes, pixel counts, milliseconds).
+pub fn csv(rows: &[StressRow]) -> String {
+    let mut s = String::new();
+    let names: Vec<String> = HEADER
+        .iter()
+        .map(|h| {
+            h.replace("px > 2/255", "pixels_over_2_255")
+                .replace("|d|", "abs_diff")
+                .replace(' ', "_")
+                .to_lowercase()
+        })
+        .collect();
+    let _ = writeln!(s, "{},max_bad_fraction,source", names.join(","));
+    for r in rows {
+        let mut c: Vec<String> = cells(r, false).iter().map(|x| csv_field(x)).collect();
+        c.push(r.max_bad.to_string());
+        c.push(csv_field(&r.source));
+        let _ = writeln!(s, "{}", c.join(","));
+    }
+    s
+}
+
+/// Writes `stress.md` and `stress.csv` into `dir` (created if missing); returns their paths.
+pub fn write_tables(
+    dir: &std::path::Path,
+    rows: &[StressRow],
+    adapter: &str,
+) -> Result<(std::path::PathBuf, std::path::PathBuf)> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let md = dir.join("stress.md");
+    let cs = dir.join("stress.csv");
+    std::fs::write(&md, markdown(rows, adapter))
+        .with_context(|| format!("writing {}", md.display()))?;
+    std::fs::write(&cs, csv(rows)).with_context(|| format!("writing {}", cs.display()))?;
+    Ok((md, cs))
+}
