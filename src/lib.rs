@@ -4,6 +4,7 @@
 //! compute kernel (`gpu`, WGSL under `shaders/`) and by the f64 reference (`cpu`), the
 //! oracle of the tests.
 
+pub mod ablate;
 pub mod bench;
 pub mod cpu;
 pub mod metrics;

@@ -42,6 +42,10 @@ enum Command {
     /// Stress suite (DESIGN section 5): stiff and extreme cases on the GPU and the CPU
     /// reference; prints the table and writes it as stress.md and stress.csv.
     Stress(StressArgs),
+    /// Error against run time: every shadow model and quality knob against a converged
+    /// reference (the experiment's [ablate] table); writes images, a labelled grid, a CSV,
+    /// a log-log plot and a markdown table.
+    Ablate(AblateArgs),
     // Further subcommands (bench, stress, ablate, voxelize) go here, one variant each,
     // with their own Args struct and `cmd_*` function.
 }
@@ -66,6 +70,19 @@ struct VoxelizeArgs {
     /// The .vox file to write (grids over 256 per side become several placed models).
     #[arg(long, value_name = "PATH")]
     out: PathBuf,
+}
+
+#[derive(Args, Debug)]
+struct AblateArgs {
+    /// The experiment file (TOML); its [ablate] table sets the sweep (every key optional).
+    experiment: PathBuf,
+    /// Output directory. Default: out/ablate/<experiment name>.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Where converged references are cached (by a hash of what they depend on).
+    /// Default: <out>/cache.
+    #[arg(long, value_name = "DIR")]
+    cache: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -147,6 +164,7 @@ fn main() -> ExitCode {
             .and_then(|e| cmd_render(e, &args.opts)),
         Some(Command::Voxelize(args)) => cmd_voxelize(&args),
         Some(Command::Bench(args)) => cmd_bench(&args),
+        Some(Command::Ablate(args)) => cmd_ablate(&args),
         Some(Command::Stress(args)) => cmd_stress(&args),
     };
     match result {
@@ -213,6 +231,35 @@ impl Renderer {
             }
         }
     }
+}
+
+fn cmd_ablate(a: &AblateArgs) -> Result<()> {
+    use voxlab::ablate;
+    let (e, config, text) = ablate::load(&a.experiment)?;
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("out").join("ablate").join(&e.name));
+    let opts = ablate::AblateOptions {
+        out_dir: out.clone(),
+        cache_dir: a.cache.clone(),
+        progress: true,
+    };
+    let report = ablate::run(&e, &config, Some(&text), &opts)?;
+    println!("{}", report.table);
+    let r = &report.reference;
+    println!(
+        "reference: {} ({}, key {})",
+        r.path.display(),
+        if r.reused {
+            "reused from the cache"
+        } else {
+            "rendered"
+        },
+        &r.key[..16]
+    );
+    println!("wrote {} files under {}", report.files.len(), out.display());
+    Ok(())
 }
 
 fn cmd_bench(a: &BenchArgs) -> Result<()> {

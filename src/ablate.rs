@@ -1,0 +1,1664 @@
+//! `voxlab ablate`: error against run time for every shadow model and its quality knob
+//! (DESIGN section 3), measured against a converged reference.
+//!
+//! The reference is stochastic area lighting at `[ablate] reference_spp`, rendered in two
+//! halves with independent seeds: their mean is the reference, and half their RMSE
+//! estimates its own noise (the error floor of every measurement). It is cached on disk
+//! under a blake3 hash of everything that changes its pixels, so a second run only pays
+//! for the sweep.
+//!
+//! The sweep is a list of [`SWEEPS`]: each turns the experiment into the points of one
+//! model (a fixed point, or a curve over its quality knob). A new shadow model (cone
+//! shadows, with aperture and step factor) is one more entry there.
+//!
+//! Each point is rendered `warmup` times untimed, then `runs` times; its time is the
+//! median trace time (GPU: wall time around a synchronised submit, from
+//! `GpuTracer::render`; CPU: the reference tracer's wall time). Its error is RMSE and
+//! PSNR on linear radiance and the FLIP mean (NVIDIA's implementation, `nv-flip`) on the
+//! displayed 8-bit image. Everything is deterministic but the times.
+
+use std::fmt::Write as _;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{Context, Result, anyhow, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Deserialize;
+
+use crate::experiment::{Experiment, ExperimentError};
+use crate::gpu::GpuTracer;
+use crate::metrics::{Domain, compare};
+use crate::output::{read_exr, write_frame};
+use crate::plan::Plan;
+use crate::render::{Features, Frame, MAX_SAMPLES, RenderSettings, Transmittance};
+use crate::scene::{AreaShape, Light, Scene};
+
+/// Part of the reference cache key. Bump it whenever a tracer's model changes what an
+/// image looks like (shading, sampling, transmittance): cached references made by the
+/// old code are then rebuilt instead of silently reused.
+pub const MODEL_VERSION: u32 = 1;
+
+/// Seeds of the reference's two halves, offset from the experiment's seed so their
+/// samples are independent of the swept points' (which use the experiment's seed).
+/// Nested samples would share noise with the reference and understate the error.
+const REFERENCE_SEED_OFFSETS: [u32; 2] = [0x9E37_79B9, 0x3C6E_F372];
+
+// ---------------------------------------------------------------------------------------
+// Configuration: the `[ablate]` table.
+
+/// Which tracer renders.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BackendChoice {
+    /// The GPU where its kernel supports the configuration, else the CPU reference
+    /// (labelled as a fallback in every output).
+    Auto,
+    Gpu,
+    Cpu,
+}
+
+impl BackendChoice {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::Gpu => "gpu",
+            Self::Cpu => "cpu",
+        }
+    }
+}
+
+/// The validated `[ablate]` table; every key is optional.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AblateConfig {
+    /// Samples per pixel of the reference (>= 2, split in two halves; at least the
+    /// largest swept spp, ideally 16x it so its own noise is a quarter of the last
+    /// point's error or less).
+    pub reference_spp: u32,
+    /// The stochastic sweep, ascending.
+    pub spp: Vec<u32>,
+    /// Timed renders per point; the median is reported.
+    pub runs: u32,
+    /// Untimed renders before them (pipeline builds, uploads, caches).
+    pub warmup: u32,
+    /// Transmittance models rendered as fixed points with hard shadows.
+    pub transmittance: Vec<Transmittance>,
+    pub backend: BackendChoice,
+    /// The reference's tracer: `cpu` (the f64 oracle) or `gpu`.
+    pub reference_backend: BackendChoice,
+}
+
+impl Default for AblateConfig {
+    fn default() -> Self {
+        Self {
+            reference_spp: 1024,
+            spp: (0..=8).map(|k| 1 << k).collect(),
+            runs: 3,
+            warmup: 1,
+            transmittance: vec![Transmittance::MinKt, Transmittance::BeerLambert],
+            backend: BackendChoice::Auto,
+            reference_backend: BackendChoice::Cpu,
+        }
+    }
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawAblate {
+    reference_spp: Option<i64>,
+    spp: Option<Vec<i64>>,
+    runs: Option<i64>,
+    warmup: Option<i64>,
+    transmittance: Option<Vec<String>>,
+    backend: Option<String>,
+    reference_backend: Option<String>,
+}
+
+/// The rest of the file is the experiment's, read by `Experiment::load`.
+#[derive(Debug, Deserialize)]
+struct RawFile {
+    ablate: Option<RawAblate>,
+}
+
+/// Finds keys of `[ablate]` in the text, for `file:line: key = value: what` messages in
+/// the style of `crate::experiment`.
+struct Locator<'a> {
+    file: String,
+    text: &'a str,
+    doc: Option<toml_edit::Document<String>>,
+}
+
+impl<'a> Locator<'a> {
+    fn new(text: &'a str, path: &Path) -> Self {
+        Self {
+            file: path.display().to_string(),
+            text,
+            doc: toml_edit::Document::parse(text.to_string()).ok(),
+        }
+    }
+
+    fn line_of(&self, offset: usize) -> usize {
+        self.text.as_bytes()[..offset.min(self.text.len())]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+            + 1
+    }
+
+    fn table(&self) -> Option<(Option<std::ops::Range<usize>>, Vec<KeySpan>)> {
+        let doc = self.doc.as_ref()?;
+        let (_, item) = doc.as_table().get_key_value("ablate")?;
+        let entries = |iter: &mut dyn Iterator<Item = (&toml_edit::Key, &toml_edit::Item)>| {
+            iter.map(|(k, v)| KeySpan {
+                name: k.get().to_string(),
+                key: k.span(),
+                value: v.span(),
+            })
+            .collect()
+        };
+        match item {
+            toml_edit::Item::Table(t) => Some((
+                t.span(),
+                entries(&mut t.iter().filter_map(|(k, _)| t.get_key_value(k))),
+            )),
+            toml_edit::Item::Value(toml_edit::Value::InlineTable(t)) => Some((
+                t.span(),
+                entries(&mut t.iter().filter_map(|(k, _)| t.get_key_value(k))),
+            )),
+            _ => None,
+        }
+    }
+
+    /// Line and written value of `ablate.<key>` (the table's line if the key is absent).
+    fn find(&self, key: &str) -> (Option<usize>, Option<String>) {
+        let Some((header, keys)) = self.table() else {
+            return (None, None);
+        };
+        match keys.iter().find(|k| k.name == key) {
+            Some(k) => (
+                k.key
+                    .clone()
+                    .or(k.value.clone())
+                    .map(|s| self.line_of(s.start)),
+                k.value
+                    .clone()
+                    .and_then(|s| self.text.get(s))
+                    .map(|s| s.trim().to_string()),
+            ),
+            None => (header.map(|s| self.line_of(s.start)), None),
+        }
+    }
+
+    fn invalid(&self, key: &str, requirement: impl std::fmt::Display) -> ExperimentError {
+        let (line, value) = self.find(key);
+        ExperimentError::Invalid {
+            file: self.file.clone(),
+            line,
+            key: format!("ablate.{key}"),
+            message: match value {
+                Some(v) => format!(" = {v}: {requirement}"),
+                None => format!(": {requirement}"),
+            },
+        }
+    }
+
+    fn serde_error(&self, e: &toml::de::Error) -> ExperimentError {
+        let line = e.span().map(|s| self.line_of(s.start));
+        let msg = e
+            .message()
+            .trim()
+            .replace("expected i64", "expected an integer");
+        // The key whose key or value span holds the error, if any.
+        let key = e.span().and_then(|err| {
+            let (_, keys) = self.table()?;
+            keys.into_iter()
+                .find(|k| {
+                    [&k.key, &k.value]
+                        .into_iter()
+                        .flatten()
+                        .any(|s| s.start <= err.start && err.start < s.end.max(s.start + 1))
+                })
+                .map(|k| k.name)
+        });
+        if let Some(rest) = msg.strip_prefix("unknown field `") {
+            let (name, expected) = rest.split_once('`').unwrap_or((rest, ""));
+            let allowed: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
+            return ExperimentError::UnknownKey {
+                file: self.file.clone(),
+                line,
+                key: format!("ablate.{name}"),
+                allowed: allowed.join(", "),
+            };
+        }
+        let key = key.map_or("ablate".to_string(), |k| format!("ablate.{k}"));
+        ExperimentError::Invalid {
+            file: self.file.clone(),
+            line,
+            key,
+            message: format!(": {msg}"),
+        }
+    }
+}
+
+struct KeySpan {
+    name: String,
+    key: Option<std::ops::Range<usize>>,
+    value: Option<std::ops::Range<usize>>,
+}
+
+impl AblateConfig {
+    /// Reads `[ablate]` from experiment text (absent: the defaults).
+    pub fn from_str(text: &str, path: impl AsRef<Path>) -> Result<Self, ExperimentError> {
+        let loc = Locator::new(text, path.as_ref());
+        let raw: RawFile = toml::from_str(text).map_err(|e| loc.serde_error(&e))?;
+        let raw = raw.ablate.unwrap_or_default();
+        let mut c = Self::default();
+        let int = |key: &str, v: i64, lo: u32, hi: u32| -> Result<u32, ExperimentError> {
+            if (i64::from(lo)..=i64::from(hi)).contains(&v) {
+                Ok(v as u32)
+            } else {
+                Err(loc.invalid(key, format!("must be an integer in {lo}..={hi}")))
+            }
+        };
+        if let Some(list) = &raw.spp {
+            if list.is_empty() {
+                return Err(loc.invalid("spp", "must list at least one sample count"));
+            }
+            let mut out = Vec::new();
+            for &v in list {
+                let v = int("spp", v, 1, MAX_SAMPLES).map_err(|_| {
+                    loc.invalid(
+                        "spp",
+                        format!("every entry must be an integer in 1..={MAX_SAMPLES}"),
+                    )
+                })?;
+                if out.last().is_some_and(|&last| v <= last) {
+                    return Err(loc.invalid("spp", "must be strictly ascending"));
+                }
+                out.push(v);
+            }
+            c.spp = out;
+        }
+        if let Some(v) = raw.reference_spp {
+            c.reference_spp = int("reference_spp", v, 2, MAX_SAMPLES)?;
+        }
+        let top = *c.spp.last().expect("spp is not empty");
+        if c.reference_spp < top {
+            return Err(loc.invalid(
+                "reference_spp",
+                format!(
+                    "must be at least the largest swept spp ({top}); 16x that keeps the \
+                     reference's own noise under a quarter of the last point's error"
+                ),
+            ));
+        }
+        if let Some(v) = raw.runs {
+            c.runs = int("runs", v, 1, 1000)?;
+        }
+        if let Some(v) = raw.warmup {
+            c.warmup = int("warmup", v, 0, 100)?;
+        }
+        if let Some(list) = &raw.transmittance {
+            let mut out = Vec::new();
+            for name in list {
+                let t = match name.as_str() {
+                    "min-kt" => Transmittance::MinKt,
+                    "beer-lambert" => Transmittance::BeerLambert,
+                    _ => {
+                        return Err(loc.invalid(
+                            "transmittance",
+                            "every entry must be \"min-kt\" or \"beer-lambert\"",
+                        ));
+                    }
+                };
+                if out.contains(&t) {
+                    return Err(loc.invalid("transmittance", "lists a model twice"));
+                }
+                out.push(t);
+            }
+            c.transmittance = out;
+        }
+        let backend = |key: &str, v: &str, auto: bool| match v {
+            "auto" if auto => Ok(BackendChoice::Auto),
+            "gpu" => Ok(BackendChoice::Gpu),
+            "cpu" => Ok(BackendChoice::Cpu),
+            _ => Err(loc.invalid(
+                key,
+                if auto {
+                    "must be \"auto\", \"gpu\" or \"cpu\""
+                } else {
+                    "must be \"cpu\" (the f64 oracle) or \"gpu\""
+                },
+            )),
+        };
+        if let Some(v) = &raw.backend {
+            c.backend = backend("backend", v, true)?;
+        }
+        if let Some(v) = &raw.reference_backend {
+            c.reference_backend = backend("reference_backend", v, false)?;
+        }
+        Ok(c)
+    }
+}
+
+/// Reads an experiment file and its `[ablate]` table; also returns the text (copied
+/// into the outputs as it was).
+pub fn load(path: impl AsRef<Path>) -> Result<(Experiment, AblateConfig, String), ExperimentError> {
+    let path = path.as_ref();
+    let experiment = Experiment::load(path)?;
+    let text = std::fs::read_to_string(path).map_err(|source| ExperimentError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let config = AblateConfig::from_str(&text, path)?;
+    Ok((experiment, config, text))
+}
+
+// ---------------------------------------------------------------------------------------
+// The sweep.
+
+/// One configuration to measure.
+#[derive(Clone, Debug)]
+pub struct Point {
+    /// The curve it belongs to in the plot, e.g. `stochastic (beer-lambert)`.
+    pub model: String,
+    /// The quality knob (`spp`) or, for fixed points, what tells them apart.
+    pub knob: String,
+    pub value: String,
+    pub settings: RenderSettings,
+}
+
+impl Point {
+    /// A file-name-safe name, unique within a sweep: the model, then the knob and value
+    /// unless the model's name already says them.
+    pub fn slug(&self) -> String {
+        let mut raw = self.model.clone();
+        if self.knob != "-" && !self.model.contains(&self.value) {
+            match self.value.parse::<u32>() {
+                // Zero-padded so a directory listing sorts like the curve.
+                Ok(n) => raw += &format!(" {}{n:05}", self.knob),
+                Err(_) => raw += &format!(" {}-{}", self.knob, self.value),
+            }
+        }
+        let mut s = String::new();
+        for c in raw.chars() {
+            match c {
+                'a'..='z' | 'A'..='Z' | '0'..='9' | '-' | '.' => s.push(c),
+                _ if !s.ends_with('_') => s.push('_'),
+                _ => {}
+            }
+        }
+        s.trim_matches('_').to_string()
+    }
+}
+
+/// A model's points from the experiment and the `[ablate]` table.
+pub struct Sweep {
+    pub name: &'static str,
+    pub points: fn(&Experiment, &AblateConfig) -> Vec<Point>,
+}
+
+/// Every sweep, in the order of the outputs. Cone shadows join as one more entry (with
+/// `[ablate]` keys for their aperture and step-factor lists) once the tracers have them.
+pub const SWEEPS: &[Sweep] = &[
+    Sweep {
+        name: "baseline",
+        points: baseline_points,
+    },
+    Sweep {
+        name: "hard",
+        points: hard_points,
+    },
+    Sweep {
+        name: "stochastic",
+        points: stochastic_points,
+    },
+];
+
+/// Every feature off: what the seed renders.
+fn baseline_points(e: &Experiment, _: &AblateConfig) -> Vec<Point> {
+    let settings = RenderSettings {
+        features: Features::default(),
+        spp: 1,
+        ..e.settings.clone()
+    };
+    vec![Point {
+        model: "baseline (all off)".into(),
+        knob: "-".into(),
+        value: "-".into(),
+        settings,
+    }]
+}
+
+/// Area lights as points at their centres (no knob), once per transmittance model.
+fn hard_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
+    c.transmittance
+        .iter()
+        .map(|&t| Point {
+            model: format!("hard ({})", t.name()),
+            knob: "transmittance".into(),
+            value: t.name().into(),
+            settings: RenderSettings {
+                features: Features {
+                    area_lights: false,
+                    transmittance: t,
+                },
+                spp: 1,
+                ..e.settings.clone()
+            },
+        })
+        .collect()
+}
+
+/// Stochastic area lights over the spp list, with the experiment's transmittance: the
+/// model the reference converges.
+fn stochastic_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
+    let t = e.settings.features.transmittance;
+    c.spp
+        .iter()
+        .map(|&n| Point {
+            model: format!("stochastic ({})", t.name()),
+            knob: "spp".into(),
+            value: n.to_string(),
+            settings: RenderSettings {
+                features: reference_features(e),
+                spp: n,
+                ..e.settings.clone()
+            },
+        })
+        .collect()
+}
+
+fn reference_features(e: &Experiment) -> Features {
+    Features {
+        area_lights: true,
+        ..e.settings.features.clone()
+    }
+}
+
+/// All points of all sweeps.
+pub fn points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
+    SWEEPS.iter().flat_map(|s| (s.points)(e, c)).collect()
+}
+
+// ---------------------------------------------------------------------------------------
+// Rendering on either tracer.
+
+struct Tracers {
+    gpu: Option<GpuTracer>,
+    /// Why there is no GPU tracer.
+    gpu_error: Option<String>,
+}
+
+struct Rendered {
+    frame: Frame,
+    time: Duration,
+    /// `gpu` or `cpu`.
+    backend: &'static str,
+    /// Set when `auto` fell back to the CPU: the GPU's reason.
+    fallback: Option<String>,
+    plan: Plan,
+}
+
+impl Tracers {
+    fn new(c: &AblateConfig) -> Result<Self> {
+        if c.backend == BackendChoice::Cpu && c.reference_backend == BackendChoice::Cpu {
+            return Ok(Self {
+                gpu: None,
+                gpu_error: Some("not requested ([ablate] backend = \"cpu\")".into()),
+            });
+        }
+        match GpuTracer::new() {
+            Ok(t) => Ok(Self {
+                gpu: Some(t),
+                gpu_error: None,
+            }),
+            Err(e)
+                if c.backend == BackendChoice::Auto
+                    && c.reference_backend != BackendChoice::Gpu =>
+            {
+                Ok(Self {
+                    gpu: None,
+                    gpu_error: Some(format!("{e:#}")),
+                })
+            }
+            Err(e) => Err(e.context("[ablate] asks for the GPU backend")),
+        }
+    }
+
+    fn adapter(&self) -> String {
+        match (&self.gpu, &self.gpu_error) {
+            (Some(g), _) => g.adapter_summary(),
+            (None, Some(e)) => format!("none ({e})"),
+            (None, None) => "none".into(),
+        }
+    }
+
+    /// Renders on `choice`; `Auto` tries the GPU and falls back to the CPU when the GPU
+    /// is missing or refuses the configuration.
+    fn render(
+        &mut self,
+        choice: BackendChoice,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Rendered> {
+        let gpu_reason = match (choice, self.gpu.as_mut()) {
+            (BackendChoice::Cpu, _) => None,
+            (_, Some(gpu)) => match gpu.render(scene, s) {
+                Ok(out) => {
+                    let plan = gpu
+                        .last_plan()
+                        .cloned()
+                        .unwrap_or_else(|| Plan::new(scene, s));
+                    return Ok(Rendered {
+                        frame: out.frame,
+                        time: out.trace_time,
+                        backend: "gpu",
+                        fallback: None,
+                        plan,
+                    });
+                }
+                Err(e) if choice == BackendChoice::Auto => Some(format!("{e:#}")),
+                Err(e) => return Err(e.context("GPU render failed")),
+            },
+            (BackendChoice::Gpu, None) => bail!(
+                "no GPU tracer: {}",
+                self.gpu_error.as_deref().unwrap_or("unknown")
+            ),
+            (BackendChoice::Auto, None) => Some(format!(
+                "no GPU: {}",
+                self.gpu_error.as_deref().unwrap_or("unknown")
+            )),
+        };
+        let out = crate::cpu::render(scene, s);
+        Ok(Rendered {
+            frame: out.frame,
+            time: out.trace_time,
+            backend: "cpu",
+            fallback: gpu_reason,
+            plan: Plan::new(scene, s),
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The reference and its cache.
+
+/// The converged reference and where it came from.
+#[derive(Clone, Debug)]
+pub struct Reference {
+    pub frame: Frame,
+    /// The cache key (blake3, hex).
+    pub key: String,
+    /// The cached EXR.
+    pub path: PathBuf,
+    /// True when it was read from the cache instead of rendered.
+    pub reused: bool,
+    pub spp: u32,
+    pub backend: String,
+    /// Estimated RMSE of the reference against the converged image: half the RMSE
+    /// between its two independent halves.
+    pub noise_rmse: f64,
+    /// Render time of both halves (when it was rendered; from the cache's record else).
+    pub seconds: f64,
+}
+
+/// Settings of the reference's two halves.
+fn reference_halves(e: &Experiment, c: &AblateConfig) -> [RenderSettings; 2] {
+    let half = |k: usize, spp: u32| RenderSettings {
+        features: reference_features(e),
+        spp,
+        seed: e.settings.seed.wrapping_add(REFERENCE_SEED_OFFSETS[k]),
+        ..e.settings.clone()
+    };
+    let a = c.reference_spp / 2;
+    [half(0, a), half(1, c.reference_spp - a)]
+}
+
+/// The cache key: everything that changes the reference's pixels. The destructuring
+/// below stops compiling when `Scene` gains a field, so the key cannot forget it;
+/// materials, lights, camera and settings enter through their `Debug` form, which
+/// names every field (a Rust release that prints them differently only costs a rebuild).
+pub fn reference_key(scene: &Scene, halves: &[RenderSettings; 2], backend: &str) -> String {
+    let Scene {
+        grid,
+        materials,
+        lights,
+        camera,
+        ambient,
+    } = scene;
+    let mut h = blake3::Hasher::new();
+    let mut text = format!(
+        "voxlab ablate reference\nmodel {MODEL_VERSION}\nbackend {backend}\n\
+         grid {:?} {:?} {:?}\n",
+        grid.dims(),
+        grid.voxel_size(),
+        grid.origin()
+    );
+    h.update(text.as_bytes());
+    h.update(grid.data());
+    text.clear();
+    let _ = write!(
+        text,
+        "\nmaterials {materials:?}\nlights {lights:?}\ncamera {camera:?}\nambient {ambient:?}\n\
+         halves {halves:?}\n"
+    );
+    h.update(text.as_bytes());
+    h.finalize().to_hex().to_string()
+}
+
+/// What the cache records next to the EXR.
+#[derive(Debug, serde::Serialize, Deserialize)]
+struct ReferenceMeta {
+    key: String,
+    spp: u32,
+    backend: String,
+    noise_rmse: f64,
+    seconds: f64,
+    model_version: u32,
+}
+
+fn backend_label(tracers: &Tracers, choice: BackendChoice) -> String {
+    match (choice, &tracers.gpu) {
+        (BackendChoice::Gpu, Some(g)) => format!("gpu {}", g.adapter_summary()),
+        // The CPU image does not depend on the thread count (pixels are independent).
+        _ => "cpu f64".to_string(),
+    }
+}
+
+fn reference(
+    e: &Experiment,
+    c: &AblateConfig,
+    tracers: &mut Tracers,
+    cache_dir: &Path,
+    progress: &ProgressBar,
+) -> Result<Reference> {
+    let halves = reference_halves(e, c);
+    let backend = backend_label(tracers, c.reference_backend);
+    let key = reference_key(&e.scene, &halves, &backend);
+    let short = &key[..16];
+    let exr = cache_dir.join(format!("reference-{short}.exr"));
+    let meta_path = cache_dir.join(format!("reference-{short}.toml"));
+    let (w, h) = (e.settings.width, e.settings.height);
+
+    let cached = (|| -> Option<(Frame, ReferenceMeta)> {
+        let meta: ReferenceMeta =
+            toml::from_str(&std::fs::read_to_string(&meta_path).ok()?).ok()?;
+        let frame = read_exr(&exr).ok()?;
+        (meta.key == key && (frame.width, frame.height) == (w, h)).then_some((frame, meta))
+    })();
+    if let Some((frame, meta)) = cached {
+        return Ok(Reference {
+            frame,
+            key,
+            path: exr,
+            reused: true,
+            spp: c.reference_spp,
+            backend: meta.backend,
+            noise_rmse: meta.noise_rmse,
+            seconds: meta.seconds,
+        });
+    }
+
+    progress.set_message(format!("reference, {} spp", c.reference_spp));
+    let mut frames = Vec::new();
+    let mut seconds = 0.0;
+    for s in &halves {
+        let r = tracers.render(c.reference_backend, &e.scene, s)?;
+        seconds += r.time.as_secs_f64();
+        frames.push(r.frame);
+        progress.inc(u64::from(s.spp));
+    }
+    let noise_rmse = compare(&frames[0], &frames[1], Domain::Linear, 0.0)
+        .expect("halves have one size")
+        .rmse
+        / 2.0;
+    // Weighted by each half's spp so an odd reference_spp is still the plain mean.
+    let (na, nb) = (halves[0].spp as f32, halves[1].spp as f32);
+    let mut frame = Frame::new(w, h);
+    for ((o, a), b) in frame
+        .pixels
+        .iter_mut()
+        .zip(&frames[0].pixels)
+        .zip(&frames[1].pixels)
+    {
+        for k in 0..3 {
+            o[k] = (a[k] * na + b[k] * nb) / (na + nb);
+        }
+    }
+    write_frame(&frame, &exr)?;
+    let meta = ReferenceMeta {
+        key: key.clone(),
+        spp: c.reference_spp,
+        backend: backend.clone(),
+        noise_rmse,
+        seconds,
+        model_version: MODEL_VERSION,
+    };
+    write_text(&meta_path, &toml::to_string(&meta)?)?;
+    Ok(Reference {
+        frame,
+        key,
+        path: exr,
+        reused: false,
+        spp: c.reference_spp,
+        backend,
+        noise_rmse,
+        seconds,
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Measuring.
+
+/// One measured point: a row of the CSV.
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub model: String,
+    pub knob: String,
+    pub value: String,
+    pub spp: u32,
+    pub light_samples: u32,
+    pub area_lights: bool,
+    pub transmittance: &'static str,
+    /// `gpu` or `cpu`.
+    pub backend: &'static str,
+    /// Why `auto` rendered on the CPU, if it did.
+    pub fallback: Option<String>,
+    pub timer: &'static str,
+    pub ms_median: f64,
+    pub ms_runs: Vec<f64>,
+    pub rmse: f64,
+    pub psnr: f64,
+    pub flip_mean: f64,
+    pub plan: String,
+    /// The PNG, relative to the output directory.
+    pub image: String,
+    #[doc(hidden)]
+    pub frame: Frame,
+}
+
+/// FLIP mean of `test` against `reference`, both as displayed (clamped, 8-bit), and
+/// the error map coloured with FLIP's magma LUT.
+pub fn flip(reference: &Frame, test: &Frame) -> (f64, image::RgbImage) {
+    let (w, h) = (reference.width, reference.height);
+    let r = nv_flip::FlipImageRgb8::with_data(w, h, &reference.to_rgb8());
+    let t = nv_flip::FlipImageRgb8::with_data(w, h, &test.to_rgb8());
+    let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
+    let mean = nv_flip::FlipPool::from_image(&map).mean() as f64;
+    let vis = map.apply_color_lut(&nv_flip::magma_lut());
+    let img = image::RgbImage::from_raw(w, h, vis.to_vec()).expect("FLIP map has w*h pixels");
+    (mean, img)
+}
+
+fn median_ms(times: &[Duration]) -> f64 {
+    let mut v: Vec<f64> = times.iter().map(|t| t.as_secs_f64() * 1e3).collect();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
+}
+
+fn measure(
+    e: &Experiment,
+    c: &AblateConfig,
+    tracers: &mut Tracers,
+    point: &Point,
+    reference: &Frame,
+    progress: &ProgressBar,
+) -> Result<Row> {
+    progress.set_message(format!("{} {} {}", point.model, point.knob, point.value));
+    let s = &point.settings;
+    let mut choice = c.backend;
+    let mut times = Vec::new();
+    let mut last = None;
+    for i in 0..(c.warmup + c.runs) {
+        let r = tracers.render(choice, &e.scene, s)?;
+        // The first render settles the backend, so later runs do not retry the GPU.
+        if choice == BackendChoice::Auto {
+            choice = if r.backend == "gpu" {
+                BackendChoice::Gpu
+            } else {
+                BackendChoice::Cpu
+            };
+        }
+        if i >= c.warmup {
+            times.push(r.time);
+        }
+        progress.inc(u64::from(s.spp.max(1)));
+        last = Some(r);
+    }
+    let r = last.expect("runs >= 1");
+    let d = compare(reference, &r.frame, Domain::Linear, 0.0)
+        .ok_or_else(|| anyhow!("point and reference differ in size"))?;
+    let (flip_mean, _) = flip(reference, &r.frame);
+    Ok(Row {
+        model: point.model.clone(),
+        knob: point.knob.clone(),
+        value: point.value.clone(),
+        spp: s.spp,
+        light_samples: s.light_samples,
+        area_lights: s.features.area_lights,
+        transmittance: s.features.transmittance.name(),
+        backend: r.backend,
+        fallback: r.fallback,
+        timer: if r.backend == "gpu" {
+            "wall around a synchronised submit"
+        } else {
+            "wall (cpu::render)"
+        },
+        ms_median: median_ms(&times),
+        ms_runs: times.iter().map(|t| t.as_secs_f64() * 1e3).collect(),
+        rmse: d.rmse,
+        psnr: d.psnr,
+        flip_mean,
+        plan: r.plan.to_string(),
+        image: format!("images/{}.png", point.slug()),
+        frame: r.frame,
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// The run.
+
+pub struct AblateOptions {
+    pub out_dir: PathBuf,
+    /// Where references are cached; default `<out_dir>/cache`.
+    pub cache_dir: Option<PathBuf>,
+    /// Show a progress bar (only when stderr is a terminal; else one line per point).
+    pub progress: bool,
+}
+
+/// What a run measured and wrote.
+pub struct AblateReport {
+    pub reference: Reference,
+    pub rows: Vec<Row>,
+    pub adapter: String,
+    pub git_revision: String,
+    /// Every file written, relative to the output directory.
+    pub files: Vec<String>,
+    /// The markdown table (also in `table.md`).
+    pub table: String,
+}
+
+/// Runs the whole ablation of `e` and writes its outputs under `opts.out_dir`.
+/// `source` is the experiment file's text, copied into the outputs.
+pub fn run(
+    e: &Experiment,
+    c: &AblateConfig,
+    source: Option<&str>,
+    opts: &AblateOptions,
+) -> Result<AblateReport> {
+    if !e.scene.lights.iter().any(|l| l.is_area()) {
+        bail!(
+            "{}: voxlab ablate needs an area light (type rect, disk or sphere): the \
+             reference is stochastic area lighting",
+            e.name
+        );
+    }
+    let out = &opts.out_dir;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let cache_dir = opts.cache_dir.clone().unwrap_or_else(|| out.join("cache"));
+    std::fs::create_dir_all(&cache_dir)
+        .with_context(|| format!("creating {}", cache_dir.display()))?;
+
+    let points = points(e, c);
+    let mut tracers = Tracers::new(c)?;
+    let adapter = tracers.adapter();
+
+    let sweep_frames: u64 = points
+        .iter()
+        .map(|p| u64::from(p.settings.spp.max(1)) * u64::from(c.warmup + c.runs))
+        .sum();
+    let progress = if opts.progress && std::io::stderr().is_terminal() {
+        let pb = ProgressBar::new(sweep_frames + u64::from(c.reference_spp));
+        pb.set_style(
+            ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:30}] {percent:>3}% frames, eta {eta} {msg}",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        pb
+    } else {
+        ProgressBar::hidden()
+    };
+    let lines = opts.progress && progress.is_hidden();
+
+    let reference = reference(e, c, &mut tracers, &cache_dir, &progress)?;
+    if reference.reused {
+        // The bar counted the reference's frames; they are not rendered.
+        progress.set_length(sweep_frames);
+    }
+    if lines {
+        eprintln!(
+            "reference: {} spp on {}, {} ({}), noise rmse {:.3e}",
+            reference.spp,
+            reference.backend,
+            if reference.reused {
+                "reused from cache"
+            } else {
+                "rendered"
+            },
+            reference.path.display(),
+            reference.noise_rmse
+        );
+    }
+    let mut rows = Vec::new();
+    for p in &points {
+        let row = measure(e, c, &mut tracers, p, &reference.frame, &progress)?;
+        if lines {
+            eprintln!(
+                "{} {}={}: {:.2} ms ({}), rmse {:.3e}, flip {:.4}",
+                row.model, row.knob, row.value, row.ms_median, row.backend, row.rmse, row.flip_mean
+            );
+        }
+        rows.push(row);
+    }
+    progress.finish_and_clear();
+
+    let git_revision = git_revision();
+    let mut files = Vec::new();
+    write_outputs(
+        e,
+        c,
+        source,
+        &reference,
+        &rows,
+        &adapter,
+        &git_revision,
+        out,
+        &mut files,
+    )?;
+    let table = std::fs::read_to_string(out.join("table.md"))?;
+    Ok(AblateReport {
+        reference,
+        rows,
+        adapter,
+        git_revision,
+        files,
+        table,
+    })
+}
+
+/// `git rev-parse HEAD` of the source tree this binary was built from, with `-dirty`
+/// when tracked files differ from it; "unknown" without git.
+pub fn git_revision() -> String {
+    let dir = env!("CARGO_MANIFEST_DIR");
+    let git = |args: &[&str]| {
+        std::process::Command::new("git")
+            .arg("-C")
+            .arg(dir)
+            .args(args)
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+    };
+    match git(&["rev-parse", "HEAD"]) {
+        Some(rev) if !rev.is_empty() => {
+            let dirty = git(&["status", "--porcelain", "--untracked-files=no"])
+                .is_some_and(|s| !s.is_empty());
+            if dirty { format!("{rev}-dirty") } else { rev }
+        }
+        _ => "unknown".to_string(),
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Outputs.
+
+/// Writes `text` to `path` through a temporary file and a rename.
+fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let name = path
+        .file_name()
+        .map_or("out".into(), |n| n.to_string_lossy());
+    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))
+}
+
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    write_bytes(path, text.as_bytes())
+}
+
+fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut bytes, image::ImageFormat::Png)?;
+    write_bytes(path, bytes.get_ref())
+}
+
+pub const CSV_COLUMNS: [&str; 19] = [
+    "model",
+    "knob",
+    "value",
+    "spp",
+    "light_samples",
+    "area_lights",
+    "transmittance",
+    "backend",
+    "timer",
+    "ms_median",
+    "ms_runs",
+    "runs",
+    "rmse",
+    "psnr",
+    "flip_mean",
+    "reference_spp",
+    "reference_noise_rmse",
+    "image",
+    "fallback",
+];
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+fn csv(rows: &[Row], r: &Reference) -> String {
+    let mut out = CSV_COLUMNS.join(",") + "\n";
+    for row in rows {
+        let runs: Vec<String> = row.ms_runs.iter().map(|t| format!("{t:.4}")).collect();
+        let fields = [
+            row.model.clone(),
+            row.knob.clone(),
+            row.value.clone(),
+            row.spp.to_string(),
+            row.light_samples.to_string(),
+            row.area_lights.to_string(),
+            row.transmittance.to_string(),
+            row.backend.to_string(),
+            row.timer.to_string(),
+            format!("{:.4}", row.ms_median),
+            runs.join(";"),
+            row.ms_runs.len().to_string(),
+            format!("{:.9e}", row.rmse),
+            format!("{:.6}", row.psnr),
+            format!("{:.9e}", row.flip_mean),
+            r.spp.to_string(),
+            format!("{:.9e}", r.noise_rmse),
+            row.image.clone(),
+            row.fallback
+                .as_deref()
+                .map(|f| f.lines().next().unwrap_or(""))
+                .unwrap_or("")
+                .to_string(),
+        ];
+        let fields: Vec<String> = fields.iter().map(|f| csv_field(f)).collect();
+        out += &fields.join(",");
+        out += "\n";
+    }
+    out
+}
+
+fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) -> String {
+    let mut t = format!(
+        "Ablation of `{}`: {}x{}, depth {}/{}, light_samples {}; reference {} spp \
+         (stochastic area lights, {}; its own noise: rmse {:.2e}). GPU: {adapter}. \
+         Revision {rev}.\n\n\
+         | model | knob | value | backend | ms (median) | RMSE | PSNR dB | FLIP mean |\n\
+         |---|---|---:|---|---:|---:|---:|---:|\n",
+        e.name,
+        e.settings.width,
+        e.settings.height,
+        e.settings.max_reflection_depth,
+        e.settings.max_refraction_depth,
+        e.settings.light_samples,
+        r.spp,
+        r.backend,
+        r.noise_rmse,
+    );
+    for row in rows {
+        let backend = match row.fallback {
+            Some(_) => "cpu (fallback)",
+            None => row.backend,
+        };
+        let _ = writeln!(
+            t,
+            "| {} | {} | {} | {backend} | {:.2} | {:.3e} | {:.2} | {:.4} |",
+            row.model, row.knob, row.value, row.ms_median, row.rmse, row.psnr, row.flip_mean
+        );
+    }
+    if let Some(f) = rows.iter().find_map(|r| r.fallback.as_deref()) {
+        let _ = write!(
+            t,
+            "\n\"cpu (fallback)\": the GPU refused the configuration, so the CPU reference \
+             rendered it and its time is CPU time: {}\n",
+            f.lines().next().unwrap_or("")
+        );
+    }
+    t
+}
+
+/// `[x, y, z]` as TOML.
+fn v3(v: glam::DVec3) -> toml::Value {
+    toml::Value::Array(vec![v.x.into(), v.y.into(), v.z.into()])
+}
+
+/// What was rendered, as TOML: the scene's resolved values (the voxels by hash), the
+/// settings, the `[ablate]` table with its defaults filled in, and every point.
+fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) -> String {
+    use toml::{Table, Value};
+    let mut doc = Table::new();
+    doc.insert("name".into(), e.name.clone().into());
+    let g = &e.scene.grid;
+    let mut scene = Table::new();
+    let d = g.dims();
+    scene.insert(
+        "dims".into(),
+        Value::Array(vec![
+            i64::from(d.x).into(),
+            i64::from(d.y).into(),
+            i64::from(d.z).into(),
+        ]),
+    );
+    scene.insert("voxel_size".into(), g.voxel_size().into());
+    scene.insert("origin".into(), v3(g.origin()));
+    scene.insert(
+        "voxels_blake3".into(),
+        blake3::hash(g.data()).to_hex().to_string().into(),
+    );
+    doc.insert("scene".into(), scene.into());
+    let cam = &e.scene.camera;
+    let mut camera = Table::new();
+    camera.insert("target".into(), v3(cam.target));
+    camera.insert("distance".into(), cam.distance.into());
+    camera.insert("yaw_deg".into(), cam.yaw.to_degrees().into());
+    camera.insert("pitch_deg".into(), cam.pitch.to_degrees().into());
+    camera.insert("vfov_deg".into(), cam.vfov.to_degrees().into());
+    doc.insert("camera".into(), camera.into());
+    let lights: Vec<Value> = e
+        .scene
+        .lights
+        .iter()
+        .map(|l| {
+            let mut t = Table::new();
+            let kind = match l {
+                Light::Point(_) => "point",
+                Light::Area(a) => match a.shape {
+                    AreaShape::Rect { width, height } => {
+                        t.insert(
+                            "size".into(),
+                            Value::Array(vec![width.into(), height.into()]),
+                        );
+                        "rect"
+                    }
+                    AreaShape::Disk { radius } => {
+                        t.insert("radius".into(), radius.into());
+                        "disk"
+                    }
+                    AreaShape::Sphere { radius } => {
+                        t.insert("radius".into(), radius.into());
+                        "sphere"
+                    }
+                },
+            };
+            t.insert("type".into(), kind.into());
+            t.insert("position".into(), v3(l.position()));
+            t.insert("color".into(), v3(l.color()));
+            t.insert("intensity".into(), l.intensity().into());
+            if let Light::Area(a) = l {
+                t.insert("normal".into(), v3(a.normal));
+                t.insert("rotation_deg".into(), a.rotation.to_degrees().into());
+            }
+            t.into()
+        })
+        .collect();
+    doc.insert("lights".into(), lights.into());
+    let materials: Vec<Value> = e
+        .scene
+        .materials
+        .iter()
+        .skip(1)
+        .map(|m| {
+            let mut t = Table::new();
+            t.insert("name".into(), m.name.clone().into());
+            t.insert("albedo".into(), v3(m.albedo));
+            for (k, v) in [
+                ("kd", m.kd),
+                ("ks", m.ks),
+                ("shininess", m.shininess),
+                ("kr", m.kr),
+                ("kt", m.kt),
+                ("ior", m.ior),
+            ] {
+                t.insert(k.into(), v.into());
+            }
+            t.insert("sigma".into(), v3(m.absorption(g.voxel_size())));
+            t.insert("emission".into(), v3(m.emission));
+            t.into()
+        })
+        .collect();
+    doc.insert("materials".into(), materials.into());
+    let s = &e.settings;
+    let mut render = Table::new();
+    render.insert("width".into(), i64::from(s.width).into());
+    render.insert("height".into(), i64::from(s.height).into());
+    render.insert(
+        "max_reflection_depth".into(),
+        i64::from(s.max_reflection_depth).into(),
+    );
+    render.insert(
+        "max_refraction_depth".into(),
+        i64::from(s.max_refraction_depth).into(),
+    );
+    render.insert("falloff".into(), s.falloff.into());
+    render.insert("falloff_min_distance".into(), s.falloff_min_distance.into());
+    render.insert("ray_offset".into(), s.ray_offset.into());
+    render.insert("ambient".into(), v3(e.scene.ambient));
+    render.insert("light_samples".into(), i64::from(s.light_samples).into());
+    render.insert("seed".into(), i64::from(s.seed).into());
+    doc.insert("render".into(), render.into());
+    let mut ablate = Table::new();
+    ablate.insert("reference_spp".into(), i64::from(c.reference_spp).into());
+    ablate.insert(
+        "spp".into(),
+        c.spp
+            .iter()
+            .map(|&n| i64::from(n))
+            .collect::<Vec<_>>()
+            .into(),
+    );
+    ablate.insert("runs".into(), i64::from(c.runs).into());
+    ablate.insert("warmup".into(), i64::from(c.warmup).into());
+    ablate.insert(
+        "transmittance".into(),
+        c.transmittance
+            .iter()
+            .map(|t| t.name())
+            .collect::<Vec<_>>()
+            .into(),
+    );
+    ablate.insert("backend".into(), c.backend.name().into());
+    ablate.insert(
+        "reference_backend".into(),
+        c.reference_backend.name().into(),
+    );
+    doc.insert("ablate".into(), ablate.into());
+    let mut reference = Table::new();
+    reference.insert("key_blake3".into(), r.key.clone().into());
+    reference.insert("backend".into(), r.backend.clone().into());
+    reference.insert(
+        "seeds".into(),
+        REFERENCE_SEED_OFFSETS
+            .iter()
+            .map(|o| i64::from(s.seed.wrapping_add(*o)))
+            .collect::<Vec<_>>()
+            .into(),
+    );
+    reference.insert("noise_rmse".into(), r.noise_rmse.into());
+    doc.insert("reference".into(), reference.into());
+    let points: Vec<Value> = rows
+        .iter()
+        .map(|row| {
+            let mut t = Table::new();
+            t.insert("model".into(), row.model.clone().into());
+            t.insert("knob".into(), row.knob.clone().into());
+            t.insert("value".into(), row.value.clone().into());
+            t.insert("area_lights".into(), row.area_lights.into());
+            t.insert("transmittance".into(), row.transmittance.into());
+            t.insert("spp".into(), i64::from(row.spp).into());
+            t.insert("seed".into(), i64::from(s.seed).into());
+            t.insert("backend".into(), row.backend.into());
+            t.insert("image".into(), row.image.clone().into());
+            t.into()
+        })
+        .collect();
+    doc.insert("points".into(), points.into());
+    format!(
+        "# What `voxlab ablate` rendered for `{}`, resolved: defaults filled in, the\n\
+         # voxels by hash. The file as written is experiment.toml beside this one.\n\n{}",
+        e.name,
+        toml::to_string(&doc).unwrap_or_else(|err| format!("# cannot write: {err}\n"))
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn write_outputs(
+    e: &Experiment,
+    c: &AblateConfig,
+    source: Option<&str>,
+    r: &Reference,
+    rows: &[Row],
+    adapter: &str,
+    rev: &str,
+    out: &Path,
+    files: &mut Vec<String>,
+) -> Result<()> {
+    let mut record = |name: &str| files.push(name.to_string());
+    write_frame(&r.frame, out.join("images/reference.png"))?;
+    write_frame(&r.frame, out.join("images/reference.exr"))?;
+    record("images/reference.png");
+    record("images/reference.exr");
+    for row in rows {
+        let png = row.image.clone();
+        let exr = png.replace(".png", ".exr");
+        write_frame(&row.frame, out.join(&png))?;
+        write_frame(&row.frame, out.join(&exr))?;
+        let flip_png = png.replace("images/", "flip/");
+        let (_, map) = flip(&r.frame, &row.frame);
+        write_png(&out.join(&flip_png), &map)?;
+        record(&png);
+        record(&exr);
+        record(&flip_png);
+    }
+    write_png(&out.join("grid.png"), &grid_image(r, rows))?;
+    record("grid.png");
+    write_text(&out.join("ablation.csv"), &csv(rows, r))?;
+    record("ablation.csv");
+    let title = format!(
+        "{}: error against time ({}x{}, reference {} spp)",
+        e.name, e.settings.width, e.settings.height, r.spp
+    );
+    let (png, svg) = crate::ablate::plot::plot(rows, &title)?;
+    write_png(&out.join("plot.png"), &png)?;
+    write_text(&out.join("plot.svg"), &svg)?;
+    record("plot.png");
+    record("plot.svg");
+    write_text(&out.join("table.md"), &table(e, rows, r, adapter, rev))?;
+    record("table.md");
+    if let Some(text) = source {
+        write_text(&out.join("experiment.toml"), text)?;
+        record("experiment.toml");
+    }
+    write_text(&out.join("resolved.toml"), &resolved_toml(e, c, rows, r))?;
+    record("resolved.toml");
+    let mut run = format!(
+        "git revision: {rev}\nadapter: {adapter}\ncpu: {}\nmodel version: {MODEL_VERSION}\n\
+         reference: {} spp, {}, {} ({}), noise rmse {:.3e}, {:.2} s to render\n\
+         timer: GPU points: wall time around a synchronised submit (GpuTracer::render; \
+         it does not request TIMESTAMP_QUERY); CPU points: wall time of cpu::render. \
+         Median of {} runs after {} warm-up renders.\n\nplans:\n",
+        crate::cpu::backend_summary(),
+        r.spp,
+        r.backend,
+        if r.reused { "reused" } else { "rendered" },
+        r.path.display(),
+        r.noise_rmse,
+        r.seconds,
+        c.runs,
+        c.warmup,
+    );
+    for row in rows {
+        let _ = writeln!(
+            run,
+            "- {} {}={} on {}{}\n  {}",
+            row.model,
+            row.knob,
+            row.value,
+            row.backend,
+            row.fallback
+                .as_deref()
+                .map(|f| format!(" (fallback: {})", f.lines().next().unwrap_or("")))
+                .unwrap_or_default(),
+            row.plan.replace('\n', "\n  ")
+        );
+    }
+    write_text(&out.join("run.txt"), &run)?;
+    record("run.txt");
+    Ok(())
+}
+
+/// Every image in a grid, the reference first, each over a label band: model and
+/// value, RMSE, FLIP, time and backend.
+fn grid_image(r: &Reference, rows: &[Row]) -> image::RgbImage {
+    // Small images are magnified (nearest neighbour) so a tile is at least 128 pixels
+    // wide: glyphs are 8x8, and a label line needs about 16 characters.
+    let zoom = 128u32.div_ceil(r.frame.width).max(1);
+    let (w, h) = (r.frame.width * zoom, r.frame.height * zoom);
+    let scale = (w / 128).max(1);
+    let line_h = 10 * scale;
+    let band = 4 * line_h + 2 * scale;
+    let mut tiles: Vec<(&Frame, [String; 4])> = vec![(
+        &r.frame,
+        [
+            "reference".into(),
+            format!("spp {}", r.spp),
+            format!("noise {:.1e}", r.noise_rmse),
+            r.backend.split(' ').take(2).collect::<Vec<_>>().join(" "),
+        ],
+    )];
+    for row in rows {
+        let short = row
+            .model
+            .replace("stochastic", "stoch")
+            .replace("baseline (all off)", "baseline")
+            .replace("beer-lambert", "beer")
+            .replace(" (min-kt)", "")
+            .replace(" (beer)", "");
+        let label = match row.knob.as_str() {
+            "spp" => format!("{short} {}", row.value),
+            "-" => short,
+            _ => format!("{} {}", short.split(' ').next().unwrap_or(""), row.value),
+        };
+        tiles.push((
+            &row.frame,
+            [
+                label,
+                format!("rmse {:.2e}", row.rmse),
+                format!("flip {:.4}", row.flip_mean),
+                format!("{:.1}ms {}", row.ms_median, row.backend),
+            ],
+        ));
+    }
+    let cols = (tiles.len() as f64).sqrt().ceil() as u32;
+    let rows_n = (tiles.len() as u32).div_ceil(cols);
+    let gap = 2 * scale;
+    let tw = w + gap;
+    let th = h + band + gap;
+    let mut img = image::RgbImage::from_pixel(cols * tw, rows_n * th, image::Rgb([24, 24, 24]));
+    for (i, (frame, label)) in tiles.iter().enumerate() {
+        let (x0, y0) = ((i as u32 % cols) * tw, (i as u32 / cols) * th);
+        let rgb = frame.to_rgb8();
+        for y in 0..h {
+            for x in 0..w {
+                let k = 3 * ((y / zoom) * frame.width + x / zoom) as usize;
+                img.put_pixel(x0 + x, y0 + y, image::Rgb([rgb[k], rgb[k + 1], rgb[k + 2]]));
+            }
+        }
+        for (l, text) in label.iter().enumerate() {
+            draw_text(
+                &mut img,
+                x0 + scale,
+                y0 + h + scale + l as u32 * line_h,
+                text,
+                scale,
+                w,
+            );
+        }
+    }
+    img
+}
+
+/// Draws `text` in the 8x8 font8x8 glyphs, clipped to `max_w` pixels.
+fn draw_text(img: &mut image::RgbImage, x: u32, y: u32, text: &str, scale: u32, max_w: u32) {
+    use font8x8::UnicodeFonts;
+    for (i, ch) in text.chars().enumerate() {
+        let cx = x + i as u32 * 8 * scale;
+        if cx + 8 * scale > x + max_w {
+            break;
+        }
+        let Some(glyph) = font8x8::BASIC_FONTS.get(ch) else {
+            continue;
+        };
+        for (gy, bits) in glyph.iter().enumerate() {
+            for gx in 0..8 {
+                if bits & (1 << gx) == 0 {
+                    continue;
+                }
+                for sy in 0..scale {
+                    for sx in 0..scale {
+                        let (px, py) = (cx + gx * scale + sx, y + gy as u32 * scale + sy);
+                        if px < img.width() && py < img.height() {
+                            img.put_pixel(px, py, image::Rgb([235, 235, 235]));
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+pub mod plot {
+    //! The log-log plot of error against time: RMSE and FLIP panels, one curve per
+    //! model. Text is drawn with a TTF bundled in a crate (Ubuntu Light, from
+    //! `epaint_default_fonts`), so no system font is needed.
+
+    use std::collections::BTreeMap;
+    use std::sync::Once;
+
+    use anyhow::{Result, anyhow};
+    use plotters::coord::Shift;
+    use plotters::prelude::*;
+
+    use super::Row;
+
+    const SIZE: (u32, u32) = (1400, 620);
+    const FONT: &str = "sans-serif";
+
+    fn register_font() {
+        static ONCE: Once = Once::new();
+        ONCE.call_once(|| {
+            // The bytes are a valid TTF shipped by the crate; a failure leaves text out.
+            let _ = plotters::style::register_font(
+                FONT,
+                FontStyle::Normal,
+                epaint_default_fonts::UBUNTU_LIGHT,
+            );
+        });
+    }
+
+    /// The plot as a PNG image and as SVG text.
+    pub fn plot(rows: &[Row], title: &str) -> Result<(image::RgbImage, String)> {
+        register_font();
+        let mut buf = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
+        {
+            let root = BitMapBackend::with_buffer(&mut buf, SIZE).into_drawing_area();
+            draw(&root, rows, title).map_err(|e| anyhow!("drawing the plot: {e}"))?;
+            root.present()
+                .map_err(|e| anyhow!("drawing the plot: {e}"))?;
+        }
+        let png = image::RgbImage::from_raw(SIZE.0, SIZE.1, buf).expect("buffer is w*h*3");
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+            draw(&root, rows, title).map_err(|e| anyhow!("drawing the plot: {e}"))?;
+            root.present()
+                .map_err(|e| anyhow!("drawing the plot: {e}"))?;
+        }
+        Ok((png, svg))
+    }
+
+    /// Log axes need a positive range around the values, with some air.
+    fn range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
+        let (lo, hi) = values
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .fold((f64::MAX, f64::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        if lo > hi {
+            return 1e-3..1.0;
+        }
+        lo / 1.6..hi * 1.6
+    }
+
+    fn draw<DB: DrawingBackend>(
+        root: &DrawingArea<DB, Shift>,
+        rows: &[Row],
+        title: &str,
+    ) -> Result<(), Box<dyn std::error::Error>>
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE)?;
+        let root = root.titled(title, (FONT, 22))?;
+        let panels = root.split_evenly((1, 2));
+        // One curve per model, in the order the sweep gave them.
+        let mut order: Vec<&str> = Vec::new();
+        let mut curves: BTreeMap<&str, Vec<&Row>> = BTreeMap::new();
+        for r in rows {
+            if !order.contains(&r.model.as_str()) {
+                order.push(&r.model);
+            }
+            curves.entry(&r.model).or_default().push(r);
+        }
+        let mixed = rows.iter().any(|r| r.backend != rows[0].backend);
+        let x_range = range(rows.iter().map(|r| r.ms_median));
+        let metrics: [(&str, fn(&Row) -> f64); 2] = [
+            ("RMSE (linear radiance)", |r| r.rmse),
+            ("FLIP mean (displayed image)", |r| r.flip_mean),
+        ];
+        for (panel, (name, metric)) in panels.iter().zip(metrics) {
+            let y_range = range(rows.iter().map(metric));
+            let mut chart = ChartBuilder::on(panel)
+                .margin(16)
+                .x_label_area_size(44)
+                .y_label_area_size(70)
+                .caption(format!("{name} against time"), (FONT, 18))
+                .build_cartesian_2d(x_range.clone().log_scale(), y_range.log_scale())?;
+            chart
+                .configure_mesh()
+                .x_desc("ms per frame (median)")
+                .y_desc(name)
+                .x_labels(12)
+                .y_labels(12)
+                .x_label_formatter(&|v| format!("{v}"))
+                .y_label_formatter(&|v| format!("{v:.1e}"))
+                .label_style((FONT, 13))
+                .axis_desc_style((FONT, 15))
+                .draw()?;
+            for (i, model) in order.iter().enumerate() {
+                let color = Palette99::pick(i).to_rgba();
+                let pts: Vec<(f64, f64)> = curves[model]
+                    .iter()
+                    .map(|r| (r.ms_median.max(1e-9), metric(r).max(1e-12)))
+                    .collect();
+                let backend = curves[model][0].backend;
+                let label = if mixed {
+                    format!("{model} [{backend}]")
+                } else {
+                    model.to_string()
+                };
+                let legend = move |(x, y): (i32, i32)| {
+                    EmptyElement::at((x, y))
+                        + PathElement::new(vec![(0, 0), (18, 0)], color.stroke_width(2))
+                        + Circle::new((9, 0), 4, color.filled())
+                };
+                if pts.len() > 1 {
+                    chart
+                        .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))?
+                        .label(label)
+                        .legend(legend);
+                    chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, color.filled())))?;
+                } else {
+                    chart
+                        .draw_series(
+                            pts.iter()
+                                .map(|&p| TriangleMarker::new(p, 7, color.filled())),
+                        )?
+                        .label(label)
+                        .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 6, color.filled()));
+                }
+                // The knob's value beside each point of a curve.
+                if pts.len() > 1 {
+                    chart.draw_series(pts.iter().zip(&curves[model]).map(|(&p, r)| {
+                        EmptyElement::at(p) + Text::new(r.value.clone(), (6, -14), (FONT, 12))
+                    }))?;
+                }
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerLeft)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font((FONT, 13))
+                .draw()?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,337 @@
+//! `voxlab ablate` on a tiny scene (8^3 seed grid, 32x32, a rect light): the files and
+//! their columns, error falling with the sample count, reproducible error columns, and
+//! the reference cache (reused when nothing changed, rebuilt when something did).
+//!
+//! The points that the GPU kernel supports must render on the GPU: a missing adapter
+//! fails these tests (DESIGN section 3), it does not quietly measure the CPU.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use voxlab::ablate::{self, AblateConfig, AblateOptions, AblateReport, CSV_COLUMNS};
+use voxlab::experiment::Experiment;
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("ablate-{name}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The seed scene at 8^3 under one rect light, Beer-Lambert on; `extra` is appended
+/// (an `[ablate]` table, or overrides).
+fn experiment_text(intensity: f64, ablate: &str) -> String {
+    format!(
+        r#"name = "tiny"
+[scene]
+size = 8
+[[lights]]
+type = "rect"
+position = [7.0, 12.0, 11.0]
+normal = [-3.0, -8.0, -7.0]
+size = [4.0, 4.0]
+intensity = {intensity:?}
+[render]
+width = 32
+height = 32
+[features]
+transmittance = "beer-lambert"
+{ablate}
+"#
+    )
+}
+
+const SWEEP: &str = "[ablate]\nreference_spp = 256\nspp = [1, 2, 4, 8, 16]\nruns = 2\nwarmup = 1\n";
+
+fn load(dir: &Path, text: &str) -> (Experiment, AblateConfig) {
+    let path = dir.join("tiny.toml");
+    std::fs::write(&path, text).unwrap();
+    let (e, c, _) = ablate::load(&path).unwrap();
+    (e, c)
+}
+
+fn run(e: &Experiment, c: &AblateConfig, out: &Path, cache: &Path) -> AblateReport {
+    ablate::run(
+        e,
+        c,
+        Some("# test"),
+        &AblateOptions {
+            out_dir: out.to_path_buf(),
+            cache_dir: Some(cache.to_path_buf()),
+            progress: false,
+        },
+    )
+    .unwrap()
+}
+
+/// The CSV as a header and rows of fields (the test's values hold no quoted commas but
+/// the `fallback` column, which is last).
+fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let rows = lines
+        .map(|l| {
+            l.splitn(header.len(), ',')
+                .map(str::to_string)
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    (header, rows)
+}
+
+fn col<'a>(header: &[String], row: &'a [String], name: &str) -> &'a str {
+    let i = header
+        .iter()
+        .position(|h| h == name)
+        .unwrap_or_else(|| panic!("no column {name}"));
+    &row[i]
+}
+
+/// The columns that must not change between two runs of the same experiment.
+fn error_columns(path: &Path) -> Vec<Vec<String>> {
+    let (h, rows) = read_csv(path);
+    rows.iter()
+        .map(|r| {
+            ["model", "value", "rmse", "psnr", "flip_mean"]
+                .iter()
+                .map(|c| col(&h, r, c).to_string())
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
+    let dir = scratch("sweep");
+    let (e, c) = load(&dir, &experiment_text(110.0, SWEEP));
+    assert_eq!(c.spp, vec![1, 2, 4, 8, 16]);
+    let out = dir.join("out");
+    let report = run(&e, &c, &out, &dir.join("cache"));
+
+    for f in [
+        "ablation.csv",
+        "grid.png",
+        "plot.png",
+        "plot.svg",
+        "table.md",
+        "experiment.toml",
+        "resolved.toml",
+        "run.txt",
+        "images/reference.png",
+        "images/reference.exr",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+        assert!(report.files.iter().any(|g| g == f), "{f} not reported");
+    }
+    for f in &report.files {
+        assert!(out.join(f).is_file(), "{f} reported but missing");
+    }
+
+    let (header, rows) = read_csv(&out.join("ablation.csv"));
+    assert_eq!(header, CSV_COLUMNS);
+    for required in [
+        "model",
+        "knob",
+        "value",
+        "spp",
+        "ms_median",
+        "ms_runs",
+        "rmse",
+        "psnr",
+        "flip_mean",
+    ] {
+        assert!(header.iter().any(|h| h == required), "no column {required}");
+    }
+    // Baseline, hard shadows with each transmittance model, five stochastic points.
+    assert_eq!(rows.len(), 1 + 2 + 5);
+    let models: Vec<&str> = rows.iter().map(|r| col(&header, r, "model")).collect();
+    assert_eq!(models[0], "baseline (all off)");
+    assert!(models.contains(&"hard (min-kt)"));
+    assert!(models.contains(&"hard (beer-lambert)"));
+    for r in &rows {
+        assert_eq!(r.len(), header.len(), "{r:?}");
+        let ms: f64 = col(&header, r, "ms_median").parse().unwrap();
+        assert!(ms > 0.0);
+        let runs: Vec<f64> = col(&header, r, "ms_runs")
+            .split(';')
+            .map(|t| t.parse().unwrap())
+            .collect();
+        assert_eq!(runs.len(), 2);
+        let rmse: f64 = col(&header, r, "rmse").parse().unwrap();
+        let psnr: f64 = col(&header, r, "psnr").parse().unwrap();
+        let flip: f64 = col(&header, r, "flip_mean").parse().unwrap();
+        assert!(rmse > 0.0 && rmse.is_finite());
+        assert!((psnr - 10.0 * (1.0 / (rmse * rmse)).log10()).abs() < 1e-3);
+        assert!((0.0..=1.0).contains(&flip));
+        assert!(out.join(col(&header, r, "image")).is_file());
+    }
+    // What the GPU kernel supports runs there; the rest is labelled where it ran.
+    let baseline = &report.rows[0];
+    assert_eq!(
+        baseline.backend, "gpu",
+        "the baseline must render on the GPU"
+    );
+    for r in &report.rows {
+        assert_eq!(r.fallback.is_some(), r.backend == "cpu");
+    }
+
+    // Error against the reference falls with every doubling of the samples, and 16x the
+    // samples cut the RMSE by more than half (1/4 in theory, plus the reference's noise).
+    let stochastic: Vec<&ablate::Row> = report.rows.iter().filter(|r| r.knob == "spp").collect();
+    assert_eq!(stochastic.len(), 5);
+    for w in stochastic.windows(2) {
+        assert!(w[1].spp > w[0].spp);
+        assert!(
+            w[1].rmse < w[0].rmse,
+            "rmse rose from spp {} to {}",
+            w[0].spp,
+            w[1].spp
+        );
+    }
+    assert!(stochastic[4].rmse < 0.5 * stochastic[0].rmse);
+    assert!(stochastic[4].flip_mean < stochastic[0].flip_mean);
+    // The reference's own noise is below every point's error.
+    assert!(report.reference.noise_rmse < stochastic[4].rmse);
+
+    let png = image::open(out.join("plot.png")).unwrap();
+    assert!(png.width() >= 800 && png.height() >= 400);
+    let svg = std::fs::read_to_string(out.join("plot.svg")).unwrap();
+    assert!(
+        svg.contains("stochastic (beer-lambert)"),
+        "legend text in the SVG"
+    );
+    let grid = image::open(out.join("grid.png")).unwrap();
+    // Nine tiles (reference + 8 points), each at least 128 wide with its label band.
+    assert!(grid.width() >= 3 * 128 && grid.height() >= 3 * 128);
+    let table = std::fs::read_to_string(out.join("table.md")).unwrap();
+    assert_eq!(table.lines().filter(|l| l.starts_with("| ")).count(), 1 + 8);
+    let run_txt = std::fs::read_to_string(out.join("run.txt")).unwrap();
+    assert!(run_txt.contains("git revision: ") && run_txt.contains("adapter: "));
+    assert!(run_txt.contains("plan: ["));
+    let resolved: toml::Table =
+        toml::from_str(&std::fs::read_to_string(out.join("resolved.toml")).unwrap()).unwrap();
+    assert_eq!(resolved["points"].as_array().unwrap().len(), 8);
+    assert_eq!(resolved["ablate"]["reference_spp"].as_integer(), Some(256));
+}
+
+#[test]
+fn reference_cache_is_reused_when_nothing_changed_and_rebuilt_when_something_did() {
+    let dir = scratch("cache");
+    let cache = dir.join("cache");
+    let small = "[ablate]\nreference_spp = 64\nspp = [1, 4]\nruns = 1\nwarmup = 0\n";
+    let (e, c) = load(&dir, &experiment_text(110.0, small));
+
+    let first = run(&e, &c, &dir.join("a"), &cache);
+    assert!(!first.reference.reused);
+    let mtime = std::fs::metadata(&first.reference.path)
+        .unwrap()
+        .modified()
+        .unwrap();
+
+    // Same experiment: the reference comes from the cache, untouched, and every error
+    // column is the same (times may differ).
+    let second = run(&e, &c, &dir.join("b"), &cache);
+    assert!(second.reference.reused);
+    assert_eq!(second.reference.key, first.reference.key);
+    assert_eq!(
+        std::fs::metadata(&second.reference.path)
+            .unwrap()
+            .modified()
+            .unwrap(),
+        mtime
+    );
+    assert_eq!(second.reference.frame, first.reference.frame);
+    assert_eq!(
+        error_columns(&dir.join("a/ablation.csv")),
+        error_columns(&dir.join("b/ablation.csv"))
+    );
+
+    // A different sweep does not touch the reference.
+    let (e2, c2) = load(
+        &dir,
+        &experiment_text(
+            110.0,
+            "[ablate]\nreference_spp = 64\nspp = [2]\nruns = 1\nwarmup = 0\n",
+        ),
+    );
+    assert!(run(&e2, &c2, &dir.join("c"), &cache).reference.reused);
+
+    // A brighter light, or more reference samples, is a new reference.
+    let (e3, c3) = load(&dir, &experiment_text(150.0, small));
+    let third = run(&e3, &c3, &dir.join("d"), &cache);
+    assert!(!third.reference.reused);
+    assert_ne!(third.reference.key, first.reference.key);
+    let (e4, c4) = load(
+        &dir,
+        &experiment_text(
+            110.0,
+            "[ablate]\nreference_spp = 128\nspp = [1, 4]\nruns = 1\nwarmup = 0\n",
+        ),
+    );
+    let fourth = run(&e4, &c4, &dir.join("e"), &cache);
+    assert!(!fourth.reference.reused);
+    assert_ne!(fourth.reference.key, first.reference.key);
+    // And the first is still there to be reused.
+    assert!(run(&e, &c, &dir.join("f"), &cache).reference.reused);
+}
+
+#[test]
+fn ablate_table_errors_name_file_line_and_key() {
+    let dir = scratch("errors");
+    let path = dir.join("tiny.toml");
+    let check = |ablate: &str, line: usize, key: &str, says: &str| {
+        std::fs::write(&path, experiment_text(110.0, ablate)).unwrap();
+        let err = ablate::load(&path).unwrap_err();
+        let msg = err.to_string();
+        assert_eq!(err.line(), Some(line), "{msg}");
+        assert!(
+            msg.starts_with(&format!("{}:{line}:", path.display())),
+            "{msg}"
+        );
+        assert!(msg.contains(key) && msg.contains(says), "{msg}");
+    };
+    // The [ablate] header is line 15 of experiment_text.
+    check("[ablate]\nspp = [4, 2]", 16, "ablate.spp", "ascending");
+    check("[ablate]\nspp = [0]", 16, "ablate.spp", "1..=65536");
+    check("\n[ablate]\nruns = 0", 17, "ablate.runs = 0", "1..=1000");
+    check(
+        "[ablate]\nspp = [64]\nreference_spp = 32",
+        17,
+        "ablate.reference_spp = 32",
+        "at least the largest swept spp (64)",
+    );
+    check(
+        "[ablate]\ntransmittance = [\"fog\"]",
+        16,
+        "ablate.transmittance",
+        "min-kt",
+    );
+    check("[ablate]\nbackend = \"tpu\"", 16, "ablate.backend", "auto");
+    check("[ablate]\nspp = 4", 16, "ablate.spp", "invalid type");
+    check(
+        "[ablate]\nsamples = 4",
+        16,
+        "ablate.samples",
+        "reference_spp",
+    );
+
+    // The same file renders with `voxlab render` ([ablate] is allowed there), and the
+    // command line reports a bad table before rendering anything.
+    std::fs::write(&path, experiment_text(110.0, "[ablate]\nruns = 0")).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_voxlab"))
+        .args(["ablate", path.to_str().unwrap(), "--out"])
+        .arg(dir.join("cli"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("ablate.runs = 0"), "{stderr}");
+    assert!(!dir.join("cli").exists());
+    assert!(Experiment::load(&path).is_ok());
+}
