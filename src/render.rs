@@ -31,6 +31,42 @@ pub struct Features {
     pub transmittance: Transmittance,
 }
 
+/// Knobs of voxel cone tracing (`[cones]` of an experiment file; C. Crassin et al.,
+/// "Interactive Indirect Illumination Using Voxel Cone Tracing", CGF 30(7), 2011).
+/// Lengths in voxels. Used only when a cone feature is on.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConeSettings {
+    /// Pyramid levels; 0 chooses automatically (`cpu::pyramid::PyramidLayout::new`).
+    pub levels: u32,
+    /// Step length in footprints: `dt = step_factor * d`.
+    pub step_factor: f64,
+    /// Shadow-cone aperture for point lights, degrees (area lights use the angle they
+    /// subtend).
+    pub aperture_deg: f64,
+    /// Cone apex offset along the surface normal, voxels (against self-occlusion).
+    pub start_offset: f64,
+    /// Hemisphere cones for ambient occlusion and indirect light.
+    pub ao_cones: u32,
+    /// Range of the AO cones, voxels.
+    pub ao_range: f64,
+    /// Scale of the one-bounce indirect diffuse term.
+    pub indirect_strength: f64,
+}
+
+impl Default for ConeSettings {
+    fn default() -> Self {
+        Self {
+            levels: 0,
+            step_factor: 0.5,
+            aperture_deg: 5.0,
+            start_offset: 1.0,
+            ao_cones: 8,
+            ao_range: 6.0,
+            indirect_strength: 1.0,
+        }
+    }
+}
+
 /// Settings that are not part of the scene (DESIGN section 1, baseline constants).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {

@@ -3,7 +3,9 @@
 //! tests and the fallback renderer when no GPU adapter exists. It follows
 //! `src/trace_contract.md` to the letter.
 
+pub mod cone;
 pub mod dda;
+pub mod pyramid;
 
 use std::time::Instant;
 

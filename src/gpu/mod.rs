@@ -2,6 +2,7 @@
 //! that implements `src/trace_contract.md` in f32, in grid-local coordinates.
 
 mod compose;
+pub mod pyramid;
 
 pub use compose::{ENTRY_POINT, ShaderError, compose_shader, validate};
 

@@ -1,0 +1,897 @@
+//! Cone-tracing pyramids on the GPU: built by compute passes (`shaders/inject.wgsl`,
+//! `shaders/mip_build.wgsl`) into mip-mapped 3D textures, an R16Float opacity pyramid
+//! and, for indirect light, an RGBA16Float radiance pyramid. Layout, filter and
+//! injection are those of the f64 reference, `crate::cpu::pyramid`, which documents
+//! them; the tests hold the two within f16 storage error.
+//!
+//! The opacity is built level by level in f32 storage buffers and rounded to f16 once,
+//! then copied into the texture (R16Float is filterable but not a storage format in
+//! WebGPU). The radiance texture is a storage format and is written in place; each of
+//! its levels is filtered from the f16 level below.
+//!
+//! Also here: the bind group of `shaders/cone.wgsl` (group 1) and a probe kernel
+//! (`shaders/cone_probe.wgsl`) that runs single cones for tests.
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+
+use anyhow::{Result, anyhow, bail};
+use bytemuck::{Pod, Zeroable};
+use glam::{DVec3, UVec3};
+use naga_oil::compose::{
+    ComposableModuleDescriptor, Composer, NagaModuleDescriptor, ShaderDefValue,
+};
+
+use super::GpuTracer;
+use crate::cpu::cone::hemisphere_tan_half;
+use crate::cpu::pyramid::{PyramidLayout, alpha_table};
+use crate::render::{ConeSettings, RenderSettings};
+use crate::scene::Scene;
+
+const INJECT: &str = include_str!("../../shaders/inject.wgsl");
+const MIP_BUILD: &str = include_str!("../../shaders/mip_build.wgsl");
+/// `voxlab::cone`, imported by the tracer and the probe.
+pub const CONE_MODULE: (&str, &str) =
+    ("shaders/cone.wgsl", include_str!("../../shaders/cone.wgsl"));
+const CONE_PROBE: &str = include_str!("../../shaders/cone_probe.wgsl");
+
+/// `@workgroup_size(4, 4, 4)` of the build kernels.
+const WG: u32 = 4;
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct InjectParams {
+    dims: [u32; 3],
+    num_lights: u32,
+    eps: f32,
+    voxel_size: f32,
+    falloff_min_dist_sq: f32,
+    falloff: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct InjectMaterial {
+    albedo_kd: [f32; 4],
+    alpha_kt: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct InjectLight {
+    position: [f32; 3],
+    _pad_a: f32,
+    radiance: [f32; 3],
+    _pad_b: f32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct LevelParams {
+    src_dims: [u32; 3],
+    pitch_words: u32,
+    dst_dims: [u32; 3],
+    _pad: u32,
+}
+
+/// `ConeParams` of `shaders/cone.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuConeParams {
+    pub padded: [f32; 3],
+    pub levels: u32,
+    pub dims: [f32; 3],
+    pub step_factor: f32,
+    pub start_offset: f32,
+    pub ao_cones: u32,
+    pub ao_range: f32,
+    pub hemi_tan_half: f32,
+    pub indirect_strength: f32,
+    pub indirect_range: f32,
+    pub _pad: [f32; 2],
+}
+const _: () = assert!(std::mem::size_of::<GpuConeParams>() == 64);
+
+impl GpuConeParams {
+    pub fn new(layout: &PyramidLayout, c: &ConeSettings) -> Self {
+        let dims = layout.dims.as_vec3().to_array();
+        Self {
+            padded: layout.padded.as_vec3().to_array(),
+            levels: layout.levels,
+            dims,
+            step_factor: c.step_factor as f32,
+            start_offset: c.start_offset as f32,
+            ao_cones: c.ao_cones.max(1),
+            ao_range: c.ao_range as f32,
+            hemi_tan_half: hemisphere_tan_half(c.ao_cones) as f32,
+            indirect_strength: c.indirect_strength as f32,
+            indirect_range: indirect_range(layout) as f32,
+            _pad: [0.0; 2],
+        }
+    }
+}
+
+/// Indirect cones run until they leave the grid: its diagonal bounds every path.
+pub fn indirect_range(layout: &PyramidLayout) -> f64 {
+    layout.dims.as_dvec3().length()
+}
+
+/// A pyramid on the device.
+pub struct GpuPyramid {
+    pub layout: PyramidLayout,
+    pub opacity: wgpu::Texture,
+    pub opacity_view: wgpu::TextureView,
+    /// The RGBA16Float radiance texture, when built.
+    pub radiance: Option<wgpu::Texture>,
+    /// The radiance texture's view, or a 1x1x1 empty stand-in (the binding must exist).
+    pub radiance_view: wgpu::TextureView,
+}
+
+impl GpuPyramid {
+    /// Device memory of the textures (stand-ins excluded).
+    pub fn bytes(&self) -> u64 {
+        use crate::cpu::pyramid::{OPACITY_TEXEL_BYTES, RADIANCE_TEXEL_BYTES};
+        self.layout.texture_bytes(OPACITY_TEXEL_BYTES)
+            + if self.radiance.is_some() {
+                self.layout.texture_bytes(RADIANCE_TEXEL_BYTES)
+            } else {
+                0
+            }
+    }
+}
+
+fn f3(v: DVec3) -> [f32; 3] {
+    [v.x as f32, v.y as f32, v.z as f32]
+}
+
+fn extent(d: UVec3) -> wgpu::Extent3d {
+    wgpu::Extent3d {
+        width: d.x,
+        height: d.y,
+        depth_or_array_layers: d.z,
+    }
+}
+
+fn groups(d: UVec3) -> (u32, u32, u32) {
+    (d.x.div_ceil(WG), d.y.div_ceil(WG), d.z.div_ceil(WG))
+}
+
+/// Decodes an IEEE binary16 value.
+pub fn f16_to_f32(h: u16) -> f32 {
+    let s = if h & 0x8000 != 0 { -1.0 } else { 1.0 };
+    let e = ((h >> 10) & 0x1f) as i32;
+    let m = (h & 0x3ff) as f32;
+    s * match e {
+        0 => m * 2f32.powi(-24),
+        31 => {
+            if m == 0.0 {
+                f32::INFINITY
+            } else {
+                f32::NAN
+            }
+        }
+        _ => (1.0 + m / 1024.0) * 2f32.powi(e - 15),
+    }
+}
+
+fn align256(bytes: u32) -> u32 {
+    bytes.div_ceil(256) * 256
+}
+
+/// A compute pipeline for one entry point, its layout derived from what it uses.
+fn pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: None,
+        module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// The layout of `shaders/cone.wgsl`'s group 1.
+pub fn cone_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+    let tex = |binding| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: true },
+            view_dimension: wgpu::TextureViewDimension::D3,
+            multisampled: false,
+        },
+        count: None,
+    };
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("voxlab cones"),
+        entries: &[
+            wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            },
+            tex(1),
+            tex(2),
+            wgpu::BindGroupLayoutEntry {
+                binding: 3,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                count: None,
+            },
+            super::storage_entry(4, true),
+        ],
+    })
+}
+
+/// Linear within a level, nearest between levels (the shader blends levels itself),
+/// clamp-to-edge (the shader's border weight makes the border empty).
+pub fn pyramid_sampler(device: &wgpu::Device) -> wgpu::Sampler {
+    device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("pyramid"),
+        address_mode_u: wgpu::AddressMode::ClampToEdge,
+        address_mode_v: wgpu::AddressMode::ClampToEdge,
+        address_mode_w: wgpu::AddressMode::ClampToEdge,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        mipmap_filter: wgpu::MipmapFilterMode::Nearest,
+        ..Default::default()
+    })
+}
+
+/// The radius an area light's shadow cone must cover (world units), 0 for point lights:
+/// the aperture at distance `r` is `2 atan(radius / r)`.
+pub fn light_radius(light: &crate::scene::Light) -> f64 {
+    use crate::scene::{AreaShape, Light};
+    match light {
+        Light::Point(_) => 0.0,
+        Light::Area(a) => match a.shape {
+            // The half-diagonal: the rectangle's bounding radius.
+            AreaShape::Rect { width, height } => 0.5 * (width * width + height * height).sqrt(),
+            AreaShape::Disk { radius } | AreaShape::Sphere { radius } => radius,
+        },
+    }
+}
+
+/// Composes `voxlab::cone` with an entry module.
+pub fn compose_with_cone(entry: (&str, &str), defs: &[&str]) -> Result<naga::Module> {
+    let defs: HashMap<String, ShaderDefValue> = defs
+        .iter()
+        .map(|d| (d.to_string(), ShaderDefValue::Bool(true)))
+        .collect();
+    let mut composer = Composer::default();
+    if let Err(e) = composer.add_composable_module(ComposableModuleDescriptor {
+        source: CONE_MODULE.1,
+        file_path: CONE_MODULE.0,
+        shader_defs: defs.clone(),
+        ..Default::default()
+    }) {
+        bail!(
+            "composing {}: {}",
+            CONE_MODULE.0,
+            e.emit_to_string(&composer)
+        );
+    }
+    let module = composer
+        .make_naga_module(NagaModuleDescriptor {
+            source: entry.1,
+            file_path: entry.0,
+            shader_defs: defs,
+            ..Default::default()
+        })
+        .map_err(|e| anyhow!("composing {}: {}", entry.0, e.emit_to_string(&composer)))?;
+    super::validate(&module).map_err(|e| anyhow!("validating {}: {e}", entry.0))?;
+    Ok(module)
+}
+
+/// One query of the cone probe (`Query` of `shaders/cone_probe.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct ConeQuery {
+    pub origin: [f32; 3],
+    /// 0 opacity march, 1 radiance march, 2 AO, 3 indirect, 4 shadow visibility.
+    pub mode: u32,
+    /// The march direction (modes 0, 1) or the surface normal (2, 3, 4).
+    pub dir: [f32; 3],
+    pub tan_half: f32,
+    pub target: [f32; 3],
+    pub max_dist: f32,
+}
+
+impl GpuTracer {
+    /// Builds the opacity pyramid (and the radiance pyramid when `radiance`) of `scene`
+    /// under `settings` (transmittance model, falloff, ray offset) on the device.
+    pub fn build_pyramid(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        layout: PyramidLayout,
+        radiance: bool,
+    ) -> Result<GpuPyramid> {
+        scene.validate()?;
+        self.upload_grid(scene);
+        let device = &self.device;
+        let limits = device.limits();
+        let dims = layout.dims;
+        if layout.padded.max_element() > limits.max_texture_dimension_3d {
+            bail!(
+                "pyramid texture {}x{}x{} exceeds max_texture_dimension_3d {}",
+                layout.padded.x,
+                layout.padded.y,
+                layout.padded.z,
+                limits.max_texture_dimension_3d
+            );
+        }
+        let base_bytes = dims.x as u64 * dims.y as u64 * dims.z as u64 * 4;
+        let max_binding = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        if base_bytes > max_binding {
+            bail!(
+                "opacity build buffer of {base_bytes} bytes exceeds the device's storage \
+                 binding limit {max_binding}"
+            );
+        }
+        let grid_view = &self.grid.as_ref().expect("grid uploaded").view;
+
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("inject"),
+            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(INJECT)),
+        });
+        let mip = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("mip_build"),
+            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(MIP_BUILD)),
+        });
+
+        let alpha = alpha_table(scene, settings.features.transmittance);
+        let mats: Vec<InjectMaterial> = scene
+            .materials
+            .iter()
+            .zip(&alpha)
+            .map(|(m, &a)| InjectMaterial {
+                albedo_kd: [
+                    m.albedo.x as f32,
+                    m.albedo.y as f32,
+                    m.albedo.z as f32,
+                    m.kd as f32,
+                ],
+                alpha_kt: [a as f32, m.kt as f32, 0.0, 0.0],
+            })
+            .collect();
+        let grid = &scene.grid;
+        let mut lights: Vec<InjectLight> = scene
+            .lights
+            .iter()
+            .map(|l| InjectLight {
+                position: f3(grid.to_local(l.position())),
+                _pad_a: 0.0,
+                radiance: f3(l.color() * l.intensity()),
+                _pad_b: 0.0,
+            })
+            .collect();
+        if lights.is_empty() {
+            lights.push(InjectLight::zeroed());
+        }
+        let ip = InjectParams {
+            dims: dims.to_array(),
+            num_lights: scene.lights.len() as u32,
+            eps: settings.ray_offset as f32,
+            voxel_size: grid.voxel_size() as f32,
+            falloff_min_dist_sq: (settings.falloff_min_distance * settings.falloff_min_distance)
+                as f32,
+            falloff: settings.falloff as u32,
+        };
+        let init = |label: &str, contents: &[u8], usage| {
+            wgpu::util::DeviceExt::create_buffer_init(
+                device,
+                &wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage,
+                },
+            )
+        };
+        let ip_buf = init(
+            "inject params",
+            bytemuck::bytes_of(&ip),
+            wgpu::BufferUsages::UNIFORM,
+        );
+        let mat_buf = init(
+            "inject materials",
+            bytemuck::cast_slice(&mats),
+            wgpu::BufferUsages::STORAGE,
+        );
+        let light_buf = init(
+            "inject lights",
+            bytemuck::cast_slice(&lights),
+            wgpu::BufferUsages::STORAGE,
+        );
+
+        let texture = |label: &str, format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: extent(layout.padded),
+                mip_level_count: layout.levels,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D3,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        // Textures start zeroed (wgpu guarantees it), so padding is empty.
+        let opacity = texture(
+            "opacity pyramid",
+            wgpu::TextureFormat::R16Float,
+            wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_DST
+                | wgpu::TextureUsages::COPY_SRC,
+        );
+
+        // f32 level buffers and one staging buffer sized for level 0.
+        let level_bufs: Vec<wgpu::Buffer> = (0..layout.levels)
+            .map(|l| {
+                let d = layout.level_dims(l);
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("opacity level"),
+                    size: d.x as u64 * d.y as u64 * d.z as u64 * 4,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                })
+            })
+            .collect();
+        let pitch0 = align256(dims.x.div_ceil(2) * 4);
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("opacity staging"),
+            size: pitch0 as u64 * dims.y as u64 * dims.z as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+
+        let mut enc = device.create_command_encoder(&Default::default());
+        let run = |enc: &mut wgpu::CommandEncoder,
+                   p: &wgpu::ComputePipeline,
+                   entries: &[wgpu::BindGroupEntry],
+                   g: (u32, u32, u32)| {
+            let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &p.get_bind_group_layout(0),
+                entries,
+            });
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(p);
+            pass.set_bind_group(0, &bg, &[]);
+            pass.dispatch_workgroups(g.0, g.1, g.2);
+        };
+
+        let p_base = pipeline(device, &module, "opacity_base");
+        run(
+            &mut enc,
+            &p_base,
+            &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: ip_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(grid_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: mat_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: level_bufs[0].as_entire_binding(),
+                },
+            ],
+            groups(dims),
+        );
+        let p_reduce = pipeline(device, &mip, "reduce_r");
+        let p_pack = pipeline(device, &mip, "pack_r");
+        // Uniforms per level, all alive until the submission.
+        let mut level_params = Vec::new();
+        for l in 0..layout.levels {
+            let d = layout.level_dims(l);
+            let next = layout.level_dims(l + 1);
+            let pitch = align256(d.x.div_ceil(2) * 4);
+            level_params.push(init(
+                "level params",
+                bytemuck::bytes_of(&LevelParams {
+                    src_dims: d.to_array(),
+                    pitch_words: pitch / 4,
+                    dst_dims: next.to_array(),
+                    _pad: 0,
+                }),
+                wgpu::BufferUsages::UNIFORM,
+            ));
+        }
+        for l in 0..layout.levels as usize {
+            let d = layout.level_dims(l as u32);
+            if l + 1 < layout.levels as usize {
+                run(
+                    &mut enc,
+                    &p_reduce,
+                    &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: level_params[l].as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: level_bufs[l].as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: level_bufs[l + 1].as_entire_binding(),
+                        },
+                    ],
+                    groups(layout.level_dims(l as u32 + 1)),
+                );
+            }
+            run(
+                &mut enc,
+                &p_pack,
+                &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: level_params[l].as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: level_bufs[l].as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 5,
+                        resource: staging.as_entire_binding(),
+                    },
+                ],
+                groups(UVec3::new(d.x.div_ceil(2), d.y, d.z)),
+            );
+            let pitch = align256(d.x.div_ceil(2) * 4);
+            enc.copy_buffer_to_texture(
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &staging,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(pitch),
+                        rows_per_image: Some(d.y),
+                    },
+                },
+                wgpu::TexelCopyTextureInfo {
+                    texture: &opacity,
+                    mip_level: l as u32,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                extent(d),
+            );
+        }
+
+        let radiance_tex = if radiance {
+            let tex = texture(
+                "radiance pyramid",
+                wgpu::TextureFormat::Rgba16Float,
+                wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::STORAGE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
+            );
+            let mip_view = |l: u32| {
+                tex.create_view(&wgpu::TextureViewDescriptor {
+                    base_mip_level: l,
+                    mip_level_count: Some(1),
+                    ..Default::default()
+                })
+            };
+            let p_rad = pipeline(device, &module, "radiance_base");
+            let v0 = mip_view(0);
+            run(
+                &mut enc,
+                &p_rad,
+                &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: ip_buf.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(grid_view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: mat_buf.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 3,
+                        resource: light_buf.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 5,
+                        resource: wgpu::BindingResource::TextureView(&v0),
+                    },
+                ],
+                groups(dims),
+            );
+            let p_rgba = pipeline(device, &mip, "reduce_rgba");
+            for l in 0..layout.levels.saturating_sub(1) {
+                let src = mip_view(l);
+                let dst = mip_view(l + 1);
+                run(
+                    &mut enc,
+                    &p_rgba,
+                    &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: level_params[l as usize].as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: wgpu::BindingResource::TextureView(&src),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: wgpu::BindingResource::TextureView(&dst),
+                        },
+                    ],
+                    groups(layout.level_dims(l + 1)),
+                );
+            }
+            Some(tex)
+        } else {
+            None
+        };
+        self.queue.submit([enc.finish()]);
+        self.wait()?;
+
+        let opacity_view = opacity.create_view(&Default::default());
+        let radiance_view = match &radiance_tex {
+            Some(t) => t.create_view(&Default::default()),
+            None => device
+                .create_texture(&wgpu::TextureDescriptor {
+                    label: Some("radiance stand-in"),
+                    size: extent(UVec3::ONE),
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D3,
+                    format: wgpu::TextureFormat::Rgba16Float,
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
+                })
+                .create_view(&Default::default()),
+        };
+        Ok(GpuPyramid {
+            layout,
+            opacity,
+            opacity_view,
+            radiance: radiance_tex,
+            radiance_view,
+        })
+    }
+
+    /// Reads mip `level` of the opacity (`radiance = false`, 1 channel) or radiance
+    /// (4 channels) texture back, at the texture's padded dims, x-fastest, decoded to f32.
+    pub fn read_pyramid_level(
+        &self,
+        pyr: &GpuPyramid,
+        radiance: bool,
+        level: u32,
+    ) -> Result<Vec<f32>> {
+        let (tex, texel) = if radiance {
+            (
+                pyr.radiance
+                    .as_ref()
+                    .ok_or_else(|| anyhow!("no radiance pyramid"))?,
+                8u32,
+            )
+        } else {
+            (&pyr.opacity, 2u32)
+        };
+        let d = pyr.layout.texture_dims(level);
+        let pitch = align256(d.x * texel);
+        let bytes = pitch as u64 * d.y as u64 * d.z as u64;
+        let buf = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("pyramid readback"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: tex,
+                mip_level: level,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buf,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(pitch),
+                    rows_per_image: Some(d.y),
+                },
+            },
+            extent(d),
+        );
+        self.queue.submit([enc.finish()]);
+        let raw: Vec<u16> = self.read(&buf, bytes)?;
+        let ch = (texel / 2) as usize;
+        let row_halves = (pitch / 2) as usize;
+        let mut out = Vec::with_capacity(d.x as usize * d.y as usize * d.z as usize * ch);
+        for row in 0..(d.y * d.z) as usize {
+            let r = &raw[row * row_halves..row * row_halves + d.x as usize * ch];
+            out.extend(r.iter().map(|&h| f16_to_f32(h)));
+        }
+        Ok(out)
+    }
+
+    /// Runs cone queries through `shaders/cone.wgsl` (the probe kernel), one result per
+    /// query (see [`ConeQuery`]).
+    pub fn cone_probe(
+        &self,
+        pyr: &GpuPyramid,
+        cones: &ConeSettings,
+        queries: &[ConeQuery],
+    ) -> Result<Vec<[f32; 4]>> {
+        let device = &self.device;
+        let indirect = pyr.radiance.is_some();
+        let module = compose_with_cone(
+            ("shaders/cone_probe.wgsl", CONE_PROBE),
+            if indirect { &["INDIRECT"] } else { &[] },
+        )?;
+        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("cone probe"),
+            source: wgpu::ShaderSource::Naga(Cow::Owned(module)),
+        });
+        let g0 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("cone probe"),
+            entries: &[
+                super::storage_entry(0, true),
+                super::storage_entry(1, false),
+            ],
+        });
+        let g1 = cone_bind_group_layout(device);
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("cone probe"),
+            bind_group_layouts: &[Some(&g0), Some(&g1)],
+            immediate_size: 0,
+        });
+        let p = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("cone probe"),
+            layout: Some(&pl),
+            module: &shader,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let init = |label: &str, contents: &[u8], usage| {
+            wgpu::util::DeviceExt::create_buffer_init(
+                device,
+                &wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage,
+                },
+            )
+        };
+        let q = init(
+            "queries",
+            bytemuck::cast_slice(queries),
+            wgpu::BufferUsages::STORAGE,
+        );
+        let out_bytes = queries.len() as u64 * 16;
+        let out = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("probe results"),
+            size: out_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("probe readback"),
+            size: out_bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bg0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &g0,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: q.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: out.as_entire_binding(),
+                },
+            ],
+        });
+        let bg1 = self.cone_bind_group(pyr, cones, &g1, &[0.0]);
+        let mut enc = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&p);
+            pass.set_bind_group(0, &bg0, &[]);
+            pass.set_bind_group(1, &bg1, &[]);
+            pass.dispatch_workgroups((queries.len() as u32).div_ceil(64), 1, 1);
+        }
+        enc.copy_buffer_to_buffer(&out, 0, &readback, 0, out_bytes);
+        self.queue.submit([enc.finish()]);
+        self.read(&readback, out_bytes)
+    }
+
+    /// The group-1 bind group of `shaders/cone.wgsl` for `pyr`, with `light_tan_half`
+    /// (one entry per light; at least one).
+    pub fn cone_bind_group(
+        &self,
+        pyr: &GpuPyramid,
+        cones: &ConeSettings,
+        layout: &wgpu::BindGroupLayout,
+        light_tan_half: &[f32],
+    ) -> wgpu::BindGroup {
+        let device = &self.device;
+        let params = GpuConeParams::new(&pyr.layout, cones);
+        let init = |label: &str, contents: &[u8], usage| {
+            wgpu::util::DeviceExt::create_buffer_init(
+                device,
+                &wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage,
+                },
+            )
+        };
+        let pbuf = init(
+            "cone params",
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM,
+        );
+        let one = [0.0f32];
+        let lt = if light_tan_half.is_empty() {
+            &one[..]
+        } else {
+            light_tan_half
+        };
+        let lbuf = init(
+            "cone lights",
+            bytemuck::cast_slice(lt),
+            wgpu::BufferUsages::STORAGE,
+        );
+        let sampler = pyramid_sampler(device);
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("voxlab cones"),
+            layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: pbuf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&pyr.opacity_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&pyr.radiance_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::Sampler(&sampler),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: lbuf.as_entire_binding(),
+                },
+            ],
+        })
+    }
+}
