@@ -1523,6 +1523,9 @@ pub mod plot {
     const SIZE: (u32, u32) = (1400, 620);
     const FONT: &str = "sans-serif";
 
+    /// An error column of a row.
+    type Metric = fn(&Row) -> f64;
+
     fn register_font() {
         static ONCE: Once = Once::new();
         ONCE.call_once(|| {
@@ -1589,7 +1592,7 @@ pub mod plot {
         }
         let mixed = rows.iter().any(|r| r.backend != rows[0].backend);
         let x_range = range(rows.iter().map(|r| r.ms_median));
-        let metrics: [(&str, fn(&Row) -> f64); 2] = [
+        let metrics: [(&str, Metric); 2] = [
             ("RMSE (linear radiance)", |r| r.rmse),
             ("FLIP mean (displayed image)", |r| r.flip_mean),
         ];
