@@ -1,0 +1,70 @@
+//! The largest grid the device allows: rendered and checked against the oracle, and one
+//! voxel past the limit refused with an error that names the limit.
+
+use glam::{DVec3, UVec3};
+use voxlab::RenderSettings;
+use voxlab::gpu::GpuTracer;
+use voxlab::scene::{Grid, MAX_VOXELS, seed_scene_dims};
+use voxlab::stress::{SuiteOptions, Verdict, generated_cases, run_case};
+
+fn tracer() -> GpuTracer {
+    GpuTracer::new().unwrap_or_else(|e| {
+        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
+    })
+}
+
+#[test]
+fn longest_side_at_the_device_limit_renders_and_matches() {
+    let mut gpu = tracer();
+    let side = gpu.max_grid_side();
+    let opts = SuiteOptions {
+        max_grid_side: side,
+        cube: None,
+    };
+    let name = format!("grid-{side}x8x8");
+    let case = generated_cases(&opts)
+        .unwrap()
+        .into_iter()
+        .find(|c| c.name == name)
+        .unwrap();
+    assert_eq!(case.scene.grid.dims(), UVec3::new(side, 8, 8));
+    let row = run_case(Some(&mut gpu), &case);
+    println!(
+        "{name}: {} bytes, {} ill-conditioned px, {} over among the others",
+        row.grid_bytes, row.ill_conditioned, row.over_well_conditioned
+    );
+    assert_eq!(row.verdict(), Verdict::Pass, "{:?}", row.verdict());
+}
+
+#[test]
+fn one_past_the_limit_is_a_clear_error() {
+    let mut gpu = tracer();
+    let side = gpu.max_grid_side();
+    for dims in [
+        UVec3::new(side + 1, 1, 1),
+        UVec3::new(1, side + 1, 1),
+        UVec3::new(1, 1, side + 1),
+    ] {
+        let scene = seed_scene_dims(dims).unwrap();
+        let settings = RenderSettings {
+            width: 8,
+            height: 8,
+            ..Default::default()
+        };
+        let err = format!("{:#}", gpu.render(&scene, &settings).unwrap_err());
+        assert!(
+            err.contains("max_texture_dimension_3d") && err.contains(&side.to_string()),
+            "{dims}: {err}"
+        );
+        assert!(
+            err.contains(&format!("{}x{}x{}", dims.x, dims.y, dims.z)),
+            "{err}"
+        );
+    }
+    // The host's own cap comes before any device: 2^31 voxels.
+    let too_many = UVec3::new(2048, 2048, 513);
+    let err = Grid::new(too_many, 1.0, DVec3::ZERO)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains(&MAX_VOXELS.to_string()), "{err}");
+}
