@@ -99,7 +99,9 @@ fn sphere(s: f64) -> AreaShape {
     AreaShape::Sphere { radius: s / 2.0 }
 }
 
-const SHAPES: [(&str, fn(f64) -> AreaShape); 3] = [("rect", rect), ("disk", disk), ("sphere", sphere)];
+type Shape = (&'static str, fn(f64) -> AreaShape);
+
+const SHAPES: [Shape; 3] = [("rect", rect), ("disk", disk), ("sphere", sphere)];
 
 /// Every combination of the area-light feature switched off reproduces the goldens:
 /// the seed's lights as area lights of size 0 (sampling on), and as real area lights
