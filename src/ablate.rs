@@ -430,6 +430,8 @@ fn baseline_points(e: &Experiment, _: &AblateConfig) -> Vec<Point> {
 }
 
 /// Area lights as points at their centres (no knob), once per transmittance model.
+/// The `Features` literal is spelled out on purpose: a new shadow feature (cones) stops
+/// it compiling, so whoever adds one decides here that hard shadows leave it off.
 fn hard_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
     c.transmittance
         .iter()
@@ -441,6 +443,7 @@ fn hard_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
                 features: Features {
                     area_lights: false,
                     transmittance: t,
+                    ..Default::default()
                 },
                 spp: 1,
                 ..e.settings.clone()
