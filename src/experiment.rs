@@ -17,7 +17,7 @@ use glam::{DVec3, IVec3, UVec3};
 use serde::Deserialize;
 
 use crate::render::{
-    Features, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, RenderSettings, Transmittance,
+    ConeSettings, Features, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, RenderSettings, Transmittance,
 };
 use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
 use crate::scene::{
@@ -33,6 +33,22 @@ pub const SEED_SIZE: u32 = 16;
 struct RawFeatures {
     area_lights: Option<bool>,
     transmittance: Option<TransmittanceName>,
+    cone_shadows: Option<bool>,
+    ambient_occlusion: Option<bool>,
+    indirect: Option<bool>,
+}
+
+/// `[cones]`: the knobs of voxel cone tracing (`crate::render::ConeSettings`).
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCones {
+    levels: Option<i64>,
+    step_factor: Option<f64>,
+    aperture_deg: Option<f64>,
+    start_offset: Option<f64>,
+    ao_cones: Option<i64>,
+    ao_range: Option<f64>,
+    indirect_strength: Option<f64>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
@@ -132,6 +148,8 @@ struct RawExperiment {
     render: RawRender,
     #[serde(default)]
     features: RawFeatures,
+    #[serde(default)]
+    cones: RawCones,
     /// `[ablate]`: the sweep of `voxlab ablate`, validated there (`crate::ablate`), so
     /// the same file also renders with `voxlab render`.
     #[allow(dead_code)]
@@ -635,7 +653,11 @@ fn build(raw: RawExperiment, ctx: &Ctx) -> Result<Experiment, ExperimentError> {
                 None | Some(TransmittanceName::MinKt) => Transmittance::MinKt,
                 Some(TransmittanceName::BeerLambert) => Transmittance::BeerLambert,
             },
+            cone_shadows: raw.features.cone_shadows.unwrap_or(false),
+            ambient_occlusion: raw.features.ambient_occlusion.unwrap_or(false),
+            indirect: raw.features.indirect.unwrap_or(false),
         },
+        cones: build_cones(&raw.cones, ctx)?,
         light_samples: r.light_samples.map_or(Ok(d.light_samples), |v| {
             int_in(ctx, "render.light_samples", v, 1..=MAX_SAMPLES as i64)
         })?,
@@ -723,6 +745,35 @@ fn build(raw: RawExperiment, ctx: &Ctx) -> Result<Experiment, ExperimentError> {
         source_path: None,
         scene,
         settings,
+    })
+}
+
+/// `[cones]`, each key checked against its range; keys left out keep the defaults.
+fn build_cones(c: &RawCones, ctx: &Ctx) -> Result<ConeSettings, ExperimentError> {
+    let d = ConeSettings::default();
+    let positive = |key: &str, v: Option<f64>, dflt: f64, max: f64| {
+        v.map_or(Ok(dflt), |v| {
+            float_where(ctx, key, v, |x| x > 0.0 && x <= max, &format!("in (0, {max}]"))
+        })
+    };
+    Ok(ConeSettings {
+        levels: c.levels.map_or(Ok(d.levels), |v| {
+            int_in(ctx, "cones.levels", v, 0..=crate::cpu::pyramid::MAX_LEVELS as i64)
+        })?,
+        step_factor: positive("cones.step_factor", c.step_factor, d.step_factor, 4.0)?,
+        aperture_deg: c.aperture_deg.map_or(Ok(d.aperture_deg), |v| {
+            float_where(ctx, "cones.aperture_deg", v, |x| (0.0..=120.0).contains(&x), "in [0, 120]")
+        })?,
+        start_offset: c.start_offset.map_or(Ok(d.start_offset), |v| {
+            float_where(ctx, "cones.start_offset", v, |x| (0.0..=16.0).contains(&x), "in [0, 16] (voxels)")
+        })?,
+        ao_cones: c
+            .ao_cones
+            .map_or(Ok(d.ao_cones), |v| int_in(ctx, "cones.ao_cones", v, 1..=64))?,
+        ao_range: positive("cones.ao_range", c.ao_range, d.ao_range, 1e6)?,
+        indirect_strength: c.indirect_strength.map_or(Ok(d.indirect_strength), |v| {
+            float_where(ctx, "cones.indirect_strength", v, |x| (0.0..=100.0).contains(&x), "in [0, 100]")
+        })?,
     })
 }
 

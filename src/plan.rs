@@ -9,12 +9,18 @@
 //! To add a feature (area lights, Beer-Lambert, cone tracing): add a field, decide it in
 //! [`Plan::new`] with a reason when it is left out, name its shader def in
 //! [`Plan::shader_defs`], and list it in [`Plan::FLAGS`] so the composition test covers it.
+//!
+//! The cone-tracing flags are listed apart, in [`Plan::CONE_FLAGS`]: every combination
+//! of them with every combination of [`Plan::FLAGS`] would be 8 times as many kernels
+//! to compose in the test; `tests/cone_render.rs` composes each cone combination with
+//! the base flags all on, all off and shadows alone.
 
 use std::collections::BTreeMap;
 use std::fmt;
 
 use naga_oil::compose::ShaderDefValue;
 
+use crate::cpu::pyramid::{PyramidLayout, memory_line};
 use crate::render::{RenderSettings, Transmittance};
 use crate::scene::{Material, Scene, VOID};
 
@@ -50,6 +56,18 @@ pub struct Plan {
     /// `spp > 1`. Allocates the compensation buffer. Without sampling every frame is the
     /// same image, so one frame is rendered whatever `spp` says.
     pub accumulate: bool,
+    /// Cone-traced shadow visibility (`CONE_SHADOWS`): the feature is on and there are
+    /// shadow rays to replace.
+    pub cone_shadows: bool,
+    /// Ambient occlusion (`AMBIENT_OCCLUSION`): the feature is on and some material in
+    /// the grid is diffuse (the term is `ambient * albedo * kd * AO`).
+    pub ambient_occlusion: bool,
+    /// One-bounce indirect diffuse light (`INDIRECT`): the feature is on, some material
+    /// is diffuse and there is a light to inject (else the radiance pyramid is 0).
+    pub indirect: bool,
+    /// The pyramids' layout, when a cone flag is on (the radiance pyramid only with
+    /// `indirect`).
+    pub pyramid: Option<PyramidLayout>,
     /// Ray counters (`COUNT_RAYS`): chosen by the caller, not by the scene.
     pub count_rays: bool,
     /// Entries of the explicit ray stack (`RAY_STACK_SIZE`).
@@ -234,6 +252,38 @@ impl Plan {
             1
         };
 
+        let f = &settings.features;
+        let cone_shadows = f.cone_shadows && shadows;
+        if f.cone_shadows && !shadows {
+            reasons.push("cone shadows: no shadow rays to replace".to_string());
+        }
+        let (mut area_lights, mut beer_lambert, mut accumulate) =
+            (area_lights, beer_lambert, accumulate);
+        if cone_shadows && (area_lights || beer_lambert) {
+            // The cone replaces the shadow ray and the area samples: their code is dead.
+            reasons.push(
+                "area-light sampling and beer-lambert shadow rays: cone shadows replace them"
+                    .to_string(),
+            );
+            area_lights = false;
+            beer_lambert = false;
+            accumulate = false;
+        }
+        let diffuse = mats.iter().any(|(_, m)| m.kd > 0.0);
+        let ambient_occlusion = f.ambient_occlusion && diffuse;
+        if f.ambient_occlusion && !diffuse {
+            reasons.push("ambient occlusion: no diffuse material in the grid".to_string());
+        }
+        let indirect = f.indirect && diffuse && !scene.lights.is_empty();
+        if f.indirect && !indirect {
+            reasons.push(
+                "indirect light: no diffuse material in the grid, or no light to inject"
+                    .to_string(),
+            );
+        }
+        let pyramid = (cone_shadows || ambient_occlusion || indirect)
+            .then(|| PyramidLayout::new(scene.grid.dims(), settings.cones.levels));
+
         Self {
             reflection,
             refraction,
@@ -242,11 +292,18 @@ impl Plan {
             area_lights,
             beer_lambert,
             accumulate,
+            cone_shadows,
+            ambient_occlusion,
+            indirect,
+            pyramid,
             count_rays: false,
             ray_stack_size,
             reasons,
         }
     }
+
+    /// Cone-tracing flags (see the module notes for why they are listed apart).
+    pub const CONE_FLAGS: [&'static str; 3] = ["CONE_SHADOWS", "AMBIENT_OCCLUSION", "INDIRECT"];
 
     /// Frames the image is accumulated over: `spp` when area lights are sampled, else 1
     /// (every frame would be the same image). Both tracers render this many.
@@ -275,6 +332,9 @@ impl Plan {
             "BEER_LAMBERT" => self.beer_lambert,
             "ACCUMULATE" => self.accumulate,
             "COUNT_RAYS" => self.count_rays,
+            "CONE_SHADOWS" => self.cone_shadows,
+            "AMBIENT_OCCLUSION" => self.ambient_occlusion,
+            "INDIRECT" => self.indirect,
             _ => false,
         }
     }
@@ -290,6 +350,9 @@ impl Plan {
             "BEER_LAMBERT" => self.beer_lambert = on,
             "ACCUMULATE" => self.accumulate = on,
             "COUNT_RAYS" => self.count_rays = on,
+            "CONE_SHADOWS" => self.cone_shadows = on,
+            "AMBIENT_OCCLUSION" => self.ambient_occlusion = on,
+            "INDIRECT" => self.indirect = on,
             _ => panic!("unknown plan flag {name}"),
         }
     }
@@ -306,6 +369,10 @@ impl Plan {
                     area_lights: false,
                     beer_lambert: false,
                     accumulate: false,
+                    cone_shadows: false,
+                    ambient_occlusion: false,
+                    indirect: false,
+                    pyramid: None,
                     count_rays: false,
                     ray_stack_size,
                     reasons: Vec::new(),
@@ -322,7 +389,7 @@ impl Plan {
     /// and the stack size as an integer def. Also the key of the pipeline cache.
     pub fn shader_defs(&self) -> ShaderDefs {
         let mut defs = ShaderDefs::new();
-        for f in Self::FLAGS {
+        for f in Self::FLAGS.iter().chain(&Self::CONE_FLAGS) {
             if self.flag(f) {
                 defs.insert(f.to_string(), ShaderDefValue::Bool(true));
             }
@@ -339,6 +406,7 @@ impl fmt::Display for Plan {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let on: Vec<&str> = Self::FLAGS
             .iter()
+            .chain(&Self::CONE_FLAGS)
             .copied()
             .filter(|n| self.flag(n))
             .collect();
@@ -352,6 +420,9 @@ impl fmt::Display for Plan {
             },
             self.ray_stack_size
         )?;
+        if let Some(layout) = &self.pyramid {
+            write!(f, "\n  {}", memory_line(layout, self.indirect))?;
+        }
         for r in &self.reasons {
             write!(f, "\n  left out: {r}")?;
         }

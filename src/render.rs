@@ -29,6 +29,27 @@ pub struct Features {
     /// a point light at its centre.
     pub area_lights: bool,
     pub transmittance: Transmittance,
+    /// Voxel cone tracing (knobs in [`RenderSettings::cones`]): each light's shadow-ray
+    /// visibility becomes a cone's through the opacity pyramid, its aperture the angle
+    /// an area light subtends (area lights are then shaded at their centre, unsampled)
+    /// or `cones.aperture_deg` for point lights.
+    pub cone_shadows: bool,
+    /// Adds `ambient * albedo * kd * AO` at every hit of a diffuse material, AO the mean
+    /// visibility of `cones.ao_cones` cosine-weighted hemisphere cones of range
+    /// `cones.ao_range`. Off, nothing is added (the baseline's ambient stays the
+    /// per-pixel background term).
+    pub ambient_occlusion: bool,
+    /// Adds one bounce of diffuse light, `indirect_strength * albedo * kd * L_ind`, at
+    /// every hit of a diffuse material; `L_ind` the mean radiance the hemisphere cones
+    /// gather from the radiance pyramid.
+    pub indirect: bool,
+}
+
+impl Features {
+    /// Whether any feature needs the cone-tracing pyramids.
+    pub fn cones(&self) -> bool {
+        self.cone_shadows || self.ambient_occlusion || self.indirect
+    }
 }
 
 /// Knobs of voxel cone tracing (`[cones]` of an experiment file; C. Crassin et al.,
@@ -89,6 +110,8 @@ pub struct RenderSettings {
     pub spp: u32,
     /// Seeds the sample hash, so two experiments can draw independent samples.
     pub seed: u32,
+    /// Cone-tracing knobs, used only when a cone feature is on.
+    pub cones: ConeSettings,
 }
 
 /// Largest `light_samples` and `spp` accepted.
@@ -116,6 +139,7 @@ impl Default for RenderSettings {
             light_samples: 1,
             spp: 1,
             seed: 0,
+            cones: ConeSettings::default(),
         }
     }
 }

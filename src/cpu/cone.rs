@@ -217,3 +217,85 @@ pub fn shadow_visibility(
     }
     1.0 - march(pyr, params, o, to / len, tan_half, len, false).occlusion
 }
+
+/// What the CPU tracer needs for the cone features of one render: the pyramids (built
+/// once) and the knobs. Built from the render's [`crate::plan::Plan`], so the CPU
+/// leaves out what the GPU leaves out.
+pub struct ConeScene {
+    pub pyramid: Pyramid,
+    pub params: ConeParams,
+    pub shadows: bool,
+    pub ambient_occlusion: bool,
+    pub indirect: bool,
+    /// `tan(aperture / 2)` of point lights' shadow cones.
+    pub point_tan_half: f64,
+    pub ao_cones: u32,
+    pub ao_range: f64,
+    pub indirect_strength: f64,
+}
+
+impl ConeScene {
+    /// `None` when the plan has no cone feature.
+    pub fn new(
+        scene: &crate::scene::Scene,
+        settings: &crate::render::RenderSettings,
+        plan: &crate::plan::Plan,
+    ) -> Option<Self> {
+        let layout = plan.pyramid?;
+        let c = &settings.cones;
+        Some(Self {
+            pyramid: Pyramid::build(scene, settings, layout, plan.indirect),
+            params: ConeParams {
+                step_factor: c.step_factor,
+                start_offset: c.start_offset,
+            },
+            shadows: plan.cone_shadows,
+            ambient_occlusion: plan.ambient_occlusion,
+            indirect: plan.indirect,
+            point_tan_half: (c.aperture_deg.to_radians() / 2.0).tan(),
+            ao_cones: c.ao_cones.max(1),
+            ao_range: c.ao_range,
+            indirect_strength: c.indirect_strength,
+        })
+    }
+
+    /// `tan(theta / 2)` of the shadow cone from grid-local `p` to `light`: for an area
+    /// light the angle it subtends, `theta = 2 atan(R / dist)` with `R` its radius (a
+    /// rectangle's half-diagonal), so `tan(theta / 2) = R / dist` (R in voxels); the
+    /// set aperture for point lights.
+    pub fn light_tan_half(
+        &self,
+        light: &crate::scene::Light,
+        radius_voxels: f64,
+        dist: f64,
+    ) -> f64 {
+        match light {
+            crate::scene::Light::Area(_) if radius_voxels > 0.0 => {
+                if dist > 0.0 {
+                    radius_voxels / dist
+                } else {
+                    f64::MAX
+                }
+            }
+            _ => self.point_tan_half,
+        }
+    }
+}
+
+/// The radius an area light's shadow cone must cover (world units; a rectangle's
+/// half-diagonal), 0 for point lights.
+pub fn light_radius(light: &crate::scene::Light) -> f64 {
+    use crate::scene::{AreaShape, Light};
+    match light {
+        Light::Point(_) => 0.0,
+        Light::Area(a) => match a.shape {
+            AreaShape::Rect { width, height } => 0.5 * (width * width + height * height).sqrt(),
+            AreaShape::Disk { radius } | AreaShape::Sphere { radius } => radius,
+        },
+    }
+}
+
+/// Indirect cones run until they leave the grid: its diagonal bounds every path inside.
+pub fn indirect_range(layout: &super::pyramid::PyramidLayout) -> f64 {
+    layout.dims.as_dvec3().length()
+}

@@ -35,7 +35,10 @@ pub fn render(scene: &Scene, settings: &RenderSettings) -> RenderOutput {
     let start = Instant::now();
     let frame_cam = scene.camera.frame();
     let (w, h) = (settings.width, settings.height);
-    let frames = Plan::new(scene, settings).frames(settings);
+    let plan = Plan::new(scene, settings);
+    let frames = plan.frames(settings);
+    // Pyramids once per render, only when the plan has a cone feature.
+    let cones = cone::ConeScene::new(scene, settings, &plan);
     let rows: Vec<(Vec<[f32; 3]>, RayStats)> = (0..h)
         .into_par_iter()
         .map(|j| {
@@ -49,7 +52,15 @@ pub fn render(scene: &Scene, settings: &RenderSettings) -> RenderOutput {
                             pixel: j * w + i,
                             frame,
                         };
-                        sum += trace_ray(scene, settings, key, frame_cam.eye, dir, &mut stats);
+                        sum += trace_ray_cones(
+                            scene,
+                            settings,
+                            cones.as_ref(),
+                            key,
+                            frame_cam.eye,
+                            dir,
+                            &mut stats,
+                        );
                     }
                     let c = sum / frames as f64;
                     [c.x as f32, c.y as f32, c.z as f32]
@@ -92,9 +103,25 @@ struct StackRay {
 }
 
 /// Radiance seen along a primary ray from `eye` in direction `dir` (unit), ambient included.
+/// With a cone feature on this builds the pyramids for the one ray; [`render`] builds
+/// them once and calls [`trace_ray_cones`].
 pub fn trace_ray(
     scene: &Scene,
     settings: &RenderSettings,
+    key: SampleKey,
+    eye: DVec3,
+    dir: DVec3,
+    stats: &mut RayStats,
+) -> DVec3 {
+    let cones = cone::ConeScene::new(scene, settings, &Plan::new(scene, settings));
+    trace_ray_cones(scene, settings, cones.as_ref(), key, eye, dir, stats)
+}
+
+/// [`trace_ray`] with the cone features' pyramids built by the caller.
+pub fn trace_ray_cones(
+    scene: &Scene,
+    settings: &RenderSettings,
+    cones: Option<&cone::ConeScene>,
     key: SampleKey,
     eye: DVec3,
     dir: DVec3,
@@ -131,8 +158,25 @@ pub fn trace_ray(
         // Emission is seen, not cast: emissive voxels light nothing else.
         color += ray.throughput * m.emission;
         if m.is_lit() {
-            let local = direct_light(scene, settings, key, p, n, ray.dir, shade_id, stats);
+            let local = direct_light(scene, settings, cones, key, p, n, ray.dir, shade_id, stats);
             color += ray.throughput * local;
+        }
+        if let Some(c) = cones
+            && m.kd > 0.0
+        {
+            let pl = grid.to_local(p);
+            // Both are diffuse reflections of light arriving over the hemisphere:
+            // `albedo kd` times the ambient light AO lets through, and times the
+            // one-bounce radiance the cones gather (Crassin et al. 2011, section 4.2).
+            if c.ambient_occlusion {
+                let ao = cone::ambient_occlusion(&c.pyramid, &c.params, pl, n, c.ao_cones, c.ao_range);
+                color += ray.throughput * scene.ambient * m.albedo * m.kd * ao;
+            }
+            if c.indirect {
+                let range = cone::indirect_range(&c.pyramid.layout);
+                let l = cone::indirect(&c.pyramid, &c.params, pl, n, c.ao_cones, range);
+                color += ray.throughput * c.indirect_strength * m.albedo * m.kd * l;
+            }
         }
 
         let mut reflection_weight = m.kr;
@@ -186,6 +230,7 @@ pub fn refract(d: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
 fn direct_light(
     scene: &Scene,
     settings: &RenderSettings,
+    cones: Option<&cone::ConeScene>,
     key: SampleKey,
     p: DVec3,
     n: DVec3,
@@ -199,6 +244,20 @@ fn direct_light(
     let mut sum = DVec3::ZERO;
     for (j, light) in scene.lights.iter().enumerate() {
         let radiance = light.color() * light.intensity();
+        if let Some(c) = cones.filter(|c| c.shadows) {
+            // One cone to the light's centre replaces the shadow ray (and the area
+            // samples), in grid-local units.
+            stats.shadow += 1;
+            let g = &scene.grid;
+            let (pl, ll) = (g.to_local(p), g.to_local(light.position()));
+            let r = cone::light_radius(light) / g.voxel_size();
+            let th = c.light_tan_half(light, r, (ll - pl).length());
+            let v = cone::shadow_visibility(&c.pyramid, &c.params, pl, n, ll, th);
+            if v > 0.0 {
+                sum += v * unshadowed(settings, m, p, n, d, light.position(), radiance);
+            }
+            continue;
+        }
         match light {
             Light::Area(a) if settings.features.area_lights && !a.is_degenerate() => {
                 let count = settings.light_samples.max(1);
@@ -252,6 +311,20 @@ fn point_contribution(
     if v == DVec3::ZERO {
         return DVec3::ZERO;
     }
+    v * unshadowed(settings, m, p, n, d, x, radiance)
+}
+
+/// `E (kd diffuse + ks specular)` of a point emitter at `x` seen from `p`, before
+/// visibility and albedo.
+fn unshadowed(
+    settings: &RenderSettings,
+    m: &Material,
+    p: DVec3,
+    n: DVec3,
+    d: DVec3,
+    x: DVec3,
+    radiance: DVec3,
+) -> DVec3 {
     let to_light = x - p;
     let dl = to_light.length();
     let l = if dl > 0.0 { to_light / dl } else { n };
@@ -264,7 +337,7 @@ fn point_contribution(
     let r = l - 2.0 * n.dot(l) * n;
     let rd = r.dot(d);
     let spec = if rd > 0.0 { rd.powf(m.shininess) } else { 0.0 };
-    v * e * (m.kd * diffuse + m.ks * spec)
+    e * (m.kd * diffuse + m.ks * spec)
 }
 
 /// Transmittance (RGB) of the shadow segment from `q` to `light` under `model`.

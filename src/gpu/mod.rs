@@ -345,6 +345,9 @@ impl GpuTracer {
 
     fn check(&self, scene: &Scene, settings: &RenderSettings) -> Result<()> {
         scene.validate()?;
+        if Plan::new(scene, settings).pyramid.is_some() {
+            bail!("the GPU kernel does not trace cones yet; render with --backend cpu");
+        }
         let (w, h) = (settings.width, settings.height);
         if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
             bail!("image size {w}x{h}: each side must be in 1..={MAX_IMAGE_SIDE}");

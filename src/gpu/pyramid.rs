@@ -111,10 +111,7 @@ impl GpuConeParams {
     }
 }
 
-/// Indirect cones run until they leave the grid: its diagonal bounds every path.
-pub fn indirect_range(layout: &PyramidLayout) -> f64 {
-    layout.dims.as_dvec3().length()
-}
+pub use crate::cpu::cone::{indirect_range, light_radius};
 
 /// A pyramid on the device.
 pub struct GpuPyramid {
@@ -245,20 +242,6 @@ pub fn pyramid_sampler(device: &wgpu::Device) -> wgpu::Sampler {
         mipmap_filter: wgpu::MipmapFilterMode::Nearest,
         ..Default::default()
     })
-}
-
-/// The radius an area light's shadow cone must cover (world units), 0 for point lights:
-/// the aperture at distance `r` is `2 atan(radius / r)`.
-pub fn light_radius(light: &crate::scene::Light) -> f64 {
-    use crate::scene::{AreaShape, Light};
-    match light {
-        Light::Point(_) => 0.0,
-        Light::Area(a) => match a.shape {
-            // The half-diagonal: the rectangle's bounding radius.
-            AreaShape::Rect { width, height } => 0.5 * (width * width + height * height).sqrt(),
-            AreaShape::Disk { radius } | AreaShape::Sphere { radius } => radius,
-        },
-    }
 }
 
 /// Composes `voxlab::cone` with an entry module.
