@@ -143,6 +143,12 @@ struct RenderOpts {
     #[arg(long, value_name = "H", requires = "width",
           value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
     height: Option<u32>,
+    /// Accumulate N frames (overrides the experiment's [render] spp). Each frame draws
+    /// [render] light_samples new samples per area light; a scene with nothing to
+    /// sample renders one frame, the same image.
+    #[arg(long, value_name = "N",
+          value_parser = clap::value_parser!(u32).range(1..=voxlab::render::MAX_SAMPLES as i64))]
+    spp: Option<u32>,
     /// Which tracer renders: the wgpu compute kernel, or the f64 CPU reference.
     /// With `gpu` and no adapter, the CPU reference renders instead (and says so).
     #[arg(long, value_enum, default_value_t = Backend::Gpu)]
@@ -383,6 +389,9 @@ fn cmd_render(mut e: Experiment, opts: &RenderOpts) -> Result<()> {
         e.settings.width = w;
         e.settings.height = h;
     }
+    if let Some(n) = opts.spp {
+        e.settings.spp = n;
+    }
     let out = opts
         .out
         .clone()
@@ -403,9 +412,19 @@ fn cmd_render(mut e: Experiment, opts: &RenderOpts) -> Result<()> {
     // Plan's Display starts with "plan:" and lists what was left out on further lines.
     println!("{plan}");
     println!("image:      {}x{}", e.settings.width, e.settings.height);
+    // Only a plan that samples something accumulates frames; otherwise one is traced.
+    let frames = if plan.accumulate {
+        e.settings.spp.max(1)
+    } else {
+        1
+    };
+    let trace_ms = result.trace_time.as_secs_f64() * 1e3;
     println!(
-        "time:       {:.3} ms per frame (trace), {:.3} ms wall",
-        result.trace_time.as_secs_f64() * 1e3,
+        "time:       {:.3} ms per frame (trace), {} frame{} in {:.3} ms, {:.3} ms wall",
+        trace_ms / frames as f64,
+        frames,
+        if frames == 1 { "" } else { "s" },
+        trace_ms,
         wall.as_secs_f64() * 1e3
     );
     let s = result.stats;
