@@ -34,7 +34,8 @@ struct ConeParams {
     indirect_strength: f32,
     // Indirect cones' range, voxels.
     indirect_range: f32,
-    pad_a: f32,
+    // tan(theta / 2) of point lights' shadow cones.
+    point_tan_half: f32,
     pad_b: f32,
 }
 
@@ -51,8 +52,8 @@ const GOLDEN_ANGLE: f32 = 2.399963229728653;
 @group(1) @binding(1) var opacity_tex: texture_3d<f32>;
 @group(1) @binding(2) var radiance_tex: texture_3d<f32>;
 @group(1) @binding(3) var pyramid_sampler: sampler;
-// tan(theta / 2) of each light's shadow cone, set on the host from the light's size.
-@group(1) @binding(4) var<storage, read> light_tan_half: array<f32>;
+// Each light's radius in voxels (0 for point lights; a rectangle's half-diagonal).
+@group(1) @binding(4) var<storage, read> light_radius: array<f32>;
 
 fn border_weight(c: vec3<f32>, n: vec3<f32>) -> f32 {
     let w = clamp(min(c + 0.5, n + 0.5 - c), vec3<f32>(0.0), vec3<f32>(1.0));
@@ -207,3 +208,21 @@ fn shadow_visibility(p: vec3<f32>, n: vec3<f32>, l: vec3<f32>, tan_half: f32) ->
     }
     return 1.0 - march(o, to / len, tan_half, len, false).occlusion;
 }
+
+#ifdef CONE_SHADOWS
+// Visibility of light j (centre l) from p: a cone whose aperture is the angle the light
+// subtends, tan(theta / 2) = radius / distance, or the set aperture for point lights.
+// As src/cpu/cone.rs ConeScene::light_tan_half.
+fn light_visibility(p: vec3<f32>, n: vec3<f32>, l: vec3<f32>, j: u32) -> f32 {
+    let r = light_radius[j];
+    var th = cone.point_tan_half;
+    if r > 0.0 {
+        let dist = length(l - p);
+        th = 1.0e30;
+        if dist > 0.0 {
+            th = r / dist;
+        }
+    }
+    return shadow_visibility(p, n, l, th);
+}
+#endif

@@ -14,6 +14,9 @@
 #else
 #import voxlab::shadow::transmittance
 #endif
+#ifdef CONE_SHADOWS
+#import voxlab::cone::light_visibility
+#endif
 #ifdef AREA_LIGHTS
 #import voxlab::sampling::light_sample
 #import voxlab::area_lights::sample_point
@@ -50,6 +53,19 @@ fn point_contribution(
     if all(vis == vec3<f32>(0.0)) {
         return vec3<f32>(0.0);
     }
+    return vis * unshadowed(p, n, d, x, radiance, s);
+}
+
+// E (kd diffuse + ks specular) of a point emitter at x seen from p, before visibility
+// and albedo. As crate::cpu::unshadowed.
+fn unshadowed(
+    p: vec3<f32>,
+    n: vec3<f32>,
+    d: vec3<f32>,
+    x: vec3<f32>,
+    radiance: vec3<f32>,
+    s: Material,
+) -> vec3<f32> {
     let lp = x - p;
     let dl = length(lp);
     var l = n;
@@ -70,7 +86,7 @@ fn point_contribution(
     if rd > 0.0 {
         spec = pow(rd, s.shininess);
     }
-    return vis * e * (s.kd * diffuse + s.ks * spec);
+    return e * (s.kd * diffuse + s.ks * spec);
 }
 
 // The unweighted local radiance at p (normal n, ray direction d) of shading material s,
@@ -83,6 +99,16 @@ fn local_light(p: vec3<f32>, n: vec3<f32>, d: vec3<f32>, s: Material, key: Sampl
     let q = p + params.eps * n;
     for (var j = 0u; j < params.num_lights; j++) {
         let light = lights[j];
+#ifdef CONE_SHADOWS
+        // One cone to the light's centre replaces the shadow ray and the area samples
+        // (src/cpu/mod.rs direct_light).
+        count_shadow();
+        let v = light_visibility(p, n, light.position, j);
+        if v > 0.0 {
+            local += v * unshadowed(p, n, d, light.position, light.radiance, s);
+        }
+        continue;
+#endif
 #ifdef AREA_LIGHTS
         if light.kind != LIGHT_POINT {
             let count = max(params.light_samples, 1u);

@@ -4,9 +4,10 @@
 // Contract: "Primary rays", "Shading a hit", "Stack".
 //
 // Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, EMISSION, AREA_LIGHTS,
-// BEER_LAMBERT, ACCUMULATE, COUNT_RAYS, RAY_STACK_SIZE. The shadow and light models live
-// in their own files (shading.wgsl composes them); this file only walks the ray tree and
-// loops over the frames of a dispatch.
+// BEER_LAMBERT, ACCUMULATE, COUNT_RAYS, RAY_STACK_SIZE, and the cone-tracing
+// CONE_SHADOWS, AMBIENT_OCCLUSION, INDIRECT (shaders/cone.wgsl, group 1). The shadow and
+// light models live in their own files (shading.wgsl composes them); this file only
+// walks the ray tree and loops over the frames of a dispatch.
 
 #import voxlab::types::{BIG, Material}
 #import voxlab::bindings::{params, materials, output}
@@ -18,6 +19,12 @@
 #endif
 #ifdef SHADOWS
 #import voxlab::shading::local_light
+#endif
+#ifdef AMBIENT_OCCLUSION
+#import voxlab::cone::ambient_occlusion
+#endif
+#ifdef INDIRECT
+#import voxlab::cone::{cone, indirect_light}
 #endif
 
 struct RayEntry {
@@ -121,6 +128,18 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
 #endif
 #ifdef SHADOWS
         radiance += r.throughput * local_light(p, n, r.dir, s, key);
+#endif
+        // Diffuse reflection of the ambient light AO lets through and of the one-bounce
+        // light the cones gather (src/cpu/mod.rs trace_ray_cones).
+#ifdef AMBIENT_OCCLUSION
+        if s.kd > 0.0 {
+            radiance += r.throughput * params.ambient * s.albedo * s.kd * ambient_occlusion(p, n);
+        }
+#endif
+#ifdef INDIRECT
+        if s.kd > 0.0 {
+            radiance += r.throughput * cone.indirect_strength * s.albedo * s.kd * indirect_light(p, n);
+        }
 #endif
         // No `#if A || B` in naga_oil: spawn whenever either kind of secondary ray is in.
 #ifdef REFLECTION

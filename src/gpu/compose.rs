@@ -48,6 +48,7 @@ const MODULES: &[(&str, &str)] = &[
         "shaders/accumulate.wgsl",
         include_str!("../../shaders/accumulate.wgsl"),
     ),
+    super::pyramid::CONE_MODULE,
     (
         "shaders/shading.wgsl",
         include_str!("../../shaders/shading.wgsl"),

@@ -127,6 +127,9 @@ pub struct GpuTracer {
     queue: wgpu::Queue,
     layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
+    /// Group 1 of `shaders/cone.wgsl`, and the layout of kernels with a cone feature.
+    cone_layout: wgpu::BindGroupLayout,
+    cone_pipeline_layout: wgpu::PipelineLayout,
     pipelines: HashMap<ShaderDefs, wgpu::ComputePipeline>,
     params: wgpu::Buffer,
     counters: wgpu::Buffer,
@@ -260,6 +263,12 @@ impl GpuTracer {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
+        let cone_layout = pyramid::cone_bind_group_layout(&device);
+        let cone_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("voxlab tracer with cones"),
+            bind_group_layouts: &[Some(&layout), Some(&cone_layout)],
+            immediate_size: 0,
+        });
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("params"),
             size: std::mem::size_of::<GpuParams>() as u64,
@@ -292,6 +301,8 @@ impl GpuTracer {
             queue,
             layout,
             pipeline_layout,
+            cone_layout,
+            cone_pipeline_layout,
             pipelines: HashMap::new(),
             params,
             counters,
@@ -345,9 +356,6 @@ impl GpuTracer {
 
     fn check(&self, scene: &Scene, settings: &RenderSettings) -> Result<()> {
         scene.validate()?;
-        if Plan::new(scene, settings).pyramid.is_some() {
-            bail!("the GPU kernel does not trace cones yet; render with --backend cpu");
-        }
         let (w, h) = (settings.width, settings.height);
         if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
             bail!("image size {w}x{h}: each side must be in 1..={MAX_IMAGE_SIDE}");
@@ -408,7 +416,11 @@ impl GpuTracer {
                 .device
                 .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some("voxlab trace"),
-                    layout: Some(&self.pipeline_layout),
+                    layout: Some(if plan.pyramid.is_some() {
+                        &self.cone_pipeline_layout
+                    } else {
+                        &self.pipeline_layout
+                    }),
                     module: &shader,
                     entry_point: Some(ENTRY_POINT),
                     compilation_options: Default::default(),
@@ -732,6 +744,22 @@ impl GpuTracer {
             ],
         });
 
+        // The pyramids, built on the device before the timed trace (their build is
+        // not part of the trace time), only when the plan has a cone feature.
+        let cone_group = match plan.pyramid {
+            Some(layout) => {
+                let pyr = self.build_pyramid(scene, settings, layout, plan.indirect)?;
+                let grid = &scene.grid;
+                let radii: Vec<f32> = scene
+                    .lights
+                    .iter()
+                    .map(|l| (pyramid::light_radius(l) / grid.voxel_size()) as f32)
+                    .collect();
+                Some(self.cone_bind_group(&pyr, &settings.cones, &self.cone_layout, &radii))
+            }
+            None => None,
+        };
+
         // Finish the uploads first so the timed submission holds the trace alone.
         self.queue.submit([]);
         self.wait()?;
@@ -759,6 +787,9 @@ impl GpuTracer {
                 });
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, &bind_group, &[]);
+                if let Some(g) = &cone_group {
+                    pass.set_bind_group(1, g, &[]);
+                }
                 pass.dispatch_workgroups(
                     settings.width.div_ceil(WORKGROUP),
                     settings.height.div_ceil(WORKGROUP),

@@ -88,7 +88,8 @@ pub struct GpuConeParams {
     pub hemi_tan_half: f32,
     pub indirect_strength: f32,
     pub indirect_range: f32,
-    pub _pad: [f32; 2],
+    pub point_tan_half: f32,
+    pub _pad: f32,
 }
 const _: () = assert!(std::mem::size_of::<GpuConeParams>() == 64);
 
@@ -106,7 +107,8 @@ impl GpuConeParams {
             hemi_tan_half: hemisphere_tan_half(c.ao_cones) as f32,
             indirect_strength: c.indirect_strength as f32,
             indirect_range: indirect_range(layout) as f32,
-            _pad: [0.0; 2],
+            point_tan_half: (c.aperture_deg.to_radians() / 2.0).tan() as f32,
+            _pad: 0.0,
         }
     }
 }
@@ -812,14 +814,14 @@ impl GpuTracer {
         self.read(&readback, out_bytes)
     }
 
-    /// The group-1 bind group of `shaders/cone.wgsl` for `pyr`, with `light_tan_half`
-    /// (one entry per light; at least one).
+    /// The group-1 bind group of `shaders/cone.wgsl` for `pyr`, with each light's
+    /// radius in voxels (`light_radius`; 0 for point lights).
     pub fn cone_bind_group(
         &self,
         pyr: &GpuPyramid,
         cones: &ConeSettings,
         layout: &wgpu::BindGroupLayout,
-        light_tan_half: &[f32],
+        light_radius: &[f32],
     ) -> wgpu::BindGroup {
         let device = &self.device;
         let params = GpuConeParams::new(&pyr.layout, cones);
@@ -839,10 +841,10 @@ impl GpuTracer {
             wgpu::BufferUsages::UNIFORM,
         );
         let one = [0.0f32];
-        let lt = if light_tan_half.is_empty() {
+        let lt = if light_radius.is_empty() {
             &one[..]
         } else {
-            light_tan_half
+            light_radius
         };
         let lbuf = init(
             "cone lights",
