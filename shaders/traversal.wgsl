@@ -31,6 +31,9 @@ struct Dda {
     step: vec3<i32>,
     t_max: vec3<f32>,
     t_delta: vec3<f32>,
+    // The ray, so tMax can be taken from the next boundary plane at every step.
+    origin: vec3<f32>,
+    dir: vec3<f32>,
 }
 
 fn origin_inside(o: vec3<f32>) -> bool {
@@ -96,6 +99,8 @@ fn axis_vec(a: i32) -> vec3<f32> {
 fn dda_init(o: vec3<f32>, d: vec3<f32>, v: vec3<i32>) -> Dda {
     var s: Dda;
     s.voxel = v;
+    s.origin = o;
+    s.dir = d;
     for (var a = 0; a < 3; a++) {
         if d[a] == 0.0 {
             s.step[a] = 0;
@@ -123,10 +128,17 @@ fn dda_axis(t_max: vec3<f32>) -> i32 {
     return 2;
 }
 
-// Moves to the next voxel along axis a (contract step 3) and counts the step.
+// Moves to the next voxel along axis a (contract step 3) and counts the step. tMax is
+// (plane - o) / d from the next boundary plane, not tMax += tDelta: in f32 the sum
+// drifts by about one ulp of t per step (0.03 voxels after 500 steps at t ~ 1000),
+// more than the ray offset, so hits on large grids landed off their faces and their
+// secondary rays started on the wrong side (seed scene at 256^3: 4 % of pixels off).
+// Mathematically the same tMax; the f64 reference's sum drifts by ~1e-13 only.
 fn dda_advance(s: ptr<function, Dda>, a: i32) {
-    (*s).voxel[a] += (*s).step[a];
-    (*s).t_max[a] += (*s).t_delta[a];
+    let step = (*s).step[a];
+    (*s).voxel[a] += step;
+    let boundary = f32((*s).voxel[a] + select(0, 1, step > 0));
+    (*s).t_max[a] = min((boundary - (*s).origin[a]) / (*s).dir[a], BIG);
     count_step();
 }
 
