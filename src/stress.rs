@@ -667,7 +667,11 @@ pub fn ill_conditioned(case: &StressCase, oracle: &Frame) -> Vec<bool> {
     let (w, h) = (case.settings.width, case.settings.height);
     // Across the view, and generic so it does not run along a lattice axis.
     let across = (0.8 * cam.right + 0.6 * cam.up) * CONDITION_TURN;
-    let frames = crate::plan::Plan::new(&case.scene, &case.settings).frames(&case.settings);
+    let plan = crate::plan::Plan::new(&case.scene, &case.settings);
+    let frames = plan.frames(&case.settings);
+    // Once for the image: `trace_ray` would derive the plan (a scan of the grid) per ray.
+    let cones = crate::cpu::cone::ConeScene::new(&case.scene, &case.settings, &plan);
+    let cones = cones.as_ref();
     (0..h)
         .into_par_iter()
         .flat_map_iter(|j| {
@@ -684,9 +688,10 @@ pub fn ill_conditioned(case: &StressCase, oracle: &Frame) -> Vec<bool> {
                                 pixel: j * w + i,
                                 frame,
                             };
-                            sum += crate::cpu::trace_ray(
+                            sum += crate::cpu::trace_ray_cones(
                                 &case.scene,
                                 &case.settings,
+                                cones,
                                 key,
                                 cam.eye,
                                 d,
