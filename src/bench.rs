@@ -257,3 +257,143 @@ pub fn voxelize_table(rows: &[VoxelizeRow]) -> String {
     }
     out
 }
+
+/// A scene that does not need some feature, rendered by the planned (reduced) kernel
+/// and by the full one: every flag whose code leaves this scene's image unchanged
+/// forced on, the settings' whole ray stack, and the resources a plan-less tracer would
+/// hold (accumulation buffer, opacity pyramid). DESIGN section 4.
+#[derive(Clone, Debug)]
+pub struct PlanRow {
+    pub scene: String,
+    pub reduced: crate::plan::Plan,
+    pub reduced_ms: f64,
+    pub full_ms: f64,
+    pub reduced_bytes: u64,
+    pub full_bytes: u64,
+    /// Largest per-channel difference between the two images: 0 shows the comparison
+    /// is fair (the reduced kernel renders the same image).
+    pub max_diff: f32,
+}
+
+/// The full kernel for `scene`: `plan` with every image-neutral flag on.
+pub fn full_plan(
+    scene: &Scene,
+    settings: &RenderSettings,
+    plan: &crate::plan::Plan,
+) -> crate::plan::Plan {
+    let mut full = plan.clone();
+    for f in [
+        "REFLECTION",
+        "REFRACTION",
+        "SHADOWS",
+        "EMISSION",
+        "AREA_LIGHTS",
+        "ACCUMULATE",
+    ] {
+        full.set_flag(f, true);
+    }
+    full.ray_stack_size = settings.ray_stack_size();
+    full.pyramid = Some(crate::cpu::pyramid::PyramidLayout::new(
+        scene.grid.dims(),
+        settings.cones.levels,
+    ));
+    full.reasons.clear();
+    full
+}
+
+fn median_ms(
+    gpu: &mut GpuTracer,
+    scene: &Scene,
+    settings: &RenderSettings,
+    plan: &crate::plan::Plan,
+    runs: usize,
+) -> Result<(f64, crate::render::Frame, u64)> {
+    let warm = gpu.render_plan(scene, settings, plan.clone())?;
+    let bytes = gpu.last_memory().map_or(0, |m| m.total());
+    let mut times = Vec::new();
+    for _ in 0..runs.max(1) {
+        times.push(gpu.render_plan(scene, settings, plan.clone())?.trace_time);
+    }
+    Ok((median(times).as_secs_f64() * 1e3, warm.frame, bytes))
+}
+
+/// Scenes that leave something out: opaque materials only (no refraction), no lights
+/// (no shadow rays), and the seed scene itself (no cones, nothing to sample).
+pub fn plan_scenes(n: u32) -> Result<Vec<(String, Scene)>> {
+    let seed = seed_scene(n)?;
+    let mut opaque = seed.clone();
+    for m in opaque.materials.iter_mut().skip(1) {
+        m.kt = 0.0;
+    }
+    let mut unlit = seed.clone();
+    unlit.lights.clear();
+    Ok(vec![
+        (format!("seed {n}^3, opaque materials only"), opaque),
+        (format!("seed {n}^3, no lights"), unlit),
+        (format!("seed {n}^3 (no cones, no area lights)"), seed),
+    ])
+}
+
+pub fn bench_plans(
+    gpu: &mut GpuTracer,
+    scenes: &[(String, Scene)],
+    settings: &RenderSettings,
+    runs: usize,
+) -> Result<Vec<PlanRow>> {
+    let mut rows = Vec::new();
+    for (name, scene) in scenes {
+        let reduced = crate::plan::Plan::new(scene, settings);
+        let full = full_plan(scene, settings, &reduced);
+        let (reduced_ms, a, reduced_bytes) = median_ms(gpu, scene, settings, &reduced, runs)?;
+        let (full_ms, b, full_bytes) = median_ms(gpu, scene, settings, &full, runs)?;
+        let max_diff = a
+            .pixels
+            .iter()
+            .zip(&b.pixels)
+            .flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]).abs()))
+            .fold(0.0f32, f32::max);
+        rows.push(PlanRow {
+            scene: name.clone(),
+            reduced,
+            reduced_ms,
+            full_ms,
+            reduced_bytes,
+            full_bytes,
+            max_diff,
+        });
+    }
+    Ok(rows)
+}
+
+pub fn plan_table(rows: &[PlanRow]) -> String {
+    let mut out = String::from(
+        "| scene | reduced plan | reduced ms | full ms | time full/reduced | reduced MiB | full MiB | memory full/reduced | max image diff |\n\
+         |---|---|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    let mib = |b: u64| b as f64 / 1048576.0;
+    for r in rows {
+        let flags: Vec<&str> = crate::plan::Plan::FLAGS
+            .iter()
+            .copied()
+            .filter(|f| r.reduced.flag(f))
+            .collect();
+        out += &format!(
+            "| {} | {} (stack {}) | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1e} |\n",
+            r.scene,
+            if flags.is_empty() {
+                "primary only".to_string()
+            } else {
+                flags.join(" ")
+            },
+            r.reduced.ray_stack_size,
+            r.reduced_ms,
+            r.full_ms,
+            r.full_ms / r.reduced_ms,
+            mib(r.reduced_bytes),
+            mib(r.full_bytes),
+            r.full_bytes as f64 / r.reduced_bytes as f64,
+            r.max_diff
+        );
+    }
+    out
+}

@@ -112,6 +112,11 @@ struct BenchArgs {
     #[arg(long, default_value_t = 256,
           value_parser = clap::value_parser!(u32).range(1..=voxlab::scene::mesh::MAX_RESOLUTION as i64))]
     voxelize_resolution: u32,
+    /// Benchmark the render plan instead: the reduced kernel against the full one on
+    /// scenes that do not need a feature (time and device memory, as ratios), on the
+    /// seed geometry at the first of --sizes.
+    #[arg(long, conflicts_with = "voxelize")]
+    plan: bool,
 }
 
 #[derive(Args, Debug)]
@@ -269,6 +274,29 @@ fn cmd_ablate(a: &AblateArgs) -> Result<()> {
 }
 
 fn cmd_bench(a: &BenchArgs) -> Result<()> {
+    if a.plan {
+        let mut gpu = GpuTracer::new().context("the plan benchmark needs a GPU adapter")?;
+        let n = a.sizes.first().copied().unwrap_or(64);
+        let settings = voxlab::RenderSettings {
+            width: a.size,
+            height: a.size,
+            ..Default::default()
+        };
+        eprintln!("GPU: {}", gpu.adapter_summary());
+        let scenes = voxlab::bench::plan_scenes(n)?;
+        let rows = voxlab::bench::bench_plans(&mut gpu, &scenes, &settings, a.gpu_runs as usize)?;
+        println!(
+            "render plan: reduced kernel against the full one, {}x{}, depth {}/{}, median of {} runs; GPU: {}\n",
+            a.size,
+            a.size,
+            settings.max_reflection_depth,
+            settings.max_refraction_depth,
+            a.gpu_runs,
+            gpu.adapter_summary()
+        );
+        println!("{}", voxlab::bench::plan_table(&rows));
+        return Ok(());
+    }
     if let Some(mesh_path) = &a.voxelize {
         let bunny = voxlab::scene::load_mesh(mesh_path)?;
         // 250 x 100 quads: exactly 50,000 triangles.
@@ -427,6 +455,11 @@ fn cmd_render(mut e: Experiment, opts: &RenderOpts) -> Result<()> {
         trace_ms,
         wall.as_secs_f64() * 1e3
     );
+    if let Renderer::Gpu(t) = &renderer
+        && let Some(m) = t.last_memory()
+    {
+        println!("memory:     {m} on the device");
+    }
     let s = result.stats;
     if s.total_rays() > 0 {
         println!(

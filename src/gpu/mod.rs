@@ -144,6 +144,45 @@ pub struct GpuTracer {
     buffers: Option<Buffers>,
     /// The plan of the latest render, for printing and reports.
     last_plan: Option<Plan>,
+    /// Device memory the latest render bound, by resource.
+    last_memory: Option<GpuMemory>,
+}
+
+/// Device memory bound by one render, in bytes: what a plan's leaving out saves.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GpuMemory {
+    /// The voxel grid texture (1 byte per voxel).
+    pub grid: u64,
+    /// Materials, lights, parameters and ray counters.
+    pub scene: u64,
+    /// Radiance output and its readback copy.
+    pub image: u64,
+    /// Kahan compensation, only while accumulating frames.
+    pub accumulation: u64,
+    /// Opacity and radiance pyramids, only with a cone feature.
+    pub pyramids: u64,
+}
+
+impl GpuMemory {
+    pub fn total(&self) -> u64 {
+        self.grid + self.scene + self.image + self.accumulation + self.pyramids
+    }
+}
+
+impl std::fmt::Display for GpuMemory {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mib = |b: u64| b as f64 / 1048576.0;
+        write!(
+            f,
+            "{:.2} MiB (grid {:.2}, scene {:.3}, image {:.2}, accumulation {:.2}, pyramids {:.2})",
+            mib(self.total()),
+            mib(self.grid),
+            mib(self.scene),
+            mib(self.image),
+            mib(self.accumulation),
+            mib(self.pyramids)
+        )
+    }
 }
 
 /// Hardware before software, and the primary backends before GL.
@@ -314,6 +353,7 @@ impl GpuTracer {
             grid: None,
             buffers: None,
             last_plan: None,
+            last_memory: None,
         })
     }
 
@@ -338,6 +378,11 @@ impl GpuTracer {
     /// The plan of the latest render.
     pub fn last_plan(&self) -> Option<&Plan> {
         self.last_plan.as_ref()
+    }
+
+    /// Device memory the latest render bound.
+    pub fn last_memory(&self) -> Option<GpuMemory> {
+        self.last_memory
     }
 
     /// Renders without ray counting; `stats` are zero.
@@ -856,6 +901,21 @@ impl GpuTracer {
                 }
             }
         }
+        let pyramids = plan.pyramid.map_or(0, |layout| {
+            layout.texture_bytes(crate::cpu::pyramid::OPACITY_TEXEL_BYTES)
+                + if plan.indirect {
+                    layout.texture_bytes(crate::cpu::pyramid::RADIANCE_TEXEL_BYTES)
+                } else {
+                    0
+                }
+        });
+        self.last_memory = Some(GpuMemory {
+            grid: scene.grid.voxel_count() as u64,
+            scene: mat_buf.size() + light_buf.size() + self.params.size() + 2 * COUNTER_BYTES,
+            image: output.size() + readback.size(),
+            accumulation: if plan.accumulate { pixels * 16 } else { 0 },
+            pyramids,
+        });
         self.last_plan = Some(plan);
         Ok(RenderOutput {
             frame,
