@@ -391,6 +391,62 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         s,
         st,
     ));
+    // Cone tracing on odd, tiny and far-away grids: pyramids of odd sizes, a one-level
+    // pyramid, a vanishing aperture, AO with a range past the grid, and indirect light.
+    let all_cones = |st: &mut RenderSettings| {
+        st.features.cone_shadows = true;
+        st.features.ambient_occlusion = true;
+        st.features.indirect = true;
+    };
+    let mut st = settings(48, 48);
+    all_cones(&mut st);
+    out.push(case(
+        "cones-17x9x24",
+        "cone shadows, AO and indirect on an odd, non-cubic grid (odd pyramid levels)",
+        seed_scene_dims(UVec3::new(17, 9, 24))?,
+        st,
+    ));
+    let mut st = settings(32, 32);
+    all_cones(&mut st);
+    out.push(case(
+        "cones-1x1x1",
+        "every cone feature on a one-voxel grid (a one-level pyramid)",
+        seed_scene_dims(UVec3::ONE)?,
+        st,
+    ));
+    let mut st = settings(48, 48);
+    st.features.cone_shadows = true;
+    st.cones.aperture_deg = 1e-3;
+    st.cones.step_factor = 0.05;
+    out.push(case(
+        "cones-vanishing",
+        "cone shadows with a 0.001-degree aperture and tiny steps (many samples per cone)",
+        seed16(),
+        st,
+    ));
+    let mut st = settings(48, 48);
+    st.features.ambient_occlusion = true;
+    st.cones.ao_range = 1e4;
+    st.cones.start_offset = 0.0;
+    out.push(case(
+        "cones-ao-far",
+        "AO cones with a range far past the grid and no start offset",
+        seed16(),
+        st,
+    ));
+    let mut s = seed16();
+    s.grid = crate::scene::seed::seed_grid(UVec3::splat(16), 1.0, DVec3::new(1e6, -1e6, 1e6))?;
+    let (c, w) = (s.grid.centre(), s.grid.width());
+    s.lights = crate::scene::seed::seed_lights(c, w);
+    s.camera = crate::scene::seed::seed_camera(c, w);
+    let mut st = settings(48, 48);
+    all_cones(&mut st);
+    out.push(case(
+        "cones-far-origin",
+        "every cone feature with the grid at (1e6, -1e6, 1e6)",
+        s,
+        st,
+    ));
     // Grids: one voxel; the device's longest side.
     out.push(case(
         "grid-1x1x1",
