@@ -169,7 +169,8 @@ pub fn trace_ray_cones(
             // `albedo kd` times the ambient light AO lets through, and times the
             // one-bounce radiance the cones gather (Crassin et al. 2011, section 4.2).
             if c.ambient_occlusion {
-                let ao = cone::ambient_occlusion(&c.pyramid, &c.params, pl, n, c.ao_cones, c.ao_range);
+                let ao =
+                    cone::ambient_occlusion(&c.pyramid, &c.params, pl, n, c.ao_cones, c.ao_range);
                 color += ray.throughput * scene.ambient * m.albedo * m.kd * ao;
             }
             if c.indirect {
