@@ -8,14 +8,18 @@
 //! for the sweep.
 //!
 //! The sweep is a list of [`SWEEPS`]: each turns the experiment into the points of one
-//! model (a fixed point, or a curve over its quality knob). A new shadow model (cone
-//! shadows, with aperture and step factor) is one more entry there.
+//! model (a fixed point, or a curve over its quality knob). A new shadow model is one
+//! more entry there.
 //!
 //! Each point is rendered `warmup` times untimed, then `runs` times; its time is the
-//! median trace time (GPU: wall time around a synchronised submit, from
-//! `GpuTracer::render`; CPU: the reference tracer's wall time). Its error is RMSE and
-//! PSNR on linear radiance and the FLIP mean (NVIDIA's implementation, `nv-flip`) on the
-//! displayed 8-bit image. Everything is deterministic but the times.
+//! median over the runs of trace time plus setup time. Trace time: GPU, wall time around
+//! a synchronised submit, from `GpuTracer::render`; CPU, the reference tracer's wall
+//! time. Setup time: the cone pyramids, which the GPU builds per render outside its
+//! timed trace; they are built once more per run the same way (`build_pyramid`, then a
+//! synchronising readback of the coarsest level) and timed, so a cone point pays for
+//! them. The CPU's trace time already holds its pyramid build (setup 0). Its error is
+//! RMSE and PSNR on linear radiance and the FLIP mean (NVIDIA's implementation,
+//! `nv-flip`) on the displayed 8-bit image. Everything is deterministic but the times.
 
 use std::fmt::Write as _;
 use std::io::IsTerminal;
@@ -31,8 +35,8 @@ use crate::gpu::GpuTracer;
 use crate::metrics::{Domain, compare};
 use crate::output::{read_exr, write_frame};
 use crate::plan::Plan;
-use crate::render::{Features, Frame, MAX_SAMPLES, RenderSettings, Transmittance};
-use crate::scene::{AreaShape, Light, Scene};
+use crate::render::{ConeSettings, Features, Frame, MAX_SAMPLES, RenderSettings, Transmittance};
+use crate::scene::{AreaShape, Light, PointLight, Scene};
 
 /// Part of the reference cache key. Bump it whenever a tracer's model changes what an
 /// image looks like (shading, sampling, transmittance): cached references made by the
@@ -85,6 +89,13 @@ pub struct AblateConfig {
     pub backend: BackendChoice,
     /// The reference's tracer: `cpu` (the f64 oracle) or `gpu`.
     pub reference_backend: BackendChoice,
+    /// Cone shadows with each light's own aperture (an area light's subtended angle)
+    /// over these step factors, ascending; empty leaves the curve out.
+    pub cone_step_factor: Vec<f64>,
+    /// Cone shadows with every area light replaced by a point light at its centre (what
+    /// the cone model shades anyway) over these apertures in degrees, ascending, at the
+    /// experiment's `[cones] step_factor`; empty leaves the curve out.
+    pub cone_aperture_deg: Vec<f64>,
 }
 
 impl Default for AblateConfig {
@@ -97,6 +108,8 @@ impl Default for AblateConfig {
             transmittance: vec![Transmittance::MinKt, Transmittance::BeerLambert],
             backend: BackendChoice::Auto,
             reference_backend: BackendChoice::Cpu,
+            cone_step_factor: vec![0.25, 0.5, 1.0, 2.0],
+            cone_aperture_deg: vec![4.0, 8.0, 16.0, 32.0, 64.0],
         }
     }
 }
@@ -111,6 +124,8 @@ struct RawAblate {
     transmittance: Option<Vec<String>>,
     backend: Option<String>,
     reference_backend: Option<String>,
+    cone_step_factor: Option<Vec<f64>>,
+    cone_aperture_deg: Option<Vec<f64>>,
 }
 
 /// The rest of the file is the experiment's, read by `Experiment::load`.
@@ -336,6 +351,40 @@ impl AblateConfig {
         if let Some(v) = &raw.reference_backend {
             c.reference_backend = backend("reference_backend", v, false)?;
         }
+        // Float lists: every entry in range, strictly ascending; empty is allowed.
+        let floats = |key: &str,
+                      list: &[f64],
+                      ok: &dyn Fn(f64) -> bool,
+                      range: &str|
+         -> Result<Vec<f64>, ExperimentError> {
+            let mut out: Vec<f64> = Vec::new();
+            for &v in list {
+                if !(v.is_finite() && ok(v)) {
+                    return Err(
+                        loc.invalid(key, format!("every entry must be a number in {range}"))
+                    );
+                }
+                if out.last().is_some_and(|&last| v <= last) {
+                    return Err(loc.invalid(key, "must be strictly ascending"));
+                }
+                out.push(v);
+            }
+            Ok(out)
+        };
+        if let Some(list) = &raw.cone_step_factor {
+            // The range of `[cones] step_factor`.
+            c.cone_step_factor =
+                floats("cone_step_factor", list, &|x| x > 0.0 && x <= 4.0, "(0, 4]")?;
+        }
+        if let Some(list) = &raw.cone_aperture_deg {
+            // The range of `[cones] aperture_deg`.
+            c.cone_aperture_deg = floats(
+                "cone_aperture_deg",
+                list,
+                &|x| (0.0..=120.0).contains(&x),
+                "[0, 120] (degrees)",
+            )?;
+        }
         Ok(c)
     }
 }
@@ -365,6 +414,9 @@ pub struct Point {
     pub knob: String,
     pub value: String,
     pub settings: RenderSettings,
+    /// Render the scene with every area light replaced by a point light at its centre
+    /// (same colour and intensity), so a point light's cone aperture can be swept.
+    pub lights_as_points: bool,
 }
 
 impl Point {
@@ -397,8 +449,7 @@ pub struct Sweep {
     pub points: fn(&Experiment, &AblateConfig) -> Vec<Point>,
 }
 
-/// Every sweep, in the order of the outputs. Cone shadows join as one more entry (with
-/// `[ablate]` keys for their aperture and step-factor lists) once the tracers have them.
+/// Every sweep, in the order of the outputs.
 pub const SWEEPS: &[Sweep] = &[
     Sweep {
         name: "baseline",
@@ -411,6 +462,14 @@ pub const SWEEPS: &[Sweep] = &[
     Sweep {
         name: "stochastic",
         points: stochastic_points,
+    },
+    Sweep {
+        name: "cone step",
+        points: cone_step_points,
+    },
+    Sweep {
+        name: "cone aperture",
+        points: cone_aperture_points,
     },
 ];
 
@@ -426,12 +485,14 @@ fn baseline_points(e: &Experiment, _: &AblateConfig) -> Vec<Point> {
         knob: "-".into(),
         value: "-".into(),
         settings,
+        lights_as_points: false,
     }]
 }
 
 /// Area lights as points at their centres (no knob), once per transmittance model.
-/// The `Features` literal is spelled out on purpose: a new shadow feature (cones) stops
-/// it compiling, so whoever adds one decides here that hard shadows leave it off.
+/// The `Features` literal is spelled out on purpose (no `..Default::default()`): a new
+/// feature stops it compiling, so whoever adds one decides here that hard shadows
+/// leave it off. Cone features are off: these are the shadow-ray points.
 fn hard_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
     c.transmittance
         .iter()
@@ -443,11 +504,14 @@ fn hard_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
                 features: Features {
                     area_lights: false,
                     transmittance: t,
-                    ..Default::default()
+                    cone_shadows: false,
+                    ambient_occlusion: false,
+                    indirect: false,
                 },
                 spp: 1,
                 ..e.settings.clone()
             },
+            lights_as_points: false,
         })
         .collect()
 }
@@ -467,13 +531,103 @@ fn stochastic_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
                 spp: n,
                 ..e.settings.clone()
             },
+            lights_as_points: false,
         })
         .collect()
 }
 
+/// Cone shadows (one cone per light replaces the shadow rays and the area samples), each
+/// area light at the aperture it subtends, over the step factors; the rest as the
+/// reference. One frame: the cone model draws no samples.
+fn cone_step_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
+    let t = e.settings.features.transmittance;
+    c.cone_step_factor
+        .iter()
+        .map(|&k| Point {
+            model: format!("cone at light's aperture ({})", t.name()),
+            knob: "step_factor".into(),
+            value: format!("{k}"),
+            settings: RenderSettings {
+                features: Features {
+                    cone_shadows: true,
+                    ..reference_features(e)
+                },
+                spp: 1,
+                cones: ConeSettings {
+                    step_factor: k,
+                    ..e.settings.cones.clone()
+                },
+                ..e.settings.clone()
+            },
+            lights_as_points: false,
+        })
+        .collect()
+}
+
+/// Cone shadows with every area light as a point light at its centre, over the point
+/// lights' aperture, at the experiment's step factor. The cone model shades an area
+/// light at its centre anyway, so this differs from [`cone_step_points`] only in the
+/// aperture: it asks whether the subtended angle is the best one.
+fn cone_aperture_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
+    let t = e.settings.features.transmittance;
+    c.cone_aperture_deg
+        .iter()
+        .map(|&a| Point {
+            model: format!("cone at set aperture ({})", t.name()),
+            knob: "aperture_deg".into(),
+            value: format!("{a}"),
+            settings: RenderSettings {
+                features: Features {
+                    area_lights: false,
+                    cone_shadows: true,
+                    ..reference_features(e)
+                },
+                spp: 1,
+                cones: ConeSettings {
+                    aperture_deg: a,
+                    ..e.settings.cones.clone()
+                },
+                ..e.settings.clone()
+            },
+            lights_as_points: true,
+        })
+        .collect()
+}
+
+/// The scene with every area light replaced by a point light at its centre, of the
+/// same colour and intensity (an area light emits isotropically, so the cone model's
+/// shading of it at its centre is exactly this point light's).
+pub fn lights_as_points(scene: &Scene) -> Scene {
+    let mut s = scene.clone();
+    for l in &mut s.lights {
+        if let Light::Area(a) = l {
+            *l = Light::Point(PointLight {
+                position: a.position,
+                color: a.color,
+                intensity: a.intensity,
+            });
+        }
+    }
+    s
+}
+
+/// The full angle (degrees) the first area light subtends at the grid's centre, the
+/// aperture its shadow cones have there (`cpu::cone::ConeScene::light_tan_half`).
+pub fn light_aperture_deg(scene: &Scene) -> Option<f64> {
+    let light = scene.lights.iter().find(|l| l.is_area())?;
+    let g = &scene.grid;
+    let centre = g.to_world(g.dims().as_dvec3() * 0.5);
+    let dist = (light.position() - centre).length();
+    let r = crate::cpu::cone::light_radius(light);
+    (dist > 0.0).then(|| 2.0 * (r / dist).atan().to_degrees())
+}
+
+/// The reference's features: stochastic area lights, the experiment's transmittance,
+/// AO and indirect light; never cone shadows (the reference samples the light).
 fn reference_features(e: &Experiment) -> Features {
     Features {
         area_lights: true,
+        cone_shadows: false,
         ..e.settings.features.clone()
     }
 }
@@ -581,6 +735,26 @@ impl Tracers {
             plan: Plan::new(scene, s),
         })
     }
+
+    /// Setup time of a render that `plan` describes and its trace time leaves out: the
+    /// cone pyramids on the GPU (built per render before the timed trace), built again
+    /// here the same way and timed through a synchronising readback of the coarsest
+    /// level. Zero without a cone feature, and on the CPU, whose trace time holds them.
+    fn setup_time(
+        &mut self,
+        backend: &str,
+        plan: &Plan,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Duration> {
+        let (Some(layout), "gpu", Some(gpu)) = (plan.pyramid, backend, self.gpu.as_mut()) else {
+            return Ok(Duration::ZERO);
+        };
+        let start = std::time::Instant::now();
+        let pyr = gpu.build_pyramid(scene, s, layout, plan.indirect)?;
+        gpu.read_pyramid_level(&pyr, false, layout.levels - 1)?;
+        Ok(start.elapsed())
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -607,10 +781,19 @@ pub struct Reference {
 
 /// Settings of the reference's two halves.
 fn reference_halves(e: &Experiment, c: &AblateConfig) -> [RenderSettings; 2] {
+    let features = reference_features(e);
+    // The cone knobs change the reference only through AO or indirect light; left at
+    // their defaults otherwise, so sweeping them keeps the cached reference.
+    let cones = if features.cones() {
+        e.settings.cones.clone()
+    } else {
+        ConeSettings::default()
+    };
     let half = |k: usize, spp: u32| RenderSettings {
-        features: reference_features(e),
+        features: features.clone(),
         spp,
         seed: e.settings.seed.wrapping_add(REFERENCE_SEED_OFFSETS[k]),
+        cones: cones.clone(),
         ..e.settings.clone()
     };
     let a = c.reference_spp / 2;
@@ -768,8 +951,21 @@ pub struct Row {
     /// Why `auto` rendered on the CPU, if it did.
     pub fallback: Option<String>,
     pub timer: &'static str,
+    /// The plotted time: the median over runs of trace + setup.
     pub ms_median: f64,
+    /// Trace + setup of each run.
     pub ms_runs: Vec<f64>,
+    /// Median trace time alone.
+    pub trace_ms_median: f64,
+    /// Median setup time the trace time leaves out (the GPU's cone pyramids; else 0).
+    pub setup_ms_median: f64,
+    pub cone_shadows: bool,
+    /// The cone step factor (cone points only).
+    pub cone_step_factor: Option<f64>,
+    /// The shadow cones' aperture, degrees (cone points only): the set one for point
+    /// lights, else the angle the area light subtends at the grid's centre.
+    pub cone_aperture_deg: Option<f64>,
+    pub lights_as_points: bool,
     pub rmse: f64,
     pub psnr: f64,
     pub flip_mean: f64,
@@ -814,11 +1010,20 @@ fn measure(
 ) -> Result<Row> {
     progress.set_message(format!("{} {} {}", point.model, point.knob, point.value));
     let s = &point.settings;
+    let converted;
+    let scene = if point.lights_as_points {
+        converted = lights_as_points(&e.scene);
+        &converted
+    } else {
+        &e.scene
+    };
     let mut choice = c.backend;
     let mut times = Vec::new();
+    let mut setups = Vec::new();
     let mut last = None;
     for i in 0..(c.warmup + c.runs) {
-        let r = tracers.render(choice, &e.scene, s)?;
+        let r = tracers.render(choice, scene, s)?;
+        let setup = tracers.setup_time(r.backend, &r.plan, scene, s)?;
         // The first render settles the backend, so later runs do not retry the GPU.
         if choice == BackendChoice::Auto {
             choice = if r.backend == "gpu" {
@@ -829,6 +1034,7 @@ fn measure(
         }
         if i >= c.warmup {
             times.push(r.time);
+            setups.push(setup);
         }
         progress.inc(u64::from(s.spp.max(1)));
         last = Some(r);
@@ -837,6 +1043,7 @@ fn measure(
     let d = compare(reference, &r.frame, Domain::Linear, 0.0)
         .ok_or_else(|| anyhow!("point and reference differ in size"))?;
     let (flip_mean, _) = flip(reference, &r.frame);
+    let totals: Vec<Duration> = times.iter().zip(&setups).map(|(t, u)| *t + *u).collect();
     Ok(Row {
         model: point.model.clone(),
         knob: point.knob.clone(),
@@ -847,13 +1054,25 @@ fn measure(
         transmittance: s.features.transmittance.name(),
         backend: r.backend,
         fallback: r.fallback,
-        timer: if r.backend == "gpu" {
-            "wall around a synchronised submit"
-        } else {
-            "wall (cpu::render)"
+        timer: match (r.backend, r.plan.pyramid.is_some()) {
+            ("gpu", false) => "wall around a synchronised submit",
+            ("gpu", true) => "wall around a synchronised submit + pyramid build",
+            _ => "wall (cpu::render)",
         },
-        ms_median: median_ms(&times),
-        ms_runs: times.iter().map(|t| t.as_secs_f64() * 1e3).collect(),
+        ms_median: median_ms(&totals),
+        ms_runs: totals.iter().map(|t| t.as_secs_f64() * 1e3).collect(),
+        trace_ms_median: median_ms(&times),
+        setup_ms_median: median_ms(&setups),
+        cone_shadows: r.plan.cone_shadows,
+        cone_step_factor: r.plan.cone_shadows.then_some(s.cones.step_factor),
+        cone_aperture_deg: if !r.plan.cone_shadows {
+            None
+        } else if scene.lights.iter().any(|l| l.is_area()) {
+            light_aperture_deg(scene)
+        } else {
+            Some(s.cones.aperture_deg)
+        },
+        lights_as_points: point.lights_as_points,
         rmse: d.rmse,
         psnr: d.psnr,
         flip_mean,
@@ -1035,7 +1254,7 @@ fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
     write_bytes(path, bytes.get_ref())
 }
 
-pub const CSV_COLUMNS: [&str; 19] = [
+pub const CSV_COLUMNS: [&str; 25] = [
     "model",
     "knob",
     "value",
@@ -1048,6 +1267,12 @@ pub const CSV_COLUMNS: [&str; 19] = [
     "ms_median",
     "ms_runs",
     "runs",
+    "trace_ms_median",
+    "setup_ms_median",
+    "cone_shadows",
+    "cone_step_factor",
+    "cone_aperture_deg",
+    "lights_as_points",
     "rmse",
     "psnr",
     "flip_mean",
@@ -1082,6 +1307,14 @@ fn csv(rows: &[Row], r: &Reference) -> String {
             format!("{:.4}", row.ms_median),
             runs.join(";"),
             row.ms_runs.len().to_string(),
+            format!("{:.4}", row.trace_ms_median),
+            format!("{:.4}", row.setup_ms_median),
+            row.cone_shadows.to_string(),
+            row.cone_step_factor
+                .map_or(String::new(), |k| format!("{k}")),
+            row.cone_aperture_deg
+                .map_or(String::new(), |a| format!("{a:.3}")),
+            row.lights_as_points.to_string(),
             format!("{:.9e}", row.rmse),
             format!("{:.6}", row.psnr),
             format!("{:.9e}", row.flip_mean),
@@ -1106,8 +1339,11 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
         "Ablation of `{}`: {}x{}, depth {}/{}, light_samples {}; reference {} spp \
          (stochastic area lights, {}; its own noise: rmse {:.2e}). GPU: {adapter}. \
          Revision {rev}.\n\n\
-         | model | knob | value | backend | ms (median) | RMSE | PSNR dB | FLIP mean |\n\
-         |---|---|---:|---|---:|---:|---:|---:|\n",
+         Time: the median over runs of trace + setup, in ms; the plot uses it. Setup is \
+         the cone pyramid build, which the GPU does per render outside its timed trace \
+         (0 without cones, and on the CPU, whose trace time holds it).\n\n\
+         | model | knob | value | backend | ms (trace + setup) | trace ms | setup ms | RMSE | PSNR dB | FLIP mean |\n\
+         |---|---|---:|---|---:|---:|---:|---:|---:|---:|\n",
         e.name,
         e.settings.width,
         e.settings.height,
@@ -1125,9 +1361,41 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
         };
         let _ = writeln!(
             t,
-            "| {} | {} | {} | {backend} | {:.2} | {:.3e} | {:.2} | {:.4} |",
-            row.model, row.knob, row.value, row.ms_median, row.rmse, row.psnr, row.flip_mean
+            "| {} | {} | {} | {backend} | {:.2} | {:.2} | {:.2} | {:.3e} | {:.2} | {:.4} |",
+            row.model,
+            row.knob,
+            row.value,
+            row.ms_median,
+            row.trace_ms_median,
+            row.setup_ms_median,
+            row.rmse,
+            row.psnr,
+            row.flip_mean
         );
+    }
+    if let Some(a) = rows
+        .iter()
+        .find(|r| r.cone_shadows && !r.lights_as_points)
+        .and_then(|r| r.cone_aperture_deg)
+    {
+        let _ = write!(
+            t,
+            "\nCone shadows replace the shadow rays and the area samples with one cone per \
+             light and pixel. \"cone at light's aperture\": an area light's cone has the angle it \
+             subtends ({a:.1} deg at the grid's centre), over the step factor. ",
+        );
+    }
+    if rows.iter().any(|r| r.lights_as_points) {
+        let k = e.settings.cones.step_factor;
+        let _ = write!(
+            t,
+            "\"cone at set aperture\": each area light replaced by a point light at its centre \
+             (the cone model shades it there anyway), over the cone aperture, at step \
+             factor {k}.",
+        );
+    }
+    if rows.iter().any(|r| r.cone_shadows) {
+        t.push('\n');
     }
     if let Some(f) = rows.iter().find_map(|r| r.fallback.as_deref()) {
         let _ = write!(
@@ -1259,6 +1527,16 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
     render.insert("light_samples".into(), i64::from(s.light_samples).into());
     render.insert("seed".into(), i64::from(s.seed).into());
     doc.insert("render".into(), render.into());
+    let k = &s.cones;
+    let mut cones = Table::new();
+    cones.insert("levels".into(), i64::from(k.levels).into());
+    cones.insert("step_factor".into(), k.step_factor.into());
+    cones.insert("aperture_deg".into(), k.aperture_deg.into());
+    cones.insert("start_offset".into(), k.start_offset.into());
+    cones.insert("ao_cones".into(), i64::from(k.ao_cones).into());
+    cones.insert("ao_range".into(), k.ao_range.into());
+    cones.insert("indirect_strength".into(), k.indirect_strength.into());
+    doc.insert("cones".into(), cones.into());
     let mut ablate = Table::new();
     ablate.insert("reference_spp".into(), i64::from(c.reference_spp).into());
     ablate.insert(
@@ -1278,6 +1556,11 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
             .map(|t| t.name())
             .collect::<Vec<_>>()
             .into(),
+    );
+    ablate.insert("cone_step_factor".into(), c.cone_step_factor.clone().into());
+    ablate.insert(
+        "cone_aperture_deg".into(),
+        c.cone_aperture_deg.clone().into(),
     );
     ablate.insert("backend".into(), c.backend.name().into());
     ablate.insert(
@@ -1308,6 +1591,14 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
             t.insert("area_lights".into(), row.area_lights.into());
             t.insert("transmittance".into(), row.transmittance.into());
             t.insert("spp".into(), i64::from(row.spp).into());
+            t.insert("cone_shadows".into(), row.cone_shadows.into());
+            if let Some(k) = row.cone_step_factor {
+                t.insert("cone_step_factor".into(), k.into());
+            }
+            if let Some(a) = row.cone_aperture_deg {
+                t.insert("cone_aperture_deg".into(), a.into());
+            }
+            t.insert("lights_as_points".into(), row.lights_as_points.into());
             t.insert("seed".into(), i64::from(s.seed).into());
             t.insert("backend".into(), row.backend.into());
             t.insert("image".into(), row.image.clone().into());
@@ -1377,8 +1668,11 @@ fn write_outputs(
         "git revision: {rev}\nadapter: {adapter}\ncpu: {}\nmodel version: {MODEL_VERSION}\n\
          reference: {} spp, {}, {} ({}), noise rmse {:.3e}, {:.2} s to render\n\
          timer: GPU points: wall time around a synchronised submit (GpuTracer::render; \
-         it does not request TIMESTAMP_QUERY); CPU points: wall time of cpu::render. \
-         Median of {} runs after {} warm-up renders.\n\nplans:\n",
+         it does not request TIMESTAMP_QUERY), plus for cone points the pyramid build \
+         (GpuTracer::build_pyramid and a synchronising readback of its coarsest level), \
+         which the render does outside its timed trace; CPU points: wall time of \
+         cpu::render (pyramids included). Median of {} runs after {} warm-up renders.\n\n\
+         plans:\n",
         crate::cpu::backend_summary(),
         r.spp,
         r.backend,
@@ -1439,6 +1733,9 @@ fn grid_image(r: &Reference, rows: &[Row]) -> image::RgbImage {
         let label = match row.knob.as_str() {
             "spp" => format!("{short} {}", row.value),
             "-" => short,
+            "step_factor" => format!("cone step {}", row.value),
+            "aperture_deg" => format!("cone pt {}deg", row.value),
+            "transmittance" => format!("hard {}", row.value.replace("beer-lambert", "beer")),
             _ => format!("{} {}", short.split(' ').next().unwrap_or(""), row.value),
         };
         tiles.push((
@@ -1609,7 +1906,7 @@ pub mod plot {
                 .build_cartesian_2d(x_range.clone().log_scale(), y_range.log_scale())?;
             chart
                 .configure_mesh()
-                .x_desc("ms per frame (median)")
+                .x_desc("ms per image (median of trace + cone pyramid build)")
                 .y_desc(name)
                 .x_labels(12)
                 .y_labels(12)
@@ -1650,10 +1947,12 @@ pub mod plot {
                         .label(label)
                         .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 6, color.filled()));
                 }
-                // The knob's value beside each point of a curve.
+                // The knob's value beside each point of a curve: above for even curves,
+                // below for odd ones, so neighbouring curves' labels do not collide.
                 if pts.len() > 1 {
+                    let dy = if i % 2 == 0 { -14 } else { 4 };
                     chart.draw_series(pts.iter().zip(&curves[model]).map(|(&p, r)| {
-                        EmptyElement::at(p) + Text::new(r.value.clone(), (6, -14), (FONT, 12))
+                        EmptyElement::at(p) + Text::new(r.value.clone(), (6, dy), (FONT, 12))
                     }))?;
                 }
             }

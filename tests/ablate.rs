@@ -41,7 +41,8 @@ transmittance = "beer-lambert"
     )
 }
 
-const SWEEP: &str = "[ablate]\nreference_spp = 256\nspp = [1, 2, 4, 8, 16]\nruns = 2\nwarmup = 1\n";
+const SWEEP: &str = "[ablate]\nreference_spp = 256\nspp = [1, 2, 4, 8, 16]\nruns = 2\nwarmup = 1\n\
+                     cone_step_factor = [0.5, 2]\ncone_aperture_deg = [10, 40]\n";
 
 fn load(dir: &Path, text: &str) -> (Experiment, AblateConfig) {
     let path = dir.join("tiny.toml");
@@ -111,6 +112,8 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     let dir = scratch("sweep");
     let (e, c) = load(&dir, &experiment_text(110.0, SWEEP));
     assert_eq!(c.spp, vec![1, 2, 4, 8, 16]);
+    assert_eq!(c.cone_step_factor, vec![0.5, 2.0]);
+    assert_eq!(c.cone_aperture_deg, vec![10.0, 40.0]);
     let out = dir.join("out");
     let report = run(&e, &c, &out, &dir.join("cache"));
 
@@ -142,14 +145,20 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         "spp",
         "ms_median",
         "ms_runs",
+        "trace_ms_median",
+        "setup_ms_median",
+        "cone_shadows",
+        "cone_step_factor",
+        "cone_aperture_deg",
         "rmse",
         "psnr",
         "flip_mean",
     ] {
         assert!(header.iter().any(|h| h == required), "no column {required}");
     }
-    // Baseline, hard shadows with each transmittance model, five stochastic points.
-    assert_eq!(rows.len(), 1 + 2 + 5);
+    // Baseline, hard shadows with each transmittance model, five stochastic points, two
+    // cone step factors and two cone apertures.
+    assert_eq!(rows.len(), 1 + 2 + 5 + 2 + 2);
     let models: Vec<&str> = rows.iter().map(|r| col(&header, r, "model")).collect();
     assert_eq!(models[0], "baseline (all off)");
     assert!(models.contains(&"hard (min-kt)"));
@@ -163,6 +172,21 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
             .map(|t| t.parse().unwrap())
             .collect();
         assert_eq!(runs.len(), 2);
+        // The plotted time is trace + setup; setup is only the cones' pyramid build.
+        let trace: f64 = col(&header, r, "trace_ms_median").parse().unwrap();
+        let setup: f64 = col(&header, r, "setup_ms_median").parse().unwrap();
+        assert!(trace > 0.0 && trace.is_finite() && setup >= 0.0 && setup.is_finite());
+        assert!(ms >= trace - 1e-3, "{r:?}");
+        let cone: bool = col(&header, r, "cone_shadows").parse().unwrap();
+        if cone {
+            for name in ["cone_step_factor", "cone_aperture_deg"] {
+                let v: f64 = col(&header, r, name).parse().unwrap();
+                assert!(v.is_finite() && v > 0.0, "{name} of {r:?}");
+            }
+        } else {
+            assert_eq!(col(&header, r, "cone_step_factor"), "");
+            assert_eq!(setup, 0.0, "{r:?}");
+        }
         let rmse: f64 = col(&header, r, "rmse").parse().unwrap();
         let psnr: f64 = col(&header, r, "psnr").parse().unwrap();
         let flip: f64 = col(&header, r, "flip_mean").parse().unwrap();
@@ -180,6 +204,55 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     for r in &report.rows {
         assert_eq!(r.fallback.is_some(), r.backend == "cpu");
     }
+
+    // The cone curves: every point of each model, cone shadows on (hard shadows and
+    // stochastic points keep them off), the knob in its column; on the GPU the pyramid
+    // build is timed and counted.
+    let cones: Vec<&ablate::Row> = report.rows.iter().filter(|r| r.cone_shadows).collect();
+    assert_eq!(cones.len(), 4);
+    assert!(
+        report
+            .rows
+            .iter()
+            .filter(|r| r.model.starts_with("hard") || r.knob == "spp")
+            .all(|r| !r.cone_shadows)
+    );
+    let steps: Vec<&ablate::Row> = cones
+        .iter()
+        .copied()
+        .filter(|r| r.knob == "step_factor")
+        .collect();
+    assert_eq!(steps.len(), 2);
+    assert_eq!(steps[0].cone_step_factor, Some(0.5));
+    assert_eq!(steps[1].cone_step_factor, Some(2.0));
+    assert!(steps.iter().all(|r| !r.lights_as_points));
+    // The tiny rect light (4x4 at about 10 voxels) subtends some tens of degrees.
+    let subtended = steps[0].cone_aperture_deg.unwrap();
+    assert!((5.0..90.0).contains(&subtended), "{subtended}");
+    let apertures: Vec<&ablate::Row> = cones
+        .iter()
+        .copied()
+        .filter(|r| r.knob == "aperture_deg")
+        .collect();
+    assert_eq!(apertures.len(), 2);
+    assert_eq!(apertures[0].cone_aperture_deg, Some(10.0));
+    assert_eq!(apertures[1].cone_aperture_deg, Some(40.0));
+    assert!(
+        apertures
+            .iter()
+            .all(|r| r.lights_as_points && !r.area_lights)
+    );
+    for r in &cones {
+        assert!(r.rmse.is_finite() && r.rmse > 0.0 && r.flip_mean.is_finite());
+        assert!(r.frame.all_finite());
+        assert!((r.ms_median - r.trace_ms_median - r.setup_ms_median).abs() < 0.5 * r.ms_median);
+        if r.backend == "gpu" {
+            assert!(r.setup_ms_median > 0.0, "GPU pyramid build untimed: {r:?}");
+        }
+    }
+    // Different knob values give different images.
+    assert_ne!(steps[0].frame, steps[1].frame);
+    assert_ne!(apertures[0].frame, apertures[1].frame);
 
     // Error against the reference falls with every doubling of the samples, and 16x the
     // samples cut the RMSE by more than half (1/4 in theory, plus the reference's noise).
@@ -207,16 +280,31 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         "legend text in the SVG"
     );
     let grid = image::open(out.join("grid.png")).unwrap();
-    // Nine tiles (reference + 8 points), each at least 128 wide with its label band.
-    assert!(grid.width() >= 3 * 128 && grid.height() >= 3 * 128);
+    // Thirteen tiles (reference + 12 points), each at least 128 wide with its label band.
+    assert!(grid.width() >= 4 * 128 && grid.height() >= 4 * 128);
     let table = std::fs::read_to_string(out.join("table.md")).unwrap();
-    assert_eq!(table.lines().filter(|l| l.starts_with("| ")).count(), 1 + 8);
+    assert_eq!(
+        table.lines().filter(|l| l.starts_with("| ")).count(),
+        1 + 12
+    );
+    assert!(table.contains("trace + setup"));
     let run_txt = std::fs::read_to_string(out.join("run.txt")).unwrap();
     assert!(run_txt.contains("git revision: ") && run_txt.contains("adapter: "));
     assert!(run_txt.contains("plan: ["));
     let resolved: toml::Table =
         toml::from_str(&std::fs::read_to_string(out.join("resolved.toml")).unwrap()).unwrap();
-    assert_eq!(resolved["points"].as_array().unwrap().len(), 8);
+    assert_eq!(resolved["points"].as_array().unwrap().len(), 12);
+    assert_eq!(
+        resolved["ablate"]["cone_step_factor"]
+            .as_array()
+            .unwrap()
+            .len(),
+        2
+    );
+    assert!(
+        svg.contains("cone at set aperture"),
+        "cone legend text in the SVG"
+    );
     assert_eq!(resolved["ablate"]["reference_spp"].as_integer(), Some(256));
 }
 
@@ -313,6 +401,42 @@ fn ablate_table_errors_name_file_line_and_key() {
         "min-kt",
     );
     check("[ablate]\nbackend = \"tpu\"", 16, "ablate.backend", "auto");
+    check(
+        "[ablate]\ncone_step_factor = [0.5, 0.25]",
+        16,
+        "ablate.cone_step_factor",
+        "ascending",
+    );
+    check(
+        "[ablate]\nruns = 1\ncone_step_factor = [0, 1]",
+        17,
+        "ablate.cone_step_factor = [0, 1]",
+        "(0, 4]",
+    );
+    check(
+        "[ablate]\ncone_step_factor = [8]",
+        16,
+        "ablate.cone_step_factor",
+        "(0, 4]",
+    );
+    check(
+        "[ablate]\ncone_aperture_deg = [10, 180]",
+        16,
+        "ablate.cone_aperture_deg",
+        "[0, 120]",
+    );
+    check(
+        "[ablate]\ncone_aperture_deg = [nan]",
+        16,
+        "ablate.cone_aperture_deg",
+        "[0, 120]",
+    );
+    check(
+        "[ablate]\ncone_aperture_deg = \"wide\"",
+        16,
+        "ablate.cone_aperture_deg",
+        "invalid type",
+    );
     check("[ablate]\nspp = 4", 16, "ablate.spp", "invalid type");
     check(
         "[ablate]\nsamples = 4",
