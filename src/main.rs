@@ -455,10 +455,18 @@ fn cmd_render(mut e: Experiment, opts: &RenderOpts) -> Result<()> {
         trace_ms,
         wall.as_secs_f64() * 1e3
     );
-    if let Renderer::Gpu(t) = &renderer
-        && let Some(m) = t.last_memory()
-    {
-        println!("memory:     {m} on the device");
+    if let Renderer::Gpu(t) = &renderer {
+        // The pyramids are built before the trace, so the trace time leaves them out.
+        let setup = t.last_setup_time();
+        if !setup.is_zero() {
+            println!(
+                "setup:      {:.3} ms (cone pyramids, not in the trace time)",
+                setup.as_secs_f64() * 1e3
+            );
+        }
+        if let Some(m) = t.last_memory() {
+            println!("memory:     {m} on the device");
+        }
     }
     let s = result.stats;
     if s.total_rays() > 0 {

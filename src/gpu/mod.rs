@@ -8,7 +8,7 @@ pub use compose::{ENTRY_POINT, ShaderError, compose_shader, validate};
 
 use std::borrow::Cow;
 use std::collections::HashMap;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
 use bytemuck::{Pod, Zeroable};
@@ -109,6 +109,9 @@ fn f3(v: DVec3) -> [f32; 3] {
 /// The grid as it sits on the device, with the host copy it was made from so a render
 /// can tell whether it changed.
 struct GridUpload {
+    /// Counts uploads, so a pyramid can tell whether the grid it was built from is
+    /// still the one on the device without comparing the voxels again.
+    generation: u64,
     dims: glam::UVec3,
     data: Vec<u8>,
     view: wgpu::TextureView,
@@ -142,6 +145,15 @@ pub struct GpuTracer {
     compensation_dummy: wgpu::Buffer,
     grid: Option<GridUpload>,
     buffers: Option<Buffers>,
+    /// The pyramid-build kernels, made on the first build.
+    build_pipelines: Option<pyramid::BuildPipelines>,
+    /// The pyramids of the latest cone render and what they were built from: a render
+    /// whose key is equal reuses them. Kept across renders without cones, so ablations
+    /// that toggle cone features do not rebuild.
+    pyramid: Option<(pyramid::PyramidKey, pyramid::GpuPyramid)>,
+    pyramid_builds: u64,
+    /// Time the latest render spent on its pyramids, outside the trace time.
+    last_setup_time: Duration,
     /// The plan of the latest render, for printing and reports.
     last_plan: Option<Plan>,
     /// Device memory the latest render bound, by resource.
@@ -352,6 +364,10 @@ impl GpuTracer {
             compensation_dummy,
             grid: None,
             buffers: None,
+            build_pipelines: None,
+            pyramid: None,
+            pyramid_builds: 0,
+            last_setup_time: Duration::ZERO,
             last_plan: None,
             last_memory: None,
         })
@@ -383,6 +399,23 @@ impl GpuTracer {
     /// Device memory the latest render bound.
     pub fn last_memory(&self) -> Option<GpuMemory> {
         self.last_memory
+    }
+
+    /// Diagnostics counter: pyramid builds since the tracer was made, each render's
+    /// that missed the cache and each `build_pyramid` call. A render whose pyramids'
+    /// inputs did not change does not add one.
+    pub fn pyramid_builds(&self) -> u64 {
+        self.pyramid_builds
+    }
+
+    /// Time the latest render spent building (or finding in the cache) its cone
+    /// pyramids: zero without a cone feature, and not part of its `trace_time`.
+    pub fn last_setup_time(&self) -> Duration {
+        self.last_setup_time
+    }
+
+    fn grid_generation(&self) -> u64 {
+        self.grid.as_ref().map_or(0, |g| g.generation)
     }
 
     /// Renders without ray counting; `stats` are zero.
@@ -520,6 +553,7 @@ impl GpuTracer {
         );
         let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
         self.grid = Some(GridUpload {
+            generation: self.grid_generation() + 1,
             dims,
             data: data.to_vec(),
             view,
@@ -791,18 +825,25 @@ impl GpuTracer {
 
         // The pyramids, built on the device before the timed trace (their build is
         // not part of the trace time), only when the plan has a cone feature.
+        let setup = Instant::now();
         let cone_group = match plan.pyramid {
             Some(layout) => {
-                let pyr = self.build_pyramid(scene, settings, layout, plan.indirect)?;
+                self.cache_pyramid(scene, settings, layout, plan.indirect)?;
+                let pyr = &self.pyramid.as_ref().expect("pyramid cached").1;
                 let grid = &scene.grid;
                 let radii: Vec<f32> = scene
                     .lights
                     .iter()
                     .map(|l| (pyramid::light_radius(l) / grid.voxel_size()) as f32)
                     .collect();
-                Some(self.cone_bind_group(&pyr, &settings.cones, &self.cone_layout, &radii))
+                Some(self.cone_bind_group(pyr, &settings.cones, &self.cone_layout, &radii))
             }
             None => None,
+        };
+        self.last_setup_time = if plan.pyramid.is_some() {
+            setup.elapsed()
+        } else {
+            Duration::ZERO
         };
 
         // Finish the uploads first so the timed submission holds the trace alone.

@@ -139,6 +139,122 @@ impl GpuPyramid {
     }
 }
 
+/// The pyramid-build kernels. They depend on no scene, so a tracer makes them once.
+pub(super) struct BuildPipelines {
+    opacity_base: wgpu::ComputePipeline,
+    radiance_base: wgpu::ComputePipeline,
+    reduce_r: wgpu::ComputePipeline,
+    pack_r: wgpu::ComputePipeline,
+    reduce_rgba: wgpu::ComputePipeline,
+}
+
+impl BuildPipelines {
+    fn new(device: &wgpu::Device) -> Self {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("inject"),
+            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(INJECT)),
+        });
+        let mip = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("mip_build"),
+            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(MIP_BUILD)),
+        });
+        Self {
+            opacity_base: pipeline(device, &module, "opacity_base"),
+            radiance_base: pipeline(device, &module, "radiance_base"),
+            reduce_r: pipeline(device, &mip, "reduce_r"),
+            pack_r: pipeline(device, &mip, "pack_r"),
+            reduce_rgba: pipeline(device, &mip, "reduce_rgba"),
+        }
+    }
+}
+
+/// Everything a pyramid build reads, so that equal keys mean identical pyramids: the
+/// grid upload (its contents and dims), the layout, whether radiance is built, and a
+/// hash of the per-material alpha (transmittance model, kt, sigma) and, for radiance
+/// only, of the injection's materials, lights and parameters (falloff, ray offset...).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(super) struct PyramidKey {
+    grid: u64,
+    layout: PyramidLayout,
+    radiance: bool,
+    inputs: blake3::Hash,
+}
+
+/// The host data a build uploads.
+struct InjectInputs {
+    materials: Vec<InjectMaterial>,
+    lights: Vec<InjectLight>,
+    params: InjectParams,
+}
+
+impl InjectInputs {
+    fn new(scene: &Scene, settings: &RenderSettings, dims: UVec3) -> Self {
+        let alpha = alpha_table(scene, settings.features.transmittance);
+        let materials = scene
+            .materials
+            .iter()
+            .zip(&alpha)
+            .map(|(m, &a)| InjectMaterial {
+                albedo_kd: [
+                    m.albedo.x as f32,
+                    m.albedo.y as f32,
+                    m.albedo.z as f32,
+                    m.kd as f32,
+                ],
+                alpha_kt: [a as f32, m.kt as f32, 0.0, 0.0],
+            })
+            .collect();
+        let grid = &scene.grid;
+        let mut lights: Vec<InjectLight> = scene
+            .lights
+            .iter()
+            .map(|l| InjectLight {
+                position: f3(grid.to_local(l.position())),
+                _pad_a: 0.0,
+                radiance: f3(l.color() * l.intensity()),
+                _pad_b: 0.0,
+            })
+            .collect();
+        // A binding cannot be empty.
+        if lights.is_empty() {
+            lights.push(InjectLight::zeroed());
+        }
+        let params = InjectParams {
+            dims: dims.to_array(),
+            num_lights: scene.lights.len() as u32,
+            eps: settings.ray_offset as f32,
+            voxel_size: grid.voxel_size() as f32,
+            falloff_min_dist_sq: (settings.falloff_min_distance * settings.falloff_min_distance)
+                as f32,
+            falloff: settings.falloff as u32,
+        };
+        Self {
+            materials,
+            lights,
+            params,
+        }
+    }
+
+    /// The opacity reads only each material's alpha; the radiance reads the rest too.
+    fn key(&self, grid: u64, layout: PyramidLayout, radiance: bool) -> PyramidKey {
+        let mut h = blake3::Hasher::new();
+        for m in &self.materials {
+            h.update(bytemuck::bytes_of(&m.alpha_kt[0]));
+        }
+        if radiance {
+            h.update(bytemuck::cast_slice(&self.materials));
+            h.update(bytemuck::cast_slice(&self.lights));
+            h.update(bytemuck::bytes_of(&self.params));
+        }
+        PyramidKey {
+            grid,
+            layout,
+            radiance,
+            inputs: h.finalize(),
+        }
+    }
+}
+
 fn f3(v: DVec3) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
 }
@@ -293,7 +409,8 @@ pub struct ConeQuery {
 
 impl GpuTracer {
     /// Builds the opacity pyramid (and the radiance pyramid when `radiance`) of `scene`
-    /// under `settings` (transmittance model, falloff, ray offset) on the device.
+    /// under `settings` (transmittance model, falloff, ray offset) on the device. Always
+    /// builds: renders go through the tracer's cache instead (`pyramid_builds`).
     pub fn build_pyramid(
         &mut self,
         scene: &Scene,
@@ -303,6 +420,42 @@ impl GpuTracer {
     ) -> Result<GpuPyramid> {
         scene.validate()?;
         self.upload_grid(scene);
+        let inputs = InjectInputs::new(scene, settings, layout.dims);
+        self.build(&inputs, layout, radiance)
+    }
+
+    /// The pyramid of a render: the cached one when nothing it was built from changed,
+    /// else a new build, which replaces it, left in `self.pyramid`. Expects the grid
+    /// uploaded.
+    pub(super) fn cache_pyramid(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        layout: PyramidLayout,
+        radiance: bool,
+    ) -> Result<()> {
+        let inputs = InjectInputs::new(scene, settings, layout.dims);
+        let key = inputs.key(self.grid_generation(), layout, radiance);
+        if self.pyramid.as_ref().is_none_or(|(k, _)| *k != key) {
+            // Freed before the build so two pyramids never share the device's memory.
+            self.pyramid = None;
+            let pyr = self.build(&inputs, layout, radiance)?;
+            self.pyramid = Some((key, pyr));
+        }
+        Ok(())
+    }
+
+    fn build(
+        &mut self,
+        inputs: &InjectInputs,
+        layout: PyramidLayout,
+        radiance: bool,
+    ) -> Result<GpuPyramid> {
+        if self.build_pipelines.is_none() {
+            self.build_pipelines = Some(BuildPipelines::new(&self.device));
+        }
+        self.pyramid_builds += 1;
+        let pipes = self.build_pipelines.as_ref().expect("build pipelines made");
         let device = &self.device;
         let limits = device.limits();
         let dims = layout.dims;
@@ -327,53 +480,6 @@ impl GpuTracer {
         }
         let grid_view = &self.grid.as_ref().expect("grid uploaded").view;
 
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("inject"),
-            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(INJECT)),
-        });
-        let mip = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("mip_build"),
-            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(MIP_BUILD)),
-        });
-
-        let alpha = alpha_table(scene, settings.features.transmittance);
-        let mats: Vec<InjectMaterial> = scene
-            .materials
-            .iter()
-            .zip(&alpha)
-            .map(|(m, &a)| InjectMaterial {
-                albedo_kd: [
-                    m.albedo.x as f32,
-                    m.albedo.y as f32,
-                    m.albedo.z as f32,
-                    m.kd as f32,
-                ],
-                alpha_kt: [a as f32, m.kt as f32, 0.0, 0.0],
-            })
-            .collect();
-        let grid = &scene.grid;
-        let mut lights: Vec<InjectLight> = scene
-            .lights
-            .iter()
-            .map(|l| InjectLight {
-                position: f3(grid.to_local(l.position())),
-                _pad_a: 0.0,
-                radiance: f3(l.color() * l.intensity()),
-                _pad_b: 0.0,
-            })
-            .collect();
-        if lights.is_empty() {
-            lights.push(InjectLight::zeroed());
-        }
-        let ip = InjectParams {
-            dims: dims.to_array(),
-            num_lights: scene.lights.len() as u32,
-            eps: settings.ray_offset as f32,
-            voxel_size: grid.voxel_size() as f32,
-            falloff_min_dist_sq: (settings.falloff_min_distance * settings.falloff_min_distance)
-                as f32,
-            falloff: settings.falloff as u32,
-        };
         let init = |label: &str, contents: &[u8], usage| {
             wgpu::util::DeviceExt::create_buffer_init(
                 device,
@@ -386,17 +492,17 @@ impl GpuTracer {
         };
         let ip_buf = init(
             "inject params",
-            bytemuck::bytes_of(&ip),
+            bytemuck::bytes_of(&inputs.params),
             wgpu::BufferUsages::UNIFORM,
         );
         let mat_buf = init(
             "inject materials",
-            bytemuck::cast_slice(&mats),
+            bytemuck::cast_slice(&inputs.materials),
             wgpu::BufferUsages::STORAGE,
         );
         let light_buf = init(
             "inject lights",
-            bytemuck::cast_slice(&lights),
+            bytemuck::cast_slice(&inputs.lights),
             wgpu::BufferUsages::STORAGE,
         );
 
@@ -457,10 +563,9 @@ impl GpuTracer {
             pass.dispatch_workgroups(g.0, g.1, g.2);
         };
 
-        let p_base = pipeline(device, &module, "opacity_base");
         run(
             &mut enc,
-            &p_base,
+            &pipes.opacity_base,
             &[
                 wgpu::BindGroupEntry {
                     binding: 0,
@@ -481,8 +586,6 @@ impl GpuTracer {
             ],
             groups(dims),
         );
-        let p_reduce = pipeline(device, &mip, "reduce_r");
-        let p_pack = pipeline(device, &mip, "pack_r");
         // Uniforms per level, all alive until the submission.
         let mut level_params = Vec::new();
         for l in 0..layout.levels {
@@ -505,7 +608,7 @@ impl GpuTracer {
             if l + 1 < layout.levels as usize {
                 run(
                     &mut enc,
-                    &p_reduce,
+                    &pipes.reduce_r,
                     &[
                         wgpu::BindGroupEntry {
                             binding: 0,
@@ -525,7 +628,7 @@ impl GpuTracer {
             }
             run(
                 &mut enc,
-                &p_pack,
+                &pipes.pack_r,
                 &[
                     wgpu::BindGroupEntry {
                         binding: 0,
@@ -577,11 +680,10 @@ impl GpuTracer {
                     ..Default::default()
                 })
             };
-            let p_rad = pipeline(device, &module, "radiance_base");
             let v0 = mip_view(0);
             run(
                 &mut enc,
-                &p_rad,
+                &pipes.radiance_base,
                 &[
                     wgpu::BindGroupEntry {
                         binding: 0,
@@ -606,13 +708,12 @@ impl GpuTracer {
                 ],
                 groups(dims),
             );
-            let p_rgba = pipeline(device, &mip, "reduce_rgba");
             for l in 0..layout.levels.saturating_sub(1) {
                 let src = mip_view(l);
                 let dst = mip_view(l + 1);
                 run(
                     &mut enc,
-                    &p_rgba,
+                    &pipes.reduce_rgba,
                     &[
                         wgpu::BindGroupEntry {
                             binding: 0,

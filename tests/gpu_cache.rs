@@ -1,0 +1,134 @@
+//! The GPU tracer keeps its cone pyramids between renders: a render whose pyramid
+//! inputs are unchanged reuses them, any change of those inputs rebuilds them, and a
+//! rebuilt pyramid gives bit for bit the image a fresh tracer gives (nothing stale).
+
+use std::path::PathBuf;
+
+use glam::DVec3;
+use voxlab::Frame;
+use voxlab::experiment::Experiment;
+use voxlab::gpu::GpuTracer;
+use voxlab::scene::Light;
+
+fn tracer() -> GpuTracer {
+    GpuTracer::new().unwrap_or_else(|e| {
+        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
+    })
+}
+
+fn load(name: &str, side: u32) -> Experiment {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("experiments")
+        .join(name);
+    let mut e = Experiment::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    e.settings.width = side;
+    e.settings.height = side;
+    e
+}
+
+fn render(gpu: &mut GpuTracer, e: &Experiment) -> Frame {
+    gpu.render(&e.scene, &e.settings).unwrap().frame
+}
+
+/// The image a tracer without a cache history gives.
+fn fresh(e: &Experiment) -> Frame {
+    render(&mut tracer(), e)
+}
+
+fn move_first_light(e: &mut Experiment) {
+    match &mut e.scene.lights[0] {
+        Light::Point(p) => p.position += DVec3::new(1.5, -0.75, 0.5),
+        Light::Area(a) => a.position += DVec3::new(1.5, -0.75, 0.5),
+    }
+}
+
+#[test]
+fn indirect_pyramids_are_reused_and_rebuilt_when_their_inputs_change() {
+    let mut gpu = tracer();
+    let mut e = load("indirect.toml", 32);
+    let first = render(&mut gpu, &e);
+    assert_eq!(gpu.pyramid_builds(), 1);
+    assert!(gpu.last_setup_time() > std::time::Duration::ZERO);
+    assert_eq!(
+        render(&mut gpu, &e),
+        first,
+        "a reused pyramid changed the image"
+    );
+    assert_eq!(gpu.pyramid_builds(), 1, "same scene, built again");
+
+    // The camera is no input of the pyramids.
+    e.scene.camera.yaw += 0.1;
+    let moved = render(&mut gpu, &e);
+    assert_eq!(gpu.pyramid_builds(), 1, "camera moved, pyramid rebuilt");
+    assert_eq!(moved, fresh(&e));
+
+    // kt sets the solid's opacity and the injection's shadow rays.
+    e.scene.materials[3].kt = 0.5;
+    let kt = render(&mut gpu, &e);
+    assert_eq!(gpu.pyramid_builds(), 2, "kt changed, pyramid not rebuilt");
+    assert_ne!(kt, moved);
+    assert_eq!(kt, fresh(&e), "kt changed: stale pyramid");
+
+    // A light is injected into the radiance pyramid.
+    move_first_light(&mut e);
+    let lit = render(&mut gpu, &e);
+    assert_eq!(gpu.pyramid_builds(), 3, "light moved, pyramid not rebuilt");
+    assert_ne!(lit, kt);
+    assert_eq!(lit, fresh(&e), "light moved: stale pyramid");
+
+    // A setting the injection reads.
+    e.settings.falloff = !e.settings.falloff;
+    let falloff = render(&mut gpu, &e);
+    assert_eq!(
+        gpu.pyramid_builds(),
+        4,
+        "falloff changed, pyramid not rebuilt"
+    );
+    assert_eq!(falloff, fresh(&e), "falloff changed: stale pyramid");
+
+    // Rendering without cones keeps the cache for the next cone render.
+    let mut plain = e.clone();
+    plain.settings.features.indirect = false;
+    plain.settings.features.ambient_occlusion = false;
+    render(&mut gpu, &plain);
+    assert_eq!(gpu.last_setup_time(), std::time::Duration::ZERO);
+    assert_eq!(render(&mut gpu, &e), falloff);
+    assert_eq!(
+        gpu.pyramid_builds(),
+        4,
+        "cache lost across a render without cones"
+    );
+}
+
+#[test]
+fn opacity_pyramid_ignores_lights_and_rebuilds_on_grid_and_layout() {
+    let mut gpu = tracer();
+    let mut e = load("ambient_occlusion.toml", 32);
+    let first = render(&mut gpu, &e);
+    assert_eq!(gpu.pyramid_builds(), 1);
+
+    // Without indirect light only the opacity is built, and lights are not its input.
+    move_first_light(&mut e);
+    let lit = render(&mut gpu, &e);
+    assert_eq!(gpu.pyramid_builds(), 1, "light moved, opacity rebuilt");
+    assert_ne!(lit, first);
+    assert_eq!(lit, fresh(&e));
+
+    // Grid contents.
+    let data = e.scene.grid.data_mut();
+    let i = data.iter().position(|&m| m != 0).unwrap();
+    data[i] = 0;
+    let carved = render(&mut gpu, &e);
+    assert_eq!(gpu.pyramid_builds(), 2, "grid changed, opacity not rebuilt");
+    assert_eq!(carved, fresh(&e), "grid changed: stale pyramid");
+
+    // Layout (0 chose it automatically).
+    e.settings.cones.levels = 2;
+    let levels = render(&mut gpu, &e);
+    assert_eq!(
+        gpu.pyramid_builds(),
+        3,
+        "levels changed, opacity not rebuilt"
+    );
+    assert_eq!(levels, fresh(&e), "levels changed: stale pyramid");
+}
