@@ -14,10 +14,12 @@
 //! Each point is rendered `warmup` times untimed, then `runs` times; its time is the
 //! median over the runs of trace time plus setup time. Trace time: GPU, wall time around
 //! a synchronised submit, from `GpuTracer::render`; CPU, the reference tracer's wall
-//! time. Setup time: the cone pyramids, which the GPU builds per render outside its
-//! timed trace; they are built once more per run the same way (`build_pyramid`, then a
-//! synchronising readback of the coarsest level) and timed, so a cone point pays for
-//! them. The CPU's trace time already holds its pyramid build (setup 0). Its error is
+//! time. Setup time: one full build of the cone pyramids per image, on the GPU outside
+//! its timed trace (`build_pyramid`, then a synchronising readback of the coarsest
+//! level), so a cone point pays what a scene that changes every frame pays. (The GPU
+//! tracer reuses its pyramids between renders of an unchanged scene, so its own renders
+//! after the warm-up would charge almost nothing.) The CPU's trace time already holds
+//! its pyramid build (setup 0). Its error is
 //! RMSE and PSNR on linear radiance and the FLIP mean (NVIDIA's implementation,
 //! `nv-flip`) on the displayed 8-bit image. Everything is deterministic but the times.
 
@@ -736,10 +738,12 @@ impl Tracers {
         })
     }
 
-    /// Setup time of a render that `plan` describes and its trace time leaves out: the
-    /// cone pyramids on the GPU (built per render before the timed trace), built again
-    /// here the same way and timed through a synchronising readback of the coarsest
-    /// level. Zero without a cone feature, and on the CPU, whose trace time holds them.
+    /// Setup time of a render that `plan` describes and its trace time leaves out: one
+    /// full build of the cone pyramids on the GPU (outside the timed trace; the tracer
+    /// caches them between renders of an unchanged scene, so they are built here afresh,
+    /// as a changing scene would need), timed through a synchronising readback of the
+    /// coarsest level. Zero without a cone feature, and on the CPU, whose trace time
+    /// holds them.
     fn setup_time(
         &mut self,
         backend: &str,
@@ -1340,8 +1344,9 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
          (stochastic area lights, {}; its own noise: rmse {:.2e}). GPU: {adapter}. \
          Revision {rev}.\n\n\
          Time: the median over runs of trace + setup, in ms; the plot uses it. Setup is \
-         the cone pyramid build, which the GPU does per render outside its timed trace \
-         (0 without cones, and on the CPU, whose trace time holds it).\n\n\
+         one full cone pyramid build per image, timed apart from the GPU's trace (what a \
+         scene that changes every frame pays; 0 without cones, and on the CPU, whose \
+         trace time holds it).\n\n\
          | model | knob | value | backend | ms (trace + setup) | trace ms | setup ms | RMSE | PSNR dB | FLIP mean |\n\
          |---|---|---:|---|---:|---:|---:|---:|---:|---:|\n",
         e.name,
@@ -1669,8 +1674,8 @@ fn write_outputs(
          reference: {} spp, {}, {} ({}), noise rmse {:.3e}, {:.2} s to render\n\
          timer: GPU points: wall time around a synchronised submit (GpuTracer::render; \
          it does not request TIMESTAMP_QUERY), plus for cone points the pyramid build \
-         (GpuTracer::build_pyramid and a synchronising readback of its coarsest level), \
-         which the render does outside its timed trace; CPU points: wall time of \
+         (GpuTracer::build_pyramid, a full build per image, and a synchronising readback \
+         of its coarsest level), outside the render's timed trace; CPU points: wall time of \
          cpu::render (pyramids included). Median of {} runs after {} warm-up renders.\n\n\
          plans:\n",
         crate::cpu::backend_summary(),
