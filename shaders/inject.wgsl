@@ -1,5 +1,6 @@
 // Level 0 of the cone-tracing pyramids (src/gpu/pyramid.rs; reference: src/cpu/pyramid.rs).
-// Standalone (not composed with the tracer): its own bindings, its own min-kt shadow walk.
+// Composed with voxlab::types only: it reads the tracer's material and light buffers
+// (the same layouts, uploaded once), and has its own bindings and min-kt shadow walk.
 //
 // - opacity_base: alpha of each voxel's material (a per-material table computed on the
 //   host from the transmittance model) into an f32 buffer, x-fastest.
@@ -8,6 +9,8 @@
 //   Voxel Cone Tracing", CGF 30(7) 2011, section 3.2, light injection), premultiplied by
 //   its alpha, alpha in w, into mip 0 of an RGBA16Float storage texture. Everything in
 //   grid-local coordinates (voxel units), as the tracer.
+
+#import voxlab::types::{BIG, Material, Light}
 
 struct InjectParams {
     dims: vec3<u32>,
@@ -19,28 +22,15 @@ struct InjectParams {
     falloff: u32,
 }
 
-struct InjectMaterial {
-    // albedo, kd
-    albedo_kd: vec4<f32>,
-    // alpha, kt, unused, unused
-    alpha_kt: vec4<f32>,
-}
-
-struct InjectLight {
-    position: vec3<f32>,
-    pad_a: f32,
-    radiance: vec3<f32>,
-    pad_b: f32,
-}
-
-const BIG: f32 = 1.0e30;
-
 @group(0) @binding(0) var<uniform> ip: InjectParams;
 @group(0) @binding(1) var grid: texture_3d<u32>;
-@group(0) @binding(2) var<storage, read> mats: array<InjectMaterial>;
-@group(0) @binding(3) var<storage, read> lights: array<InjectLight>;
+@group(0) @binding(2) var<storage, read> mats: array<Material>;
+@group(0) @binding(3) var<storage, read> lights: array<Light>;
 @group(0) @binding(4) var<storage, read_write> opacity_out: array<f32>;
 @group(0) @binding(5) var radiance_out: texture_storage_3d<rgba16float, write>;
+// Opacity per material, from the transmittance model (not a field of Material: the
+// tracer does not read it).
+@group(0) @binding(6) var<storage, read> alpha: array<f32>;
 
 fn inside(v: vec3<i32>) -> bool {
     return all(v >= vec3<i32>(0)) && all(v < vec3<i32>(ip.dims));
@@ -57,7 +47,7 @@ fn kt_of(m: u32) -> f32 {
     if m == 0u {
         return 1.0;
     }
-    return mats[m].alpha_kt.y;
+    return mats[m].kt;
 }
 
 // min-kt transmittance of the segment from q (inside the grid or on it) along unit d of
@@ -129,7 +119,7 @@ fn opacity_base(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let m = textureLoad(grid, vec3<i32>(gid), 0).r;
-    opacity_out[gid.x + ip.dims.x * (gid.y + ip.dims.y * gid.z)] = mats[m].alpha_kt.x;
+    opacity_out[gid.x + ip.dims.x * (gid.y + ip.dims.y * gid.z)] = alpha[m];
 }
 
 @compute @workgroup_size(4, 4, 4)
@@ -140,9 +130,9 @@ fn radiance_base(@builtin(global_invocation_id) gid: vec3<u32>) {
     let v = vec3<i32>(gid);
     let id = textureLoad(grid, v, 0).r;
     let mat = mats[id];
-    let alpha = mat.alpha_kt.x;
+    let a = alpha[id];
     var out = vec3<f32>(0.0);
-    if id != 0u && mat.albedo_kd.w > 0.0 {
+    if id != 0u && mat.kd > 0.0 {
         let centre = vec3<f32>(v) + 0.5;
         var faces = 0u;
         var sum = vec3<f32>(0.0);
@@ -186,8 +176,8 @@ fn radiance_base(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
         if faces > 0u {
-            out = mat.albedo_kd.xyz * mat.albedo_kd.w * sum / f32(faces);
+            out = mat.albedo * mat.kd * sum / f32(faces);
         }
     }
-    textureStore(radiance_out, v, vec4<f32>(out * alpha, alpha));
+    textureStore(radiance_out, v, vec4<f32>(out * a, a));
 }

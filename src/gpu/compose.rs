@@ -5,17 +5,22 @@
 use std::collections::HashMap;
 
 use naga::valid::{Capabilities, ValidationFlags, Validator};
-use naga_oil::compose::{ComposableModuleDescriptor, Composer, NagaModuleDescriptor};
+use naga_oil::compose::{
+    ComposableModuleDescriptor, Composer, NagaModuleDescriptor, ShaderDefValue,
+};
 
 use crate::plan::Plan;
+
+/// `voxlab::types`: the layouts shared with the host, imported by every kernel.
+pub const TYPES_MODULE: (&str, &str) = (
+    "shaders/types.wgsl",
+    include_str!("../../shaders/types.wgsl"),
+);
 
 /// Importable modules in dependency order (each imports only modules above it).
 /// Embedded at build time so the tracer does not depend on the working directory.
 const MODULES: &[(&str, &str)] = &[
-    (
-        "shaders/types.wgsl",
-        include_str!("../../shaders/types.wgsl"),
-    ),
+    TYPES_MODULE,
     (
         "shaders/bindings.wgsl",
         include_str!("../../shaders/bindings.wgsl"),
@@ -79,32 +84,40 @@ fn defs_string(plan: &Plan) -> String {
         .join(" ")
 }
 
-/// Composes and validates the tracer kernel for `plan`. Pure CPU: no device needed.
-pub fn compose_shader(plan: &Plan) -> Result<naga::Module, ShaderError> {
-    let defs: HashMap<_, _> = plan.shader_defs().into_iter().collect();
-    let fail = |message: String| ShaderError::Compose {
-        defs: defs_string(plan),
-        message,
-    };
+/// Composes `entry` with importable `modules` (in dependency order) under `defs`;
+/// the error is naga_oil's report. Not validated.
+pub(super) fn compose(
+    modules: &[(&str, &str)],
+    entry: (&str, &str),
+    defs: HashMap<String, ShaderDefValue>,
+) -> Result<naga::Module, String> {
     let mut composer = Composer::default();
-    for (path, source) in MODULES {
+    for (path, source) in modules {
         if let Err(e) = composer.add_composable_module(ComposableModuleDescriptor {
             source,
             file_path: path,
             shader_defs: defs.clone(),
             ..Default::default()
         }) {
-            return Err(fail(e.emit_to_string(&composer)));
+            return Err(e.emit_to_string(&composer));
         }
     }
-    let module = composer
-        .make_naga_module(NagaModuleDescriptor {
-            source: TRACE.1,
-            file_path: TRACE.0,
-            shader_defs: defs,
-            ..Default::default()
-        })
-        .map_err(|e| fail(e.emit_to_string(&composer)))?;
+    let module = composer.make_naga_module(NagaModuleDescriptor {
+        source: entry.1,
+        file_path: entry.0,
+        shader_defs: defs,
+        ..Default::default()
+    });
+    module.map_err(|e| e.emit_to_string(&composer))
+}
+
+/// Composes and validates the tracer kernel for `plan`. Pure CPU: no device needed.
+pub fn compose_shader(plan: &Plan) -> Result<naga::Module, ShaderError> {
+    let defs: HashMap<_, _> = plan.shader_defs().into_iter().collect();
+    let module = compose(MODULES, TRACE, defs).map_err(|message| ShaderError::Compose {
+        defs: defs_string(plan),
+        message,
+    })?;
     validate(&module).map_err(|message| ShaderError::Validate {
         defs: defs_string(plan),
         message,

@@ -3,6 +3,7 @@
 
 mod compose;
 pub mod pyramid;
+mod util;
 
 pub use compose::{ENTRY_POINT, ShaderError, compose_shader, validate};
 
@@ -19,6 +20,10 @@ use crate::render::{
     Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings,
 };
 use crate::scene::{AreaShape, Light, Scene};
+use util::{
+    buffer, buffer_entry, extent, readback, storage_entry, texture_3d_entry, uniform_entry,
+    view_entry,
+};
 
 /// Side of the square workgroup (`@workgroup_size(8, 8, 1)` in `shaders/trace.wgsl`).
 const WORKGROUP: u32 = 8;
@@ -214,19 +219,6 @@ fn adapter_rank(info: &wgpu::AdapterInfo) -> (u32, u32) {
     (backend, kind)
 }
 
-fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 impl GpuTracer {
     /// Finds an adapter (any backend, Vulkan preferred; software adapters such as
     /// lavapipe allowed) that runs compute shaders. An error if there is none.
@@ -282,26 +274,8 @@ impl GpuTracer {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("voxlab tracer"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Uint,
-                        view_dimension: wgpu::TextureViewDimension::D3,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                uniform_entry(0),
+                texture_3d_entry(1, wgpu::TextureSampleType::Uint),
                 storage_entry(2, true),
                 storage_entry(3, true),
                 storage_entry(4, false),
@@ -320,32 +294,27 @@ impl GpuTracer {
             bind_group_layouts: &[Some(&layout), Some(&cone_layout)],
             immediate_size: 0,
         });
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("params"),
-            size: std::mem::size_of::<GpuParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let counters = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ray counters"),
-            size: COUNTER_BYTES,
-            usage: wgpu::BufferUsages::STORAGE
+        let params = buffer(
+            &device,
+            "params",
+            std::mem::size_of::<GpuParams>() as u64,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
+        let counters = buffer(
+            &device,
+            "ray counters",
+            COUNTER_BYTES,
+            wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_SRC
                 | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let counters_readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ray counters readback"),
-            size: COUNTER_BYTES,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let compensation_dummy = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("compensation (unused)"),
-            size: 16,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
+        );
+        let counters_readback = readback(&device, "ray counters readback", COUNTER_BYTES);
+        let compensation_dummy = buffer(
+            &device,
+            "compensation (unused)",
+            16,
+            wgpu::BufferUsages::STORAGE,
+        );
         Ok(Self {
             adapter,
             device,
@@ -519,11 +488,7 @@ impl GpuTracer {
         {
             return;
         }
-        let size = wgpu::Extent3d {
-            width: dims.x,
-            height: dims.y,
-            depth_or_array_layers: dims.z,
-        };
+        let size = extent(dims);
         let texture = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("voxel grid"),
             size,
@@ -560,43 +525,77 @@ impl GpuTracer {
         });
     }
 
-    /// A storage buffer of at least `bytes`, kept while large enough.
-    fn storage(
+    /// A buffer of at least `bytes` in `slot`, kept while large enough.
+    fn grow(
         device: &wgpu::Device,
         slot: &mut Option<(u64, wgpu::Buffer)>,
         bytes: u64,
         label: &str,
+        usage: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
         if let Some((cap, b)) = slot
             && *cap >= bytes
         {
             return b.clone();
         }
-        let b = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let b = buffer(device, label, bytes, usage);
         *slot = Some((bytes, b.clone()));
         b
     }
 
-    /// The compensation buffer of an accumulating render, kept while large enough.
-    fn compensation_buffer(&mut self, bytes: u64) -> wgpu::Buffer {
-        if let Some((cap, b)) = &self.compensation
-            && *cap >= bytes
-        {
-            return b.clone();
+    /// The materials and lights as `shaders/types.wgsl` lays them out: the tracer's
+    /// and the pyramid injection's.
+    fn scene_data(scene: &Scene, settings: &RenderSettings) -> (Vec<GpuMaterial>, Vec<GpuLight>) {
+        let materials = scene
+            .materials
+            .iter()
+            .map(|m| GpuMaterial {
+                albedo: f3(m.albedo),
+                kd: m.kd as f32,
+                ks: m.ks as f32,
+                shininess: m.shininess as f32,
+                kr: m.kr as f32,
+                kt: m.kt as f32,
+                ior: m.ior as f32,
+                // Per world unit times world units per voxel: per voxel unit.
+                sigma: f3(m.absorption(scene.grid.voxel_size()) * scene.grid.voxel_size()),
+                emission: f3(m.emission),
+                _pad_e: 0.0,
+            })
+            .collect();
+        let mut lights: Vec<GpuLight> = scene
+            .lights
+            .iter()
+            .map(|l| Self::light(scene, settings, l))
+            .collect();
+        // A binding cannot be empty: a scene without lights binds one unused entry.
+        if lights.is_empty() {
+            lights.push(GpuLight::zeroed());
         }
-        let b = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("compensation"),
-            size: bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        self.compensation = Some((bytes, b.clone()));
-        b
+        (materials, lights)
+    }
+
+    /// Writes the materials and lights into their buffers (grown when too small) and
+    /// returns those.
+    fn upload_scene(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+    ) -> (wgpu::Buffer, wgpu::Buffer) {
+        let (materials, lights) = Self::scene_data(scene, settings);
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        let upload = |slot: &mut Option<(u64, wgpu::Buffer)>, bytes: &[u8], label| {
+            let b = Self::grow(&self.device, slot, bytes.len() as u64, label, usage);
+            self.queue.write_buffer(&b, 0, bytes);
+            b
+        };
+        let mat_buf = upload(
+            &mut self.materials,
+            bytemuck::cast_slice(&materials),
+            "materials",
+        );
+        let light_buf = upload(&mut self.lights, bytemuck::cast_slice(&lights), "lights");
+        (mat_buf, light_buf)
     }
 
     fn output_buffers(&mut self, pixels: u64) -> (wgpu::Buffer, wgpu::Buffer) {
@@ -605,18 +604,13 @@ impl GpuTracer {
         {
             return (b.output.clone(), b.readback.clone());
         }
-        let output = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("radiance"),
-            size: pixels * 16,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("radiance readback"),
-            size: pixels * 16,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let output = buffer(
+            &self.device,
+            "radiance",
+            pixels * 16,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        );
+        let readback = readback(&self.device, "radiance readback", pixels * 16);
         self.buffers = Some(Buffers {
             pixels,
             output: output.clone(),
@@ -731,54 +725,19 @@ impl GpuTracer {
         self.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
 
-        let materials: Vec<GpuMaterial> = scene
-            .materials
-            .iter()
-            .map(|m| GpuMaterial {
-                albedo: f3(m.albedo),
-                kd: m.kd as f32,
-                ks: m.ks as f32,
-                shininess: m.shininess as f32,
-                kr: m.kr as f32,
-                kt: m.kt as f32,
-                ior: m.ior as f32,
-                // Per world unit times world units per voxel: per voxel unit.
-                sigma: f3(m.absorption(scene.grid.voxel_size()) * scene.grid.voxel_size()),
-                emission: f3(m.emission),
-                _pad_e: 0.0,
-            })
-            .collect();
-        let mut lights: Vec<GpuLight> = scene
-            .lights
-            .iter()
-            .map(|l| Self::light(scene, settings, l))
-            .collect();
-        // A binding cannot be empty: a scene without lights binds one unused entry.
-        if lights.is_empty() {
-            lights.push(GpuLight::zeroed());
-        }
-        let mat_bytes: &[u8] = bytemuck::cast_slice(&materials);
-        let light_bytes: &[u8] = bytemuck::cast_slice(&lights);
-        let mat_buf = Self::storage(
-            &self.device,
-            &mut self.materials,
-            mat_bytes.len() as u64,
-            "materials",
-        );
-        let light_buf = Self::storage(
-            &self.device,
-            &mut self.lights,
-            light_bytes.len() as u64,
-            "lights",
-        );
-        self.queue.write_buffer(&mat_buf, 0, mat_bytes);
-        self.queue.write_buffer(&light_buf, 0, light_bytes);
+        let (mat_buf, light_buf) = self.upload_scene(scene, settings);
         self.queue
             .write_buffer(&self.counters, 0, &[0u8; COUNTER_BYTES as usize]);
 
         let (output, readback) = self.output_buffers(pixels);
         let compensation = if plan.accumulate {
-            Some(self.compensation_buffer(pixels * 16))
+            Some(Self::grow(
+                &self.device,
+                &mut self.compensation,
+                pixels * 16,
+                "compensation",
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            ))
         } else {
             // Only accumulating renders hold one.
             self.compensation = None;
@@ -789,37 +748,13 @@ impl GpuTracer {
             label: Some("voxlab tracer"),
             layout: &self.layout,
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: self.params.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(grid_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: mat_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: light_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: output.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: self.counters.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 6,
-                    resource: compensation
-                        .as_ref()
-                        .unwrap_or(&self.compensation_dummy)
-                        .as_entire_binding(),
-                },
+                buffer_entry(0, &self.params),
+                view_entry(1, grid_view),
+                buffer_entry(2, &mat_buf),
+                buffer_entry(3, &light_buf),
+                buffer_entry(4, &output),
+                buffer_entry(5, &self.counters),
+                buffer_entry(6, compensation.as_ref().unwrap_or(&self.compensation_dummy)),
             ],
         });
 

@@ -7,7 +7,9 @@
 //! The opacity is built level by level in f32 storage buffers and rounded to f16 once,
 //! then copied into the texture (R16Float is filterable but not a storage format in
 //! WebGPU). The radiance texture is a storage format and is written in place; each of
-//! its levels is filtered from the f16 level below.
+//! its levels is filtered from the f16 level below. The injection reads the tracer's
+//! own material and light buffers (`voxlab::types`), so there is one upload and one
+//! layout of each.
 //!
 //! Also here: the bind group of `shaders/cone.wgsl` (group 1) and a probe kernel
 //! (`shaders/cone_probe.wgsl`) that runs single cones for tests.
@@ -17,18 +19,23 @@ use std::collections::HashMap;
 
 use anyhow::{Result, anyhow, bail};
 use bytemuck::{Pod, Zeroable};
-use glam::{DVec3, UVec3};
-use naga_oil::compose::{
-    ComposableModuleDescriptor, Composer, NagaModuleDescriptor, ShaderDefValue,
-};
+use glam::UVec3;
+use naga_oil::compose::ShaderDefValue;
 
-use super::GpuTracer;
+use super::util::{
+    buffer, buffer_entry, buffer_init, extent, readback, sampler_entry, storage_entry,
+    texture_3d_entry, uniform_entry, view_entry,
+};
+use super::{GpuLight, GpuMaterial, GpuTracer};
 use crate::cpu::cone::hemisphere_tan_half;
 use crate::cpu::pyramid::{PyramidLayout, alpha_table};
 use crate::render::{ConeSettings, RenderSettings};
 use crate::scene::Scene;
 
-const INJECT: &str = include_str!("../../shaders/inject.wgsl");
+const INJECT: (&str, &str) = (
+    "shaders/inject.wgsl",
+    include_str!("../../shaders/inject.wgsl"),
+);
 const MIP_BUILD: &str = include_str!("../../shaders/mip_build.wgsl");
 /// `voxlab::cone`, imported by the tracer and the probe.
 pub const CONE_MODULE: (&str, &str) =
@@ -47,22 +54,6 @@ struct InjectParams {
     voxel_size: f32,
     falloff_min_dist_sq: f32,
     falloff: u32,
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct InjectMaterial {
-    albedo_kd: [f32; 4],
-    alpha_kt: [f32; 4],
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct InjectLight {
-    position: [f32; 3],
-    _pad_a: f32,
-    radiance: [f32; 3],
-    _pad_b: f32,
 }
 
 #[repr(C)]
@@ -149,29 +140,34 @@ pub(super) struct BuildPipelines {
 }
 
 impl BuildPipelines {
-    fn new(device: &wgpu::Device) -> Self {
+    fn new(device: &wgpu::Device) -> Result<Self> {
+        let inject =
+            super::compose::compose(&[super::compose::TYPES_MODULE], INJECT, HashMap::new())
+                .map_err(|e| anyhow!("composing {}: {e}", INJECT.0))?;
+        super::validate(&inject).map_err(|e| anyhow!("validating {}: {e}", INJECT.0))?;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("inject"),
-            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(INJECT)),
+            source: wgpu::ShaderSource::Naga(Cow::Owned(inject)),
         });
         let mip = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("mip_build"),
             source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(MIP_BUILD)),
         });
-        Self {
+        Ok(Self {
             opacity_base: pipeline(device, &module, "opacity_base"),
             radiance_base: pipeline(device, &module, "radiance_base"),
             reduce_r: pipeline(device, &mip, "reduce_r"),
             pack_r: pipeline(device, &mip, "pack_r"),
             reduce_rgba: pipeline(device, &mip, "reduce_rgba"),
-        }
+        })
     }
 }
 
 /// Everything a pyramid build reads, so that equal keys mean identical pyramids: the
 /// grid upload (its contents and dims), the layout, whether radiance is built, and a
 /// hash of the per-material alpha (transmittance model, kt, sigma) and, for radiance
-/// only, of the injection's materials, lights and parameters (falloff, ray offset...).
+/// only, of what the injection reads of the materials (albedo, kd, kt) and lights
+/// (position, radiance), and its parameters (falloff, ray offset...).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub(super) struct PyramidKey {
     grid: u64,
@@ -180,45 +176,19 @@ pub(super) struct PyramidKey {
     inputs: blake3::Hash,
 }
 
-/// The host data a build uploads.
+/// What a build uploads besides the tracer's materials and lights.
 struct InjectInputs {
-    materials: Vec<InjectMaterial>,
-    lights: Vec<InjectLight>,
+    alpha: Vec<f32>,
     params: InjectParams,
 }
 
 impl InjectInputs {
     fn new(scene: &Scene, settings: &RenderSettings, dims: UVec3) -> Self {
-        let alpha = alpha_table(scene, settings.features.transmittance);
-        let materials = scene
-            .materials
-            .iter()
-            .zip(&alpha)
-            .map(|(m, &a)| InjectMaterial {
-                albedo_kd: [
-                    m.albedo.x as f32,
-                    m.albedo.y as f32,
-                    m.albedo.z as f32,
-                    m.kd as f32,
-                ],
-                alpha_kt: [a as f32, m.kt as f32, 0.0, 0.0],
-            })
-            .collect();
         let grid = &scene.grid;
-        let mut lights: Vec<InjectLight> = scene
-            .lights
-            .iter()
-            .map(|l| InjectLight {
-                position: f3(grid.to_local(l.position())),
-                _pad_a: 0.0,
-                radiance: f3(l.color() * l.intensity()),
-                _pad_b: 0.0,
-            })
+        let alpha = alpha_table(scene, settings.features.transmittance)
+            .into_iter()
+            .map(|a| a as f32)
             .collect();
-        // A binding cannot be empty.
-        if lights.is_empty() {
-            lights.push(InjectLight::zeroed());
-        }
         let params = InjectParams {
             dims: dims.to_array(),
             num_lights: scene.lights.len() as u32,
@@ -228,22 +198,31 @@ impl InjectInputs {
                 as f32,
             falloff: settings.falloff as u32,
         };
-        Self {
-            materials,
-            lights,
-            params,
-        }
+        Self { alpha, params }
     }
 
-    /// The opacity reads only each material's alpha; the radiance reads the rest too.
-    fn key(&self, grid: u64, layout: PyramidLayout, radiance: bool) -> PyramidKey {
+    /// The opacity reads only the alpha table; the radiance reads the rest too. Fields of
+    /// the materials and lights that `shaders/inject.wgsl` does not read stay out, so
+    /// that changing them (ks, emission, an area light's shape) does not rebuild.
+    fn key(
+        &self,
+        grid: u64,
+        layout: PyramidLayout,
+        radiance: bool,
+        materials: &[GpuMaterial],
+        lights: &[GpuLight],
+    ) -> PyramidKey {
         let mut h = blake3::Hasher::new();
-        for m in &self.materials {
-            h.update(bytemuck::bytes_of(&m.alpha_kt[0]));
-        }
+        h.update(bytemuck::cast_slice(&self.alpha));
         if radiance {
-            h.update(bytemuck::cast_slice(&self.materials));
-            h.update(bytemuck::cast_slice(&self.lights));
+            for m in materials {
+                h.update(bytemuck::cast_slice(&m.albedo));
+                h.update(bytemuck::cast_slice(&[m.kd, m.kt]));
+            }
+            for l in lights {
+                h.update(bytemuck::cast_slice(&l.position));
+                h.update(bytemuck::cast_slice(&l.radiance));
+            }
             h.update(bytemuck::bytes_of(&self.params));
         }
         PyramidKey {
@@ -252,18 +231,6 @@ impl InjectInputs {
             radiance,
             inputs: h.finalize(),
         }
-    }
-}
-
-fn f3(v: DVec3) -> [f32; 3] {
-    [v.x as f32, v.y as f32, v.z as f32]
-}
-
-fn extent(d: UVec3) -> wgpu::Extent3d {
-    wgpu::Extent3d {
-        width: d.x,
-        height: d.y,
-        depth_or_array_layers: d.z,
     }
 }
 
@@ -311,38 +278,15 @@ fn pipeline(
 
 /// The layout of `shaders/cone.wgsl`'s group 1.
 pub fn cone_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
-    let tex = |binding| wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Float { filterable: true },
-            view_dimension: wgpu::TextureViewDimension::D3,
-            multisampled: false,
-        },
-        count: None,
-    };
+    let float = wgpu::TextureSampleType::Float { filterable: true };
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("voxlab cones"),
         entries: &[
-            wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            },
-            tex(1),
-            tex(2),
-            wgpu::BindGroupLayoutEntry {
-                binding: 3,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                count: None,
-            },
-            super::storage_entry(4, true),
+            uniform_entry(0),
+            texture_3d_entry(1, float),
+            texture_3d_entry(2, float),
+            sampler_entry(3),
+            storage_entry(4, true),
         ],
     })
 }
@@ -368,27 +312,8 @@ pub fn compose_with_cone(entry: (&str, &str), defs: &[&str]) -> Result<naga::Mod
         .iter()
         .map(|d| (d.to_string(), ShaderDefValue::Bool(true)))
         .collect();
-    let mut composer = Composer::default();
-    if let Err(e) = composer.add_composable_module(ComposableModuleDescriptor {
-        source: CONE_MODULE.1,
-        file_path: CONE_MODULE.0,
-        shader_defs: defs.clone(),
-        ..Default::default()
-    }) {
-        bail!(
-            "composing {}: {}",
-            CONE_MODULE.0,
-            e.emit_to_string(&composer)
-        );
-    }
-    let module = composer
-        .make_naga_module(NagaModuleDescriptor {
-            source: entry.1,
-            file_path: entry.0,
-            shader_defs: defs,
-            ..Default::default()
-        })
-        .map_err(|e| anyhow!("composing {}: {}", entry.0, e.emit_to_string(&composer)))?;
+    let module = super::compose::compose(&[CONE_MODULE], entry, defs)
+        .map_err(|e| anyhow!("composing {}: {e}", entry.0))?;
     super::validate(&module).map_err(|e| anyhow!("validating {}: {e}", entry.0))?;
     Ok(module)
 }
@@ -420,13 +345,14 @@ impl GpuTracer {
     ) -> Result<GpuPyramid> {
         scene.validate()?;
         self.upload_grid(scene);
+        self.upload_scene(scene, settings);
         let inputs = InjectInputs::new(scene, settings, layout.dims);
         self.build(&inputs, layout, radiance)
     }
 
     /// The pyramid of a render: the cached one when nothing it was built from changed,
-    /// else a new build, which replaces it, left in `self.pyramid`. Expects the grid
-    /// uploaded.
+    /// else a new build, which replaces it, left in `self.pyramid`. Expects the grid,
+    /// materials and lights of `scene` uploaded.
     pub(super) fn cache_pyramid(
         &mut self,
         scene: &Scene,
@@ -435,7 +361,14 @@ impl GpuTracer {
         radiance: bool,
     ) -> Result<()> {
         let inputs = InjectInputs::new(scene, settings, layout.dims);
-        let key = inputs.key(self.grid_generation(), layout, radiance);
+        let (materials, lights) = Self::scene_data(scene, settings);
+        let key = inputs.key(
+            self.grid_generation(),
+            layout,
+            radiance,
+            &materials,
+            &lights,
+        );
         if self.pyramid.as_ref().is_none_or(|(k, _)| *k != key) {
             // Freed before the build so two pyramids never share the device's memory.
             self.pyramid = None;
@@ -445,6 +378,7 @@ impl GpuTracer {
         Ok(())
     }
 
+    /// Reads the tracer's grid, materials and lights as uploaded.
     fn build(
         &mut self,
         inputs: &InjectInputs,
@@ -452,7 +386,7 @@ impl GpuTracer {
         radiance: bool,
     ) -> Result<GpuPyramid> {
         if self.build_pipelines.is_none() {
-            self.build_pipelines = Some(BuildPipelines::new(&self.device));
+            self.build_pipelines = Some(BuildPipelines::new(&self.device)?);
         }
         self.pyramid_builds += 1;
         let pipes = self.build_pipelines.as_ref().expect("build pipelines made");
@@ -479,30 +413,19 @@ impl GpuTracer {
             );
         }
         let grid_view = &self.grid.as_ref().expect("grid uploaded").view;
-
-        let init = |label: &str, contents: &[u8], usage| {
-            wgpu::util::DeviceExt::create_buffer_init(
-                device,
-                &wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents,
-                    usage,
-                },
-            )
+        let (Some((_, mat_buf)), Some((_, light_buf))) = (&self.materials, &self.lights) else {
+            unreachable!("materials and lights uploaded before a pyramid build");
         };
-        let ip_buf = init(
+        let ip_buf = buffer_init(
+            device,
             "inject params",
             bytemuck::bytes_of(&inputs.params),
             wgpu::BufferUsages::UNIFORM,
         );
-        let mat_buf = init(
-            "inject materials",
-            bytemuck::cast_slice(&inputs.materials),
-            wgpu::BufferUsages::STORAGE,
-        );
-        let light_buf = init(
-            "inject lights",
-            bytemuck::cast_slice(&inputs.lights),
+        let alpha_buf = buffer_init(
+            device,
+            "inject alpha",
+            bytemuck::cast_slice(&inputs.alpha),
             wgpu::BufferUsages::STORAGE,
         );
 
@@ -531,21 +454,21 @@ impl GpuTracer {
         let level_bufs: Vec<wgpu::Buffer> = (0..layout.levels)
             .map(|l| {
                 let d = layout.level_dims(l);
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("opacity level"),
-                    size: d.x as u64 * d.y as u64 * d.z as u64 * 4,
-                    usage: wgpu::BufferUsages::STORAGE,
-                    mapped_at_creation: false,
-                })
+                buffer(
+                    device,
+                    "opacity level",
+                    d.x as u64 * d.y as u64 * d.z as u64 * 4,
+                    wgpu::BufferUsages::STORAGE,
+                )
             })
             .collect();
         let pitch0 = align256(dims.x.div_ceil(2) * 4);
-        let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("opacity staging"),
-            size: pitch0 as u64 * dims.y as u64 * dims.z as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let staging = buffer(
+            device,
+            "opacity staging",
+            pitch0 as u64 * dims.y as u64 * dims.z as u64,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        );
 
         let mut enc = device.create_command_encoder(&Default::default());
         let run = |enc: &mut wgpu::CommandEncoder,
@@ -567,22 +490,10 @@ impl GpuTracer {
             &mut enc,
             &pipes.opacity_base,
             &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: ip_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(grid_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: mat_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: level_bufs[0].as_entire_binding(),
-                },
+                buffer_entry(0, &ip_buf),
+                view_entry(1, grid_view),
+                buffer_entry(4, &level_bufs[0]),
+                buffer_entry(6, &alpha_buf),
             ],
             groups(dims),
         );
@@ -592,7 +503,8 @@ impl GpuTracer {
             let d = layout.level_dims(l);
             let next = layout.level_dims(l + 1);
             let pitch = align256(d.x.div_ceil(2) * 4);
-            level_params.push(init(
+            level_params.push(buffer_init(
+                device,
                 "level params",
                 bytemuck::bytes_of(&LevelParams {
                     src_dims: d.to_array(),
@@ -610,18 +522,9 @@ impl GpuTracer {
                     &mut enc,
                     &pipes.reduce_r,
                     &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: level_params[l].as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: level_bufs[l].as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 2,
-                            resource: level_bufs[l + 1].as_entire_binding(),
-                        },
+                        buffer_entry(0, &level_params[l]),
+                        buffer_entry(1, &level_bufs[l]),
+                        buffer_entry(2, &level_bufs[l + 1]),
                     ],
                     groups(layout.level_dims(l as u32 + 1)),
                 );
@@ -630,18 +533,9 @@ impl GpuTracer {
                 &mut enc,
                 &pipes.pack_r,
                 &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: level_params[l].as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: level_bufs[l].as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 5,
-                        resource: staging.as_entire_binding(),
-                    },
+                    buffer_entry(0, &level_params[l]),
+                    buffer_entry(1, &level_bufs[l]),
+                    buffer_entry(5, &staging),
                 ],
                 groups(UVec3::new(d.x.div_ceil(2), d.y, d.z)),
             );
@@ -685,26 +579,12 @@ impl GpuTracer {
                 &mut enc,
                 &pipes.radiance_base,
                 &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: ip_buf.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::TextureView(grid_view),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: mat_buf.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: light_buf.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 5,
-                        resource: wgpu::BindingResource::TextureView(&v0),
-                    },
+                    buffer_entry(0, &ip_buf),
+                    view_entry(1, grid_view),
+                    buffer_entry(2, mat_buf),
+                    buffer_entry(3, light_buf),
+                    view_entry(5, &v0),
+                    buffer_entry(6, &alpha_buf),
                 ],
                 groups(dims),
             );
@@ -715,18 +595,9 @@ impl GpuTracer {
                     &mut enc,
                     &pipes.reduce_rgba,
                     &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: level_params[l as usize].as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 3,
-                            resource: wgpu::BindingResource::TextureView(&src),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 4,
-                            resource: wgpu::BindingResource::TextureView(&dst),
-                        },
+                        buffer_entry(0, &level_params[l as usize]),
+                        view_entry(3, &src),
+                        view_entry(4, &dst),
                     ],
                     groups(layout.level_dims(l + 1)),
                 );
@@ -784,12 +655,7 @@ impl GpuTracer {
         let d = pyr.layout.texture_dims(level);
         let pitch = align256(d.x * texel);
         let bytes = pitch as u64 * d.y as u64 * d.z as u64;
-        let buf = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("pyramid readback"),
-            size: bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let buf = readback(&self.device, "pyramid readback", bytes);
         let mut enc = self.device.create_command_encoder(&Default::default());
         enc.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
@@ -840,10 +706,7 @@ impl GpuTracer {
         });
         let g0 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cone probe"),
-            entries: &[
-                super::storage_entry(0, true),
-                super::storage_entry(1, false),
-            ],
+            entries: &[storage_entry(0, true), storage_entry(1, false)],
         });
         let g1 = cone_bind_group_layout(device);
         let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -859,47 +722,24 @@ impl GpuTracer {
             compilation_options: Default::default(),
             cache: None,
         });
-        let init = |label: &str, contents: &[u8], usage| {
-            wgpu::util::DeviceExt::create_buffer_init(
-                device,
-                &wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents,
-                    usage,
-                },
-            )
-        };
-        let q = init(
+        let q = buffer_init(
+            device,
             "queries",
             bytemuck::cast_slice(queries),
             wgpu::BufferUsages::STORAGE,
         );
         let out_bytes = queries.len() as u64 * 16;
-        let out = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("probe results"),
-            size: out_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("probe readback"),
-            size: out_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let out = buffer(
+            device,
+            "probe results",
+            out_bytes,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        );
+        let results = readback(device, "probe readback", out_bytes);
         let bg0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: None,
             layout: &g0,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: q.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: out.as_entire_binding(),
-                },
-            ],
+            entries: &[buffer_entry(0, &q), buffer_entry(1, &out)],
         });
         let bg1 = self.cone_bind_group(pyr, cones, &g1, &[0.0]);
         let mut enc = device.create_command_encoder(&Default::default());
@@ -910,9 +750,9 @@ impl GpuTracer {
             pass.set_bind_group(1, &bg1, &[]);
             pass.dispatch_workgroups((queries.len() as u32).div_ceil(64), 1, 1);
         }
-        enc.copy_buffer_to_buffer(&out, 0, &readback, 0, out_bytes);
+        enc.copy_buffer_to_buffer(&out, 0, &results, 0, out_bytes);
         self.queue.submit([enc.finish()]);
-        self.read(&readback, out_bytes)
+        self.read(&results, out_bytes)
     }
 
     /// The group-1 bind group of `shaders/cone.wgsl` for `pyr`, with each light's
@@ -926,17 +766,8 @@ impl GpuTracer {
     ) -> wgpu::BindGroup {
         let device = &self.device;
         let params = GpuConeParams::new(&pyr.layout, cones);
-        let init = |label: &str, contents: &[u8], usage| {
-            wgpu::util::DeviceExt::create_buffer_init(
-                device,
-                &wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents,
-                    usage,
-                },
-            )
-        };
-        let pbuf = init(
+        let pbuf = buffer_init(
+            device,
             "cone params",
             bytemuck::bytes_of(&params),
             wgpu::BufferUsages::UNIFORM,
@@ -947,7 +778,8 @@ impl GpuTracer {
         } else {
             light_radius
         };
-        let lbuf = init(
+        let lbuf = buffer_init(
+            device,
             "cone lights",
             bytemuck::cast_slice(lt),
             wgpu::BufferUsages::STORAGE,
@@ -957,26 +789,14 @@ impl GpuTracer {
             label: Some("voxlab cones"),
             layout,
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: pbuf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&pyr.opacity_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::TextureView(&pyr.radiance_view),
-                },
+                buffer_entry(0, &pbuf),
+                view_entry(1, &pyr.opacity_view),
+                view_entry(2, &pyr.radiance_view),
                 wgpu::BindGroupEntry {
                     binding: 3,
                     resource: wgpu::BindingResource::Sampler(&sampler),
                 },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: lbuf.as_entire_binding(),
-                },
+                buffer_entry(4, &lbuf),
             ],
         })
     }
