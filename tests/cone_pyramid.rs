@@ -9,6 +9,9 @@
 //!   level plus f32 injection arithmetic);
 //! - cones (the probe runs `shaders/cone.wgsl` itself): see `gpu_cones_match_cpu_cones`.
 
+mod common;
+
+use common::tracer;
 use glam::{DVec3, IVec3, UVec3};
 use voxlab::RenderSettings;
 use voxlab::cpu::cone::{self, ConeParams};
@@ -17,12 +20,6 @@ use voxlab::gpu::GpuTracer;
 use voxlab::gpu::pyramid::ConeQuery;
 use voxlab::render::ConeSettings;
 use voxlab::scene::{Grid, Scene, seed_palette, seed_scene};
-
-fn tracer() -> GpuTracer {
-    GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    })
-}
 
 /// A grid of `dims` filled pseudo-randomly (a fixed LCG) with the seed palette's glass,
 /// semi-solid and solid at `fill` density, lit by the seed's lights for a 16^3 grid moved

@@ -2,35 +2,19 @@
 //! they are off, GPU against the CPU reference, vanishing cones against the hard
 //! shadow, and cone soft shadows against the converged stochastic area light.
 
-use std::path::PathBuf;
+mod common;
+
+use common::{display, experiment, golden_dir, linear, rmse, tracer};
 
 use voxlab::experiment::Experiment;
 use voxlab::gpu::{GpuTracer, compose_shader};
-use voxlab::metrics::{Domain, compare};
 use voxlab::output::read_png;
 use voxlab::plan::Plan;
 use voxlab::{Frame, RenderSettings};
 
-fn tracer() -> GpuTracer {
-    GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    })
-}
-
-fn load(name: &str) -> Experiment {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("experiments")
-        .join(name);
-    Experiment::load(&path).unwrap_or_else(|e| panic!("{e}"))
-}
-
 fn small(e: &mut Experiment, side: u32) {
     e.settings.width = side;
     e.settings.height = side;
-}
-
-fn rmse(a: &Frame, b: &Frame) -> f64 {
-    compare(a, b, Domain::Linear, 0.0).unwrap().rmse
 }
 
 #[test]
@@ -59,7 +43,7 @@ fn every_cone_variant_composes() {
 #[test]
 fn cone_features_off_give_the_golden_baseline() {
     let mut gpu = tracer();
-    let mut e = load("baseline.toml");
+    let mut e = experiment("baseline.toml");
     small(&mut e, 128);
     e.settings.max_reflection_depth = 0;
     e.settings.max_refraction_depth = 0;
@@ -77,11 +61,8 @@ fn cone_features_off_give_the_golden_baseline() {
     assert!(plan.pyramid.is_none(), "{plan}");
     let knobs = gpu.render(&e.scene, &e.settings).unwrap().frame;
     assert_eq!(plain, knobs);
-    let golden = read_png(
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden/baseline_depth0_128.png"),
-    )
-    .unwrap();
-    let d = compare(&knobs, &golden, Domain::Display, 2.0 / 255.0).unwrap();
+    let golden = read_png(golden_dir().join("baseline_depth0_128.png")).unwrap();
+    let d = display(&knobs, &golden, 2.0 / 255.0);
     assert!(
         d.fraction_over() <= 0.002 && d.mean_abs < 0.5 / 255.0,
         "{d:?}"
@@ -100,11 +81,11 @@ fn gpu_cone_images_match_the_cpu_reference() {
         ("ambient_occlusion.toml", 64),
         ("indirect.toml", 48),
     ] {
-        let mut e = load(file);
+        let mut e = experiment(file);
         small(&mut e, side);
         let g = gpu.render(&e.scene, &e.settings).unwrap().frame;
         let c = voxlab::cpu::render(&e.scene, &e.settings).frame;
-        let d = compare(&g, &c, Domain::Linear, 0.02).unwrap();
+        let d = linear(&g, &c, 0.02);
         println!("{file}: {d:?}");
         assert!(g.all_finite());
         assert!(
@@ -128,7 +109,7 @@ fn hard_and_cone(gpu: &mut GpuTracer, e: &Experiment, deg: f64) -> (Frame, Frame
 #[test]
 fn vanishing_cones_approach_the_hard_shadow_image() {
     let mut gpu = tracer();
-    let mut e = load("baseline.toml");
+    let mut e = experiment("baseline.toml");
     small(&mut e, 96);
     let mut errs = Vec::new();
     for deg in [40.0, 20.0, 10.0, 5.0, 2.5] {
@@ -150,7 +131,7 @@ fn vanishing_cones_approach_the_hard_shadow_image() {
 #[test]
 fn cone_soft_shadows_against_the_converged_area_light() {
     let mut gpu = tracer();
-    let mut e = load("area_lights.toml");
+    let mut e = experiment("area_lights.toml");
     // The rectangle alone: the point lights would get cones in one image and hard
     // shadows in the other.
     e.scene.lights.truncate(1);

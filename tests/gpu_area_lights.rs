@@ -13,60 +13,20 @@
 //!
 //! Runs on whatever adapter wgpu finds (lavapipe in CI); a missing adapter fails.
 
-use std::path::PathBuf;
+mod common;
 
+use common::{assert_agree, assert_matches_golden, experiment, linear, tracer};
 use glam::DVec3;
+use voxlab::RenderSettings;
 use voxlab::experiment::Experiment;
-use voxlab::gpu::GpuTracer;
-use voxlab::metrics::{Domain, ImageDiff, compare};
-use voxlab::output::read_png;
 use voxlab::plan::Plan;
 use voxlab::scene::{AreaLight, AreaShape, Light, Scene, seed_scene};
-use voxlab::{Frame, RenderSettings};
-
-fn tracer() -> GpuTracer {
-    GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    })
-}
 
 fn baseline(width: u32, height: u32) -> Experiment {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("experiments/baseline.toml");
-    let mut e = Experiment::load(&path).unwrap_or_else(|err| panic!("{err}"));
+    let mut e = experiment("baseline.toml");
     e.settings.width = width;
     e.settings.height = height;
     e
-}
-
-/// The displayed 8-bit image against a golden PNG, with tests/gpu_golden.rs's tolerance.
-fn assert_matches_golden(name: &str, frame: &Frame, golden: &str) {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("tests/golden/{golden}"));
-    let golden = read_png(&path).unwrap_or_else(|e| panic!("{e}"));
-    let mut shown = frame.clone();
-    for p in &mut shown.pixels {
-        *p = p.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() / 255.0);
-    }
-    let d = compare(&shown, &golden, Domain::Display, 2.0 / 255.0).unwrap();
-    eprintln!("{name}: {d}");
-    assert!(
-        d.fraction_over() <= 0.002 && d.mean_abs <= 0.5 / 255.0,
-        "{name}: differs from the golden {}: {d}",
-        path.display()
-    );
-}
-
-/// GPU against CPU with tests/gpu_agreement.rs's tolerance.
-#[track_caller]
-fn assert_agree(name: &str, g: &Frame, c: &Frame) -> ImageDiff {
-    assert!(g.all_finite(), "{name}: GPU image has NaN or inf");
-    assert!(c.all_finite(), "{name}: CPU image has NaN or inf");
-    let d = compare(g, c, Domain::Display, 2.0 / 255.0).unwrap();
-    eprintln!("{name}: GPU vs CPU {d}");
-    assert!(
-        d.fraction_over() < 0.005 && d.mean_abs < 1e-3,
-        "{name}: GPU and CPU differ: {d}"
-    );
-    d
 }
 
 /// The seed's point lights re-expressed as area lights of `shape` with size `size`
@@ -200,10 +160,16 @@ fn stochastic_images_agree_with_the_cpu() {
         assert!(d.rmse < 1e-3, "{name}: {d}");
 
         // The samples really are stochastic: another seed changes the image.
-        let other = RenderSettings { seed: 8, ..settings.clone() };
+        let other = RenderSettings {
+            seed: 8,
+            ..settings.clone()
+        };
         let g2 = gpu.render(&scene, &other).unwrap();
-        let d2 = compare(&g.frame, &g2.frame, Domain::Linear, 2.0 / 255.0).unwrap();
-        assert!(d2.rmse > 10.0 * d.rmse.max(1e-6), "{name}: seed 7 vs 8 {d2}");
+        let d2 = linear(&g.frame, &g2.frame, 2.0 / 255.0);
+        assert!(
+            d2.rmse > 10.0 * d.rmse.max(1e-6),
+            "{name}: seed 7 vs 8 {d2}"
+        );
     }
 }
 
@@ -274,7 +240,10 @@ fn sphere_light_inside_an_opaque_voxel_is_finite() {
     let mut scene = seed_scene(16).unwrap();
     // The seed's frame is solid along the grid's edges: (0.5, 0.5, 8) is inside one.
     let centre = DVec3::new(0.5, 0.5, 8.0);
-    assert_eq!(scene.materials[scene.grid.material_at(centre) as usize].kt, 0.0);
+    assert_eq!(
+        scene.materials[scene.grid.material_at(centre) as usize].kt,
+        0.0
+    );
     scene.lights = vec![Light::Area(AreaLight {
         // Radius 0.8: part of the sphere lies outside the voxel (and outside the grid).
         shape: AreaShape::Sphere { radius: 0.8 },
@@ -301,8 +270,11 @@ fn sphere_light_inside_an_opaque_voxel_is_finite() {
     let mut dark = scene.clone();
     dark.lights.clear();
     let unlit = voxlab::cpu::render(&dark, &settings).frame;
-    let lit = compare(&c, &unlit, Domain::Linear, 1e-3).unwrap();
-    assert!(lit.pixels_over > 0, "the samples outside the voxel light nothing: {lit}");
+    let lit = linear(&c, &unlit, 1e-3);
+    assert!(
+        lit.pixels_over > 0,
+        "the samples outside the voxel light nothing: {lit}"
+    );
     // Entirely inside the voxel: every sample is shadowed, the image is the unlit one.
     scene.lights[0] = match &scene.lights[0] {
         Light::Area(a) => Light::Area(AreaLight {
@@ -313,8 +285,11 @@ fn sphere_light_inside_an_opaque_voxel_is_finite() {
     };
     let g = gpu.render(&scene, &settings).unwrap().frame;
     assert!(g.all_finite());
-    let d = compare(&g, &unlit, Domain::Linear, 1e-6).unwrap();
-    assert!(d.max_abs < 1e-6, "light sealed in a solid voxel lights something: {d}");
+    let d = linear(&g, &unlit, 1e-6);
+    assert!(
+        d.max_abs < 1e-6,
+        "light sealed in a solid voxel lights something: {d}"
+    );
 }
 
 /// The plan: AREA_LIGHTS only with sampling on and a light of non-zero size, with a
@@ -330,7 +305,9 @@ fn plan_flags_follow_the_scene() {
     let p = Plan::new(&scene, &settings);
     assert!(!p.area_lights && !p.accumulate, "{p}");
     assert!(
-        p.reasons.iter().any(|r| r.contains("no area light of non-zero size")),
+        p.reasons
+            .iter()
+            .any(|r| r.contains("no area light of non-zero size")),
         "{p}"
     );
     assert_eq!(p.frames(&settings), 1);
@@ -344,5 +321,8 @@ fn plan_flags_follow_the_scene() {
     settings.features.area_lights = false;
     let p = Plan::new(&scene, &settings);
     assert!(!p.area_lights, "{p}");
-    assert!(p.reasons.iter().any(|r| r.contains("area_lights is off")), "{p}");
+    assert!(
+        p.reasons.iter().any(|r| r.contains("area_lights is off")),
+        "{p}"
+    );
 }

@@ -5,22 +5,20 @@
 //! Tolerance (tests/gpu_agreement.rs's): fewer than 0.5 % of pixels over 2/255 on the
 //! displayed image, mean absolute difference below 1e-3.
 
+mod common;
+
+use common::{linear, tracer};
 use voxlab::experiment::Experiment;
 use voxlab::gpu::GpuTracer;
-use voxlab::metrics::{Domain, compare};
 use voxlab::{Frame, Transmittance};
-
-fn tracer() -> GpuTracer {
-    GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    })
-}
 
 /// A white floor under a tinted slab `thickness` voxels thick (y in [5, 5 + t)) over
 /// part of it, lit from above by `light` (a [[lights]] entry), seen obliquely so both
 /// the floor in the slab's shadow and the slab are in view.
 fn slab_scene(thickness: u32, sigma: Option<[f64; 3]>, light: &str, bl: bool) -> Experiment {
-    let sigma = sigma.map_or(String::new(), |s| format!("sigma = [{:e}, {:e}, {:e}]", s[0], s[1], s[2]));
+    let sigma = sigma.map_or(String::new(), |s| {
+        format!("sigma = [{:e}, {:e}, {:e}]", s[0], s[1], s[2])
+    });
     let text = format!(
         r#"
 [scene]
@@ -79,6 +77,7 @@ normal = [0.0, -1.0, 0.0]
 size = [2.0, 1.5]
 intensity = 40.0"#;
 
+/// The GPU-vs-CPU tolerance, and no negative radiance on the GPU.
 #[track_caller]
 fn assert_agree(name: &str, g: &Frame, c: &Frame) {
     assert!(g.all_finite() && c.all_finite(), "{name}: NaN or inf");
@@ -86,12 +85,7 @@ fn assert_agree(name: &str, g: &Frame, c: &Frame) {
         g.pixels.iter().all(|p| p.iter().all(|&v| v >= 0.0)),
         "{name}: negative radiance on the GPU"
     );
-    let d = compare(g, c, Domain::Display, 2.0 / 255.0).unwrap();
-    eprintln!("{name}: GPU vs CPU {d}");
-    assert!(
-        d.fraction_over() < 0.005 && d.mean_abs < 1e-3,
-        "{name}: GPU and CPU differ: {d}"
-    );
+    common::assert_agree(name, g, c);
 }
 
 #[test]
@@ -119,13 +113,19 @@ fn lit_floor_behind_slabs_matches_the_cpu() {
             // One voxel: Beer-Lambert is min-kt (default sigma) up to the obliquity of
             // the shadow rays; thicker slabs are darker under Beer-Lambert.
             let mean = |f: &Frame| {
-                f.pixels.iter().map(|p| p.iter().sum::<f32>() as f64).sum::<f64>()
+                f.pixels
+                    .iter()
+                    .map(|p| p.iter().sum::<f32>() as f64)
+                    .sum::<f64>()
                     / f.pixels.len() as f64
             };
             let (mk, bl) = (mean(&images[0]), mean(&images[1]));
             eprintln!("slab {t}: mean min-kt {mk:.5}, beer-lambert {bl:.5}");
             if t > 1 {
-                assert!(bl < mk, "slab {t}: beer-lambert {bl} not darker than min-kt {mk}");
+                assert!(
+                    bl < mk,
+                    "slab {t}: beer-lambert {bl} not darker than min-kt {mk}"
+                );
             }
         }
     }
@@ -141,7 +141,10 @@ fn extreme_optical_depths_are_exact_and_finite_on_the_gpu() {
     let mut gpu = tracer();
     let render = |gpu: &mut GpuTracer, sigma: f64| {
         let e = slab_scene(2, Some([sigma; 3]), POINT, true);
-        assert_eq!(e.settings.features.transmittance, Transmittance::BeerLambert);
+        assert_eq!(
+            e.settings.features.transmittance,
+            Transmittance::BeerLambert
+        );
         let g = gpu.render(&e.scene, &e.settings).unwrap().frame;
         assert!(gpu.last_plan().unwrap().beer_lambert);
         let c = voxlab::cpu::render(&e.scene, &e.settings).frame;
@@ -151,7 +154,7 @@ fn extreme_optical_depths_are_exact_and_finite_on_the_gpu() {
     // The slab is 2 voxels of 0.5: 1 world unit thick, so depth >= sigma.
     let thick = render(&mut gpu, 1e4);
     let infinite = render(&mut gpu, 1e30);
-    let d = compare(&thick, &infinite, Domain::Linear, 0.0).unwrap();
+    let d = linear(&thick, &infinite, 0.0);
     eprintln!("sigma 1e4 vs 1e30: {d}");
     assert!(
         d.fraction_over() < 0.005,
@@ -160,6 +163,6 @@ fn extreme_optical_depths_are_exact_and_finite_on_the_gpu() {
 
     let thin = render(&mut gpu, 1e-6);
     let clear = render(&mut gpu, 0.0);
-    let d = compare(&thin, &clear, Domain::Linear, 1e-5).unwrap();
+    let d = linear(&thin, &clear, 1e-5);
     assert!(d.max_abs < 1e-5, "optical depth 1e-6 vs 0: {d}");
 }

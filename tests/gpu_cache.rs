@@ -2,7 +2,9 @@
 //! inputs are unchanged reuses them, any change of those inputs rebuilds them, and a
 //! rebuilt pyramid gives bit for bit the image a fresh tracer gives (nothing stale).
 
-use std::path::PathBuf;
+mod common;
+
+use common::{experiment, tracer};
 
 use glam::DVec3;
 use voxlab::Frame;
@@ -10,17 +12,8 @@ use voxlab::experiment::Experiment;
 use voxlab::gpu::GpuTracer;
 use voxlab::scene::Light;
 
-fn tracer() -> GpuTracer {
-    GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    })
-}
-
 fn load(name: &str, side: u32) -> Experiment {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("experiments")
-        .join(name);
-    let mut e = Experiment::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let mut e = experiment(name);
     e.settings.width = side;
     e.settings.height = side;
     e

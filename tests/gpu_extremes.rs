@@ -4,34 +4,14 @@
 //! Tolerance as in gpu_agreement.rs: on the displayed image (clamped to [0, 1]), fewer
 //! than 0.5 % of pixels off by more than 2/255 and a mean absolute difference below 1e-3.
 
+mod common;
+
+use common::{assert_agree_within, linear, tracer};
 use glam::DVec3;
+use voxlab::RenderSettings;
 use voxlab::gpu::GpuTracer;
 use voxlab::plan::Plan;
 use voxlab::scene::{Light, PointLight, Scene, seed_scene};
-use voxlab::{Frame, RenderSettings};
-
-fn tracer() -> GpuTracer {
-    GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    })
-}
-
-/// (fraction of pixels off by more than 2/255, mean absolute difference), clamped.
-fn diff(a: &Frame, b: &Frame) -> (f64, f64) {
-    let mut bad = 0usize;
-    let mut sum = 0.0f64;
-    for (p, q) in a.pixels.iter().zip(&b.pixels) {
-        let d: Vec<f32> = (0..3)
-            .map(|c| (p[c].clamp(0.0, 1.0) - q[c].clamp(0.0, 1.0)).abs())
-            .collect();
-        sum += d.iter().map(|&x| x as f64).sum::<f64>();
-        if d.iter().any(|&x| x > 2.0 / 255.0) {
-            bad += 1;
-        }
-    }
-    let n = a.pixels.len();
-    (bad as f64 / n as f64, sum / (3 * n) as f64)
-}
 
 fn agree(gpu: &mut GpuTracer, name: &str, scene: &Scene, settings: &RenderSettings) {
     agree_within(gpu, name, scene, settings, 0.005);
@@ -46,19 +26,7 @@ fn agree_within(
 ) {
     let g = gpu.render(scene, settings).expect("GPU render");
     let c = voxlab::cpu::render(scene, settings);
-    assert!(g.frame.all_finite(), "{name}: GPU image has NaN or inf");
-    let (bad, mean) = diff(&g.frame, &c.frame);
-    println!(
-        "{name}: {:.3} % pixels > 2/255, mean |diff| {mean:.2e}",
-        100.0 * bad
-    );
-    assert!(
-        bad < max_bad,
-        "{name}: {:.3} % pixels differ (limit {} %)",
-        100.0 * bad,
-        100.0 * max_bad
-    );
-    assert!(mean < 1e-3, "{name}: mean |diff| {mean:.2e}");
+    assert_agree_within(name, &g.frame, &c.frame, max_bad);
 }
 
 fn settings(side: u32) -> RenderSettings {
@@ -174,12 +142,7 @@ fn full_matches_plan(gpu: &mut GpuTracer, name: &str, scene: &Scene, s: &RenderS
     full.ray_stack_size = s.ray_stack_size();
     let a = gpu.render_plan(scene, s, plan.clone()).unwrap().frame;
     let b = gpu.render_plan(scene, s, full).unwrap().frame;
-    let max = a
-        .pixels
-        .iter()
-        .zip(&b.pixels)
-        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]).abs()))
-        .fold(0.0f32, f32::max);
+    let max = linear(&a, &b, 0.0).max_abs;
     println!("{name}: {plan}\n  max |planned - full| = {max:e}");
     assert!(
         max <= 1e-6,

@@ -10,16 +10,15 @@
 //! --test gpu_golden`, never in CI (the test refuses when `CI` is set). A failing
 //! comparison writes `NAME.actual.png` and `NAME.diff.png` next to the golden.
 
-use std::path::PathBuf;
+mod common;
+
+use common::{display, experiment, golden_dir, golden_ok, quantised, tracer};
 
 use voxlab::experiment::Experiment;
-use voxlab::gpu::GpuTracer;
-use voxlab::metrics::{Domain, compare, difference_image};
+use voxlab::metrics::difference_image;
 use voxlab::output::{read_png, write_frame};
 
 const BAD_DIFF: f64 = 2.0 / 255.0;
-const MAX_BAD_FRACTION: f64 = 0.002;
-const MAX_MEAN_ABS: f64 = 0.5 / 255.0;
 
 /// (golden name, width, height, reflection depth, refraction depth): the baseline at
 /// its own depth limits, non-square, and with secondary rays off.
@@ -29,13 +28,8 @@ const CASES: &[(&str, u32, u32, u32, u32)] = &[
     ("baseline_depth0_128", 128, 128, 0, 0),
 ];
 
-fn golden_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
-}
-
 pub fn baseline(width: u32, height: u32, refl: u32, refr: u32) -> Experiment {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("experiments/baseline.toml");
-    let mut e = Experiment::load(&path).unwrap_or_else(|err| panic!("{err}"));
+    let mut e = experiment("baseline.toml");
     e.settings.width = width;
     e.settings.height = height;
     e.settings.max_reflection_depth = refl;
@@ -50,9 +44,7 @@ fn baseline_matches_golden_images() {
         !(update && std::env::var_os("CI").is_some()),
         "VOXLAB_UPDATE_GOLDEN is set in CI: golden images are rewritten only on purpose"
     );
-    let mut gpu = GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    });
+    let mut gpu = tracer();
     let mut failures = Vec::new();
     for &(name, w, h, refl, refr) in CASES {
         let e = baseline(w, h, refl, refr);
@@ -67,14 +59,9 @@ fn baseline_matches_golden_images() {
             panic!("{err}: run with VOXLAB_UPDATE_GOLDEN=1 to create the golden images")
         });
         // Quantise as the PNG does before comparing, so only real differences count.
-        let mut shown = frame.clone();
-        for p in &mut shown.pixels {
-            *p = p.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() / 255.0);
-        }
-        let d = compare(&shown, &golden, Domain::Display, BAD_DIFF)
-            .unwrap_or_else(|| panic!("{name}: golden has another size"));
+        let d = display(&quantised(&frame), &golden, BAD_DIFF);
         eprintln!("{name}: {d}");
-        if d.fraction_over() > MAX_BAD_FRACTION || d.mean_abs > MAX_MEAN_ABS {
+        if !golden_ok(&d) {
             let actual = golden_dir().join(format!("{name}.actual.png"));
             let diff = golden_dir().join(format!("{name}.diff.png"));
             write_frame(&frame, &actual).unwrap();
@@ -101,7 +88,7 @@ fn golden_images_agree_with_the_cpu_reference() {
     let e = baseline(w, h, refl, refr);
     let cpu = voxlab::cpu::render(&e.scene, &e.settings).frame;
     let golden = read_png(golden_dir().join(format!("{name}.png"))).unwrap();
-    let d = compare(&cpu, &golden, Domain::Display, BAD_DIFF).unwrap();
+    let d = display(&cpu, &golden, BAD_DIFF);
     eprintln!("{name} vs CPU reference: {d}");
     assert!(
         d.fraction_over() < 0.005 && d.mean_abs < 1e-3 + 0.5 / 255.0,

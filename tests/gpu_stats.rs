@@ -1,15 +1,11 @@
 //! Ray counting, odd grid sizes and device limits on the GPU tracer.
 
+mod common;
+
+use common::tracer;
 use glam::{DVec3, IVec3, UVec3};
-use voxlab::gpu::GpuTracer;
 use voxlab::scene::{Grid, seed_ids, seed_scene, seed_scene_dims};
 use voxlab::{RayStats, RenderSettings};
-
-fn tracer() -> GpuTracer {
-    GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    })
-}
 
 fn small(w: u32, h: u32) -> RenderSettings {
     RenderSettings {

@@ -1,17 +1,13 @@
 //! The largest grid the device allows: rendered and checked against the oracle, and one
 //! voxel past the limit refused with an error that names the limit.
 
+mod common;
+
+use common::tracer;
 use glam::{DVec3, UVec3};
 use voxlab::RenderSettings;
-use voxlab::gpu::GpuTracer;
 use voxlab::scene::{Grid, MAX_VOXELS, seed_scene_dims};
 use voxlab::stress::{SuiteOptions, Verdict, generated_cases, run_case};
-
-fn tracer() -> GpuTracer {
-    GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    })
-}
 
 #[test]
 fn longest_side_at_the_device_limit_renders_and_matches() {

@@ -4,19 +4,14 @@
 //! grazing refraction and total internal reflection, and precision far from the origin.
 //! Each was checked by breaking the formulation in the tracer and watching it fail.
 
+mod common;
+
+use common::{linear, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use voxlab::cpu::{Dda, cast, refract, shadow_beer_lambert};
-use voxlab::gpu::GpuTracer;
-use voxlab::metrics::{Domain, compare};
 use voxlab::scene::{Grid, Light, Material, PointLight, Scene, seed_scene, seed_scene_dims};
 use voxlab::stress::{SuiteOptions, TOLERANCE, cases, run_case};
 use voxlab::{RayStats, RenderSettings, Transmittance};
-
-fn tracer() -> GpuTracer {
-    GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    })
-}
 
 fn settings(w: u32, h: u32) -> RenderSettings {
     RenderSettings {
@@ -316,7 +311,7 @@ fn light_at_distance_zero_is_held_by_the_minimum_distance() {
         "GPU {:?}",
         g.get(4, 4)
     );
-    let d = compare(&g, &c, Domain::Linear, 1e-4).unwrap();
+    let d = linear(&g, &c, 1e-4);
     assert_eq!(d.pixels_over, 0, "{d}");
 }
 
@@ -387,7 +382,7 @@ fn gpu_image_does_not_depend_on_where_the_grid_sits() {
     let home = gpu.render(&at(DVec3::ZERO), &st).unwrap().frame;
     for origin in [DVec3::splat(1e5), DVec3::new(1e6, -1e6, 1e6)] {
         let far = gpu.render(&at(origin), &st).unwrap().frame;
-        let d = compare(&far, &home, Domain::Linear, 1e-5).unwrap();
+        let d = linear(&far, &home, 1e-5);
         println!("origin {origin}: {d}");
         assert!(far.all_finite());
         assert_eq!(d.pixels_over, 0, "origin {origin}: {d}");

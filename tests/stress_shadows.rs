@@ -1,17 +1,17 @@
 //! Hard and soft shadows agree with the oracle at every depth limit from 0 to 8: point
 //! lights under min-kt and beer-lambert, and a rectangle area light (soft shadows).
 
+mod common;
+
+use common::tracer;
 use glam::DVec3;
-use voxlab::gpu::GpuTracer;
 use voxlab::scene::{AreaLight, AreaShape, Light, seed_scene};
 use voxlab::stress::{StressCase, Verdict, run_case};
 use voxlab::{RenderSettings, Transmittance};
 
 #[test]
 fn shadows_agree_with_the_oracle_at_every_depth_limit() {
-    let mut gpu = GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    });
+    let mut gpu = tracer();
     let hard = seed_scene(16).unwrap();
     let mut soft = seed_scene(16).unwrap();
     soft.lights.truncate(1);

@@ -1,16 +1,16 @@
 //! The whole stress suite (every DESIGN section 5 case but the large cube) passes, and
 //! `voxlab stress` prints and writes the table.
 
+mod common;
+
+use common::tracer;
 use std::process::Command;
 
-use voxlab::gpu::GpuTracer;
 use voxlab::stress::{SuiteOptions, Verdict, cases, csv, markdown, run};
 
 #[test]
 fn every_stress_case_is_finite_and_matches_the_oracle() {
-    let mut gpu = GpuTracer::new().unwrap_or_else(|e| {
-        panic!("no GPU adapter: {e:#}. GPU tests need one (lavapipe: mesa-vulkan-drivers)")
-    });
+    let mut gpu = tracer();
     let opts = SuiteOptions {
         max_grid_side: gpu.max_grid_side(),
         cube: None,
