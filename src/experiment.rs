@@ -17,7 +17,8 @@ use glam::{DVec3, IVec3, UVec3};
 use serde::Deserialize;
 
 use crate::render::{
-    ConeSettings, Features, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, RenderSettings, Transmittance,
+    ConeSettings, Features, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, RenderSettings,
+    Transmittance,
 };
 use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
 use crate::scene::{
@@ -753,26 +754,55 @@ fn build_cones(c: &RawCones, ctx: &Ctx) -> Result<ConeSettings, ExperimentError>
     let d = ConeSettings::default();
     let positive = |key: &str, v: Option<f64>, dflt: f64, max: f64| {
         v.map_or(Ok(dflt), |v| {
-            float_where(ctx, key, v, |x| x > 0.0 && x <= max, &format!("in (0, {max}]"))
+            float_where(
+                ctx,
+                key,
+                v,
+                |x| x > 0.0 && x <= max,
+                &format!("in (0, {max}]"),
+            )
         })
     };
     Ok(ConeSettings {
         levels: c.levels.map_or(Ok(d.levels), |v| {
-            int_in(ctx, "cones.levels", v, 0..=crate::cpu::pyramid::MAX_LEVELS as i64)
+            int_in(
+                ctx,
+                "cones.levels",
+                v,
+                0..=crate::cpu::pyramid::MAX_LEVELS as i64,
+            )
         })?,
         step_factor: positive("cones.step_factor", c.step_factor, d.step_factor, 4.0)?,
         aperture_deg: c.aperture_deg.map_or(Ok(d.aperture_deg), |v| {
-            float_where(ctx, "cones.aperture_deg", v, |x| (0.0..=120.0).contains(&x), "in [0, 120]")
+            float_where(
+                ctx,
+                "cones.aperture_deg",
+                v,
+                |x| (0.0..=120.0).contains(&x),
+                "in [0, 120]",
+            )
         })?,
         start_offset: c.start_offset.map_or(Ok(d.start_offset), |v| {
-            float_where(ctx, "cones.start_offset", v, |x| (0.0..=16.0).contains(&x), "in [0, 16] (voxels)")
+            float_where(
+                ctx,
+                "cones.start_offset",
+                v,
+                |x| (0.0..=16.0).contains(&x),
+                "in [0, 16] (voxels)",
+            )
         })?,
         ao_cones: c
             .ao_cones
             .map_or(Ok(d.ao_cones), |v| int_in(ctx, "cones.ao_cones", v, 1..=64))?,
         ao_range: positive("cones.ao_range", c.ao_range, d.ao_range, 1e6)?,
         indirect_strength: c.indirect_strength.map_or(Ok(d.indirect_strength), |v| {
-            float_where(ctx, "cones.indirect_strength", v, |x| (0.0..=100.0).contains(&x), "in [0, 100]")
+            float_where(
+                ctx,
+                "cones.indirect_strength",
+                v,
+                |x| (0.0..=100.0).contains(&x),
+                "in [0, 100]",
+            )
         })?,
     })
 }

@@ -7,9 +7,9 @@
 pub mod ablate;
 pub mod bench;
 pub mod cpu;
-pub mod metrics;
 pub mod experiment;
 pub mod gpu;
+pub mod metrics;
 pub mod output;
 pub mod plan;
 pub mod render;

@@ -87,7 +87,10 @@ fn vanishing_area_lights_converge_to_the_point_light() {
         as_area_lights(&mut s, shape);
         let f = voxlab::cpu::render(&s, &settings).frame;
         let d = compare(&f, &point, Domain::Linear, 1e-4).unwrap();
-        assert!(d.max_abs < 1e-4 || d.fraction_over() < 0.002, "{shape:?}: {d}");
+        assert!(
+            d.max_abs < 1e-4 || d.fraction_over() < 0.002,
+            "{shape:?}: {d}"
+        );
         assert!(d.mean_abs < 1e-6, "{shape:?}: {d}");
     }
 }
@@ -167,7 +170,10 @@ fn soft_shadow_rmse_falls_as_one_over_sqrt_n() {
     let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>()
         / pts.iter().map(|p| (p.0 - mx).powi(2)).sum::<f64>();
     eprintln!("log-log slope {slope:.3}");
-    assert!((slope + 0.5).abs() < 0.15, "slope {slope:.3}, expected -0.5 +- 0.15");
+    assert!(
+        (slope + 0.5).abs() < 0.15,
+        "slope {slope:.3}, expected -0.5 +- 0.15"
+    );
 }
 
 /// Bad input: negative or NaN sizes and zero samples are errors of the experiment
@@ -188,9 +194,18 @@ fn bad_sizes_and_zero_samples_are_rejected() {
         (light("disk", "radius = nan"), "lights[0].radius"),
         (light("sphere", "radius = -1.0"), "lights[0].radius"),
         (light("sphere", "radius = nan"), "lights[0].radius"),
-        (light("sphere", "radius = 1.0\n[render]\nlight_samples = 0"), "render.light_samples"),
-        (light("sphere", "radius = 1.0\n[render]\nspp = 0"), "render.spp"),
-        (light("sphere", "radius = 1.0\n[render]\nlight_samples = -4"), "render.light_samples"),
+        (
+            light("sphere", "radius = 1.0\n[render]\nlight_samples = 0"),
+            "render.light_samples",
+        ),
+        (
+            light("sphere", "radius = 1.0\n[render]\nspp = 0"),
+            "render.spp",
+        ),
+        (
+            light("sphere", "radius = 1.0\n[render]\nlight_samples = -4"),
+            "render.light_samples",
+        ),
     ];
     for (text, key) in cases {
         match Experiment::from_str(&text, "x.toml") {

@@ -61,7 +61,10 @@ fn slabs_of_one_two_and_four_voxels_transmit_kt_to_the_thickness() {
             assert_eq!(mk, KT);
             if t == 1 {
                 // One voxel: exactly what min-kt gives (to float error of exp(ln kt)).
-                assert!((bl - DVec3::splat(mk)).abs().max_element() < 1e-12, "{bl} vs {mk}");
+                assert!(
+                    (bl - DVec3::splat(mk)).abs().max_element() < 1e-12,
+                    "{bl} vs {mk}"
+                );
             }
             // The segment also crosses void above and below: nothing absorbs there.
             assert!(stats.voxel_steps > 0);

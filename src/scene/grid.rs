@@ -44,7 +44,9 @@ impl Grid {
             )));
         }
         if !origin.is_finite() {
-            return Err(SceneError::new(format!("grid origin {origin}: must be finite")));
+            return Err(SceneError::new(format!(
+                "grid origin {origin}: must be finite"
+            )));
         }
         Ok(Self {
             dims,
