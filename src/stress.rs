@@ -815,8 +815,8 @@ const HEADER: [&str; 16] = [
     "px > 2/255",
     "ill-cond px",
     "well-cond px > 2/255",
-    "max |d|",
-    "mean |d|",
+    "max diff",
+    "mean diff",
     "FLIP mean",
     "GPU ms",
     "CPU ms",
@@ -878,7 +878,7 @@ pub fn markdown(rows: &[StressRow], adapter: &str) -> String {
         "Stress suite: GPU `{adapter}` (f32) against the CPU reference (f64).\n\
          A pixel differs when a displayed channel (clamped to [0, 1]) differs by more \
          than 2/255; a case passes when both images are finite and at most 0.5 % of its \
-         well-conditioned pixels differ. max/mean |d| are per channel on displayed values. \
+         well-conditioned pixels differ. max/mean diff are absolute differences per channel on displayed values. \
          FLIP: mean of NVIDIA FLIP (nv-flip, 8-bit displayed images, 67 px/degree). \
          ill-cond px: pixels where the oracle itself changes beyond 2/255 when every \
          primary ray turns by 2e-6 rad either way (rays through voxel edges and corners, \
@@ -929,7 +929,7 @@ pub fn csv(rows: &[StressRow]) -> String {
         .iter()
         .map(|h| {
             h.replace("px > 2/255", "pixels_over_2_255")
-                .replace("|d|", "abs_diff")
+                .replace("diff", "abs_diff")
                 .replace(' ', "_")
                 .to_lowercase()
         })
