@@ -656,6 +656,8 @@ struct Rendered {
     /// Set when `auto` fell back to the CPU: the GPU's reason.
     fallback: Option<String>,
     plan: Plan,
+    /// GPU points: `time` comes from timestamp queries (else wall time).
+    timestamps: bool,
 }
 
 impl Tracers {
@@ -710,10 +712,13 @@ impl Tracers {
                         .unwrap_or_else(|| Plan::new(scene, s));
                     return Ok(Rendered {
                         frame: out.frame,
-                        time: out.trace_time,
+                        // Device time from timestamp queries where the adapter has
+                        // them, else wall time around the synchronised submit.
+                        time: gpu.last_gpu_time().unwrap_or(out.trace_time),
                         backend: "gpu",
                         fallback: None,
                         plan,
+                        timestamps: gpu.last_gpu_time().is_some(),
                     });
                 }
                 Err(e) if choice == BackendChoice::Auto => Some(format!("{e:#}")),
@@ -735,6 +740,7 @@ impl Tracers {
             backend: "cpu",
             fallback: gpu_reason,
             plan: Plan::new(scene, s),
+            timestamps: false,
         })
     }
 
@@ -1058,9 +1064,11 @@ fn measure(
         transmittance: s.features.transmittance.name(),
         backend: r.backend,
         fallback: r.fallback,
-        timer: match (r.backend, r.plan.pyramid.is_some()) {
-            ("gpu", false) => "wall around a synchronised submit",
-            ("gpu", true) => "wall around a synchronised submit + pyramid build",
+        timer: match (r.backend, r.timestamps, r.plan.pyramid.is_some()) {
+            ("gpu", true, false) => "timestamp queries",
+            ("gpu", true, true) => "timestamp queries + pyramid build",
+            ("gpu", false, false) => "wall around a synchronised submit",
+            ("gpu", false, true) => "wall around a synchronised submit + pyramid build",
             _ => "wall (cpu::render)",
         },
         ms_median: median_ms(&totals),
@@ -1672,8 +1680,9 @@ fn write_outputs(
     let mut run = format!(
         "git revision: {rev}\nadapter: {adapter}\ncpu: {}\nmodel version: {MODEL_VERSION}\n\
          reference: {} spp, {}, {} ({}), noise rmse {:.3e}, {:.2} s to render\n\
-         timer: GPU points: wall time around a synchronised submit (GpuTracer::render; \
-         it does not request TIMESTAMP_QUERY), plus for cone points the pyramid build \
+         timer: GPU points: the trace's compute passes timed by timestamp queries where \
+         the adapter has them, else wall time around a synchronised submit (see each \
+         row's timer column), plus for cone points the pyramid build \
          (GpuTracer::build_pyramid, a full build per image, and a synchronising readback \
          of its coarsest level), outside the render's timed trace; CPU points: wall time of \
          cpu::render (pyramids included). Median of {} runs after {} warm-up renders.\n\n\

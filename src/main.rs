@@ -446,9 +446,17 @@ fn cmd_render(mut e: Experiment, opts: &RenderOpts) -> Result<()> {
     } else {
         1
     };
-    let trace_ms = result.trace_time.as_secs_f64() * 1e3;
+    // On the GPU, device time from timestamp queries where the adapter has them.
+    let (trace, timer) = match &renderer {
+        Renderer::Gpu(t) => (
+            t.last_gpu_time().unwrap_or(result.trace_time),
+            t.timer_name(),
+        ),
+        Renderer::Cpu { .. } => (result.trace_time, "wall"),
+    };
+    let trace_ms = trace.as_secs_f64() * 1e3;
     println!(
-        "time:       {:.3} ms per frame (trace), {} frame{} in {:.3} ms, {:.3} ms wall",
+        "time:       {:.3} ms per frame (trace, {timer}), {} frame{} in {:.3} ms, {:.3} ms wall",
         trace_ms / frames as f64,
         frames,
         if frames == 1 { "" } else { "s" },

@@ -163,6 +163,10 @@ pub struct GpuTracer {
     last_plan: Option<Plan>,
     /// Device memory the latest render bound, by resource.
     last_memory: Option<GpuMemory>,
+    /// Whether the device was opened with `TIMESTAMP_QUERY` (the adapter has it).
+    timestamps: bool,
+    /// Device time of the latest render's trace passes, from timestamp queries.
+    last_gpu_time: Option<Duration>,
 }
 
 /// Device memory bound by one render, in bytes: what a plan's leaving out saves.
@@ -264,9 +268,17 @@ impl GpuTracer {
         // The adapter's own limits, so the largest grid and image the device allows can
         // be used (the defaults would cap 3D textures at 2048).
         let limits = adapter.limits();
+        // Timestamp queries time the trace on the device itself, where the adapter has
+        // them (lavapipe does); without them the trace is timed on the host.
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("voxlab"),
             required_limits: limits,
+            required_features: if timestamps {
+                wgpu::Features::TIMESTAMP_QUERY
+            } else {
+                wgpu::Features::empty()
+            },
             ..Default::default()
         }))
         .with_context(|| format!("opening a device on {}", adapter.get_info().name))?;
@@ -337,6 +349,8 @@ impl GpuTracer {
             pyramid: None,
             pyramid_builds: 0,
             last_setup_time: Duration::ZERO,
+            timestamps,
+            last_gpu_time: None,
             last_plan: None,
             last_memory: None,
         })
@@ -375,6 +389,22 @@ impl GpuTracer {
     /// inputs did not change does not add one.
     pub fn pyramid_builds(&self) -> u64 {
         self.pyramid_builds
+    }
+
+    /// Device time of the latest render's trace (the sum of its compute passes, from
+    /// timestamp queries), or `None` when the adapter has no timestamp queries; then
+    /// `RenderOutput::trace_time`, wall time around a synchronised submit, is the timer.
+    pub fn last_gpu_time(&self) -> Option<Duration> {
+        self.last_gpu_time
+    }
+
+    /// Which timer `last_gpu_time` / `trace_time` come from, for reports.
+    pub fn timer_name(&self) -> &'static str {
+        if self.timestamps {
+            "timestamp queries"
+        } else {
+            "wall time around a synchronised submit"
+        }
     }
 
     /// Time the latest render spent building (or finding in the cache) its cone
@@ -786,8 +816,18 @@ impl GpuTracer {
         self.wait()?;
 
         let pipeline = &self.pipelines[&plan.shader_defs()];
+        // Two timestamps per dispatch (start and end of its pass).
+        let dispatches = frames.div_ceil(per_dispatch);
+        let queries = self.timestamps.then(|| {
+            self.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("voxlab trace timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2 * dispatches,
+            })
+        });
         let start = Instant::now();
         let mut begin = 0u32;
+        let mut dispatch = 0u32;
         while begin < frames {
             let count = per_dispatch.min(frames - begin);
             if begin > 0 {
@@ -804,7 +844,11 @@ impl GpuTracer {
             {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("voxlab trace"),
-                    timestamp_writes: None,
+                    timestamp_writes: queries.as_ref().map(|q| wgpu::ComputePassTimestampWrites {
+                        query_set: q,
+                        beginning_of_pass_write_index: Some(2 * dispatch),
+                        end_of_pass_write_index: Some(2 * dispatch + 1),
+                    }),
                 });
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, &bind_group, &[]);
@@ -819,9 +863,14 @@ impl GpuTracer {
             }
             self.queue.submit([encoder.finish()]);
             begin += count;
+            dispatch += 1;
         }
         self.wait()?;
         let trace_time = start.elapsed();
+        self.last_gpu_time = match &queries {
+            Some(q) => Some(self.pass_time(q, dispatches)?),
+            None => None,
+        };
 
         let copy = |from: &wgpu::Buffer| {
             let mut encoder = self
@@ -908,6 +957,41 @@ impl GpuTracer {
     }
 
     /// Maps `buffer` (already copied into), reads `bytes` as `T`s, unmaps.
+    /// The summed durations of `passes` compute passes whose start and end timestamps
+    /// are queries 2i and 2i + 1 of `q`.
+    fn pass_time(&self, q: &wgpu::QuerySet, passes: u32) -> Result<Duration> {
+        let bytes = 16 * passes as u64;
+        let resolve = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("voxlab timestamps"),
+            size: bytes,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("voxlab timestamps readback"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("voxlab timestamps"),
+            });
+        encoder.resolve_query_set(q, 0..2 * passes, &resolve, 0);
+        encoder.copy_buffer_to_buffer(&resolve, 0, &readback, 0, bytes);
+        self.queue.submit([encoder.finish()]);
+        let ticks: Vec<u64> = self.read(&readback, bytes)?;
+        // Ticks to nanoseconds; a pass whose end precedes its start (a driver that
+        // resets its counter) counts as zero rather than wrapping.
+        let period = self.queue.get_timestamp_period() as f64;
+        let ns: f64 = ticks
+            .chunks_exact(2)
+            .map(|p| p[1].saturating_sub(p[0]) as f64 * period)
+            .sum();
+        Ok(Duration::from_nanos(ns.round() as u64))
+    }
+
     fn read<T: Pod>(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<T>> {
         let slice = buffer.slice(..bytes);
         let (tx, rx) = std::sync::mpsc::channel();
