@@ -1,6 +1,8 @@
 //! Mesh loading and voxelization: real data (the Stanford bunny), exact small cases,
 //! glTF, open meshes, and clear errors on bad input.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use glam::{DVec3, IVec3, UVec3};
@@ -9,19 +11,6 @@ use voxlab::scene::voxelize::signed_volume;
 use voxlab::scene::{
     Material, Resolution, VoxelizeOptions, load_mesh, seed_palette, voxelize_mesh,
 };
-
-fn shared(name: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name);
-    assert!(
-        p.exists(),
-        "test data {} is missing: the repository's parent must hold shared/data/ \
-         (see shared/data/README.md)",
-        p.display()
-    );
-    p
-}
 
 fn temp_dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("voxlab-mesh-{name}-{}", std::process::id()));
@@ -41,7 +30,7 @@ fn solid_count(g: &voxlab::scene::Grid) -> usize {
 /// below the mesh volume.
 #[test]
 fn bunny_is_filled_watertight() {
-    let path = shared("bunny.obj");
+    let path = common::shared_data("bunny.obj");
     let mesh = load_mesh(&path).unwrap();
     assert_eq!(mesh.triangles.len(), 3674);
     let v_mesh = signed_volume(&mesh.triangles).abs();
@@ -393,7 +382,7 @@ fn gltf_with_embedded_buffer_voxelizes_with_node_transforms() {
 fn the_same_voxels_whatever_the_triangle_order() {
     // Interior material comes from the nearest shell voxel, but occupancy never
     // depends on the order in which triangles are visited.
-    let path = shared("bunny.obj");
+    let path = common::shared_data("bunny.obj");
     let mesh = load_mesh(&path).unwrap();
     let mut rev = mesh.clone();
     rev.triangles.reverse();

@@ -1,22 +1,12 @@
 //! Experiment keys `[scene] vox = "path"` (+ `model`) and `mesh = "path"`
 //! (+ `resolution` or `voxel_size`, optional `material`).
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use glam::UVec3;
 use voxlab::experiment::Experiment;
-
-fn shared(name: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name);
-    assert!(
-        p.exists(),
-        "test data {} is missing (shared/data/)",
-        p.display()
-    );
-    p
-}
 
 fn temp_dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("voxlab-exp-{name}-{}", std::process::id()));
@@ -33,7 +23,7 @@ fn load(dir: &Path, text: &str) -> Result<Experiment, String> {
 #[test]
 fn vox_scene_with_model_and_material_override() {
     let dir = temp_dir("vox");
-    let deer = shared("deer.vox");
+    let deer = common::shared_data("deer.vox");
     let e = load(
         &dir,
         &format!("[scene]\nvox = {:?}\n", deer.to_str().unwrap()),
@@ -103,7 +93,7 @@ fn mesh_scene_relative_path_resolution_and_material() {
     // The bunny in the seed's glass: the palette is the seed's, voxels use "glass".
     let text = format!(
         "[scene]\nmesh = {:?}\nresolution = 24\nmaterial = \"glass\"\n",
-        shared("bunny.obj").to_str().unwrap()
+        common::shared_data("bunny.obj").to_str().unwrap()
     );
     let e = load(&dir, &text).unwrap();
     let glass = e

@@ -1,25 +1,14 @@
 //! MagicaVoxel import and export: real files (deer.vox, dot_vox's resources), the
 //! scene graph, materials, axes, round trips, and clear errors on bad input.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use dot_vox::{Color, Dict, DotVoxData, Frame, Layer, Model, SceneNode, ShapeModel, Size, Voxel};
 use glam::{DVec3, IVec3, UVec3};
 use voxlab::scene::mesh::VoxelizeOptions;
 use voxlab::scene::{Grid, Material, load_vox, seed_palette, voxelize_mesh, write_vox};
-
-fn shared(name: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name);
-    assert!(
-        p.exists(),
-        "test data {} is missing: the repository's parent must hold shared/data/ \
-         (see shared/data/README.md)",
-        p.display()
-    );
-    p
-}
 
 /// The `.vox` files shipped inside the dot_vox package (after `cargo fetch`).
 fn dot_vox_resources() -> PathBuf {
@@ -66,7 +55,7 @@ fn raw_palette(bytes: &[u8]) -> Vec<[u8; 4]> {
 
 #[test]
 fn deer_loads_with_documented_axes_and_palette() {
-    let path = shared("deer.vox");
+    let path = common::shared_data("deer.vox");
     let s = load_vox(&path, None).unwrap();
     assert_eq!(s.model_count, 1);
     assert_eq!(solid(&s.grid), 355);
@@ -393,7 +382,11 @@ fn magicavoxel_materials_map_onto_voxlab() {
 
 #[test]
 fn bunny_round_trips_through_vox() {
-    let v = voxelize_mesh(shared("bunny.obj"), &VoxelizeOptions::count(64)).unwrap();
+    let v = voxelize_mesh(
+        common::shared_data("bunny.obj"),
+        &VoxelizeOptions::count(64),
+    )
+    .unwrap();
     let dir = temp_dir("bunny");
     let p = dir.join("bunny.vox");
     write_vox(&p, &v.grid, &v.materials).unwrap();
@@ -490,7 +483,7 @@ fn bad_vox_files_give_clear_errors_and_never_panic() {
         "{e}"
     );
 
-    let e = load_vox(shared("deer.vox"), Some(1))
+    let e = load_vox(common::shared_data("deer.vox"), Some(1))
         .unwrap_err()
         .to_string();
     assert!(
@@ -501,7 +494,10 @@ fn bad_vox_files_give_clear_errors_and_never_panic() {
     // Truncations and corruptions of real files: an error naming the file, or a
     // grid whose materials cover it. Never a panic, never an unbounded allocation.
     let p = dir.join("h.vox");
-    for src in [shared("deer.vox"), dot_vox_resources().join("axes.vox")] {
+    for src in [
+        common::shared_data("deer.vox"),
+        dot_vox_resources().join("axes.vox"),
+    ] {
         let good = std::fs::read(&src).unwrap();
         let mut cuts: Vec<usize> = (0..good.len().min(4000)).step_by(7).collect();
         cuts.extend((0..good.len()).step_by(997));

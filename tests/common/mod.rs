@@ -113,3 +113,18 @@ pub fn experiment(file: impl AsRef<Path>) -> Experiment {
         .join(file);
     Experiment::load(&path).unwrap_or_else(|e| panic!("{e}"))
 }
+
+/// A real test file from `../shared/data/` (beside the repository, in CI too); a
+/// missing file fails the test with where it was looked for.
+pub fn shared_data(name: &str) -> PathBuf {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(name);
+    assert!(
+        p.exists(),
+        "test data {} is missing: the repository's parent must hold shared/data/ \
+         (see shared/data/README.md)",
+        p.display()
+    );
+    p
+}
