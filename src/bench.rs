@@ -381,6 +381,7 @@ pub fn plan_table(rows: &[PlanRow]) -> String {
     for r in rows {
         let flags: Vec<&str> = crate::plan::Plan::FLAGS
             .iter()
+            .chain(crate::plan::Plan::CONE_FLAGS.iter())
             .copied()
             .filter(|f| r.reduced.flag(f))
             .collect();

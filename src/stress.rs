@@ -572,6 +572,8 @@ pub struct StressRow {
     /// Mean FLIP error (nv-flip) of the GPU image against the oracle's.
     pub flip_mean: Option<f64>,
     pub max_bad: f64,
+    /// The render plan's flags and ray stack (the kernel variant that rendered it).
+    pub plan: String,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -645,7 +647,8 @@ pub fn run_case(gpu: Option<&mut GpuTracer>, case: &StressCase) -> StressRow {
         {
             Ok(out) => GpuResult::Rendered {
                 frame: out.frame,
-                time: out.trace_time,
+                // Device time where the adapter has timestamp queries.
+                time: t.last_gpu_time().unwrap_or(out.trace_time),
             },
             Err(e) => {
                 let msg = format!("{e:#}");
@@ -676,6 +679,13 @@ pub fn run_case(gpu: Option<&mut GpuTracer>, case: &StressCase) -> StressRow {
         _ => None,
     };
     let dims = case.scene.grid.dims();
+    let plan = crate::plan::Plan::new(&case.scene, &case.settings);
+    let flags: Vec<&str> = crate::plan::Plan::FLAGS
+        .iter()
+        .chain(crate::plan::Plan::CONE_FLAGS.iter())
+        .copied()
+        .filter(|f| plan.flag(f))
+        .collect();
     StressRow {
         name: case.name.clone(),
         what: case.what.clone(),
@@ -691,6 +701,7 @@ pub fn run_case(gpu: Option<&mut GpuTracer>, case: &StressCase) -> StressRow {
         over_well_conditioned,
         flip_mean: flip,
         max_bad: case.max_bad,
+        plan: format!("{} (stack {})", flags.join(" "), plan.ray_stack_size),
     }
 }
 
@@ -804,7 +815,7 @@ fn finite_text(f: Option<bool>) -> &'static str {
 }
 
 /// The columns of both tables.
-const HEADER: [&str; 16] = [
+const HEADER: [&str; 17] = [
     "case",
     "what",
     "image",
@@ -821,6 +832,7 @@ const HEADER: [&str; 16] = [
     "GPU ms",
     "CPU ms",
     "verdict",
+    "plan",
 ];
 
 fn cells(r: &StressRow, markdown: bool) -> Vec<String> {
@@ -867,6 +879,7 @@ fn cells(r: &StressRow, markdown: bool) -> Vec<String> {
         gpu_ms,
         format!("{:.2}", ms(r.cpu_time)),
         r.verdict_text(),
+        r.plan.clone(),
     ]
 }
 
