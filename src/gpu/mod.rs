@@ -9,6 +9,7 @@ pub use compose::{ENTRY_POINT, ShaderError, compose_shader, validate};
 
 use std::borrow::Cow;
 use std::collections::HashMap;
+use std::ops::Range;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
@@ -122,6 +123,67 @@ struct GridUpload {
     view: wgpu::TextureView,
 }
 
+/// What a [`GpuTracer::render_frames`] accumulation was made from, so that a call that
+/// continues it can tell whether the sums in the output and compensation buffers are
+/// its own: each input by name with a hash of its Debug text (f64 prints exactly, so
+/// equal text is equal input). The voxels are not hashed: the grid upload's generation
+/// stands for them.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct AccumulationKey {
+    parts: Vec<(&'static str, blake3::Hash)>,
+}
+
+impl AccumulationKey {
+    fn new(scene: &Scene, settings: &RenderSettings, plan: &Plan) -> Self {
+        let grid = &scene.grid;
+        let hash = |s: String| blake3::hash(s.as_bytes());
+        Self {
+            parts: vec![
+                ("render settings", hash(format!("{settings:?}"))),
+                (
+                    "plan (kernel variant)",
+                    hash(format!("{:?} {:?}", plan.shader_defs(), plan.pyramid)),
+                ),
+                (
+                    "grid's size or placement",
+                    hash(format!(
+                        "{:?} {:?} {:?}",
+                        grid.dims(),
+                        grid.voxel_size(),
+                        grid.origin()
+                    )),
+                ),
+                ("materials", hash(format!("{:?}", scene.materials))),
+                ("lights", hash(format!("{:?}", scene.lights))),
+                ("camera", hash(format!("{:?}", scene.camera))),
+                ("ambient colour", hash(format!("{:?}", scene.ambient))),
+            ],
+        }
+    }
+
+    /// The names of the inputs that differ from `other`'s.
+    fn differences(&self, other: &Self) -> Vec<&'static str> {
+        self.parts
+            .iter()
+            .zip(&other.parts)
+            .filter(|(a, b)| a.1 != b.1)
+            .map(|(a, _)| a.0)
+            .collect()
+    }
+}
+
+/// The accumulation the output and compensation buffers hold after a
+/// [`GpuTracer::render_frames`] call of an accumulating plan.
+struct Accumulation {
+    key: AccumulationKey,
+    /// The grid upload it was traced against.
+    grid_generation: u64,
+    /// `pyramid_builds` after its latest call: a build since then ends it.
+    pyramid_builds: u64,
+    /// Frames 0..frames are summed in the buffers.
+    frames: u32,
+}
+
 /// Buffers sized by the image or the scene, reused while they are large enough.
 struct Buffers {
     pixels: u64,
@@ -167,6 +229,9 @@ pub struct GpuTracer {
     timestamps: bool,
     /// Device time of the latest render's trace passes, from timestamp queries.
     last_gpu_time: Option<Duration>,
+    /// The accumulation a `render_frames` call may continue; any other render, or a
+    /// failed one, clears it.
+    accumulation: Option<Accumulation>,
 }
 
 /// Device memory bound by one render, in bytes: what a plan's leaving out saves.
@@ -353,6 +418,7 @@ impl GpuTracer {
             last_gpu_time: None,
             last_plan: None,
             last_memory: None,
+            accumulation: None,
         })
     }
 
@@ -736,21 +802,149 @@ impl GpuTracer {
         settings: &RenderSettings,
         plan: Plan,
     ) -> Result<RenderOutput> {
+        let frames = 0..plan.frames(settings);
+        self.render_range(scene, settings, plan, frames, false)
+    }
+
+    /// Renders frames `frames` (a range of frame indices) of `settings`' accumulation
+    /// with the scene's own plan (no ray counting) and returns the image averaged over
+    /// frames `0..frames.end`: bit for bit the image of a render with `spp =
+    /// frames.end`. `frames.start == 0` starts a new accumulation; `frames.start > 0`
+    /// continues the one this tracer's previous call left, which must have been a
+    /// `render_frames` call with the same scene, settings and plan that ended at
+    /// `frames.start` (else an error that says which differs). `frames.end` must be at
+    /// most `Plan::frames(settings)` (`settings.spp` is the cap); a plan that does not
+    /// accumulate (nothing sampled, or `spp` 1) has only `0..1`. Any other render ends
+    /// the accumulation. `trace_time` and `last_gpu_time` cover this call's frames only.
+    pub fn render_frames(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        frames: Range<u32>,
+    ) -> Result<RenderOutput> {
+        let plan = Plan::new(scene, settings);
+        self.render_range(scene, settings, plan, frames, true)
+    }
+
+    /// Frames the accumulation a `render_frames` call may continue holds (it continues
+    /// at this frame): 0 when there is none, after any other render, a failed one, or
+    /// a plan that does not accumulate.
+    pub fn accumulated_frames(&self) -> u32 {
+        self.accumulation.as_ref().map_or(0, |a| a.frames)
+    }
+
+    /// Whether `frames` is a range `plan` can render: non-empty and within its frames.
+    fn check_frames(settings: &RenderSettings, plan: &Plan, frames: &Range<u32>) -> Result<()> {
+        let (a, b) = (frames.start, frames.end);
+        if a >= b {
+            bail!("frames {a}..{b}: an empty range; render at least one frame");
+        }
+        let cap = plan.frames(settings);
+        if b <= cap {
+            return Ok(());
+        }
+        if plan.accumulate {
+            bail!(
+                "frames {a}..{b}: past the end of the accumulation, {cap} frames \
+                 (settings.spp = {} caps it)",
+                settings.spp
+            );
+        }
+        let why = if settings.spp <= 1 {
+            "settings.spp is 1"
+        } else if plan.cone_shadows && settings.features.area_lights {
+            "cone shadows replace the area-light samples, so nothing is sampled"
+        } else {
+            "nothing is sampled (no area light of non-zero size with features.area_lights \
+             on), so every frame is the same image"
+        };
+        bail!(
+            "frames {a}..{b}: this plan does not accumulate ({why}); it renders one frame, \
+             frames 0..1"
+        )
+    }
+
+    /// Whether the accumulation this tracer holds is the one `frames` continues.
+    fn check_continuation(&self, key: &AccumulationKey, frames: &Range<u32>) -> Result<()> {
+        let f = format!("frames {}..{}", frames.start, frames.end);
+        let Some(acc) = &self.accumulation else {
+            bail!(
+                "{f}: no accumulation to continue: this tracer's previous render was not a \
+                 render_frames call of an accumulating plan (any other render, or a failed \
+                 one, ends the accumulation); start again at frame 0"
+            );
+        };
+        let n = acc.frames;
+        let mut differs = key.differences(&acc.key);
+        if acc.grid_generation != self.grid_generation() {
+            differs.push("voxel grid (another was uploaded since)");
+        }
+        if acc.pyramid_builds != self.pyramid_builds {
+            differs.push("cone pyramids (rebuilt since)");
+        }
+        if !differs.is_empty() {
+            bail!(
+                "{f}: cannot continue the accumulation of frames 0..{n}, which was made \
+                 from other inputs (changed: {}); start again at frame 0",
+                differs.join(", ")
+            );
+        }
+        if frames.start > n {
+            bail!(
+                "{f}: would skip frames {n}..{}: the accumulation holds frames 0..{n}, so \
+                 the next range must start at {n}",
+                frames.start
+            );
+        }
+        if frames.start < n {
+            bail!(
+                "{f}: frames {}..{n} are already accumulated (it holds frames 0..{n}), so \
+                 the next range must start at {n}",
+                frames.start
+            );
+        }
+        Ok(())
+    }
+
+    /// Renders frames `frames` of `plan`'s accumulation and returns the image averaged
+    /// over `0..frames.end`; a start above 0 continues the sums in the buffers. With
+    /// `continuable` (render_frames) an accumulating render is recorded so the next
+    /// call may continue it; otherwise the record is cleared.
+    fn render_range(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        plan: Plan,
+        frames: Range<u32>,
+        continuable: bool,
+    ) -> Result<RenderOutput> {
         let count = plan.count_rays;
         self.check(scene, settings)?;
+        Self::check_frames(settings, &plan, &frames)?;
         self.pipeline(&plan)?;
         self.upload_grid(scene);
+        let key = continuable.then(|| AccumulationKey::new(scene, settings, &plan));
+        if frames.start > 0 {
+            // Only render_frames asks for a start above 0.
+            let key = key
+                .as_ref()
+                .expect("a continuation comes from render_frames");
+            self.check_continuation(key, &frames)?;
+        }
+        // From here on the buffers change: no accumulation survives a failure.
+        self.accumulation = None;
 
         // Frames in dispatches of whole frames; the first dispatch's params are written
         // with the uploads, the others' before their own submissions.
         let pixels = settings.width as u64 * settings.height as u64;
-        let frames = plan.frames(settings);
+        let todo = frames.end - frames.start;
         let per_dispatch = if plan.accumulate {
-            (PIXEL_FRAMES_PER_DISPATCH / pixels).clamp(1, frames as u64) as u32
+            (PIXEL_FRAMES_PER_DISPATCH / pixels).clamp(1, todo as u64) as u32
         } else {
             1
         };
         let mut params = Self::params(scene, settings);
+        params.frame_begin = frames.start;
         params.frame_count = per_dispatch;
         self.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
@@ -817,7 +1011,7 @@ impl GpuTracer {
 
         let pipeline = &self.pipelines[&plan.shader_defs()];
         // Two timestamps per dispatch (start and end of its pass).
-        let dispatches = frames.div_ceil(per_dispatch);
+        let dispatches = todo.div_ceil(per_dispatch);
         let queries = self.timestamps.then(|| {
             self.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("voxlab trace timestamps"),
@@ -826,11 +1020,11 @@ impl GpuTracer {
             })
         });
         let start = Instant::now();
-        let mut begin = 0u32;
+        let mut begin = frames.start;
         let mut dispatch = 0u32;
-        while begin < frames {
-            let count = per_dispatch.min(frames - begin);
-            if begin > 0 {
+        while begin < frames.end {
+            let count = per_dispatch.min(frames.end - begin);
+            if begin > frames.start {
                 params.frame_begin = begin;
                 params.frame_count = count;
                 self.queue
@@ -920,7 +1114,7 @@ impl GpuTracer {
                 }
             }
             Some(comp) => {
-                let n = frames as f64;
+                let n = frames.end as f64;
                 for ((dst, sum), c) in frame.pixels.iter_mut().zip(&radiance).zip(comp) {
                     *dst = std::array::from_fn(|k| ((sum[k] as f64 + c[k] as f64) / n) as f32);
                 }
@@ -941,6 +1135,16 @@ impl GpuTracer {
             accumulation: if plan.accumulate { pixels * 16 } else { 0 },
             pyramids,
         });
+        if let Some(key) = key
+            && plan.accumulate
+        {
+            self.accumulation = Some(Accumulation {
+                key,
+                grid_generation: self.grid_generation(),
+                pyramid_builds: self.pyramid_builds,
+                frames: frames.end,
+            });
+        }
         self.last_plan = Some(plan);
         Ok(RenderOutput {
             frame,
