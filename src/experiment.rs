@@ -7,7 +7,12 @@
 //! validation errors know the key path instead, and look it up in a `toml_edit` parse of
 //! the same text to find the line. Either way every message starts with `file:line:`.
 //!
-//! The file format is documented by example in `experiments/baseline.toml`.
+//! The file format is documented by example in `experiments/baseline.toml`. The way
+//! back, an [`Experiment`] written as a file that parses to it again, is [`write`].
+
+pub mod write;
+
+pub use write::{WriteError, relocate_scene_source, scene_source, to_toml};
 
 use std::fmt;
 use std::ops::Range;
@@ -308,7 +313,74 @@ impl Experiment {
         let path = path.as_ref();
         let ctx = Ctx::new(text, path);
         let raw: RawExperiment = toml::from_str(text).map_err(|e| ctx.serde_error(&e))?;
-        build(raw, &ctx)
+        build(raw, &ctx, None)
+    }
+
+    /// [`Experiment::from_str`], but the grid and the file palette come from `cache` when
+    /// the `[scene]` table and the file's directory are the same as in the last call that
+    /// loaded them: re-parsing after an edit of the lights, the camera or the materials
+    /// does not reload a `.vox` file or voxelize a mesh again. The result is equal to
+    /// `from_str`'s: `[[scene.boxes]]` and a mesh's `material` are applied to a copy.
+    pub fn from_str_cached(
+        text: &str,
+        path: impl AsRef<Path>,
+        cache: &mut SceneCache,
+    ) -> Result<Self, ExperimentError> {
+        let path = path.as_ref();
+        let ctx = Ctx::new(text, path);
+        let raw: RawExperiment = toml::from_str(text).map_err(|e| ctx.serde_error(&e))?;
+        build(raw, &ctx, Some(cache))
+    }
+}
+
+/// The voxels of one `[scene]` source, for [`Experiment::from_str_cached`]: the grid and
+/// the file palette as the generator or the `.vox`/mesh loader made them, before boxes
+/// and a mesh material are applied. Holds the last source only (a viewer edits one
+/// experiment at a time; a grid can be large).
+#[derive(Debug, Default)]
+pub struct SceneCache {
+    entry: Option<CachedScene>,
+    hits: u64,
+    misses: u64,
+}
+
+#[derive(Debug)]
+struct CachedScene {
+    /// `Debug` of the `[scene]` table as parsed, and the experiment file's directory
+    /// (relative `vox`/`mesh` paths start there).
+    key: String,
+    grid: Grid,
+    palette: Option<Vec<Material>>,
+}
+
+impl SceneCache {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Scenes held: 0 or 1.
+    pub fn len(&self) -> usize {
+        usize::from(self.entry.is_some())
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.entry.is_none()
+    }
+
+    /// Parses that reused the held grid.
+    pub fn hits(&self) -> u64 {
+        self.hits
+    }
+
+    /// Parses that built or loaded the grid (and then held it).
+    pub fn misses(&self) -> u64 {
+        self.misses
+    }
+
+    /// Forgets the held scene (e.g. after the `.vox` or mesh file changed on disk); the
+    /// counters stay.
+    pub fn clear(&mut self) {
+        self.entry = None;
     }
 }
 
@@ -592,7 +664,43 @@ fn int_in(
     }
 }
 
-fn build(raw: RawExperiment, ctx: &Ctx) -> Result<Experiment, ExperimentError> {
+/// The grid and file palette of `[scene]`: `load_scene_file`, else `build_grid`; from the
+/// cache when it holds the same source.
+fn scene_voxels(
+    s: &RawScene,
+    ctx: &Ctx,
+    cache: Option<&mut SceneCache>,
+) -> Result<(Grid, Option<Vec<Material>>), ExperimentError> {
+    let load = || -> Result<_, ExperimentError> {
+        Ok(match load_scene_file(s, ctx)? {
+            Some((g, p)) => (g, Some(p)),
+            None => (build_grid(s, ctx)?, None),
+        })
+    };
+    let Some(cache) = cache else {
+        return load();
+    };
+    let dir = Path::new(&ctx.file).parent().unwrap_or(Path::new(""));
+    let key = format!("{s:?}\n{}", dir.display());
+    if let Some(c) = cache.entry.as_ref().filter(|c| c.key == key) {
+        cache.hits += 1;
+        return Ok((c.grid.clone(), c.palette.clone()));
+    }
+    let (grid, palette) = load()?;
+    cache.misses += 1;
+    cache.entry = Some(CachedScene {
+        key,
+        grid: grid.clone(),
+        palette: palette.clone(),
+    });
+    Ok((grid, palette))
+}
+
+fn build(
+    raw: RawExperiment,
+    ctx: &Ctx,
+    cache: Option<&mut SceneCache>,
+) -> Result<Experiment, ExperimentError> {
     let name = match raw.name {
         Some(n) => {
             let ok = !n.is_empty()
@@ -674,10 +782,7 @@ fn build(raw: RawExperiment, ctx: &Ctx) -> Result<Experiment, ExperimentError> {
         None => SEED_AMBIENT,
     };
 
-    let (grid, file_palette) = match load_scene_file(&raw.scene, ctx)? {
-        Some((g, p)) => (g, Some(p)),
-        None => (build_grid(&raw.scene, ctx)?, None),
-    };
+    let (grid, file_palette) = scene_voxels(&raw.scene, ctx, cache)?;
     let c = grid.centre();
     let w = grid.width();
 
@@ -807,6 +912,12 @@ fn build_cones(c: &RawCones, ctx: &Ctx) -> Result<ConeSettings, ExperimentError>
     })
 }
 
+/// `|n.n - 1|` up to which a light's normal counts as unit and is kept as written: far
+/// above the few ulps `normalize` leaves, far below what a change of the written digits
+/// of a normal that is not unit can reach (a normal this close to unit length is unit
+/// to rounding, and `AreaLight::frame` normalizes it again anyway).
+const UNIT_NORMAL_TOLERANCE: f64 = 1e-12;
+
 /// One `[[lights]]` entry. Keys that do not belong to the light's type are errors, so a
 /// `radius` on a rectangle never passes silently.
 fn build_light(
@@ -899,7 +1010,14 @@ fn build_light(
             if v.length_squared() == 0.0 || !v.length_squared().is_finite() {
                 return Err(ctx.invalid(&key("normal"), "must be a finite, non-zero vector"));
             }
-            v.normalize()
+            // A normal that is unit to rounding is kept as written: normalize() is not
+            // idempotent in floating point (it moves ~15 % of unit vectors by an ulp), so
+            // a parsed normal written back (`write::to_toml`) must parse to the same bits.
+            if (v.length_squared() - 1.0).abs() <= UNIT_NORMAL_TOLERANCE {
+                v
+            } else {
+                v.normalize()
+            }
         }
         None => -DVec3::Y,
     };

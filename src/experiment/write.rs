@@ -1,0 +1,478 @@
+//! The way back: an [`Experiment`] written as an experiment file that parses to it again.
+//!
+//! The voxels are not written: they come from the `[scene]` table of the file the
+//! experiment was read from (the *scene source*, [`scene_source`]), copied verbatim, so
+//! a `.vox` model or a mesh is referred to by its path and loaded again. Everything else
+//! (camera, lights, materials, render settings, features, cone knobs) is written in
+//! full, defaults included, so the file does not depend on the defaults of the version
+//! that reads it.
+//!
+//! For `e2 = parse(to_toml(e))`: `to_toml(e2) == to_toml(e)` byte for byte and
+//! `parse(to_toml(e2)) == e2`. `e2 == e` itself holds except for angles that no decimal
+//! number of degrees parses to exactly: the file holds degrees rounded to 1e-9 there
+//! (see [`degrees`]), so such an angle moves by less than 1e-9 degrees in the first
+//! cycle. The palette is written by name, as `[[materials]]` override it, which needs
+//! unique names ([`WriteError`]).
+
+use std::f64::consts::PI;
+use std::path::{Component, Path, PathBuf};
+
+use glam::DVec3;
+use toml::{Table, Value};
+
+use super::{Ctx, Experiment, ExperimentError};
+use crate::render::{ConeSettings, Features, RenderSettings};
+use crate::scene::{AreaShape, Light, Material, OrbitCamera};
+
+/// Why an experiment cannot be written as a file that parses back to it.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("cannot write experiment `{name}` as TOML: {key}: {message}")]
+pub struct WriteError {
+    /// The experiment's name.
+    pub name: String,
+    /// Dotted key as the file would have it, e.g. `materials[3].name`.
+    pub key: String,
+    pub message: String,
+}
+
+/// The first line of every file [`to_toml`] writes.
+pub const HEADER: &str = "# Written by voxlab from an experiment, every value resolved: \
+                          `voxlab render` renders exactly this.";
+
+/// The `[scene]` table of experiment text as written (empty if the file has none), with
+/// relative `vox` and `mesh` paths resolved against the file's directory, as the loader
+/// resolves them, and made absolute (canonical where the file exists); absolute paths
+/// are kept as given. This is where the voxels come from, for [`to_toml`].
+pub fn scene_source(text: &str, path: &Path) -> Result<Table, ExperimentError> {
+    let ctx = Ctx::new(text, path);
+    let doc: Table = toml::from_str(text).map_err(|e| ctx.serde_error(&e))?;
+    let mut scene = match doc.get("scene") {
+        None => Table::new(),
+        Some(Value::Table(t)) => t.clone(),
+        Some(_) => return Err(ctx.invalid("scene", "must be a table")),
+    };
+    let dir = path.parent().unwrap_or(Path::new(""));
+    for key in ["vox", "mesh"] {
+        let Some(v) = scene.get_mut(key) else {
+            continue;
+        };
+        let Value::String(p) = v else {
+            return Err(ctx.invalid(&format!("scene.{key}"), "must be a path (a string)"));
+        };
+        if Path::new(p.as_str()).is_absolute() {
+            continue;
+        }
+        let joined = dir.join(p.as_str());
+        let resolved = std::fs::canonicalize(&joined)
+            .or_else(|_| std::path::absolute(&joined))
+            .unwrap_or(joined);
+        *v = Value::String(resolved.to_string_lossy().into_owned());
+    }
+    Ok(scene)
+}
+
+/// `source` (a [`scene_source`]) for a file written into `dest_dir`: each absolute
+/// `vox`/`mesh` path that shares a directory (not just the root) with `dest_dir` becomes
+/// relative to `dest_dir` (`..` up to the common ancestor, then down), so a file
+/// exported beside its model keeps working when the tree is moved. Paths that share
+/// only the root, relative paths and anything else are kept as they are.
+pub fn relocate_scene_source(source: &Table, dest_dir: &Path) -> Table {
+    let mut out = source.clone();
+    // `..` climbs the physical directory: canonical, so no symbolic link is climbed.
+    let dest = std::fs::canonicalize(dest_dir)
+        .or_else(|_| std::path::absolute(dest_dir))
+        .unwrap_or_else(|_| dest_dir.to_path_buf());
+    for key in ["vox", "mesh"] {
+        if let Some(Value::String(p)) = out.get_mut(key)
+            && let Some(rel) = relative_path(Path::new(p.as_str()), &dest)
+        {
+            *p = rel.to_string_lossy().into_owned();
+        }
+    }
+    out
+}
+
+/// `target` relative to the directory `dir`, both absolute; `None` where they share no
+/// directory below the root or `dir` has `.`/`..` components below the shared part.
+fn relative_path(target: &Path, dir: &Path) -> Option<PathBuf> {
+    if !target.is_absolute() || !dir.is_absolute() {
+        return None;
+    }
+    let t: Vec<Component> = target.components().collect();
+    let d: Vec<Component> = dir.components().collect();
+    let common = t.iter().zip(&d).take_while(|(a, b)| a == b).count();
+    let shares_a_dir = t[..common]
+        .iter()
+        .any(|c| matches!(c, Component::Normal(_)));
+    let below_is_plain = d[common..]
+        .iter()
+        .all(|c| matches!(c, Component::Normal(_)));
+    if !shares_a_dir || !below_is_plain || common == t.len() {
+        return None;
+    }
+    let mut rel = PathBuf::new();
+    for _ in common..d.len() {
+        rel.push("..");
+    }
+    for c in &t[common..] {
+        rel.push(c);
+    }
+    Some(rel)
+}
+
+/// The parser's degrees to radians (`rad` in `build`).
+fn radians(deg: f64) -> f64 {
+    deg / 180.0 * PI
+}
+
+/// Radians as the degrees an experiment file holds. First `rad / pi * 180` rounded to
+/// 1e-9, so angles parsed from round numbers come out round (the parser computes
+/// `deg / 180 * pi`: 36 degrees is `0.2 * PI`, written `36.0`), and so do angles within
+/// a few ulps of such a parse (a viewer's `36.000001_f64.to_radians()`). An angle that
+/// is not (`2 atan(1/3)`, the seed's field of view) gets the shortest decimal that
+/// parses to it exactly where one exists (`36.86989764584402`), else the rounded value.
+/// Either way, writing the parsed angle again gives the same degrees (a fixed point for
+/// |angle| < 4e5 degrees).
+pub fn degrees(rad: f64) -> f64 {
+    let d = rad / PI * 180.0;
+    let scaled = d * 1e9;
+    // Beyond 2^52 every f64 is an integer: nothing to round (and no overflow to inf).
+    let rounded = if scaled.is_finite() && scaled.abs() < 4_503_599_627_370_496.0 {
+        scaled.round() / 1e9
+    } else {
+        d
+    };
+    if (radians(rounded) - rad).abs() <= 4.0 * f64::EPSILON * rad.abs() {
+        return rounded;
+    }
+    (0..17)
+        .filter_map(|digits| format!("{d:.digits$e}").parse::<f64>().ok())
+        .chain([d, d.next_up(), d.next_down()])
+        .find(|&c| radians(c) == rad)
+        .unwrap_or(rounded)
+}
+
+fn v3(v: DVec3) -> Value {
+    Value::Array(vec![v.x.into(), v.y.into(), v.z.into()])
+}
+
+/// `[camera]`: target, distance and the angles in degrees.
+pub fn camera_table(c: &OrbitCamera) -> Table {
+    let mut t = Table::new();
+    t.insert("target".into(), v3(c.target));
+    t.insert("distance".into(), c.distance.into());
+    t.insert("yaw_deg".into(), degrees(c.yaw).into());
+    t.insert("pitch_deg".into(), degrees(c.pitch).into());
+    t.insert("vfov_deg".into(), degrees(c.vfov).into());
+    t
+}
+
+/// One `[[lights]]` entry, with the keys its type allows and no others: a sphere's
+/// normal and rotation have no key (the parser sets -y and 0).
+pub fn light_table(l: &Light) -> Table {
+    let mut t = Table::new();
+    let kind = match l {
+        Light::Point(_) => "point",
+        Light::Area(a) => match a.shape {
+            AreaShape::Rect { .. } => "rect",
+            AreaShape::Disk { .. } => "disk",
+            AreaShape::Sphere { .. } => "sphere",
+        },
+    };
+    t.insert("type".into(), kind.into());
+    t.insert("position".into(), v3(l.position()));
+    t.insert("color".into(), v3(l.color()));
+    t.insert("intensity".into(), l.intensity().into());
+    if let Light::Area(a) = l {
+        match a.shape {
+            AreaShape::Rect { width, height } => {
+                t.insert("normal".into(), v3(a.normal));
+                t.insert(
+                    "size".into(),
+                    Value::Array(vec![width.into(), height.into()]),
+                );
+                t.insert("rotation_deg".into(), degrees(a.rotation).into());
+            }
+            AreaShape::Disk { radius } => {
+                t.insert("normal".into(), v3(a.normal));
+                t.insert("radius".into(), radius.into());
+                t.insert("rotation_deg".into(), degrees(a.rotation).into());
+            }
+            AreaShape::Sphere { radius } => {
+                t.insert("radius".into(), radius.into());
+            }
+        }
+    }
+    t
+}
+
+/// One `[[materials]]` entry with every field; `sigma` only where the material has one
+/// (absent means the default derived from kt).
+pub fn material_table(m: &Material) -> Table {
+    let mut t = Table::new();
+    t.insert("name".into(), m.name.clone().into());
+    t.insert("albedo".into(), v3(m.albedo));
+    for (k, v) in [
+        ("kd", m.kd),
+        ("ks", m.ks),
+        ("shininess", m.shininess),
+        ("kr", m.kr),
+        ("kt", m.kt),
+        ("ior", m.ior),
+    ] {
+        t.insert(k.into(), v.into());
+    }
+    if let Some(s) = m.sigma {
+        t.insert("sigma".into(), v3(s));
+    }
+    t.insert("emission".into(), v3(m.emission));
+    t
+}
+
+/// `[render]`: every setting, and the scene's ambient colour (which the file keeps
+/// here).
+pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
+    let mut t = Table::new();
+    let int = |v: u32| Value::Integer(i64::from(v));
+    t.insert("width".into(), int(s.width));
+    t.insert("height".into(), int(s.height));
+    t.insert("max_reflection_depth".into(), int(s.max_reflection_depth));
+    t.insert("max_refraction_depth".into(), int(s.max_refraction_depth));
+    t.insert("falloff".into(), s.falloff.into());
+    t.insert("falloff_min_distance".into(), s.falloff_min_distance.into());
+    t.insert("ray_offset".into(), s.ray_offset.into());
+    t.insert("ambient".into(), v3(ambient));
+    t.insert("light_samples".into(), int(s.light_samples));
+    t.insert("spp".into(), int(s.spp));
+    t.insert("seed".into(), int(s.seed));
+    t
+}
+
+/// `[features]`: all five switches, the transmittance model by name.
+pub fn features_table(f: &Features) -> Table {
+    let mut t = Table::new();
+    t.insert("area_lights".into(), f.area_lights.into());
+    t.insert("transmittance".into(), f.transmittance.name().into());
+    t.insert("cone_shadows".into(), f.cone_shadows.into());
+    t.insert("ambient_occlusion".into(), f.ambient_occlusion.into());
+    t.insert("indirect".into(), f.indirect.into());
+    t
+}
+
+/// `[cones]`: every knob.
+pub fn cones_table(c: &ConeSettings) -> Table {
+    let mut t = Table::new();
+    t.insert("levels".into(), i64::from(c.levels).into());
+    t.insert("step_factor".into(), c.step_factor.into());
+    t.insert("aperture_deg".into(), c.aperture_deg.into());
+    t.insert("start_offset".into(), c.start_offset.into());
+    t.insert("ao_cones".into(), i64::from(c.ao_cones).into());
+    t.insert("ao_range".into(), c.ao_range.into());
+    t.insert("indirect_strength".into(), c.indirect_strength.into());
+    t
+}
+
+/// `e` as a complete experiment file: a comment line, `name`, `[scene]` = `scene_source`
+/// verbatim (the voxels: [`scene_source`], or [`relocate_scene_source`] for a file in
+/// another directory), then every camera, light, material (void excepted), render,
+/// feature and cone value. `voxlab render` on the file renders `e` (angles to 1e-9
+/// degrees; see the module documentation for the round trip).
+///
+/// The grid is not written: `e.scene.grid` must be what `scene_source` gives (with its
+/// boxes and mesh material), as it is for an experiment parsed from that source and
+/// edited in anything but its voxels. Likewise the palette must be the source's,
+/// overridden and extended: `[[materials]]` override a palette entry of the same name
+/// and append new names.
+///
+/// Errors where no file can express `e`: a name the parser would reject, material names
+/// that are empty or not unique (including void's, so no material can be named like
+/// material 0), or a value that is not finite.
+pub fn to_toml(e: &Experiment, scene_source: &Table) -> Result<String, WriteError> {
+    let err = |key: String, message: String| WriteError {
+        name: e.name.clone(),
+        key,
+        message,
+    };
+    let name_ok = !e.name.is_empty()
+        && e.name.len() <= 128
+        && !e.name.starts_with('.')
+        && e.name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c));
+    if !name_ok {
+        return Err(err(
+            "name".into(),
+            format!(
+                "{:?}: an experiment name is 1 to 128 characters from A-Z a-z 0-9 - _ . (not starting with '.')",
+                e.name
+            ),
+        ));
+    }
+    let materials = &e.scene.materials;
+    for (i, m) in materials.iter().enumerate() {
+        if m.name.is_empty() {
+            return Err(err(
+                format!("materials[{i}].name"),
+                "is empty; [[materials]] are matched by name".into(),
+            ));
+        }
+        if let Some(j) = materials[..i].iter().position(|p| p.name == m.name) {
+            return Err(err(
+                format!("materials[{i}].name"),
+                format!(
+                    "{:?} is also the name of material {j}: [[materials]] override palette \
+                     entries by name, so a file cannot give two materials one name",
+                    m.name
+                ),
+            ));
+        }
+    }
+
+    let mut head = Table::new();
+    head.insert("name".into(), e.name.clone().into());
+    if e.scene.lights.is_empty() {
+        // Absent would mean the seed's lights.
+        head.insert("lights".into(), Value::Array(Vec::new()));
+    }
+    let lights: Vec<Table> = e.scene.lights.iter().map(light_table).collect();
+    let mats: Vec<Table> = materials.iter().skip(1).map(material_table).collect();
+    let scene = Table::from_iter([("scene".to_string(), Value::Table(scene_source.clone()))]);
+    let check = |key: &str, t: &Table| match non_finite(&Value::Table(t.clone()), key) {
+        Some(bad) => Err(err(bad, "is not a finite number".into())),
+        None => Ok(()),
+    };
+    let to_string =
+        |key: &str, t: &Table| toml::to_string(t).map_err(|e| err(key.to_string(), e.to_string()));
+
+    let mut out = format!("{HEADER}\n\n");
+    out += &to_string("name", &head)?;
+    // The scene source as toml writes it (nested `[[scene.boxes]]` included).
+    check("", &scene)?;
+    out += "\n";
+    out += &to_string("scene", &scene)?;
+    let mut section = |header: &str, key: &str, t: &Table, order: &[&str]| {
+        check(key, t)?;
+        out += &format!("\n{header}\n");
+        out += &ordered(t, order).map_err(|e| err(key.to_string(), e.to_string()))?;
+        Ok::<(), WriteError>(())
+    };
+    section(
+        "[camera]",
+        "camera",
+        &camera_table(&e.scene.camera),
+        CAMERA_KEYS,
+    )?;
+    for (i, l) in lights.iter().enumerate() {
+        section("[[lights]]", &format!("lights[{i}]"), l, LIGHT_KEYS)?;
+    }
+    for (i, m) in mats.iter().enumerate() {
+        section(
+            "[[materials]]",
+            &format!("materials[{i}]"),
+            m,
+            MATERIAL_KEYS,
+        )?;
+    }
+    let render = render_table(&e.settings, e.scene.ambient);
+    section("[render]", "render", &render, RENDER_KEYS)?;
+    let features = features_table(&e.settings.features);
+    section("[features]", "features", &features, FEATURE_KEYS)?;
+    section(
+        "[cones]",
+        "cones",
+        &cones_table(&e.settings.cones),
+        CONE_KEYS,
+    )?;
+    Ok(out)
+}
+
+// The order keys are written in (as in `experiments/baseline.toml`); `toml::Table`
+// sorts them.
+const CAMERA_KEYS: &[&str] = &["target", "distance", "yaw_deg", "pitch_deg", "vfov_deg"];
+const LIGHT_KEYS: &[&str] = &[
+    "type",
+    "position",
+    "normal",
+    "size",
+    "radius",
+    "rotation_deg",
+    "color",
+    "intensity",
+];
+const MATERIAL_KEYS: &[&str] = &[
+    "name",
+    "albedo",
+    "kd",
+    "ks",
+    "shininess",
+    "kr",
+    "kt",
+    "ior",
+    "sigma",
+    "emission",
+];
+const RENDER_KEYS: &[&str] = &[
+    "width",
+    "height",
+    "max_reflection_depth",
+    "max_refraction_depth",
+    "falloff",
+    "falloff_min_distance",
+    "ray_offset",
+    "ambient",
+    "light_samples",
+    "spp",
+    "seed",
+];
+const FEATURE_KEYS: &[&str] = &[
+    "area_lights",
+    "transmittance",
+    "cone_shadows",
+    "ambient_occlusion",
+    "indirect",
+];
+const CONE_KEYS: &[&str] = &[
+    "levels",
+    "step_factor",
+    "aperture_deg",
+    "start_offset",
+    "ao_cones",
+    "ao_range",
+    "indirect_strength",
+];
+
+/// `key = value` lines of a table of plain values, the keys in `order` first, then any
+/// others in the table's order.
+fn ordered(t: &Table, order: &[&str]) -> Result<String, toml::ser::Error> {
+    let rest = t.keys().filter(|k| !order.contains(&k.as_str()));
+    let mut out = String::new();
+    for k in order.iter().copied().chain(rest.map(String::as_str)) {
+        if let Some(v) = t.get(k) {
+            out += &toml::to_string(&Table::from_iter([(k.to_string(), v.clone())]))?;
+        }
+    }
+    Ok(out)
+}
+
+/// The dotted key of the first NaN or infinity in `v`.
+fn non_finite(v: &Value, key: &str) -> Option<String> {
+    let join = |k: &str| {
+        if key.is_empty() {
+            k.to_string()
+        } else {
+            format!("{key}.{k}")
+        }
+    };
+    match v {
+        Value::Float(x) if !x.is_finite() => Some(key.to_string()),
+        Value::Array(a) => a.iter().enumerate().find_map(|(i, x)| {
+            let k = match x {
+                Value::Table(_) => format!("{key}[{i}]"),
+                _ => key.to_string(),
+            };
+            non_finite(x, &k)
+        }),
+        Value::Table(t) => t.iter().find_map(|(k, x)| non_finite(x, &join(k))),
+        _ => None,
+    }
+}
