@@ -32,13 +32,13 @@ use anyhow::{Context, Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Deserialize;
 
-use crate::experiment::{Experiment, ExperimentError};
+use crate::experiment::{Experiment, ExperimentError, write};
 use crate::gpu::GpuTracer;
 use crate::metrics::{Domain, compare};
 use crate::output::{read_exr, write_frame};
 use crate::plan::Plan;
 use crate::render::{ConeSettings, Features, Frame, MAX_SAMPLES, RenderSettings, Transmittance};
-use crate::scene::{AreaShape, Light, PointLight, Scene};
+use crate::scene::{Light, PointLight, Scene};
 
 /// Part of the reference cache key. Bump it whenever a tracer's model changes what an
 /// image looks like (shading, sampling, transmittance): cached references made by the
@@ -1450,50 +1450,15 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
         blake3::hash(g.data()).to_hex().to_string().into(),
     );
     doc.insert("scene".into(), scene.into());
-    let cam = &e.scene.camera;
-    let mut camera = Table::new();
-    camera.insert("target".into(), v3(cam.target));
-    camera.insert("distance".into(), cam.distance.into());
-    camera.insert("yaw_deg".into(), cam.yaw.to_degrees().into());
-    camera.insert("pitch_deg".into(), cam.pitch.to_degrees().into());
-    camera.insert("vfov_deg".into(), cam.vfov.to_degrees().into());
-    doc.insert("camera".into(), camera.into());
+    // Camera, lights, materials, render settings and cone knobs as `to_toml` writes
+    // them; sigma resolved (the default derived from kt filled in), and no `spp` (each
+    // point has its own).
+    doc.insert("camera".into(), write::camera_table(&e.scene.camera).into());
     let lights: Vec<Value> = e
         .scene
         .lights
         .iter()
-        .map(|l| {
-            let mut t = Table::new();
-            let kind = match l {
-                Light::Point(_) => "point",
-                Light::Area(a) => match a.shape {
-                    AreaShape::Rect { width, height } => {
-                        t.insert(
-                            "size".into(),
-                            Value::Array(vec![width.into(), height.into()]),
-                        );
-                        "rect"
-                    }
-                    AreaShape::Disk { radius } => {
-                        t.insert("radius".into(), radius.into());
-                        "disk"
-                    }
-                    AreaShape::Sphere { radius } => {
-                        t.insert("radius".into(), radius.into());
-                        "sphere"
-                    }
-                },
-            };
-            t.insert("type".into(), kind.into());
-            t.insert("position".into(), v3(l.position()));
-            t.insert("color".into(), v3(l.color()));
-            t.insert("intensity".into(), l.intensity().into());
-            if let Light::Area(a) = l {
-                t.insert("normal".into(), v3(a.normal));
-                t.insert("rotation_deg".into(), a.rotation.to_degrees().into());
-            }
-            t.into()
-        })
+        .map(|l| write::light_table(l).into())
         .collect();
     doc.insert("lights".into(), lights.into());
     let materials: Vec<Value> = e
@@ -1502,54 +1467,17 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
         .iter()
         .skip(1)
         .map(|m| {
-            let mut t = Table::new();
-            t.insert("name".into(), m.name.clone().into());
-            t.insert("albedo".into(), v3(m.albedo));
-            for (k, v) in [
-                ("kd", m.kd),
-                ("ks", m.ks),
-                ("shininess", m.shininess),
-                ("kr", m.kr),
-                ("kt", m.kt),
-                ("ior", m.ior),
-            ] {
-                t.insert(k.into(), v.into());
-            }
+            let mut t = write::material_table(m);
             t.insert("sigma".into(), v3(m.absorption(g.voxel_size())));
-            t.insert("emission".into(), v3(m.emission));
             t.into()
         })
         .collect();
     doc.insert("materials".into(), materials.into());
     let s = &e.settings;
-    let mut render = Table::new();
-    render.insert("width".into(), i64::from(s.width).into());
-    render.insert("height".into(), i64::from(s.height).into());
-    render.insert(
-        "max_reflection_depth".into(),
-        i64::from(s.max_reflection_depth).into(),
-    );
-    render.insert(
-        "max_refraction_depth".into(),
-        i64::from(s.max_refraction_depth).into(),
-    );
-    render.insert("falloff".into(), s.falloff.into());
-    render.insert("falloff_min_distance".into(), s.falloff_min_distance.into());
-    render.insert("ray_offset".into(), s.ray_offset.into());
-    render.insert("ambient".into(), v3(e.scene.ambient));
-    render.insert("light_samples".into(), i64::from(s.light_samples).into());
-    render.insert("seed".into(), i64::from(s.seed).into());
+    let mut render = write::render_table(s, e.scene.ambient);
+    render.remove("spp");
     doc.insert("render".into(), render.into());
-    let k = &s.cones;
-    let mut cones = Table::new();
-    cones.insert("levels".into(), i64::from(k.levels).into());
-    cones.insert("step_factor".into(), k.step_factor.into());
-    cones.insert("aperture_deg".into(), k.aperture_deg.into());
-    cones.insert("start_offset".into(), k.start_offset.into());
-    cones.insert("ao_cones".into(), i64::from(k.ao_cones).into());
-    cones.insert("ao_range".into(), k.ao_range.into());
-    cones.insert("indirect_strength".into(), k.indirect_strength.into());
-    doc.insert("cones".into(), cones.into());
+    doc.insert("cones".into(), write::cones_table(&s.cones).into());
     let mut ablate = Table::new();
     ablate.insert("reference_spp".into(), i64::from(c.reference_spp).into());
     ablate.insert(
