@@ -67,6 +67,11 @@ pub enum OutputError {
         source: image::ImageError,
     },
     #[error("cannot write {}: {source}", path.display())]
+    WriteFile {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("cannot write {}: {source}", path.display())]
     Rename {
         path: PathBuf,
         source: std::io::Error,
@@ -116,6 +121,37 @@ pub fn write_frame(frame: &Frame, path: impl AsRef<Path>) -> Result<(), OutputEr
     if let Err(source) = written {
         let _ = std::fs::remove_file(&tmp);
         return Err(OutputError::Write {
+            path: path.to_path_buf(),
+            source,
+        });
+    }
+    std::fs::rename(&tmp, path).map_err(|source| {
+        let _ = std::fs::remove_file(&tmp);
+        OutputError::Rename {
+            path: path.to_path_buf(),
+            source,
+        }
+    })
+}
+
+/// Writes `bytes` to `path` the way `write_frame` writes images: parent directories
+/// created, a temporary file renamed into place, so a failed write leaves nothing under
+/// `path` (the viewer's exported experiment files and window captures).
+pub fn write_file(path: impl AsRef<Path>, bytes: &[u8]) -> Result<(), OutputError> {
+    let path = path.as_ref();
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&dir).map_err(|source| OutputError::CreateDir {
+        dir: dir.clone(),
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let tmp = temp_path(&dir, path);
+    if let Err(source) = std::fs::write(&tmp, bytes) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(OutputError::WriteFile {
             path: path.to_path_buf(),
             source,
         });
