@@ -16,6 +16,8 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod stress;
+#[cfg(feature = "viewer")]
+pub mod viewer;
 
 pub use render::{Features, Frame, RayStats, RenderOutput, RenderSettings, Transmittance};
 pub use scene::Scene;

@@ -46,8 +46,100 @@ enum Command {
     /// reference (the experiment's [ablate] table); writes images, a labelled grid, a CSV,
     /// a log-log plot and a markdown table.
     Ablate(AblateArgs),
-    // Further subcommands (bench, stress, ablate, voxelize) go here, one variant each,
-    // with their own Args struct and `cmd_*` function.
+    /// Interactive viewer: two feature sets of one scene side by side (split view),
+    /// orbit camera, progressive accumulation, scene and side panels, error against a
+    /// converged reference, PNG + TOML export that `voxlab render` reproduces exactly.
+    #[cfg(feature = "viewer")]
+    View(ViewArgs),
+    // Further subcommands go here, one variant each, with their own Args struct and
+    // `cmd_*` function.
+}
+
+#[cfg(feature = "viewer")]
+#[derive(Args, Debug)]
+struct ViewArgs {
+    /// The experiment file (TOML). Default: the seed scene.
+    experiment: Option<PathBuf>,
+    /// Features of the left side, comma-separated: hard, area, cone, min-kt,
+    /// beer-lambert, ao, indirect, samples=N (default: the experiment's own).
+    #[arg(long, value_name = "LIST")]
+    left: Option<String>,
+    /// Features of the right side (default: area lights sampled with beer-lambert, or
+    /// cones when the experiment already asks for that).
+    #[arg(long, value_name = "LIST")]
+    right: Option<String>,
+    /// Turn the camera by YAW,PITCH degrees before the first frame.
+    #[arg(long, value_name = "YAW,PITCH", value_parser = parse_pair, allow_hyphen_values = true)]
+    orbit: Option<(f64, f64)>,
+    /// Window size in points, WIDTHxHEIGHT.
+    #[arg(long, value_name = "WxH", default_value = "1280x800", value_parser = parse_window)]
+    window: (f32, f32),
+    /// Scripted run: accumulate this many frames on both sides at full resolution, save
+    /// both sides (PNG + TOML) and a window capture into --save-dir, then close.
+    #[arg(long, value_name = "N", requires = "save_dir",
+          value_parser = clap::value_parser!(u32).range(1..=voxlab::viewer::state::MAX_VIEW_SPP as i64))]
+    frames: Option<u32>,
+    /// Directory for the scripted run's files.
+    #[arg(long, value_name = "DIR", requires = "frames")]
+    save_dir: Option<PathBuf>,
+}
+
+#[cfg(feature = "viewer")]
+fn parse_pair(s: &str) -> Result<(f64, f64), String> {
+    let (a, b) = s
+        .split_once(',')
+        .ok_or_else(|| format!("`{s}`: expected YAW,PITCH in degrees"))?;
+    let num = |t: &str| {
+        t.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("`{t}` is not a finite number of degrees"))
+    };
+    Ok((num(a)?, num(b)?))
+}
+
+#[cfg(feature = "viewer")]
+fn parse_window(s: &str) -> Result<(f32, f32), String> {
+    let (a, b) = s
+        .split_once('x')
+        .ok_or_else(|| format!("`{s}`: expected WIDTHxHEIGHT"))?;
+    let num = |t: &str| {
+        t.parse::<u32>()
+            .ok()
+            .filter(|n| (200..=8192).contains(n))
+            .map(|n| n as f32)
+            .ok_or_else(|| format!("`{t}`: each side must be an integer in 200..=8192"))
+    };
+    Ok((num(a)?, num(b)?))
+}
+
+#[cfg(feature = "viewer")]
+fn cmd_view(args: ViewArgs) -> Result<()> {
+    use voxlab::viewer::{Automation, ViewOptions};
+    let automation = match (args.frames, args.save_dir) {
+        (Some(frames), Some(save_dir)) => Some(Automation {
+            frames,
+            save_dir,
+            exit: true,
+        }),
+        _ => None,
+    };
+    let scripted = automation.is_some();
+    let outcome = voxlab::viewer::run(ViewOptions {
+        experiment: args.experiment,
+        left: args.left,
+        right: args.right,
+        orbit: args.orbit,
+        window: args.window,
+        automation,
+    })?;
+    if scripted {
+        for p in &outcome.saved {
+            println!("saved {}", p.display());
+        }
+    }
+    Ok(())
 }
 
 #[derive(Args, Debug)]
@@ -177,6 +269,8 @@ fn main() -> ExitCode {
         Some(Command::Bench(args)) => cmd_bench(&args),
         Some(Command::Ablate(args)) => cmd_ablate(&args),
         Some(Command::Stress(args)) => cmd_stress(&args),
+        #[cfg(feature = "viewer")]
+        Some(Command::View(args)) => cmd_view(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,1150 @@
+//! The viewer's window: a split view of two sides over one camera, the panels that edit
+//! the scene and each side, and the bookkeeping that keeps the render workers busy with
+//! the current state. The model lives in `state`; rendering in `worker`.
+
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{Receiver, Sender};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use eframe::egui;
+use egui::{Color32, ColorImage, Rect, Sense, TextureHandle, TextureOptions, Vec2, pos2};
+use glam::DVec3;
+
+use super::state::{
+    AdaptiveScale, MAX_VIEW_SPP, ShadowModel, Side, SideSettings, ViewerState, scaled_size,
+};
+use super::worker::{Job, Report, Update};
+use crate::experiment::Experiment;
+use crate::metrics::{Domain, compare};
+use crate::render::{Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, Transmittance};
+use crate::scene::{AreaShape, Light};
+
+/// Where a report came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Channel {
+    Side(Side),
+    Reference,
+}
+
+/// Offsets added to the seed of a reference, so it draws samples independent of the
+/// sides it is compared with (as `voxlab ablate` does).
+const REFERENCE_SEED_OFFSET: u32 = 0x9E37_79B9;
+
+/// Default frames of a converged reference.
+pub const DEFAULT_REFERENCE_SPP: u32 = 256;
+
+/// What the viewer does without a user: accumulate `frames` on both sides at full
+/// resolution, save both sides and a window capture into `save_dir`, then close (the
+/// end-to-end test, and scripted figures).
+#[derive(Clone, Debug)]
+pub struct Automation {
+    pub frames: u32,
+    pub save_dir: PathBuf,
+    pub exit: bool,
+}
+
+/// How an automated run ended, for the command's exit status.
+#[derive(Clone, Debug, Default)]
+pub struct Outcome {
+    pub saved: Vec<PathBuf>,
+    pub error: Option<String>,
+}
+
+/// The error of one side against its converged reference.
+#[derive(Clone, Debug)]
+pub struct SideError {
+    pub frames: u32,
+    pub rmse: f64,
+    pub psnr: f64,
+    /// Mean FLIP (NVIDIA's perceptual error), computed on request.
+    pub flip: Option<f64>,
+}
+
+/// A side as the window shows it.
+#[derive(Default)]
+struct SideView {
+    texture: Option<TextureHandle>,
+    /// The latest image of the current generation and size.
+    latest: Option<Update>,
+    /// What the worker was last asked for: generation and traced size.
+    submitted: Option<(u64, u32, u32)>,
+    error: Option<String>,
+    metrics: Option<SideError>,
+    /// The reference this side is compared with: its key (the reference experiment's
+    /// TOML text).
+    reference_key: Option<String>,
+}
+
+/// On-demand converged references, one per distinct reference experiment.
+#[derive(Default)]
+struct References {
+    spp: u32,
+    /// Finished references by key.
+    done: Vec<(String, Arc<Frame>)>,
+    /// Waiting: key and experiment.
+    queue: Vec<(String, Arc<Experiment>)>,
+    /// Rendering: key, generation, frames so far, total.
+    running: Option<(String, u64, u32, u32)>,
+    generation: u64,
+}
+
+impl References {
+    fn get(&self, key: &str) -> Option<&Arc<Frame>> {
+        self.done.iter().find(|(k, _)| k == key).map(|(_, f)| f)
+    }
+}
+
+pub struct ViewerApp {
+    pub state: ViewerState,
+    /// Job queues of the left side, the right side and the reference worker.
+    jobs: [Sender<Job>; 3],
+    reports: Receiver<(Channel, Report)>,
+    views: [SideView; 2],
+    pub adaptive: AdaptiveScale,
+    references: References,
+    /// When the view last changed (restarting accumulation).
+    last_change: Option<Instant>,
+    pub adapter: Option<String>,
+    pub save_dir: String,
+    /// The latest message for the status line (saves, errors).
+    pub status: String,
+    automation: Option<Automation>,
+    outcome: Arc<Mutex<Outcome>>,
+    /// Set by the screenshot callback once the window capture is written.
+    capture_done: Arc<Mutex<Option<Result<PathBuf, String>>>>,
+    automation_stage: u8,
+}
+
+impl ViewerApp {
+    pub fn new(
+        state: ViewerState,
+        jobs: [Sender<Job>; 3],
+        reports: Receiver<(Channel, Report)>,
+        automation: Option<Automation>,
+        outcome: Arc<Mutex<Outcome>>,
+    ) -> Self {
+        let mut state = state;
+        if let Some(a) = &automation {
+            // A scripted run stops exactly at its frame count.
+            for s in &mut state.sides {
+                s.max_spp = a.frames;
+            }
+            if let Err(e) = state.commit(&Side::BOTH) {
+                outcome.lock().expect("outcome lock").error = Some(format!("{e:#}"));
+            }
+        }
+        let save_dir = automation
+            .as_ref()
+            .map(|a| a.save_dir.display().to_string())
+            .unwrap_or_else(|| "out/view".to_string());
+        Self {
+            state,
+            jobs,
+            reports,
+            views: Default::default(),
+            adaptive: AdaptiveScale::default(),
+            references: References {
+                spp: DEFAULT_REFERENCE_SPP,
+                ..Default::default()
+            },
+            last_change: None,
+            adapter: None,
+            save_dir,
+            status: String::new(),
+            automation,
+            outcome,
+            capture_done: Arc::new(Mutex::new(None)),
+            automation_stage: 0,
+        }
+    }
+
+    /// Frames accumulated on `side` for the current state (0 before the first image).
+    pub fn frames(&self, side: Side) -> u32 {
+        self.views[side.index()]
+            .latest
+            .as_ref()
+            .map_or(0, |u| u.frames)
+    }
+
+    /// The latest image of `side` for the current state.
+    pub fn latest(&self, side: Side) -> Option<&Update> {
+        self.views[side.index()].latest.as_ref()
+    }
+
+    pub fn side_error(&self, side: Side) -> Option<&SideError> {
+        self.views[side.index()].metrics.as_ref()
+    }
+
+    fn interacting(&self) -> bool {
+        self.last_change
+            .is_some_and(|t| t.elapsed().as_secs_f64() < self.adaptive.settle_s)
+    }
+
+    /// Records that `sides` changed: their images restart.
+    fn changed(&mut self, sides: &[Side]) {
+        self.last_change = Some(Instant::now());
+        for s in sides {
+            let v = &mut self.views[s.index()];
+            v.latest = None;
+            v.metrics = None;
+            v.error = None;
+        }
+    }
+
+    /// Applies an edit of the shared state (`f`), then restarts both sides; an edit the
+    /// file format rejects is undone and reported.
+    fn edit_shared(&mut self, f: impl FnOnce(&mut ViewerState) -> anyhow::Result<()>) {
+        let before = (self.state.base.clone(), self.state.sides.clone());
+        match f(&mut self.state) {
+            Ok(()) => self.changed(&Side::BOTH),
+            Err(e) => {
+                (self.state.base, self.state.sides) = before;
+                self.status = format!("edit rejected: {e:#}");
+            }
+        }
+    }
+
+    /// The full-resolution image size, and the size traced now.
+    fn sizes(&self) -> ((u32, u32), (u32, u32)) {
+        let s = &self.state.base.settings;
+        let full = (s.width, s.height);
+        let pixels = s.width as u64 * s.height as u64;
+        // Both sides share the machine, so the budget covers them together.
+        let scale = self.adaptive.scale(2 * pixels, self.interacting());
+        (full, scaled_size(full.0, full.1, scale))
+    }
+
+    /// Sends each side's worker the job for the current state, when it changed.
+    fn submit_jobs(&mut self) {
+        let (_, (w, h)) = self.sizes();
+        let interacting = self.interacting();
+        for side in Side::BOTH {
+            let generation = self.state.generation[side.index()];
+            let want = (generation, w, h);
+            let v = &mut self.views[side.index()];
+            if v.submitted == Some(want) {
+                continue;
+            }
+            v.submitted = Some(want);
+            if v.latest.as_ref().is_some_and(|u| {
+                u.generation != generation || (u.frame.width, u.frame.height) != (w, h)
+            }) {
+                v.latest = None;
+                v.metrics = None;
+            }
+            let _ = self.jobs[side.index()].send(Job {
+                generation,
+                experiment: self.state.rendered(side).clone(),
+                width: w,
+                height: h,
+                frames: self.state.sides[side.index()].max_spp,
+                batch_budget: Duration::from_secs_f64(
+                    if interacting {
+                        self.adaptive.budget_ms
+                    } else {
+                        150.0
+                    } * 1e-3,
+                ),
+            });
+        }
+    }
+
+    /// Takes the workers' reports.
+    fn receive(&mut self, ctx: &egui::Context) {
+        while let Ok((channel, report)) = self.reports.try_recv() {
+            match (channel, report) {
+                (_, Report::Ready { adapter }) => self.adapter = Some(adapter),
+                (Channel::Side(side), Report::Update(u)) => {
+                    let v = &mut self.views[side.index()];
+                    let Some((generation, w, h)) = v.submitted else {
+                        continue;
+                    };
+                    if u.generation != generation || (u.frame.width, u.frame.height) != (w, h) {
+                        continue;
+                    }
+                    let pixels = u.frame.width as u64 * u.frame.height as u64;
+                    self.adaptive
+                        .observe(pixels, u.frame_time.as_secs_f64() * 1e3);
+                    let image = ColorImage::from_rgb(
+                        [u.frame.width as usize, u.frame.height as usize],
+                        &u.frame.to_rgb8(),
+                    );
+                    let options = TextureOptions::LINEAR;
+                    match &mut v.texture {
+                        Some(t) => t.set(image, options),
+                        None => {
+                            v.texture = Some(ctx.load_texture(
+                                format!("side-{}", side.name()),
+                                image,
+                                options,
+                            ))
+                        }
+                    }
+                    v.error = None;
+                    v.latest = Some(u);
+                    self.update_rmse(side);
+                }
+                (
+                    Channel::Side(side),
+                    Report::Failed {
+                        generation,
+                        message,
+                    },
+                ) => {
+                    if generation == self.state.generation[side.index()] || generation == 0 {
+                        self.views[side.index()].error = Some(message);
+                    }
+                }
+                (Channel::Reference, Report::Update(u)) => {
+                    let Some((key, generation, _, _)) = self.references.running.clone() else {
+                        continue;
+                    };
+                    if u.generation != generation {
+                        continue;
+                    }
+                    if u.frames < u.total {
+                        self.references.running = Some((key, generation, u.frames, u.total));
+                        continue;
+                    }
+                    self.references.running = None;
+                    self.references.done.push((key, u.frame));
+                    self.next_reference();
+                    for side in Side::BOTH {
+                        self.update_rmse(side);
+                        self.update_flip(side);
+                    }
+                }
+                (Channel::Reference, Report::Failed { message, .. }) => {
+                    self.references.running = None;
+                    self.references.queue.clear();
+                    self.status = format!("reference failed: {message}");
+                }
+            }
+        }
+    }
+
+    /// The reference experiment `side` is compared with: its scene and settings with
+    /// area lights sampled and no cone shadows (the estimator that converges to the
+    /// model), `references.spp` frames, an independent seed.
+    fn reference_experiment(&self, side: Side) -> anyhow::Result<(String, Experiment)> {
+        let mut e = self.state.rendered(side).as_ref().clone();
+        ShadowModel::AreaSampled.apply(&mut e.settings.features);
+        e.settings.spp = self.references.spp;
+        e.settings.seed = e.settings.seed.wrapping_add(REFERENCE_SEED_OFFSET);
+        // The key is the experiment's file text: equal text, equal reference.
+        let text = crate::experiment::write::to_toml(&e, &self.state.scene_source)?;
+        Ok((text, e))
+    }
+
+    /// Asks for the references of both sides (rendered once per distinct experiment).
+    pub fn request_error(&mut self) {
+        for side in Side::BOTH {
+            match self.reference_experiment(side) {
+                Ok((key, e)) => {
+                    let known = self.references.get(&key).is_some()
+                        || self.references.queue.iter().any(|(k, _)| *k == key)
+                        || self
+                            .references
+                            .running
+                            .as_ref()
+                            .is_some_and(|(k, ..)| *k == key);
+                    if !known {
+                        self.references.queue.push((key.clone(), Arc::new(e)));
+                    }
+                    self.views[side.index()].reference_key = Some(key);
+                }
+                Err(e) => self.status = format!("reference: {e:#}"),
+            }
+        }
+        if self.references.running.is_none() {
+            self.next_reference();
+        }
+        for side in Side::BOTH {
+            self.update_rmse(side);
+            self.update_flip(side);
+        }
+    }
+
+    fn next_reference(&mut self) {
+        if self.references.queue.is_empty() {
+            return;
+        }
+        let (key, e) = self.references.queue.remove(0);
+        self.references.generation += 1;
+        let generation = self.references.generation;
+        let (w, h) = (e.settings.width, e.settings.height);
+        let total = self.references.spp;
+        self.references.running = Some((key, generation, 0, total));
+        let _ = self.jobs[2].send(Job {
+            generation,
+            experiment: e,
+            width: w,
+            height: h,
+            frames: total,
+            batch_budget: Duration::from_millis(500),
+        });
+    }
+
+    /// The reference of `side` and its current full-size image, when both exist.
+    fn pair(&self, side: Side) -> Option<(Arc<Frame>, Arc<Frame>, u32)> {
+        let v = &self.views[side.index()];
+        let key = v.reference_key.as_ref()?;
+        let reference = self.references.get(key)?;
+        let u = v.latest.as_ref()?;
+        ((u.frame.width, u.frame.height) == (reference.width, reference.height))
+            .then(|| (reference.clone(), u.frame.clone(), u.frames))
+    }
+
+    /// RMSE and PSNR against the reference, refreshed with every image (cheap).
+    fn update_rmse(&mut self, side: Side) {
+        let Some((reference, frame, frames)) = self.pair(side) else {
+            return;
+        };
+        if let Some(d) = compare(&reference, &frame, Domain::Linear, 0.0) {
+            let v = &mut self.views[side.index()];
+            let flip = v
+                .metrics
+                .as_ref()
+                .and_then(|m| (m.frames == frames).then_some(m.flip))
+                .flatten();
+            v.metrics = Some(SideError {
+                frames,
+                rmse: d.rmse,
+                psnr: d.psnr,
+                flip,
+            });
+        }
+    }
+
+    /// FLIP against the reference, on request (it costs tens of milliseconds).
+    fn update_flip(&mut self, side: Side) {
+        let Some((reference, frame, _)) = self.pair(side) else {
+            return;
+        };
+        let (flip, _) = crate::ablate::flip(&reference, &frame);
+        if let Some(m) = &mut self.views[side.index()].metrics {
+            m.flip = Some(flip);
+        }
+    }
+
+    /// Saves `side`'s current image as PNG beside the experiment file that reproduces
+    /// it; returns the two paths.
+    pub fn save_side(&mut self, side: Side, dir: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
+        let u = self.views[side.index()]
+            .latest
+            .clone()
+            .ok_or_else(|| anyhow::anyhow!("the {} side has no image yet", side.name()))?;
+        let (text, _) =
+            self.state
+                .export(side, u.frames, u.frame.width, u.frame.height, Some(dir))?;
+        let stem = format!("{}-{}", self.state.base.name, side.name());
+        let png = dir.join(format!("{stem}.png"));
+        let toml = dir.join(format!("{stem}.toml"));
+        crate::output::write_frame(&u.frame, &png)?;
+        crate::output::write_file(&toml, text.as_bytes())?;
+        Ok((png, toml))
+    }
+
+    /// Saves both sides and asks for a capture of the window.
+    pub fn save_all(&mut self, ctx: &egui::Context) {
+        let dir = PathBuf::from(self.save_dir.trim());
+        let mut saved = Vec::new();
+        for side in Side::BOTH {
+            match self.save_side(side, &dir) {
+                Ok((png, toml)) => {
+                    saved.push(png);
+                    saved.push(toml);
+                }
+                Err(e) => {
+                    self.status = format!("save failed: {e:#}");
+                    return;
+                }
+            }
+        }
+        let capture = dir.join(format!("{}-window.png", self.state.base.name));
+        let done = self.capture_done.clone();
+        *done.lock().expect("capture lock") = None;
+        let repaint = ctx.clone();
+        ctx.request_screenshot(move |image| {
+            let result = write_capture(&image, &capture)
+                .map(|()| capture.clone())
+                .map_err(|e| format!("{e:#}"));
+            *done.lock().expect("capture lock") = Some(result);
+            repaint.request_repaint();
+        });
+        self.status = format!(
+            "saved {}",
+            saved
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        self.outcome
+            .lock()
+            .expect("outcome lock")
+            .saved
+            .extend(saved);
+    }
+
+    /// Drives a scripted run: once both sides hold their frames at full size, save,
+    /// wait for the window capture, close.
+    fn automate(&mut self, ctx: &egui::Context) {
+        let Some(a) = self.automation.clone() else {
+            return;
+        };
+        for side in Side::BOTH {
+            if let Some(e) = &self.views[side.index()].error {
+                self.outcome.lock().expect("outcome lock").error =
+                    Some(format!("{} side: {e}", side.name()));
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                return;
+            }
+        }
+        match self.automation_stage {
+            0 => {
+                let (full, now) = self.sizes();
+                let ready = full == now
+                    && Side::BOTH.iter().all(|&s| {
+                        self.latest(s).is_some_and(|u| {
+                            (u.frame.width, u.frame.height) == full
+                                && u.frames >= a.frames.min(u.total)
+                        })
+                    });
+                if ready {
+                    self.save_all(ctx);
+                    self.automation_stage = 1;
+                }
+            }
+            1 => {
+                let done = self.capture_done.lock().expect("capture lock").clone();
+                if let Some(result) = done {
+                    let mut o = self.outcome.lock().expect("outcome lock");
+                    match result {
+                        Ok(p) => o.saved.push(p),
+                        Err(e) => o.error = Some(format!("window capture: {e}")),
+                    }
+                    drop(o);
+                    self.automation_stage = 2;
+                    if a.exit {
+                        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                    }
+                } else {
+                    ctx.request_repaint_after(Duration::from_millis(50));
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// One pass of the whole window.
+    pub fn show(&mut self, ui: &mut egui::Ui) {
+        let ctx = ui.ctx().clone();
+        self.receive(&ctx);
+        if ui.input(|i| i.key_pressed(egui::Key::R)) && !ctx.egui_wants_keyboard_input() {
+            self.edit_shared(|s| s.reset_camera());
+        }
+        egui::Panel::top("voxlab-top").show(ui, |ui| self.top_bar(ui));
+        egui::Panel::bottom("voxlab-status").show(ui, |ui| self.status_bar(ui));
+        egui::Panel::left("voxlab-scene")
+            .default_size(280.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.scene_panel(ui));
+            });
+        egui::Panel::right("voxlab-sides")
+            .default_size(300.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| {
+                    for side in Side::BOTH {
+                        self.side_panel(ui, side);
+                        ui.separator();
+                    }
+                    self.reference_panel(ui);
+                });
+            });
+        egui::CentralPanel::default().show(ui, |ui| self.split_view(ui));
+        self.submit_jobs();
+        self.automate(&ctx);
+        if self.interacting() {
+            // Come back when the view settles, to go to full resolution.
+            ctx.request_repaint_after(Duration::from_secs_f64(self.adaptive.settle_s));
+        }
+    }
+
+    fn top_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            ui.strong(format!("voxlab view: {}", self.state.base.name));
+            if ui.button("Reset camera (R)").clicked() {
+                self.edit_shared(|s| s.reset_camera());
+            }
+            ui.separator();
+            ui.label("Save to");
+            ui.add(egui::TextEdit::singleline(&mut self.save_dir).desired_width(160.0));
+            if ui
+                .button("Save images + TOML")
+                .on_hover_text(
+                    "Each side's image as PNG, the experiment file that `voxlab render` \
+                     reproduces it from, and a capture of the window",
+                )
+                .clicked()
+            {
+                let ctx = ui.ctx().clone();
+                self.save_all(&ctx);
+            }
+        });
+    }
+
+    fn status_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            ui.label(
+                self.adapter
+                    .as_deref()
+                    .unwrap_or("starting the GPU workers..."),
+            );
+            if !self.status.is_empty() {
+                ui.separator();
+                ui.label(&self.status);
+            }
+        });
+    }
+
+    fn scene_panel(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Scene");
+        let mut camera = self.state.base.scene.camera.clone();
+        let mut cam_changed = false;
+        egui::CollapsingHeader::new("Camera")
+            .default_open(true)
+            .show(ui, |ui| {
+                let mut yaw = camera.yaw.to_degrees();
+                let mut pitch = camera.pitch.to_degrees();
+                let mut vfov = camera.vfov.to_degrees();
+                egui::Grid::new("camera").show(ui, |ui| {
+                    ui.label("distance");
+                    cam_changed |= ui
+                        .add(
+                            egui::DragValue::new(&mut camera.distance)
+                                .speed(0.01)
+                                .range(1e-6..=1e9),
+                        )
+                        .changed();
+                    ui.end_row();
+                    ui.label("yaw deg");
+                    cam_changed |= ui.add(egui::DragValue::new(&mut yaw).speed(0.5)).changed();
+                    ui.end_row();
+                    ui.label("pitch deg");
+                    cam_changed |= ui
+                        .add(
+                            egui::DragValue::new(&mut pitch)
+                                .speed(0.5)
+                                .range(-89.0..=89.0),
+                        )
+                        .changed();
+                    ui.end_row();
+                    ui.label("vfov deg");
+                    cam_changed |= ui
+                        .add(
+                            egui::DragValue::new(&mut vfov)
+                                .speed(0.5)
+                                .range(1.0..=170.0),
+                        )
+                        .changed();
+                    ui.end_row();
+                    ui.label("target");
+                    cam_changed |= vec3_edit(ui, &mut camera.target, 0.01, None);
+                    ui.end_row();
+                });
+                camera.yaw = yaw.to_radians();
+                camera.pitch = pitch.to_radians();
+                camera.vfov = vfov.to_radians();
+                ui.label("Drag the image to orbit, scroll to zoom, R to reset.");
+            });
+        if cam_changed {
+            self.edit_shared(|s| {
+                s.base.scene.camera = camera;
+                s.commit_shared()
+            });
+        }
+
+        let mut settings = self.state.base.settings.clone();
+        let mut ambient = self.state.base.scene.ambient;
+        let mut changed = false;
+        egui::CollapsingHeader::new("Render")
+            .default_open(true)
+            .show(ui, |ui| {
+                egui::Grid::new("render").show(ui, |ui| {
+                    ui.label("width");
+                    changed |= ui
+                        .add(egui::DragValue::new(&mut settings.width).range(1..=MAX_IMAGE_SIDE))
+                        .changed();
+                    ui.end_row();
+                    ui.label("height");
+                    changed |= ui
+                        .add(egui::DragValue::new(&mut settings.height).range(1..=MAX_IMAGE_SIDE))
+                        .changed();
+                    ui.end_row();
+                    ui.label("reflection depth");
+                    changed |= ui
+                        .add(
+                            egui::DragValue::new(&mut settings.max_reflection_depth)
+                                .range(0..=MAX_DEPTH_LIMIT),
+                        )
+                        .changed();
+                    ui.end_row();
+                    ui.label("refraction depth");
+                    changed |= ui
+                        .add(
+                            egui::DragValue::new(&mut settings.max_refraction_depth)
+                                .range(0..=MAX_DEPTH_LIMIT),
+                        )
+                        .changed();
+                    ui.end_row();
+                    ui.label("falloff");
+                    changed |= ui
+                        .checkbox(&mut settings.falloff, "inverse square")
+                        .changed();
+                    ui.end_row();
+                    ui.label("seed");
+                    changed |= ui.add(egui::DragValue::new(&mut settings.seed)).changed();
+                    ui.end_row();
+                    ui.label("ambient");
+                    changed |= vec3_edit(ui, &mut ambient, 0.005, Some(0.0));
+                    ui.end_row();
+                });
+                ui.checkbox(
+                    &mut self.adaptive.enabled,
+                    "adaptive resolution while moving",
+                );
+                ui.horizontal(|ui| {
+                    ui.label("frame budget ms");
+                    ui.add(egui::DragValue::new(&mut self.adaptive.budget_ms).range(5.0..=2000.0));
+                });
+            });
+        if changed {
+            self.edit_shared(|s| {
+                s.base.settings = settings;
+                s.base.scene.ambient = ambient;
+                s.commit_shared()
+            });
+        }
+
+        let mut lights = self.state.base.scene.lights.clone();
+        let mut changed = false;
+        egui::CollapsingHeader::new(format!("Lights ({})", lights.len()))
+            .default_open(true)
+            .show(ui, |ui| {
+                for (i, light) in lights.iter_mut().enumerate() {
+                    changed |= light_edit(ui, i, light);
+                }
+            });
+        if changed {
+            self.edit_shared(|s| {
+                s.base.scene.lights = lights;
+                s.commit_shared()
+            });
+        }
+
+        let used = self.state.base.scene.grid.materials_used();
+        let mut materials = self.state.base.scene.materials.clone();
+        let mut changed = false;
+        egui::CollapsingHeader::new("Materials")
+            .default_open(false)
+            .show(ui, |ui| {
+                for (i, m) in materials.iter_mut().enumerate().skip(1) {
+                    if !used.get(i).copied().unwrap_or(false) {
+                        continue;
+                    }
+                    egui::CollapsingHeader::new(format!("{i}: {}", m.name))
+                        .id_salt(("material", i))
+                        .show(ui, |ui| {
+                            egui::Grid::new(("material-grid", i)).show(ui, |ui| {
+                                ui.label("albedo");
+                                changed |= vec3_edit(ui, &mut m.albedo, 0.01, Some(0.0));
+                                ui.end_row();
+                                for (name, v) in [
+                                    ("kd", &mut m.kd),
+                                    ("ks", &mut m.ks),
+                                    ("kr", &mut m.kr),
+                                    ("kt", &mut m.kt),
+                                ] {
+                                    ui.label(name);
+                                    changed |= ui
+                                        .add(egui::DragValue::new(v).speed(0.01).range(0.0..=1.0))
+                                        .changed();
+                                    ui.end_row();
+                                }
+                                ui.label("shininess");
+                                changed |= ui
+                                    .add(
+                                        egui::DragValue::new(&mut m.shininess)
+                                            .speed(1.0)
+                                            .range(0.0..=1e6),
+                                    )
+                                    .changed();
+                                ui.end_row();
+                                ui.label("ior");
+                                changed |= ui
+                                    .add(
+                                        egui::DragValue::new(&mut m.ior)
+                                            .speed(0.01)
+                                            .range(0.01..=10.0),
+                                    )
+                                    .changed();
+                                ui.end_row();
+                                ui.label("emission");
+                                changed |= vec3_edit(ui, &mut m.emission, 0.01, Some(0.0));
+                                ui.end_row();
+                                ui.label("sigma");
+                                let mut explicit = m.sigma.is_some();
+                                if ui
+                                    .checkbox(&mut explicit, "explicit (else from kt)")
+                                    .changed()
+                                {
+                                    m.sigma = explicit.then(|| {
+                                        m.absorption(self.state.base.scene.grid.voxel_size())
+                                    });
+                                    changed = true;
+                                }
+                                ui.end_row();
+                                if let Some(s) = &mut m.sigma {
+                                    ui.label("");
+                                    changed |= vec3_edit(ui, s, 0.01, Some(0.0));
+                                    ui.end_row();
+                                }
+                            });
+                        });
+                }
+            });
+        if changed {
+            self.edit_shared(|s| {
+                s.base.scene.materials = materials;
+                s.commit_shared()
+            });
+        }
+    }
+
+    fn side_panel(&mut self, ui: &mut egui::Ui, side: Side) {
+        let i = side.index();
+        ui.heading(format!(
+            "{} side",
+            if side == Side::Left { "Left" } else { "Right" }
+        ));
+        let mut s: SideSettings = self.state.sides[i].clone();
+        let mut changed = false;
+        let mut model = ShadowModel::of(&s.features);
+        egui::ComboBox::from_label(format!("shadows ({})", side.name()))
+            .selected_text(model.name())
+            .show_ui(ui, |ui| {
+                for m in ShadowModel::ALL {
+                    changed |= ui.selectable_value(&mut model, m, m.name()).changed();
+                }
+            });
+        model.apply(&mut s.features);
+        let mut t = s.features.transmittance;
+        egui::ComboBox::from_label(format!("transmittance ({})", side.name()))
+            .selected_text(t.name())
+            .show_ui(ui, |ui| {
+                for m in [Transmittance::MinKt, Transmittance::BeerLambert] {
+                    changed |= ui.selectable_value(&mut t, m, m.name()).changed();
+                }
+            });
+        s.features.transmittance = t;
+        changed |= ui
+            .checkbox(
+                &mut s.features.ambient_occlusion,
+                format!("ambient occlusion ({})", side.name()),
+            )
+            .changed();
+        changed |= ui
+            .checkbox(
+                &mut s.features.indirect,
+                format!("indirect light ({})", side.name()),
+            )
+            .changed();
+        egui::Grid::new(("side-grid", i)).show(ui, |ui| {
+            ui.label("light samples / frame");
+            changed |= ui
+                .add(egui::DragValue::new(&mut s.light_samples).range(1..=MAX_SAMPLES))
+                .changed();
+            ui.end_row();
+            ui.label("max frames");
+            changed |= ui
+                .add(egui::DragValue::new(&mut s.max_spp).range(1..=MAX_VIEW_SPP))
+                .changed();
+            ui.end_row();
+        });
+        if s.features.cones() {
+            egui::CollapsingHeader::new("cone knobs")
+                .id_salt(("cones", i))
+                .show(ui, |ui| {
+                    let c = &mut s.cones;
+                    egui::Grid::new(("cone-grid", i)).show(ui, |ui| {
+                        ui.label("levels (0 auto)");
+                        changed |= ui
+                            .add(
+                                egui::DragValue::new(&mut c.levels)
+                                    .range(0..=crate::cpu::pyramid::MAX_LEVELS),
+                            )
+                            .changed();
+                        ui.end_row();
+                        for (name, v, lo, hi) in [
+                            ("step factor", &mut c.step_factor, 0.05, 4.0),
+                            ("aperture deg", &mut c.aperture_deg, 0.0, 120.0),
+                            ("start offset", &mut c.start_offset, 0.0, 16.0),
+                            ("AO range", &mut c.ao_range, 0.1, 1e6),
+                            ("indirect strength", &mut c.indirect_strength, 0.0, 100.0),
+                        ] {
+                            ui.label(name);
+                            changed |= ui
+                                .add(egui::DragValue::new(v).speed(0.01).range(lo..=hi))
+                                .changed();
+                            ui.end_row();
+                        }
+                        ui.label("AO cones");
+                        changed |= ui
+                            .add(egui::DragValue::new(&mut c.ao_cones).range(1..=64))
+                            .changed();
+                        ui.end_row();
+                    });
+                });
+        }
+        if changed {
+            let before = self.state.sides[i].clone();
+            self.state.sides[i] = s;
+            match self.state.commit(&[side]) {
+                Ok(()) => self.changed(&[side]),
+                Err(e) => {
+                    self.state.sides[i] = before;
+                    self.status = format!("edit rejected: {e:#}");
+                }
+            }
+        }
+
+        let v = &self.views[i];
+        match &v.latest {
+            Some(u) => {
+                ui.label(format!(
+                    "{} / {} frames at {}x{}",
+                    u.frames, u.total, u.frame.width, u.frame.height
+                ));
+                ui.label(format!(
+                    "frame time {:.1} ms",
+                    u.frame_time.as_secs_f64() * 1e3
+                ));
+                ui.label(egui::RichText::new(&u.plan).small());
+            }
+            None => {
+                ui.label("rendering...");
+            }
+        }
+        if let Some(e) = &v.error {
+            ui.colored_label(Color32::LIGHT_RED, e);
+        }
+        if let Some(m) = &v.metrics {
+            ui.label(format!(
+                "vs reference at {} frames: RMSE {:.5}, PSNR {:.2} dB, FLIP {}",
+                m.frames,
+                m.rmse,
+                m.psnr,
+                m.flip.map_or("-".to_string(), |f| format!("{f:.4}"))
+            ));
+        }
+    }
+
+    fn reference_panel(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Error");
+        ui.horizontal(|ui| {
+            ui.label("reference frames");
+            ui.add(egui::DragValue::new(&mut self.references.spp).range(1..=MAX_VIEW_SPP));
+        });
+        if ui
+            .button("Error vs reference")
+            .on_hover_text(
+                "Renders each side's converged reference (area lights sampled, no cones, \
+                 an independent seed) and compares: RMSE and PSNR live, FLIP now",
+            )
+            .clicked()
+        {
+            self.request_error();
+        }
+        if let Some((_, _, done, total)) = &self.references.running {
+            ui.label(format!(
+                "reference: {done} / {total} frames ({} more queued)",
+                self.references.queue.len()
+            ));
+        }
+    }
+
+    /// The two images, each clipped to its side of the divider, over the same rect.
+    fn split_view(&mut self, ui: &mut egui::Ui) {
+        let (full, _) = self.sizes();
+        let avail = ui.available_size();
+        let aspect = full.0 as f32 / full.1 as f32;
+        let size = if avail.x / avail.y.max(1.0) > aspect {
+            Vec2::new(avail.y * aspect, avail.y)
+        } else {
+            Vec2::new(avail.x, avail.x / aspect)
+        };
+        let (rect, response) = ui.allocate_exact_size(size, Sense::click_and_drag());
+        let rect =
+            Rect::from_center_size(ui.max_rect().center(), rect.size()).intersect(ui.max_rect());
+        let split_x = rect.left() + self.state.divider.clamp(0.0, 1.0) * rect.width();
+        let painter = ui.painter();
+        painter.rect_filled(rect, 0.0, Color32::BLACK);
+        let uv = Rect::from_min_max(pos2(0.0, 0.0), pos2(1.0, 1.0));
+        for side in Side::BOTH {
+            let clip = match side {
+                Side::Left => Rect::from_min_max(rect.min, pos2(split_x, rect.max.y)),
+                Side::Right => Rect::from_min_max(pos2(split_x, rect.min.y), rect.max),
+            };
+            if let Some(t) = &self.views[side.index()].texture {
+                painter
+                    .with_clip_rect(clip)
+                    .image(t.id(), rect, uv, Color32::WHITE);
+            }
+        }
+
+        // The divider: a line with a handle to drag.
+        let handle = Rect::from_min_max(
+            pos2(split_x - 6.0, rect.top()),
+            pos2(split_x + 6.0, rect.bottom()),
+        );
+        let divider = ui.interact(handle, egui::Id::unique("voxlab-divider"), Sense::drag());
+        if divider.hovered() || divider.dragged() {
+            ui.ctx().set_cursor_icon(egui::CursorIcon::ResizeHorizontal);
+        }
+        if divider.dragged() && rect.width() > 0.0 {
+            self.state.divider =
+                (self.state.divider + divider.drag_delta().x / rect.width()).clamp(0.0, 1.0);
+        }
+        let painter = ui.painter();
+        painter.line_segment(
+            [pos2(split_x, rect.top()), pos2(split_x, rect.bottom())],
+            egui::Stroke::new(2.0, Color32::WHITE),
+        );
+        let label = |x: f32, text: &str, align: egui::Align2| {
+            painter.text(
+                pos2(x, rect.top() + 4.0),
+                align,
+                text,
+                egui::FontId::proportional(13.0),
+                Color32::WHITE,
+            );
+        };
+        label(split_x - 8.0, "left", egui::Align2::RIGHT_TOP);
+        label(split_x + 8.0, "right", egui::Align2::LEFT_TOP);
+
+        // Orbit and zoom on the image itself.
+        if response.dragged() && !divider.dragged() {
+            let d = response.drag_delta();
+            if d != Vec2::ZERO {
+                self.edit_shared(|s| s.orbit_pixels(d.x, d.y));
+            }
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                self.edit_shared(|s| s.zoom(scroll / 50.0));
+            }
+        }
+    }
+}
+
+/// Three drag values for a vector; `min` bounds each component.
+fn vec3_edit(ui: &mut egui::Ui, v: &mut DVec3, speed: f64, min: Option<f64>) -> bool {
+    let mut changed = false;
+    ui.horizontal(|ui| {
+        for c in [&mut v.x, &mut v.y, &mut v.z] {
+            let mut d = egui::DragValue::new(c).speed(speed);
+            if let Some(m) = min {
+                d = d.range(m..=f64::MAX);
+            }
+            changed |= ui.add(d).changed();
+        }
+    });
+    changed
+}
+
+fn light_edit(ui: &mut egui::Ui, i: usize, light: &mut Light) -> bool {
+    let mut changed = false;
+    let kind = match light {
+        Light::Point(_) => "point".to_string(),
+        Light::Area(a) => match a.shape {
+            AreaShape::Rect { .. } => "rect",
+            AreaShape::Disk { .. } => "disk",
+            AreaShape::Sphere { .. } => "sphere",
+        }
+        .to_string(),
+    };
+    egui::CollapsingHeader::new(format!("light {i}: {kind}"))
+        .id_salt(("light", i))
+        .default_open(i == 0)
+        .show(ui, |ui| {
+            egui::Grid::new(("light-grid", i)).show(ui, |ui| {
+                let (position, color, intensity) = match light {
+                    Light::Point(p) => (&mut p.position, &mut p.color, &mut p.intensity),
+                    Light::Area(a) => (&mut a.position, &mut a.color, &mut a.intensity),
+                };
+                ui.label("position");
+                changed |= vec3_edit(ui, position, 0.01, None);
+                ui.end_row();
+                ui.label("color");
+                changed |= vec3_edit(ui, color, 0.01, Some(0.0));
+                ui.end_row();
+                ui.label("intensity");
+                changed |= ui
+                    .add(egui::DragValue::new(intensity).speed(0.05).range(0.0..=1e9))
+                    .changed();
+                ui.end_row();
+                if let Light::Area(a) = light {
+                    match &mut a.shape {
+                        AreaShape::Rect { width, height } => {
+                            ui.label("size");
+                            ui.horizontal(|ui| {
+                                changed |= ui
+                                    .add(egui::DragValue::new(width).speed(0.01).range(0.0..=1e6))
+                                    .changed();
+                                changed |= ui
+                                    .add(egui::DragValue::new(height).speed(0.01).range(0.0..=1e6))
+                                    .changed();
+                            });
+                            ui.end_row();
+                        }
+                        AreaShape::Disk { radius } | AreaShape::Sphere { radius } => {
+                            ui.label("radius");
+                            changed |= ui
+                                .add(egui::DragValue::new(radius).speed(0.01).range(0.0..=1e6))
+                                .changed();
+                            ui.end_row();
+                        }
+                    }
+                    if !matches!(a.shape, AreaShape::Sphere { .. }) {
+                        ui.label("normal");
+                        let mut n = a.normal;
+                        if vec3_edit(ui, &mut n, 0.01, None) && n.length_squared() > 1e-12 {
+                            a.normal = n;
+                            changed = true;
+                        }
+                        ui.end_row();
+                    }
+                }
+            });
+        });
+    changed
+}
+
+/// Writes the window capture as PNG (atomically, as every output).
+fn write_capture(image: &ColorImage, path: &Path) -> anyhow::Result<()> {
+    let [w, h] = image.size;
+    let bytes: Vec<u8> = image
+        .pixels
+        .iter()
+        .flat_map(|c| [c.r(), c.g(), c.b()])
+        .collect();
+    let img = image::RgbImage::from_raw(w as u32, h as u32, bytes)
+        .ok_or_else(|| anyhow::anyhow!("window capture of {w}x{h} has the wrong length"))?;
+    let mut png = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut png, image::ImageFormat::Png)?;
+    crate::output::write_file(path, png.get_ref())?;
+    Ok(())
+}

@@ -1,0 +1,429 @@
+//! What the viewer shows, apart from its widgets: the scene both sides share, each
+//! side's settings, the orbit camera, and the adaptive resolution. Nothing here needs a
+//! window or a GPU, so the logic is tested on its own (`tests/viewer_state.rs`).
+//!
+//! Exactness: the viewer never renders an `Experiment` it built by hand. After every
+//! edit it writes the experiment as TOML (`experiment::write::to_toml`) and parses that
+//! text back (`Experiment::from_str_cached`); the parsed experiment is what the workers
+//! render. So the file the viewer exports is, by construction, the one that
+//! `voxlab render` reproduces.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::{Result, anyhow};
+
+use crate::experiment::write::{relocate_scene_source, to_toml};
+use crate::experiment::{Experiment, SceneCache};
+use crate::render::{ConeSettings, Features, RenderSettings, Transmittance};
+use crate::scene::{Light, OrbitCamera};
+
+/// The two halves of the split view.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Side {
+    Left,
+    Right,
+}
+
+impl Side {
+    pub const BOTH: [Side; 2] = [Side::Left, Side::Right];
+
+    pub fn index(self) -> usize {
+        match self {
+            Side::Left => 0,
+            Side::Right => 1,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Side::Left => "left",
+            Side::Right => "right",
+        }
+    }
+}
+
+/// How a side computes light visibility: the three shadow models the viewer compares.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShadowModel {
+    /// One shadow ray to each light's centre (the seed's hard shadows).
+    Hard,
+    /// Area lights sampled over their shape, accumulated over frames (soft, noisy).
+    AreaSampled,
+    /// One cone through the opacity pyramid per light (soft, biased, noise-free).
+    Cone,
+}
+
+impl ShadowModel {
+    pub const ALL: [ShadowModel; 3] = [
+        ShadowModel::Hard,
+        ShadowModel::AreaSampled,
+        ShadowModel::Cone,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ShadowModel::Hard => "hard (light centres)",
+            ShadowModel::AreaSampled => "area lights, sampled",
+            ShadowModel::Cone => "cone traced",
+        }
+    }
+
+    pub fn of(f: &Features) -> Self {
+        if f.cone_shadows {
+            ShadowModel::Cone
+        } else if f.area_lights {
+            ShadowModel::AreaSampled
+        } else {
+            ShadowModel::Hard
+        }
+    }
+
+    pub fn apply(self, f: &mut Features) {
+        (f.area_lights, f.cone_shadows) = match self {
+            ShadowModel::Hard => (false, false),
+            ShadowModel::AreaSampled => (true, false),
+            ShadowModel::Cone => (false, true),
+        };
+    }
+}
+
+/// What each side chooses for itself; everything else is shared.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SideSettings {
+    pub features: Features,
+    pub cones: ConeSettings,
+    /// Light samples per pixel, light and frame (`render.light_samples`).
+    pub light_samples: u32,
+    /// Accumulation stops after this many frames (the `render.spp` cap).
+    pub max_spp: u32,
+}
+
+impl SideSettings {
+    pub fn from_settings(s: &RenderSettings, max_spp: u32) -> Self {
+        Self {
+            features: s.features.clone(),
+            cones: s.cones.clone(),
+            light_samples: s.light_samples,
+            max_spp,
+        }
+    }
+
+    /// Parses a comma-separated feature list (`--left`, `--right`): `hard`, `area`,
+    /// `cone`, `min-kt`, `beer-lambert`, `ao`, `indirect`, `samples=N`.
+    pub fn parse_list(&mut self, list: &str) -> Result<()> {
+        for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            match item {
+                "hard" => ShadowModel::Hard.apply(&mut self.features),
+                "area" => ShadowModel::AreaSampled.apply(&mut self.features),
+                "cone" => ShadowModel::Cone.apply(&mut self.features),
+                "min-kt" => self.features.transmittance = Transmittance::MinKt,
+                "beer-lambert" => self.features.transmittance = Transmittance::BeerLambert,
+                "ao" => self.features.ambient_occlusion = true,
+                "indirect" => self.features.indirect = true,
+                _ => {
+                    if let Some(n) = item.strip_prefix("samples=") {
+                        self.light_samples = n
+                            .parse::<u32>()
+                            .ok()
+                            .filter(|n| (1..=crate::render::MAX_SAMPLES).contains(n))
+                            .ok_or_else(|| {
+                                anyhow!(
+                                    "feature list item `{item}`: samples must be an integer in \
+                                     1..={}",
+                                    crate::render::MAX_SAMPLES
+                                )
+                            })?;
+                    } else {
+                        return Err(anyhow!(
+                            "feature list item `{item}`: allowed are hard, area, cone, min-kt, \
+                             beer-lambert, ao, indirect, samples=N"
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Largest accumulation cap the viewer offers.
+pub const MAX_VIEW_SPP: u32 = 4096;
+
+/// Default accumulation cap per side.
+pub const DEFAULT_VIEW_SPP: u32 = 256;
+
+/// Pitch stays short of the poles, where the orbit's "right" axis turns over.
+pub const MAX_PITCH_DEG: f64 = 89.0;
+
+/// Orbit speed: degrees per pixel dragged.
+pub const DEGREES_PER_PIXEL: f64 = 0.4;
+
+/// The viewer's model: the shared experiment and the two sides.
+pub struct ViewerState {
+    /// Where the experiment came from (`None`: the built-in seed scene); names errors
+    /// and exports.
+    pub source_path: Option<PathBuf>,
+    /// The experiment as edited: scene (grid, materials, lights, camera, ambient) and
+    /// the shared render settings (size, depth limits, falloff, offsets, seed). Its
+    /// per-side settings are ignored; `sides` has them.
+    pub base: Experiment,
+    /// The `[scene]` table (where the voxels come from), with absolute paths.
+    pub scene_source: toml::Table,
+    pub sides: [SideSettings; 2],
+    /// The camera to go back to (the experiment's).
+    pub home_camera: OrbitCamera,
+    /// Position of the divider, as a fraction of the image width.
+    pub divider: f32,
+    /// Counts the changes of each side's experiment; a render result of an older
+    /// generation is stale.
+    pub generation: [u64; 2],
+    /// What each side renders: `base` with the side's settings, spp = its cap, written
+    /// and parsed back.
+    rendered: [Arc<Experiment>; 2],
+    cache: SceneCache,
+}
+
+impl ViewerState {
+    /// Starts from an experiment and the text it was read from (`None`: the seed).
+    pub fn new(base: Experiment, text: Option<&str>, source_path: Option<PathBuf>) -> Result<Self> {
+        let scene_source = match (text, &source_path) {
+            (Some(t), Some(p)) => crate::experiment::write::scene_source(t, p)?,
+            _ => toml::Table::new(),
+        };
+        let left = SideSettings::from_settings(&base.settings, DEFAULT_VIEW_SPP);
+        let mut right = left.clone();
+        // A useful first comparison: what the file asks for against soft shadows, from
+        // sampled area lights with distance-weighted transmittance where the scene has
+        // area lights of some size, else from cones (which soften point lights too),
+        // or against hard shadows when the file already asks for that.
+        let has_area = base
+            .scene
+            .lights
+            .iter()
+            .any(|l| matches!(l, Light::Area(a) if !a.is_degenerate()));
+        let mut other = right.features.clone();
+        if has_area {
+            ShadowModel::AreaSampled.apply(&mut other);
+            other.transmittance = Transmittance::BeerLambert;
+        } else {
+            ShadowModel::Cone.apply(&mut other);
+        }
+        if other == right.features {
+            ShadowModel::Hard.apply(&mut other);
+        }
+        right.features = other;
+        let home_camera = base.scene.camera.clone();
+        let placeholder = Arc::new(base.clone());
+        let mut s = Self {
+            source_path,
+            base,
+            scene_source,
+            sides: [left, right],
+            home_camera,
+            divider: 0.5,
+            generation: [0, 0],
+            rendered: [placeholder.clone(), placeholder],
+            cache: SceneCache::default(),
+        };
+        s.commit(&Side::BOTH)?;
+        Ok(s)
+    }
+
+    /// The experiment `side` renders: accumulation capped at its `max_spp`.
+    pub fn rendered(&self, side: Side) -> &Arc<Experiment> {
+        &self.rendered[side.index()]
+    }
+
+    /// The experiment of `side` with its settings, `spp` frames and the given image
+    /// size, not yet canonical.
+    fn side_experiment(&self, side: Side, spp: u32, width: u32, height: u32) -> Experiment {
+        let s = &self.sides[side.index()];
+        let mut e = self.base.clone();
+        e.settings.features = s.features.clone();
+        e.settings.cones = s.cones.clone();
+        e.settings.light_samples = s.light_samples;
+        e.settings.spp = spp.max(1);
+        e.settings.width = width;
+        e.settings.height = height;
+        e
+    }
+
+    fn path_for_messages(&self) -> PathBuf {
+        self.source_path
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("<viewer>"))
+    }
+
+    /// Writes `e` as TOML and parses it back: the experiment the text describes.
+    fn canonical(&mut self, e: &Experiment) -> Result<(String, Experiment)> {
+        let text = to_toml(e, &self.scene_source)?;
+        let path = self.path_for_messages();
+        let parsed = Experiment::from_str_cached(&text, &path, &mut self.cache)
+            .map_err(|err| anyhow!("{err}"))?;
+        Ok((text, parsed))
+    }
+
+    /// Makes the edits to `base` and `sides` take effect on `sides`: their experiments
+    /// are rebuilt through the TOML round trip and their generations advance. On an
+    /// error (a value the file format rejects) nothing changes and the message says
+    /// which key.
+    pub fn commit(&mut self, sides: &[Side]) -> Result<()> {
+        let mut fresh = Vec::new();
+        for &side in sides {
+            let cap = self.sides[side.index()].max_spp;
+            let (w, h) = (self.base.settings.width, self.base.settings.height);
+            let e = self.side_experiment(side, cap, w, h);
+            let (_, parsed) = self.canonical(&e)?;
+            fresh.push((side, parsed));
+        }
+        for (side, parsed) in fresh {
+            // The shared part of the parsed experiment is the canonical form of `base`:
+            // keep it, so the next edit starts from values the file format writes.
+            self.base.scene = parsed.scene.clone();
+            self.rendered[side.index()] = Arc::new(parsed);
+            self.generation[side.index()] += 1;
+        }
+        Ok(())
+    }
+
+    /// A change of the shared scene or settings restarts both sides.
+    pub fn commit_shared(&mut self) -> Result<()> {
+        self.commit(&Side::BOTH)
+    }
+
+    /// The experiment file that reproduces `side`'s image: its settings, `spp` frames
+    /// accumulated, at `width` x `height` (the resolution the image was traced at),
+    /// with scene paths relative to `dest_dir` where possible. Returns the text and
+    /// the experiment it parses to.
+    pub fn export(
+        &mut self,
+        side: Side,
+        spp: u32,
+        width: u32,
+        height: u32,
+        dest_dir: Option<&std::path::Path>,
+    ) -> Result<(String, Experiment)> {
+        let e = self.side_experiment(side, spp, width, height);
+        let source = match dest_dir {
+            Some(d) => relocate_scene_source(&self.scene_source, d),
+            None => self.scene_source.clone(),
+        };
+        let text = to_toml(&e, &source)?;
+        // Relative scene paths resolve from the file's directory: the export's.
+        let path = match dest_dir {
+            Some(d) => d.join(format!("{}.toml", e.name)),
+            None => self.path_for_messages(),
+        };
+        let parsed = Experiment::from_str_cached(&text, &path, &mut self.cache)
+            .map_err(|err| anyhow!("{err}"))?;
+        Ok((text, parsed))
+    }
+
+    /// Turns the camera by a drag of `dx`, `dy` pixels (right and down positive).
+    pub fn orbit_pixels(&mut self, dx: f32, dy: f32) -> Result<()> {
+        self.orbit_degrees(
+            -(dx as f64) * DEGREES_PER_PIXEL,
+            dy as f64 * DEGREES_PER_PIXEL,
+        )
+    }
+
+    /// Turns the camera by `yaw` and `pitch` degrees (pitch clamped short of the poles).
+    pub fn orbit_degrees(&mut self, yaw: f64, pitch: f64) -> Result<()> {
+        let cam = &mut self.base.scene.camera;
+        let yaw_deg = (cam.yaw.to_degrees() + yaw).rem_euclid(360.0);
+        let pitch_deg = (cam.pitch.to_degrees() + pitch).clamp(-MAX_PITCH_DEG, MAX_PITCH_DEG);
+        // Rounded to a millionth of a degree so the file shows short numbers.
+        cam.yaw = round6(yaw_deg).to_radians();
+        cam.pitch = round6(pitch_deg).to_radians();
+        self.commit_shared()
+    }
+
+    /// Zooms by `steps` notches (positive: closer); each notch is 10 % of the distance.
+    pub fn zoom(&mut self, steps: f32) -> Result<()> {
+        let cam = &mut self.base.scene.camera;
+        let d = cam.distance * 0.9f64.powf(steps as f64);
+        let w = self.base.scene.grid.width();
+        cam.distance = d.clamp(1e-3 * w, 1e3 * w);
+        self.commit_shared()
+    }
+
+    /// Back to the experiment's camera.
+    pub fn reset_camera(&mut self) -> Result<()> {
+        self.base.scene.camera = self.home_camera.clone();
+        self.commit_shared()
+    }
+}
+
+fn round6(x: f64) -> f64 {
+    (x * 1e6).round() / 1e6
+}
+
+/// Image scales the adaptive resolution chooses from (fractions of each side).
+pub const SCALES: [f32; 7] = [1.0, 0.75, 0.5, 0.375, 0.25, 0.1875, 0.125];
+
+/// Chooses the resolution scale that keeps one frame of both sides within a time
+/// budget while the view changes, so dragging stays responsive on a software adapter;
+/// once the view has been still for `settle_s`, the full resolution accumulates.
+#[derive(Clone, Debug)]
+pub struct AdaptiveScale {
+    pub enabled: bool,
+    /// Target time of one frame (of the slower side) while interacting, ms.
+    pub budget_ms: f64,
+    /// Seconds of stillness before going back to full resolution.
+    pub settle_s: f64,
+    /// Measured cost, ns per pixel per frame (exponential average over sides).
+    cost_ns_per_pixel: Option<f64>,
+}
+
+impl Default for AdaptiveScale {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            budget_ms: 50.0,
+            settle_s: 0.3,
+            cost_ns_per_pixel: None,
+        }
+    }
+}
+
+impl AdaptiveScale {
+    /// Records a frame of `pixels` pixels that took `ms`.
+    pub fn observe(&mut self, pixels: u64, ms: f64) {
+        if pixels == 0 || !(ms.is_finite() && ms > 0.0) {
+            return;
+        }
+        let c = ms * 1e6 / pixels as f64;
+        self.cost_ns_per_pixel = Some(match self.cost_ns_per_pixel {
+            None => c,
+            Some(old) => 0.7 * old + 0.3 * c,
+        });
+    }
+
+    pub fn cost_ns_per_pixel(&self) -> Option<f64> {
+        self.cost_ns_per_pixel
+    }
+
+    /// The scale for an image of `pixels` at full size: 1 when still (or disabled),
+    /// else the largest of `SCALES` whose predicted frame time fits the budget
+    /// (the smallest when none does; a quarter before anything was measured).
+    pub fn scale(&self, pixels: u64, interacting: bool) -> f32 {
+        if !self.enabled || !interacting {
+            return 1.0;
+        }
+        let Some(c) = self.cost_ns_per_pixel else {
+            return 0.25;
+        };
+        SCALES
+            .iter()
+            .copied()
+            .find(|&s| c * pixels as f64 * (s as f64).powi(2) * 1e-6 <= self.budget_ms)
+            .unwrap_or(SCALES[SCALES.len() - 1])
+    }
+}
+
+/// The traced size of a `width` x `height` image at `scale` (each side at least 1).
+pub fn scaled_size(width: u32, height: u32, scale: f32) -> (u32, u32) {
+    let s = |n: u32| ((n as f64 * scale as f64).round() as u32).clamp(1, n.max(1));
+    (s(width), s(height))
+}
