@@ -6,6 +6,8 @@
 # GPU tests need a Vulkan adapter. On a machine without a GPU, Mesa's software driver
 # lavapipe (Debian package mesa-vulkan-drivers) is one; it is installed here when no
 # Vulkan driver is present. A missing adapter then fails the GPU tests: never a skip.
+# The viewer's end-to-end test opens its window on a virtual X server (Xvfb, with the X
+# client libraries winit loads at run time); those are installed here too when missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -14,17 +16,32 @@ have_vulkan_driver() {
         compgen -G "/etc/vulkan/icd.d/*.json" >/dev/null
 }
 
+need=()
 if ! have_vulkan_driver || ! ldconfig -p | grep -q 'libvulkan\.so\.1'; then
     echo "tests/run.sh: no Vulkan driver found; installing mesa-vulkan-drivers (lavapipe)"
+    need+=(mesa-vulkan-drivers libvulkan1)
+fi
+# winit opens these with dlopen, so a build succeeds without them and only the window fails.
+x11_libs=(libX11.so.6 libX11-xcb.so.1 libXcursor.so.1 libXrandr.so.2 libXi.so.6 libxkbcommon-x11.so.0)
+missing_lib=""
+for lib in "${x11_libs[@]}"; do
+    ldconfig -p | grep -q "$lib" || missing_lib="$lib"
+done
+if ! command -v Xvfb >/dev/null || [ -n "$missing_lib" ]; then
+    echo "tests/run.sh: installing Xvfb and the X client libraries for the viewer's end-to-end test"
+    need+=(xvfb libx11-6 libx11-xcb1 libxcursor1 libxrandr2 libxi6 libxkbcommon-x11-0)
+fi
+if [ ${#need[@]} -gt 0 ]; then
     sudo=""
     if [ "$(id -u)" -ne 0 ]; then
-        command -v sudo >/dev/null || { echo "tests/run.sh: need root or sudo to install mesa-vulkan-drivers" >&2; exit 1; }
+        command -v sudo >/dev/null || { echo "tests/run.sh: need root or sudo to install ${need[*]}" >&2; exit 1; }
         sudo=sudo
     fi
     export DEBIAN_FRONTEND=noninteractive
     $sudo apt-get update -qq
-    $sudo apt-get install -y -qq --no-install-recommends mesa-vulkan-drivers libvulkan1 >/dev/null
+    $sudo apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
     have_vulkan_driver || { echo "tests/run.sh: mesa-vulkan-drivers installed no Vulkan driver" >&2; exit 1; }
+    command -v Xvfb >/dev/null || { echo "tests/run.sh: the xvfb package installed no Xvfb" >&2; exit 1; }
 fi
 
 if ! command -v cargo >/dev/null; then

@@ -1,0 +1,183 @@
+//! The viewer's model without a window: the TOML round trip that makes exports exact,
+//! the orbit camera, the side feature lists and the adaptive resolution.
+#![cfg(feature = "viewer")]
+
+use voxlab::experiment::Experiment;
+use voxlab::render::Transmittance;
+use voxlab::viewer::state::{AdaptiveScale, SCALES, ShadowModel, SideSettings, scaled_size};
+use voxlab::viewer::{Side, ViewOptions, ViewerState, load_state};
+
+fn experiment(name: &str) -> ViewOptions {
+    ViewOptions {
+        experiment: Some(format!("{}/experiments/{name}", env!("CARGO_MANIFEST_DIR")).into()),
+        ..Default::default()
+    }
+}
+
+fn seed_state() -> ViewerState {
+    ViewerState::new(Experiment::seed_default(), None, None).unwrap()
+}
+
+#[test]
+fn export_parses_to_exactly_what_the_side_renders() {
+    let mut s = load_state(&experiment("area_lights.toml")).unwrap();
+    s.orbit_degrees(17.25, -8.5).unwrap();
+    s.zoom(1.5).unwrap();
+    for side in Side::BOTH {
+        let rendered = s.rendered(side).as_ref().clone();
+        for (spp, w, h) in [(1, 512, 512), (7, 128, 128), (37, 64, 48)] {
+            let (text, parsed) = s.export(side, spp, w, h, None).unwrap();
+            let mut want = rendered.clone();
+            want.settings.spp = spp;
+            want.settings.width = w;
+            want.settings.height = h;
+            assert_eq!(parsed.scene, want.scene, "{side:?} spp {spp}");
+            assert_eq!(parsed.settings, want.settings, "{side:?} spp {spp}");
+            // And the text itself is what the file on disk will hold.
+            let reparsed = Experiment::from_str(&text, "export.toml").unwrap();
+            assert_eq!(reparsed.scene, want.scene);
+            assert_eq!(reparsed.settings, want.settings);
+        }
+    }
+}
+
+#[test]
+fn export_relocates_scene_files_next_to_the_export() {
+    // A .vox scene: its path must still resolve from the export's directory.
+    let opts = experiment("deer_area_light.toml");
+    let mut s = load_state(&opts).unwrap();
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("viewer-state-export");
+    std::fs::create_dir_all(&dir).unwrap();
+    let (text, parsed) = s.export(Side::Left, 3, 64, 64, Some(&dir)).unwrap();
+    let file = dir.join("deer.toml");
+    std::fs::write(&file, &text).unwrap();
+    let loaded = Experiment::load(&file).unwrap();
+    assert_eq!(loaded.scene, parsed.scene);
+    assert_eq!(loaded.settings, parsed.settings);
+}
+
+#[test]
+fn default_sides_compare_the_file_with_a_soft_shadow_model() {
+    // An area light in the scene: the right side samples it with Beer-Lambert.
+    let s = load_state(&experiment("baseline.toml")).unwrap();
+    assert_eq!(ShadowModel::of(&s.sides[0].features), ShadowModel::Hard);
+    // The seed has point lights only: cones soften them, sampling would not.
+    assert_eq!(ShadowModel::of(&s.sides[1].features), ShadowModel::Cone);
+    let mut e = Experiment::load(format!(
+        "{}/experiments/area_lights.toml",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    e.settings.features.area_lights = false;
+    let s = ViewerState::new(e, None, None).unwrap();
+    assert_eq!(
+        ShadowModel::of(&s.sides[1].features),
+        ShadowModel::AreaSampled
+    );
+    assert_eq!(
+        s.sides[1].features.transmittance,
+        Transmittance::BeerLambert
+    );
+}
+
+#[test]
+fn orbit_turns_clamps_pitch_and_resets() {
+    let mut s = seed_state();
+    let home = s.base.scene.camera.clone();
+    let g = s.generation;
+    s.orbit_degrees(10.0, 5.0).unwrap();
+    let c = &s.base.scene.camera;
+    assert!((c.yaw.to_degrees() - home.yaw.to_degrees() - 10.0).abs() < 1e-6);
+    assert!((c.pitch.to_degrees() - home.pitch.to_degrees() - 5.0).abs() < 1e-6);
+    assert!(
+        s.generation[0] > g[0] && s.generation[1] > g[1],
+        "both sides restart"
+    );
+    s.orbit_degrees(0.0, 500.0).unwrap();
+    assert!((s.base.scene.camera.pitch.to_degrees() - 89.0).abs() < 1e-9);
+    s.orbit_degrees(-1000.0, -500.0).unwrap();
+    let c = &s.base.scene.camera;
+    assert!((c.pitch.to_degrees() + 89.0).abs() < 1e-9);
+    assert!((0.0..360.0).contains(&c.yaw.to_degrees()));
+    // A drag right turns the camera the other way round the target (yaw decreases).
+    let before = s.base.scene.camera.yaw;
+    s.orbit_pixels(10.0, 0.0).unwrap();
+    let after = s.base.scene.camera.yaw;
+    let turned = (after - before).to_degrees().rem_euclid(360.0);
+    assert!((turned - 356.0).abs() < 1e-6, "turned {turned}");
+    s.reset_camera().unwrap();
+    assert_eq!(s.base.scene.camera, home);
+}
+
+#[test]
+fn zoom_moves_closer_and_stays_bounded() {
+    let mut s = seed_state();
+    let d0 = s.base.scene.camera.distance;
+    s.zoom(1.0).unwrap();
+    assert!((s.base.scene.camera.distance - 0.9 * d0).abs() < 1e-9);
+    s.zoom(-2.0).unwrap();
+    assert!(s.base.scene.camera.distance > d0);
+    s.zoom(1e6).unwrap();
+    let d = s.base.scene.camera.distance;
+    assert!(d > 0.0 && d.is_finite(), "zoomed to {d}");
+    s.zoom(-1e6).unwrap();
+    let d = s.base.scene.camera.distance;
+    assert!(d.is_finite() && d <= 1e3 * s.base.scene.grid.width() + 1e-9);
+}
+
+#[test]
+fn side_feature_lists_parse_and_reject_with_the_allowed_items() {
+    let mut side = SideSettings::from_settings(&Default::default(), 16);
+    side.parse_list("area, beer-lambert,ao,samples=3").unwrap();
+    assert!(side.features.area_lights && side.features.ambient_occlusion);
+    assert_eq!(side.features.transmittance, Transmittance::BeerLambert);
+    assert_eq!(side.light_samples, 3);
+    side.parse_list("cone").unwrap();
+    assert!(side.features.cone_shadows && !side.features.area_lights);
+    let e = side.parse_list("soft").unwrap_err().to_string();
+    assert!(e.contains("`soft`") && e.contains("beer-lambert"), "{e}");
+    let e = side.parse_list("samples=0").unwrap_err().to_string();
+    assert!(e.contains("1..=65536"), "{e}");
+}
+
+#[test]
+fn a_rejected_edit_changes_nothing() {
+    let mut s = seed_state();
+    let g = s.generation;
+    let rendered = s.rendered(Side::Right).clone();
+    s.sides[1].light_samples = 0;
+    let e = s.commit(&[Side::Right]).unwrap_err().to_string();
+    assert!(e.contains("render.light_samples"), "{e}");
+    assert_eq!(s.generation, g);
+    assert_eq!(s.rendered(Side::Right), &rendered);
+}
+
+#[test]
+fn adaptive_scale_fits_the_budget_while_moving_and_is_full_when_still() {
+    let mut a = AdaptiveScale::default();
+    let pixels = 512 * 512;
+    assert_eq!(a.scale(pixels, false), 1.0);
+    assert_eq!(
+        a.scale(pixels, true),
+        0.25,
+        "a quarter before any measurement"
+    );
+    // 1000 ns per pixel: 262 ms at full size, so 50 ms needs a scale <= 0.437.
+    a.observe(pixels, 262.144);
+    let s = a.scale(pixels, true);
+    assert_eq!(s, 0.375);
+    assert!(SCALES.contains(&s));
+    // A fast device goes to full size.
+    let mut fast = AdaptiveScale::default();
+    fast.observe(pixels, 5.0);
+    assert_eq!(fast.scale(pixels, true), 1.0);
+    // Off: always full size. Garbage measurements are ignored.
+    a.enabled = false;
+    assert_eq!(a.scale(pixels, true), 1.0);
+    let mut g = AdaptiveScale::default();
+    g.observe(0, 10.0);
+    g.observe(100, f64::NAN);
+    assert_eq!(g.cost_ns_per_pixel(), None);
+    assert_eq!(scaled_size(512, 384, 0.375), (192, 144));
+    assert_eq!(scaled_size(3, 1, 0.125), (1, 1));
+}
