@@ -181,3 +181,65 @@ fn adaptive_scale_fits_the_budget_while_moving_and_is_full_when_still() {
     assert_eq!(scaled_size(512, 384, 0.375), (192, 144));
     assert_eq!(scaled_size(3, 1, 0.125), (1, 1));
 }
+
+#[test]
+fn lights_are_added_converted_and_removed_through_the_file_format() {
+    use voxlab::scene::{AreaShape, Light};
+    use voxlab::viewer::state::LightKind;
+    let mut s = seed_state();
+    let n = s.base.scene.lights.len();
+    let g = s.generation;
+    s.add_light(LightKind::Rect).unwrap();
+    assert_eq!(s.base.scene.lights.len(), n + 1);
+    assert!(s.generation[0] > g[0] && s.generation[1] > g[1]);
+    let Light::Area(a) = &s.base.scene.lights[n] else {
+        panic!("a rect light was added as {:?}", s.base.scene.lights[n]);
+    };
+    assert_eq!(
+        a.shape,
+        AreaShape::Rect {
+            width: 4.0,
+            height: 4.0
+        }
+    );
+    assert!(
+        (a.normal - glam::DVec3::NEG_Y).length() < 1e-12,
+        "faces the grid"
+    );
+    // The side that samples area lights now has one to sample.
+    let rendered = s.rendered(voxlab::viewer::Side::Right);
+    assert_eq!(rendered.scene.lights, s.base.scene.lights);
+    // Converting keeps the light's place, colour, power and extent.
+    let disk = LightKind::Disk.convert(&s.base.scene.lights[n], glam::DVec3::ZERO, 1.0);
+    let Light::Area(d) = &disk else { panic!() };
+    assert_eq!(d.shape, AreaShape::Disk { radius: 2.0 });
+    assert_eq!(disk.position(), s.base.scene.lights[n].position());
+    assert_eq!(disk.intensity(), s.base.scene.lights[n].intensity());
+    let point = LightKind::Point.convert(&disk, glam::DVec3::ZERO, 1.0);
+    assert!(matches!(point, Light::Point(_)));
+    let back = LightKind::Rect.convert(&point, glam::DVec3::ZERO, 3.0);
+    let Light::Area(r) = &back else { panic!() };
+    assert_eq!(
+        r.shape,
+        AreaShape::Rect {
+            width: 3.0,
+            height: 3.0
+        }
+    );
+    assert!(
+        (r.normal + point.position().normalize()).length() < 1e-12,
+        "faces `toward`"
+    );
+    s.remove_light(0).unwrap();
+    assert_eq!(s.base.scene.lights.len(), n);
+    // Removing every light leaves a scene without lights, not the seed's lights.
+    while !s.base.scene.lights.is_empty() {
+        s.remove_light(0).unwrap();
+    }
+    assert!(
+        s.rendered(voxlab::viewer::Side::Left)
+            .scene
+            .lights
+            .is_empty()
+    );
+}

@@ -12,7 +12,8 @@ use egui::{Color32, ColorImage, Rect, Sense, TextureHandle, TextureOptions, Vec2
 use glam::DVec3;
 
 use super::state::{
-    AdaptiveScale, MAX_VIEW_SPP, ShadowModel, Side, SideSettings, ViewerState, scaled_size,
+    AdaptiveScale, LightKind, MAX_VIEW_SPP, ShadowModel, Side, SideSettings, ViewerState,
+    scaled_size,
 };
 use super::worker::{Job, Report, Update};
 use crate::experiment::Experiment;
@@ -30,6 +31,9 @@ pub enum Channel {
 /// Offsets added to the seed of a reference, so it draws samples independent of the
 /// sides it is compared with (as `voxlab ablate` does).
 const REFERENCE_SEED_OFFSET: u32 = 0x9E37_79B9;
+
+/// Converged references kept in memory.
+const MAX_KEPT_REFERENCES: usize = 4;
 
 /// Default frames of a converged reference.
 pub const DEFAULT_REFERENCE_SPP: u32 = 256;
@@ -103,8 +107,8 @@ pub struct ViewerApp {
     views: [SideView; 2],
     pub adaptive: AdaptiveScale,
     references: References,
-    /// When the view last changed (restarting accumulation).
-    last_change: Option<Instant>,
+    /// When each side last changed (restarting its accumulation).
+    last_change: [Option<Instant>; 2],
     pub adapter: Option<String>,
     pub save_dir: String,
     /// The latest message for the status line (saves, errors).
@@ -148,7 +152,7 @@ impl ViewerApp {
                 spp: DEFAULT_REFERENCE_SPP,
                 ..Default::default()
             },
-            last_change: None,
+            last_change: [None, None],
             adapter: None,
             save_dir,
             status: String::new(),
@@ -176,19 +180,26 @@ impl ViewerApp {
         self.views[side.index()].metrics.as_ref()
     }
 
-    fn interacting(&self) -> bool {
-        self.last_change
+    /// Whether `side` changed within the settle time (it is being edited or moved).
+    fn interacting(&self, side: Side) -> bool {
+        self.last_change[side.index()]
             .is_some_and(|t| t.elapsed().as_secs_f64() < self.adaptive.settle_s)
     }
 
-    /// Records that `sides` changed: their images restart.
+    fn any_interacting(&self) -> bool {
+        Side::BOTH.iter().any(|&s| self.interacting(s))
+    }
+
+    /// Records that `sides` changed: their images restart, and their reference no
+    /// longer applies (it was made from the old state).
     fn changed(&mut self, sides: &[Side]) {
-        self.last_change = Some(Instant::now());
         for s in sides {
+            self.last_change[s.index()] = Some(Instant::now());
             let v = &mut self.views[s.index()];
             v.latest = None;
             v.metrics = None;
             v.error = None;
+            v.reference_key = None;
         }
     }
 
@@ -205,21 +216,27 @@ impl ViewerApp {
         }
     }
 
-    /// The full-resolution image size, and the size traced now.
-    fn sizes(&self) -> ((u32, u32), (u32, u32)) {
+    /// The full-resolution image size, and the size `side` traces now: reduced only
+    /// while that side is changing, so an edit of one side leaves the other side's
+    /// accumulation alone.
+    fn sizes(&self, side: Side) -> ((u32, u32), (u32, u32)) {
         let s = &self.state.base.settings;
         let full = (s.width, s.height);
         let pixels = s.width as u64 * s.height as u64;
-        // Both sides share the machine, so the budget covers them together.
-        let scale = self.adaptive.scale(2 * pixels, self.interacting());
+        // The sides that are changing share the machine, so the budget covers them
+        // together.
+        let moving = Side::BOTH.iter().filter(|&&s| self.interacting(s)).count() as u64;
+        let scale = self
+            .adaptive
+            .scale(moving.max(1) * pixels, self.interacting(side));
         (full, scaled_size(full.0, full.1, scale))
     }
 
     /// Sends each side's worker the job for the current state, when it changed.
     fn submit_jobs(&mut self) {
-        let (_, (w, h)) = self.sizes();
-        let interacting = self.interacting();
         for side in Side::BOTH {
+            let (_, (w, h)) = self.sizes(side);
+            let interacting = self.interacting(side);
             let generation = self.state.generation[side.index()];
             let want = (generation, w, h);
             let v = &mut self.views[side.index()];
@@ -282,8 +299,14 @@ impl ViewerApp {
                         }
                     }
                     v.error = None;
+                    let finished = u.frames == u.total;
                     v.latest = Some(u);
                     self.update_rmse(side);
+                    // FLIP costs tens of ms: once when the accumulation ends (and on
+                    // request), not with every frame.
+                    if finished {
+                        self.update_flip(side);
+                    }
                 }
                 (
                     Channel::Side(side),
@@ -308,6 +331,11 @@ impl ViewerApp {
                         continue;
                     }
                     self.references.running = None;
+                    // A few references are kept (switching back and forth between
+                    // settings reuses them); the oldest goes first.
+                    if self.references.done.len() >= MAX_KEPT_REFERENCES {
+                        self.references.done.remove(0);
+                    }
                     self.references.done.push((key, u.frame));
                     self.next_reference();
                     for side in Side::BOTH {
@@ -339,6 +367,22 @@ impl ViewerApp {
 
     /// Asks for the references of both sides (rendered once per distinct experiment).
     pub fn request_error(&mut self) {
+        // References of an earlier state that are still waiting or rendering are of
+        // no use now: dropped, so the new ones start at once (a new job replaces the
+        // reference worker's current one between batches).
+        let wanted: Vec<String> = Side::BOTH
+            .iter()
+            .filter_map(|&s| self.reference_experiment(s).ok().map(|(k, _)| k))
+            .collect();
+        self.references.queue.retain(|(k, _)| wanted.contains(k));
+        if self
+            .references
+            .running
+            .as_ref()
+            .is_some_and(|(k, ..)| !wanted.contains(k))
+        {
+            self.references.running = None;
+        }
         for side in Side::BOTH {
             match self.reference_experiment(side) {
                 Ok((key, e)) => {
@@ -504,14 +548,15 @@ impl ViewerApp {
         }
         match self.automation_stage {
             0 => {
-                let (full, now) = self.sizes();
-                let ready = full == now
-                    && Side::BOTH.iter().all(|&s| {
-                        self.latest(s).is_some_and(|u| {
-                            (u.frame.width, u.frame.height) == full
-                                && u.frames >= a.frames.min(u.total)
-                        })
-                    });
+                let ready = Side::BOTH.iter().all(|&s| {
+                    let (full, now) = self.sizes(s);
+                    full == now
+                }) && Side::BOTH.iter().all(|&s| {
+                    self.latest(s).is_some_and(|u| {
+                        (u.frame.width, u.frame.height) == self.sizes(s).0
+                            && u.frames >= a.frames.min(u.total)
+                    })
+                });
                 if ready {
                     self.save_all(ctx);
                     self.automation_stage = 1;
@@ -566,7 +611,7 @@ impl ViewerApp {
         egui::CentralPanel::default().show(ui, |ui| self.split_view(ui));
         self.submit_jobs();
         self.automate(&ctx);
-        if self.interacting() {
+        if self.any_interacting() {
             // Come back when the view settles, to go to full resolution.
             ctx.request_repaint_after(Duration::from_secs_f64(self.adaptive.settle_s));
         }
@@ -730,18 +775,41 @@ impl ViewerApp {
 
         let mut lights = self.state.base.scene.lights.clone();
         let mut changed = false;
+        let (mut remove, mut add) = (None, None);
         egui::CollapsingHeader::new(format!("Lights ({})", lights.len()))
             .default_open(true)
             .show(ui, |ui| {
+                let (c, w) = (
+                    self.state.base.scene.grid.centre(),
+                    self.state.base.scene.grid.width(),
+                );
                 for (i, light) in lights.iter_mut().enumerate() {
-                    changed |= light_edit(ui, i, light);
+                    match light_edit(ui, i, light, c, 0.25 * w) {
+                        LightEdit::None => {}
+                        LightEdit::Changed => changed = true,
+                        LightEdit::Remove => remove = Some(i),
+                    }
                 }
+                ui.horizontal(|ui| {
+                    ui.label("add");
+                    for kind in LightKind::ALL {
+                        if ui.small_button(format!("+ {}", kind.name())).clicked() {
+                            add = Some(kind);
+                        }
+                    }
+                });
             });
         if changed {
             self.edit_shared(|s| {
                 s.base.scene.lights = lights;
                 s.commit_shared()
             });
+        }
+        if let Some(i) = remove {
+            self.edit_shared(|s| s.remove_light(i));
+        }
+        if let Some(kind) = add {
+            self.edit_shared(|s| s.add_light(kind));
         }
 
         let used = self.state.base.scene.grid.materials_used();
@@ -977,7 +1045,7 @@ impl ViewerApp {
 
     /// The two images, each clipped to its side of the divider, over the same rect.
     fn split_view(&mut self, ui: &mut egui::Ui) {
-        let (full, _) = self.sizes();
+        let (full, _) = self.sizes(Side::Left);
         let avail = ui.available_size();
         let aspect = full.0 as f32 / full.1 as f32;
         let size = if avail.x / avail.y.max(1.0) > aspect {
@@ -985,9 +1053,13 @@ impl ViewerApp {
         } else {
             Vec2::new(avail.x, avail.x / aspect)
         };
-        let (rect, response) = ui.allocate_exact_size(size, Sense::click_and_drag());
-        let rect =
-            Rect::from_center_size(ui.max_rect().center(), rect.size()).intersect(ui.max_rect());
+        // Centred in the panel; the drag and scroll area is exactly the drawn image.
+        let rect = Rect::from_center_size(ui.max_rect().center(), size).intersect(ui.max_rect());
+        let response = ui
+            .allocate_rect(rect, Sense::click_and_drag())
+            .on_hover_text("drag to orbit, scroll to zoom, R to reset");
+        response
+            .widget_info(|| egui::WidgetInfo::labeled(egui::Role::Image, true, "split view image"));
         let split_x = rect.left() + self.state.divider.clamp(0.0, 1.0) * rect.width();
         let painter = ui.painter();
         painter.rect_filled(rect, 0.0, Color32::BLACK);
@@ -1010,6 +1082,7 @@ impl ViewerApp {
             pos2(split_x + 6.0, rect.bottom()),
         );
         let divider = ui.interact(handle, egui::Id::unique("voxlab-divider"), Sense::drag());
+        divider.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Splitter, true, "divider"));
         if divider.hovered() || divider.dragged() {
             ui.ctx().set_cursor_icon(egui::CursorIcon::ResizeHorizontal);
         }
@@ -1065,21 +1138,42 @@ fn vec3_edit(ui: &mut egui::Ui, v: &mut DVec3, speed: f64, min: Option<f64>) -> 
     changed
 }
 
-fn light_edit(ui: &mut egui::Ui, i: usize, light: &mut Light) -> bool {
+/// What the light panel did to one light.
+enum LightEdit {
+    None,
+    Changed,
+    Remove,
+}
+
+fn light_edit(
+    ui: &mut egui::Ui,
+    i: usize,
+    light: &mut Light,
+    toward: DVec3,
+    size: f64,
+) -> LightEdit {
     let mut changed = false;
-    let kind = match light {
-        Light::Point(_) => "point".to_string(),
-        Light::Area(a) => match a.shape {
-            AreaShape::Rect { .. } => "rect",
-            AreaShape::Disk { .. } => "disk",
-            AreaShape::Sphere { .. } => "sphere",
-        }
-        .to_string(),
-    };
-    egui::CollapsingHeader::new(format!("light {i}: {kind}"))
+    let mut remove = false;
+    let kind = LightKind::of(light);
+    egui::CollapsingHeader::new(format!("light {i}: {}", kind.name()))
         .id_salt(("light", i))
         .default_open(i == 0)
         .show(ui, |ui| {
+            ui.horizontal(|ui| {
+                let mut k = kind;
+                egui::ComboBox::from_id_salt(("light-kind", i))
+                    .selected_text(k.name())
+                    .show_ui(ui, |ui| {
+                        for option in LightKind::ALL {
+                            ui.selectable_value(&mut k, option, option.name());
+                        }
+                    });
+                if k != kind {
+                    *light = k.convert(light, toward, size);
+                    changed = true;
+                }
+                remove = ui.small_button(format!("remove light {i}")).clicked();
+            });
             egui::Grid::new(("light-grid", i)).show(ui, |ui| {
                 let (position, color, intensity) = match light {
                     Light::Point(p) => (&mut p.position, &mut p.color, &mut p.intensity),
@@ -1126,11 +1220,24 @@ fn light_edit(ui: &mut egui::Ui, i: usize, light: &mut Light) -> bool {
                             changed = true;
                         }
                         ui.end_row();
+                        ui.label("rotation deg");
+                        let mut deg = a.rotation.to_degrees();
+                        if ui.add(egui::DragValue::new(&mut deg).speed(0.5)).changed() {
+                            a.rotation = deg.to_radians();
+                            changed = true;
+                        }
+                        ui.end_row();
                     }
                 }
             });
         });
-    changed
+    if remove {
+        LightEdit::Remove
+    } else if changed {
+        LightEdit::Changed
+    } else {
+        LightEdit::None
+    }
 }
 
 /// Writes the window capture as PNG (atomically, as every output).

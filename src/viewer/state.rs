@@ -266,8 +266,9 @@ impl ViewerState {
 
     /// Makes the edits to `base` and `sides` take effect on `sides`: their experiments
     /// are rebuilt through the TOML round trip and their generations advance. On an
-    /// error (a value the file format rejects) nothing changes and the message says
-    /// which key.
+    /// error (a value the file format rejects) the rendered experiments and the
+    /// generations stay as they were and the message says which key; the edit itself
+    /// stays in `base`/`sides` for the caller to undo (the window does).
     pub fn commit(&mut self, sides: &[Side]) -> Result<()> {
         let mut fresh = Vec::new();
         for &side in sides {
@@ -426,4 +427,122 @@ impl AdaptiveScale {
 pub fn scaled_size(width: u32, height: u32, scale: f32) -> (u32, u32) {
     let s = |n: u32| ((n as f64 * scale as f64).round() as u32).clamp(1, n.max(1));
     (s(width), s(height))
+}
+
+/// The light types an experiment file knows, for the light panel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LightKind {
+    Point,
+    Rect,
+    Disk,
+    Sphere,
+}
+
+impl LightKind {
+    pub const ALL: [LightKind; 4] = [
+        LightKind::Point,
+        LightKind::Rect,
+        LightKind::Disk,
+        LightKind::Sphere,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            LightKind::Point => "point",
+            LightKind::Rect => "rect",
+            LightKind::Disk => "disk",
+            LightKind::Sphere => "sphere",
+        }
+    }
+
+    pub fn of(light: &Light) -> Self {
+        match light {
+            Light::Point(_) => LightKind::Point,
+            Light::Area(a) => match a.shape {
+                crate::scene::AreaShape::Rect { .. } => LightKind::Rect,
+                crate::scene::AreaShape::Disk { .. } => LightKind::Disk,
+                crate::scene::AreaShape::Sphere { .. } => LightKind::Sphere,
+            },
+        }
+    }
+
+    /// `light` as this kind: position, colour and intensity kept; an area light keeps
+    /// its normal and turn, and its extent where the shapes share one (a rectangle's
+    /// half width becomes a radius and back); a point light becoming an area light
+    /// faces the grid's centre `toward` with extent `size`.
+    pub fn convert(self, light: &Light, toward: glam::DVec3, size: f64) -> Light {
+        use crate::scene::{AreaLight, AreaShape, PointLight};
+        let (position, color, intensity) = (light.position(), light.color(), light.intensity());
+        let (normal, rotation, extent) = match light {
+            Light::Point(_) => {
+                let n = (toward - position).normalize_or_zero();
+                let n = if n == glam::DVec3::ZERO {
+                    glam::DVec3::NEG_Y
+                } else {
+                    n
+                };
+                (n, 0.0, size)
+            }
+            Light::Area(a) => {
+                let extent = match a.shape {
+                    AreaShape::Rect { width, height } => width.max(height),
+                    AreaShape::Disk { radius } | AreaShape::Sphere { radius } => 2.0 * radius,
+                };
+                (a.normal, a.rotation, extent)
+            }
+        };
+        let shape = match self {
+            LightKind::Point => {
+                return Light::Point(PointLight {
+                    position,
+                    color,
+                    intensity,
+                });
+            }
+            LightKind::Rect => AreaShape::Rect {
+                width: extent,
+                height: extent,
+            },
+            LightKind::Disk => AreaShape::Disk {
+                radius: 0.5 * extent,
+            },
+            LightKind::Sphere => AreaShape::Sphere {
+                radius: 0.5 * extent,
+            },
+        };
+        Light::Area(AreaLight {
+            shape,
+            position,
+            normal,
+            rotation,
+            color,
+            intensity,
+        })
+    }
+}
+
+impl ViewerState {
+    /// A new light of `kind` above the grid (one grid width over its centre), white,
+    /// as bright at the centre as the seed's key light; area lights a quarter of the
+    /// grid wide, facing down.
+    pub fn add_light(&mut self, kind: LightKind) -> Result<()> {
+        let g = &self.base.scene.grid;
+        let (c, w) = (g.centre(), g.width());
+        let point = Light::Point(crate::scene::PointLight {
+            position: c + glam::DVec3::new(0.0, w, 0.0),
+            color: glam::DVec3::ONE,
+            // 384 at 16 voxels of width 1, scaling with distance squared.
+            intensity: 384.0 * (w / 16.0).powi(2),
+        });
+        let light = kind.convert(&point, c, 0.25 * w);
+        self.base.scene.lights.push(light);
+        self.commit_shared()
+    }
+
+    pub fn remove_light(&mut self, index: usize) -> Result<()> {
+        if index < self.base.scene.lights.len() {
+            self.base.scene.lights.remove(index);
+        }
+        self.commit_shared()
+    }
 }

@@ -10,7 +10,7 @@
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, TryRecvError};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crate::experiment::Experiment;
 use crate::gpu::GpuTracer;
@@ -155,14 +155,13 @@ fn run(jobs: Receiver<Job>, send: impl Fn(Report)) {
             _ => 1,
         }
         .clamp(1, total - *done);
-        let started = Instant::now();
         match tracer.render_frames(&e.scene, &settings, *done..*done + batch) {
             Ok(out) => {
+                // The device timer where there is one: it leaves out one-off costs (a
+                // kernel variant compiled on first use, a pyramid build) that would
+                // make the adaptive resolution overreact to the first frame.
                 let time = tracer.last_gpu_time().unwrap_or(out.trace_time);
-                // Pyramid builds and uploads count too: they are part of what a frame
-                // costs the user.
-                let wall = started.elapsed().max(time);
-                let frame_time = wall / batch;
+                let frame_time = time / batch;
                 per_frame = Some(frame_time);
                 *done += batch;
                 let plan = tracer
