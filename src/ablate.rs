@@ -1246,14 +1246,7 @@ pub fn git_revision() -> String {
 
 /// Writes `text` to `path` through a temporary file and a rename.
 fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let name = path
-        .file_name()
-        .map_or("out".into(), |n| n.to_string_lossy());
-    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))
+    Ok(crate::output::write_file(path, bytes)?)
 }
 
 fn write_text(path: &Path, text: &str) -> Result<()> {

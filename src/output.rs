@@ -94,43 +94,24 @@ pub enum OutputError {
 pub fn write_frame(frame: &Frame, path: impl AsRef<Path>) -> Result<(), OutputError> {
     let path = path.as_ref();
     let format = OutputFormat::from_path(path)?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    std::fs::create_dir_all(&dir).map_err(|source| OutputError::CreateDir {
-        dir: dir.clone(),
-        path: path.to_path_buf(),
-        source,
-    })?;
-
-    let tmp = temp_path(&dir, path);
-    let written = match format {
-        OutputFormat::Png => {
-            let img = RgbImage::from_raw(frame.width, frame.height, frame.to_rgb8())
-                .expect("a Frame holds width * height pixels");
-            img.save_with_format(&tmp, format.image_format())
-        }
-        OutputFormat::Exr => {
-            let data = frame.pixels.iter().flatten().copied().collect();
-            let img = Rgb32FImage::from_raw(frame.width, frame.height, data)
-                .expect("a Frame holds width * height pixels");
-            img.save_with_format(&tmp, format.image_format())
-        }
-    };
-    if let Err(source) = written {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(OutputError::Write {
+    write_atomically(path, |tmp| {
+        let written = match format {
+            OutputFormat::Png => {
+                let img = RgbImage::from_raw(frame.width, frame.height, frame.to_rgb8())
+                    .expect("a Frame holds width * height pixels");
+                img.save_with_format(tmp, format.image_format())
+            }
+            OutputFormat::Exr => {
+                let data = frame.pixels.iter().flatten().copied().collect();
+                let img = Rgb32FImage::from_raw(frame.width, frame.height, data)
+                    .expect("a Frame holds width * height pixels");
+                img.save_with_format(tmp, format.image_format())
+            }
+        };
+        written.map_err(|source| OutputError::Write {
             path: path.to_path_buf(),
             source,
-        });
-    }
-    std::fs::rename(&tmp, path).map_err(|source| {
-        let _ = std::fs::remove_file(&tmp);
-        OutputError::Rename {
-            path: path.to_path_buf(),
-            source,
-        }
+        })
     })
 }
 
@@ -139,6 +120,20 @@ pub fn write_frame(frame: &Frame, path: impl AsRef<Path>) -> Result<(), OutputEr
 /// `path` (the viewer's exported experiment files and window captures).
 pub fn write_file(path: impl AsRef<Path>, bytes: &[u8]) -> Result<(), OutputError> {
     let path = path.as_ref();
+    write_atomically(path, |tmp| {
+        std::fs::write(tmp, bytes).map_err(|source| OutputError::WriteFile {
+            path: path.to_path_buf(),
+            source,
+        })
+    })
+}
+
+/// Creates `path`'s directory, lets `write` fill a temporary file beside `path`, and
+/// renames it into place; on any failure the temporary file is removed.
+fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), OutputError>,
+) -> Result<(), OutputError> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -149,12 +144,9 @@ pub fn write_file(path: impl AsRef<Path>, bytes: &[u8]) -> Result<(), OutputErro
         source,
     })?;
     let tmp = temp_path(&dir, path);
-    if let Err(source) = std::fs::write(&tmp, bytes) {
+    if let Err(e) = write(&tmp) {
         let _ = std::fs::remove_file(&tmp);
-        return Err(OutputError::WriteFile {
-            path: path.to_path_buf(),
-            source,
-        });
+        return Err(e);
     }
     std::fs::rename(&tmp, path).map_err(|source| {
         let _ = std::fs::remove_file(&tmp);
