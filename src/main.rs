@@ -209,6 +209,12 @@ struct BenchArgs {
     /// seed geometry at the first of --sizes.
     #[arg(long, conflicts_with = "voxelize")]
     plan: bool,
+    /// Benchmark the viewer's adaptive resolution instead: for each experiment, a
+    /// full-size frame, the scale the viewer picks while both sides move, and a frame at
+    /// that scale, against the frame budget.
+    #[cfg(feature = "viewer")]
+    #[arg(long, value_name = "EXPERIMENT", num_args = 0.., conflicts_with_all = ["voxelize", "plan"])]
+    adaptive: Option<Vec<PathBuf>>,
 }
 
 #[derive(Args, Debug)]
@@ -368,6 +374,35 @@ fn cmd_ablate(a: &AblateArgs) -> Result<()> {
 }
 
 fn cmd_bench(a: &BenchArgs) -> Result<()> {
+    #[cfg(feature = "viewer")]
+    if let Some(files) = &a.adaptive {
+        let mut gpu = GpuTracer::new().context("the adaptive benchmark needs a GPU adapter")?;
+        let default = [
+            PathBuf::from("experiments/baseline.toml"),
+            PathBuf::from("experiments/area_lights.toml"),
+        ];
+        let files = if files.is_empty() {
+            &default[..]
+        } else {
+            &files[..]
+        };
+        let experiments = files
+            .iter()
+            .map(|f| Experiment::load(f).map_err(anyhow::Error::from))
+            .collect::<Result<Vec<_>>>()?;
+        let rows =
+            voxlab::viewer::bench::bench_adaptive(&mut gpu, &experiments, a.gpu_runs as usize)?;
+        println!(
+            "viewer adaptive resolution: one frame per side at full size, and at the scale \
+             the viewer settles on while both sides move (its controller fed each frame's \
+             time for 8 frames); median of {} runs ({}); GPU: {}\n",
+            a.gpu_runs,
+            gpu.timer_name(),
+            gpu.adapter_summary()
+        );
+        println!("{}", voxlab::viewer::bench::adaptive_table(&rows));
+        return Ok(());
+    }
     if a.plan {
         let mut gpu = GpuTracer::new().context("the plan benchmark needs a GPU adapter")?;
         let n = a.sizes.first().copied().unwrap_or(64);

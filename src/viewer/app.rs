@@ -995,6 +995,13 @@ impl ViewerApp {
                     "{} / {} frames at {}x{}",
                     u.frames, u.total, u.frame.width, u.frame.height
                 ));
+                if u.total > 1 {
+                    let per_frame = self.state.rendered(side).settings.light_samples;
+                    ui.label(format!(
+                        "{} samples per pixel and area light",
+                        u64::from(u.frames) * u64::from(per_frame)
+                    ));
+                }
                 ui.label(format!(
                     "frame time {:.1} ms",
                     u.frame_time.as_secs_f64() * 1e3

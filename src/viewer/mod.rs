@@ -8,6 +8,7 @@
 //! - `app`: the window.
 
 pub mod app;
+pub mod bench;
 pub mod state;
 pub mod worker;
 
