@@ -68,10 +68,6 @@ impl Rig {
         app.adaptive.enabled = adaptive;
         let harness = Harness::builder()
             .with_size([1400.0, 1200.0])
-            // The DragValues have no accessible name (they are not `labelled_by` their
-            // grid labels), which the check after `run()` rejects; the tests find them
-            // by the label in the same grid row, and step the harness explicitly.
-            .with_accessibility_check(false)
             .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), app);
         Self {
             harness,
@@ -157,17 +153,12 @@ impl Rig {
         self.harness.get_by_role_and_label(Role::CheckBox, label)
     }
 
-    /// The (unnamed) DragValue in the grid row of the label `row`.
+    /// The (first, leftmost) DragValue named by the grid label `row`.
     fn drag_value_in_row<'a>(&'a self, row: &'a str) -> Node<'a> {
-        let label = self.harness.get_by_label(row).rect();
         self.harness
-            .query_all_by_role(Role::SpinButton)
-            .filter(|n| {
-                let r = n.rect();
-                r.min.x >= label.max.x && (label.min.y..=label.max.y).contains(&r.center().y)
-            })
+            .query_all_by_role_and_label(Role::SpinButton, row)
             .min_by(|a, b| a.rect().min.x.total_cmp(&b.rect().min.x))
-            .unwrap_or_else(|| panic!("no DragValue in the row of {row:?}"))
+            .unwrap_or_else(|| panic!("no DragValue named {row:?}"))
     }
 
     /// The image (drawn where it takes its drags and scrolls) and the x of the

@@ -624,8 +624,9 @@ impl ViewerApp {
                 self.edit_shared(|s| s.reset_camera());
             }
             ui.separator();
-            ui.label("Save to");
-            ui.add(egui::TextEdit::singleline(&mut self.save_dir).desired_width(160.0));
+            let row = ui.label("Save to").id;
+            ui.add(egui::TextEdit::singleline(&mut self.save_dir).desired_width(160.0))
+                .labelled_by(row);
             if ui
                 .button("Save images + TOML")
                 .on_hover_text(
@@ -665,38 +666,44 @@ impl ViewerApp {
                 let mut pitch = camera.pitch.to_degrees();
                 let mut vfov = camera.vfov.to_degrees();
                 egui::Grid::new("camera").show(ui, |ui| {
-                    ui.label("distance");
+                    let row = ui.label("distance").id;
                     cam_changed |= ui
                         .add(
                             egui::DragValue::new(&mut camera.distance)
                                 .speed(0.01)
                                 .range(1e-6..=1e9),
                         )
+                        .labelled_by(row)
                         .changed();
                     ui.end_row();
-                    ui.label("yaw deg");
-                    cam_changed |= ui.add(egui::DragValue::new(&mut yaw).speed(0.5)).changed();
+                    let row = ui.label("yaw deg").id;
+                    cam_changed |= ui
+                        .add(egui::DragValue::new(&mut yaw).speed(0.5))
+                        .labelled_by(row)
+                        .changed();
                     ui.end_row();
-                    ui.label("pitch deg");
+                    let row = ui.label("pitch deg").id;
                     cam_changed |= ui
                         .add(
                             egui::DragValue::new(&mut pitch)
                                 .speed(0.5)
                                 .range(-89.0..=89.0),
                         )
+                        .labelled_by(row)
                         .changed();
                     ui.end_row();
-                    ui.label("vfov deg");
+                    let row = ui.label("vfov deg").id;
                     cam_changed |= ui
                         .add(
                             egui::DragValue::new(&mut vfov)
                                 .speed(0.5)
                                 .range(1.0..=170.0),
                         )
+                        .labelled_by(row)
                         .changed();
                     ui.end_row();
-                    ui.label("target");
-                    cam_changed |= vec3_edit(ui, &mut camera.target, 0.01, None);
+                    let row = ui.label("target").id;
+                    cam_changed |= vec3_edit(ui, row, &mut camera.target, 0.01, None);
                     ui.end_row();
                 });
                 camera.yaw = yaw.to_radians();
@@ -718,42 +725,50 @@ impl ViewerApp {
             .default_open(true)
             .show(ui, |ui| {
                 egui::Grid::new("render").show(ui, |ui| {
-                    ui.label("width");
+                    let row = ui.label("width").id;
                     changed |= ui
                         .add(egui::DragValue::new(&mut settings.width).range(1..=MAX_IMAGE_SIDE))
+                        .labelled_by(row)
                         .changed();
                     ui.end_row();
-                    ui.label("height");
+                    let row = ui.label("height").id;
                     changed |= ui
                         .add(egui::DragValue::new(&mut settings.height).range(1..=MAX_IMAGE_SIDE))
+                        .labelled_by(row)
                         .changed();
                     ui.end_row();
-                    ui.label("reflection depth");
+                    let row = ui.label("reflection depth").id;
                     changed |= ui
                         .add(
                             egui::DragValue::new(&mut settings.max_reflection_depth)
                                 .range(0..=MAX_DEPTH_LIMIT),
                         )
+                        .labelled_by(row)
                         .changed();
                     ui.end_row();
-                    ui.label("refraction depth");
+                    let row = ui.label("refraction depth").id;
                     changed |= ui
                         .add(
                             egui::DragValue::new(&mut settings.max_refraction_depth)
                                 .range(0..=MAX_DEPTH_LIMIT),
                         )
+                        .labelled_by(row)
                         .changed();
                     ui.end_row();
-                    ui.label("falloff");
+                    let row = ui.label("falloff").id;
                     changed |= ui
                         .checkbox(&mut settings.falloff, "inverse square")
+                        .labelled_by(row)
                         .changed();
                     ui.end_row();
-                    ui.label("seed");
-                    changed |= ui.add(egui::DragValue::new(&mut settings.seed)).changed();
+                    let row = ui.label("seed").id;
+                    changed |= ui
+                        .add(egui::DragValue::new(&mut settings.seed))
+                        .labelled_by(row)
+                        .changed();
                     ui.end_row();
-                    ui.label("ambient");
-                    changed |= vec3_edit(ui, &mut ambient, 0.005, Some(0.0));
+                    let row = ui.label("ambient").id;
+                    changed |= vec3_edit(ui, row, &mut ambient, 0.005, Some(0.0));
                     ui.end_row();
                 });
                 ui.checkbox(
@@ -761,8 +776,9 @@ impl ViewerApp {
                     "adaptive resolution while moving",
                 );
                 ui.horizontal(|ui| {
-                    ui.label("frame budget ms");
-                    ui.add(egui::DragValue::new(&mut self.adaptive.budget_ms).range(5.0..=2000.0));
+                    let row = ui.label("frame budget ms").id;
+                    ui.add(egui::DragValue::new(&mut self.adaptive.budget_ms).range(5.0..=2000.0))
+                        .labelled_by(row);
                 });
             });
         if changed {
@@ -826,8 +842,8 @@ impl ViewerApp {
                         .id_salt(("material", i))
                         .show(ui, |ui| {
                             egui::Grid::new(("material-grid", i)).show(ui, |ui| {
-                                ui.label("albedo");
-                                changed |= vec3_edit(ui, &mut m.albedo, 0.01, Some(0.0));
+                                let row = ui.label("albedo").id;
+                                changed |= vec3_edit(ui, row, &mut m.albedo, 0.01, Some(0.0));
                                 ui.end_row();
                                 for (name, v) in [
                                     ("kd", &mut m.kd),
@@ -835,37 +851,41 @@ impl ViewerApp {
                                     ("kr", &mut m.kr),
                                     ("kt", &mut m.kt),
                                 ] {
-                                    ui.label(name);
+                                    let row = ui.label(name).id;
                                     changed |= ui
                                         .add(egui::DragValue::new(v).speed(0.01).range(0.0..=1.0))
+                                        .labelled_by(row)
                                         .changed();
                                     ui.end_row();
                                 }
-                                ui.label("shininess");
+                                let row = ui.label("shininess").id;
                                 changed |= ui
                                     .add(
                                         egui::DragValue::new(&mut m.shininess)
                                             .speed(1.0)
                                             .range(0.0..=1e6),
                                     )
+                                    .labelled_by(row)
                                     .changed();
                                 ui.end_row();
-                                ui.label("ior");
+                                let row = ui.label("ior").id;
                                 changed |= ui
                                     .add(
                                         egui::DragValue::new(&mut m.ior)
                                             .speed(0.01)
                                             .range(0.01..=10.0),
                                     )
+                                    .labelled_by(row)
                                     .changed();
                                 ui.end_row();
-                                ui.label("emission");
-                                changed |= vec3_edit(ui, &mut m.emission, 0.01, Some(0.0));
+                                let row = ui.label("emission").id;
+                                changed |= vec3_edit(ui, row, &mut m.emission, 0.01, Some(0.0));
                                 ui.end_row();
-                                ui.label("sigma");
+                                let row = ui.label("sigma").id;
                                 let mut explicit = m.sigma.is_some();
                                 if ui
                                     .checkbox(&mut explicit, "explicit (else from kt)")
+                                    .labelled_by(row)
                                     .changed()
                                 {
                                     m.sigma = explicit.then(|| {
@@ -875,8 +895,8 @@ impl ViewerApp {
                                 }
                                 ui.end_row();
                                 if let Some(s) = &mut m.sigma {
-                                    ui.label("");
-                                    changed |= vec3_edit(ui, s, 0.01, Some(0.0));
+                                    let row = ui.label("").id;
+                                    changed |= vec3_edit(ui, row, s, 0.01, Some(0.0));
                                     ui.end_row();
                                 }
                             });
@@ -930,14 +950,16 @@ impl ViewerApp {
             )
             .changed();
         egui::Grid::new(("side-grid", i)).show(ui, |ui| {
-            ui.label("light samples / frame");
+            let row = ui.label("light samples / frame").id;
             changed |= ui
                 .add(egui::DragValue::new(&mut s.light_samples).range(1..=MAX_SAMPLES))
+                .labelled_by(row)
                 .changed();
             ui.end_row();
-            ui.label("max frames");
+            let row = ui.label("max frames").id;
             changed |= ui
                 .add(egui::DragValue::new(&mut s.max_spp).range(1..=MAX_VIEW_SPP))
+                .labelled_by(row)
                 .changed();
             ui.end_row();
         });
@@ -947,12 +969,13 @@ impl ViewerApp {
                 .show(ui, |ui| {
                     let c = &mut s.cones;
                     egui::Grid::new(("cone-grid", i)).show(ui, |ui| {
-                        ui.label("levels (0 auto)");
+                        let row = ui.label("levels (0 auto)").id;
                         changed |= ui
                             .add(
                                 egui::DragValue::new(&mut c.levels)
                                     .range(0..=crate::cpu::pyramid::MAX_LEVELS),
                             )
+                            .labelled_by(row)
                             .changed();
                         ui.end_row();
                         for (name, v, lo, hi) in [
@@ -962,15 +985,17 @@ impl ViewerApp {
                             ("AO range", &mut c.ao_range, 0.1, 1e6),
                             ("indirect strength", &mut c.indirect_strength, 0.0, 100.0),
                         ] {
-                            ui.label(name);
+                            let row = ui.label(name).id;
                             changed |= ui
                                 .add(egui::DragValue::new(v).speed(0.01).range(lo..=hi))
+                                .labelled_by(row)
                                 .changed();
                             ui.end_row();
                         }
-                        ui.label("AO cones");
+                        let row = ui.label("AO cones").id;
                         changed |= ui
                             .add(egui::DragValue::new(&mut c.ao_cones).range(1..=64))
+                            .labelled_by(row)
                             .changed();
                         ui.end_row();
                     });
@@ -1029,8 +1054,9 @@ impl ViewerApp {
     fn reference_panel(&mut self, ui: &mut egui::Ui) {
         ui.heading("Error");
         ui.horizontal(|ui| {
-            ui.label("reference frames");
-            ui.add(egui::DragValue::new(&mut self.references.spp).range(1..=MAX_VIEW_SPP));
+            let row = ui.label("reference frames").id;
+            ui.add(egui::DragValue::new(&mut self.references.spp).range(1..=MAX_VIEW_SPP))
+                .labelled_by(row);
         });
         if ui
             .button("Error vs reference")
@@ -1130,8 +1156,15 @@ impl ViewerApp {
     }
 }
 
-/// Three drag values for a vector; `min` bounds each component.
-fn vec3_edit(ui: &mut egui::Ui, v: &mut DVec3, speed: f64, min: Option<f64>) -> bool {
+/// Three drag values for a vector, named by the row's `label`; `min` bounds each
+/// component.
+fn vec3_edit(
+    ui: &mut egui::Ui,
+    label: egui::Id,
+    v: &mut DVec3,
+    speed: f64,
+    min: Option<f64>,
+) -> bool {
     let mut changed = false;
     ui.horizontal(|ui| {
         for c in [&mut v.x, &mut v.y, &mut v.z] {
@@ -1139,7 +1172,7 @@ fn vec3_edit(ui: &mut egui::Ui, v: &mut DVec3, speed: f64, min: Option<f64>) -> 
             if let Some(m) = min {
                 d = d.range(m..=f64::MAX);
             }
-            changed |= ui.add(d).changed();
+            changed |= ui.add(d).labelled_by(label).changed();
         }
     });
     changed
@@ -1168,13 +1201,16 @@ fn light_edit(
         .show(ui, |ui| {
             ui.horizontal(|ui| {
                 let mut k = kind;
+                let row = ui.label(format!("type of light {i}")).id;
                 egui::ComboBox::from_id_salt(("light-kind", i))
                     .selected_text(k.name())
                     .show_ui(ui, |ui| {
                         for option in LightKind::ALL {
                             ui.selectable_value(&mut k, option, option.name());
                         }
-                    });
+                    })
+                    .response
+                    .labelled_by(row);
                 if k != kind {
                     *light = k.convert(light, toward, size);
                     changed = true;
@@ -1186,50 +1222,58 @@ fn light_edit(
                     Light::Point(p) => (&mut p.position, &mut p.color, &mut p.intensity),
                     Light::Area(a) => (&mut a.position, &mut a.color, &mut a.intensity),
                 };
-                ui.label("position");
-                changed |= vec3_edit(ui, position, 0.01, None);
+                let row = ui.label("position").id;
+                changed |= vec3_edit(ui, row, position, 0.01, None);
                 ui.end_row();
-                ui.label("color");
-                changed |= vec3_edit(ui, color, 0.01, Some(0.0));
+                let row = ui.label("color").id;
+                changed |= vec3_edit(ui, row, color, 0.01, Some(0.0));
                 ui.end_row();
-                ui.label("intensity");
+                let row = ui.label("intensity").id;
                 changed |= ui
                     .add(egui::DragValue::new(intensity).speed(0.05).range(0.0..=1e9))
+                    .labelled_by(row)
                     .changed();
                 ui.end_row();
                 if let Light::Area(a) = light {
                     match &mut a.shape {
                         AreaShape::Rect { width, height } => {
-                            ui.label("size");
+                            let row = ui.label("size").id;
                             ui.horizontal(|ui| {
                                 changed |= ui
                                     .add(egui::DragValue::new(width).speed(0.01).range(0.0..=1e6))
+                                    .labelled_by(row)
                                     .changed();
                                 changed |= ui
                                     .add(egui::DragValue::new(height).speed(0.01).range(0.0..=1e6))
+                                    .labelled_by(row)
                                     .changed();
                             });
                             ui.end_row();
                         }
                         AreaShape::Disk { radius } | AreaShape::Sphere { radius } => {
-                            ui.label("radius");
+                            let row = ui.label("radius").id;
                             changed |= ui
                                 .add(egui::DragValue::new(radius).speed(0.01).range(0.0..=1e6))
+                                .labelled_by(row)
                                 .changed();
                             ui.end_row();
                         }
                     }
                     if !matches!(a.shape, AreaShape::Sphere { .. }) {
-                        ui.label("normal");
+                        let row = ui.label("normal").id;
                         let mut n = a.normal;
-                        if vec3_edit(ui, &mut n, 0.01, None) && n.length_squared() > 1e-12 {
+                        if vec3_edit(ui, row, &mut n, 0.01, None) && n.length_squared() > 1e-12 {
                             a.normal = n;
                             changed = true;
                         }
                         ui.end_row();
-                        ui.label("rotation deg");
+                        let row = ui.label("rotation deg").id;
                         let mut deg = a.rotation.to_degrees();
-                        if ui.add(egui::DragValue::new(&mut deg).speed(0.5)).changed() {
+                        if ui
+                            .add(egui::DragValue::new(&mut deg).speed(0.5))
+                            .labelled_by(row)
+                            .changed()
+                        {
                             a.rotation = deg.to_radians();
                             changed = true;
                         }
