@@ -155,7 +155,21 @@ fn run(jobs: Receiver<Job>, send: impl Fn(Report)) {
             _ => 1,
         }
         .clamp(1, total - *done);
-        match tracer.render_frames(&e.scene, &settings, *done..*done + batch) {
+        // A panic inside the tracer (a driver or validation failure wgpu reports by
+        // panicking) becomes this job's error instead of a silently dead thread.
+        let frames = *done..*done + batch;
+        let rendered = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            tracer.render_frames(&e.scene, &settings, frames)
+        }))
+        .unwrap_or_else(|panic| {
+            let what = panic
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| panic.downcast_ref::<&str>().copied())
+                .unwrap_or("unknown panic");
+            Err(anyhow::anyhow!("the tracer panicked: {what}"))
+        });
+        match rendered {
             Ok(out) => {
                 // The device timer where there is one: it leaves out one-off costs (a
                 // kernel variant compiled on first use, a pyramid build) that would
