@@ -666,45 +666,30 @@ impl ViewerApp {
                 let mut pitch = camera.pitch.to_degrees();
                 let mut vfov = camera.vfov.to_degrees();
                 egui::Grid::new("camera").show(ui, |ui| {
-                    let row = ui.label("distance").id;
-                    cam_changed |= ui
-                        .add(
-                            egui::DragValue::new(&mut camera.distance)
-                                .speed(0.01)
-                                .range(1e-6..=1e9),
-                        )
-                        .labelled_by(row)
-                        .changed();
-                    ui.end_row();
-                    let row = ui.label("yaw deg").id;
-                    cam_changed |= ui
-                        .add(egui::DragValue::new(&mut yaw).speed(0.5))
-                        .labelled_by(row)
-                        .changed();
-                    ui.end_row();
-                    let row = ui.label("pitch deg").id;
-                    cam_changed |= ui
-                        .add(
-                            egui::DragValue::new(&mut pitch)
-                                .speed(0.5)
-                                .range(-89.0..=89.0),
-                        )
-                        .labelled_by(row)
-                        .changed();
-                    ui.end_row();
-                    let row = ui.label("vfov deg").id;
-                    cam_changed |= ui
-                        .add(
-                            egui::DragValue::new(&mut vfov)
-                                .speed(0.5)
-                                .range(1.0..=170.0),
-                        )
-                        .labelled_by(row)
-                        .changed();
-                    ui.end_row();
-                    let row = ui.label("target").id;
-                    cam_changed |= vec3_edit(ui, row, &mut camera.target, 0.01, None);
-                    ui.end_row();
+                    cam_changed |= drag_row(
+                        ui,
+                        "distance",
+                        egui::DragValue::new(&mut camera.distance)
+                            .speed(0.01)
+                            .range(1e-6..=1e9),
+                    );
+                    cam_changed |=
+                        drag_row(ui, "yaw deg", egui::DragValue::new(&mut yaw).speed(0.5));
+                    cam_changed |= drag_row(
+                        ui,
+                        "pitch deg",
+                        egui::DragValue::new(&mut pitch)
+                            .speed(0.5)
+                            .range(-89.0..=89.0),
+                    );
+                    cam_changed |= drag_row(
+                        ui,
+                        "vfov deg",
+                        egui::DragValue::new(&mut vfov)
+                            .speed(0.5)
+                            .range(1.0..=170.0),
+                    );
+                    cam_changed |= vec3_row(ui, "target", &mut camera.target, 0.01, None);
                 });
                 camera.yaw = yaw.to_radians();
                 camera.pitch = pitch.to_radians();
@@ -725,51 +710,36 @@ impl ViewerApp {
             .default_open(true)
             .show(ui, |ui| {
                 egui::Grid::new("render").show(ui, |ui| {
-                    let row = ui.label("width").id;
-                    changed |= ui
-                        .add(egui::DragValue::new(&mut settings.width).range(1..=MAX_IMAGE_SIDE))
-                        .labelled_by(row)
-                        .changed();
-                    ui.end_row();
-                    let row = ui.label("height").id;
-                    changed |= ui
-                        .add(egui::DragValue::new(&mut settings.height).range(1..=MAX_IMAGE_SIDE))
-                        .labelled_by(row)
-                        .changed();
-                    ui.end_row();
-                    let row = ui.label("reflection depth").id;
-                    changed |= ui
-                        .add(
-                            egui::DragValue::new(&mut settings.max_reflection_depth)
-                                .range(0..=MAX_DEPTH_LIMIT),
-                        )
-                        .labelled_by(row)
-                        .changed();
-                    ui.end_row();
-                    let row = ui.label("refraction depth").id;
-                    changed |= ui
-                        .add(
-                            egui::DragValue::new(&mut settings.max_refraction_depth)
-                                .range(0..=MAX_DEPTH_LIMIT),
-                        )
-                        .labelled_by(row)
-                        .changed();
-                    ui.end_row();
+                    changed |= drag_row(
+                        ui,
+                        "width",
+                        egui::DragValue::new(&mut settings.width).range(1..=MAX_IMAGE_SIDE),
+                    );
+                    changed |= drag_row(
+                        ui,
+                        "height",
+                        egui::DragValue::new(&mut settings.height).range(1..=MAX_IMAGE_SIDE),
+                    );
+                    changed |= drag_row(
+                        ui,
+                        "reflection depth",
+                        egui::DragValue::new(&mut settings.max_reflection_depth)
+                            .range(0..=MAX_DEPTH_LIMIT),
+                    );
+                    changed |= drag_row(
+                        ui,
+                        "refraction depth",
+                        egui::DragValue::new(&mut settings.max_refraction_depth)
+                            .range(0..=MAX_DEPTH_LIMIT),
+                    );
                     let row = ui.label("falloff").id;
                     changed |= ui
                         .checkbox(&mut settings.falloff, "inverse square")
                         .labelled_by(row)
                         .changed();
                     ui.end_row();
-                    let row = ui.label("seed").id;
-                    changed |= ui
-                        .add(egui::DragValue::new(&mut settings.seed))
-                        .labelled_by(row)
-                        .changed();
-                    ui.end_row();
-                    let row = ui.label("ambient").id;
-                    changed |= vec3_edit(ui, row, &mut ambient, 0.005, Some(0.0));
-                    ui.end_row();
+                    changed |= drag_row(ui, "seed", egui::DragValue::new(&mut settings.seed));
+                    changed |= vec3_row(ui, "ambient", &mut ambient, 0.005, Some(0.0));
                 });
                 ui.checkbox(
                     &mut self.adaptive.enabled,
@@ -842,45 +812,35 @@ impl ViewerApp {
                         .id_salt(("material", i))
                         .show(ui, |ui| {
                             egui::Grid::new(("material-grid", i)).show(ui, |ui| {
-                                let row = ui.label("albedo").id;
-                                changed |= vec3_edit(ui, row, &mut m.albedo, 0.01, Some(0.0));
-                                ui.end_row();
+                                changed |= vec3_row(ui, "albedo", &mut m.albedo, 0.01, Some(0.0));
                                 for (name, v) in [
                                     ("kd", &mut m.kd),
                                     ("ks", &mut m.ks),
                                     ("kr", &mut m.kr),
                                     ("kt", &mut m.kt),
                                 ] {
-                                    let row = ui.label(name).id;
-                                    changed |= ui
-                                        .add(egui::DragValue::new(v).speed(0.01).range(0.0..=1.0))
-                                        .labelled_by(row)
-                                        .changed();
-                                    ui.end_row();
+                                    changed |= drag_row(
+                                        ui,
+                                        name,
+                                        egui::DragValue::new(v).speed(0.01).range(0.0..=1.0),
+                                    );
                                 }
-                                let row = ui.label("shininess").id;
-                                changed |= ui
-                                    .add(
-                                        egui::DragValue::new(&mut m.shininess)
-                                            .speed(1.0)
-                                            .range(0.0..=1e6),
-                                    )
-                                    .labelled_by(row)
-                                    .changed();
-                                ui.end_row();
-                                let row = ui.label("ior").id;
-                                changed |= ui
-                                    .add(
-                                        egui::DragValue::new(&mut m.ior)
-                                            .speed(0.01)
-                                            .range(0.01..=10.0),
-                                    )
-                                    .labelled_by(row)
-                                    .changed();
-                                ui.end_row();
-                                let row = ui.label("emission").id;
-                                changed |= vec3_edit(ui, row, &mut m.emission, 0.01, Some(0.0));
-                                ui.end_row();
+                                changed |= drag_row(
+                                    ui,
+                                    "shininess",
+                                    egui::DragValue::new(&mut m.shininess)
+                                        .speed(1.0)
+                                        .range(0.0..=1e6),
+                                );
+                                changed |= drag_row(
+                                    ui,
+                                    "ior",
+                                    egui::DragValue::new(&mut m.ior)
+                                        .speed(0.01)
+                                        .range(0.01..=10.0),
+                                );
+                                changed |=
+                                    vec3_row(ui, "emission", &mut m.emission, 0.01, Some(0.0));
                                 let row = ui.label("sigma").id;
                                 let mut explicit = m.sigma.is_some();
                                 if ui
@@ -895,9 +855,7 @@ impl ViewerApp {
                                 }
                                 ui.end_row();
                                 if let Some(s) = &mut m.sigma {
-                                    let row = ui.label("").id;
-                                    changed |= vec3_edit(ui, row, s, 0.01, Some(0.0));
-                                    ui.end_row();
+                                    changed |= vec3_row(ui, "", s, 0.01, Some(0.0));
                                 }
                             });
                         });
@@ -950,18 +908,16 @@ impl ViewerApp {
             )
             .changed();
         egui::Grid::new(("side-grid", i)).show(ui, |ui| {
-            let row = ui.label("light samples / frame").id;
-            changed |= ui
-                .add(egui::DragValue::new(&mut s.light_samples).range(1..=MAX_SAMPLES))
-                .labelled_by(row)
-                .changed();
-            ui.end_row();
-            let row = ui.label("max frames").id;
-            changed |= ui
-                .add(egui::DragValue::new(&mut s.max_spp).range(1..=MAX_VIEW_SPP))
-                .labelled_by(row)
-                .changed();
-            ui.end_row();
+            changed |= drag_row(
+                ui,
+                "light samples / frame",
+                egui::DragValue::new(&mut s.light_samples).range(1..=MAX_SAMPLES),
+            );
+            changed |= drag_row(
+                ui,
+                "max frames",
+                egui::DragValue::new(&mut s.max_spp).range(1..=MAX_VIEW_SPP),
+            );
         });
         if s.features.cones() {
             egui::CollapsingHeader::new("cone knobs")
@@ -969,15 +925,12 @@ impl ViewerApp {
                 .show(ui, |ui| {
                     let c = &mut s.cones;
                     egui::Grid::new(("cone-grid", i)).show(ui, |ui| {
-                        let row = ui.label("levels (0 auto)").id;
-                        changed |= ui
-                            .add(
-                                egui::DragValue::new(&mut c.levels)
-                                    .range(0..=crate::cpu::pyramid::MAX_LEVELS),
-                            )
-                            .labelled_by(row)
-                            .changed();
-                        ui.end_row();
+                        changed |= drag_row(
+                            ui,
+                            "levels (0 auto)",
+                            egui::DragValue::new(&mut c.levels)
+                                .range(0..=crate::cpu::pyramid::MAX_LEVELS),
+                        );
                         for (name, v, lo, hi) in [
                             ("step factor", &mut c.step_factor, 0.05, 4.0),
                             ("aperture deg", &mut c.aperture_deg, 0.0, 120.0),
@@ -985,19 +938,17 @@ impl ViewerApp {
                             ("AO range", &mut c.ao_range, 0.1, 1e6),
                             ("indirect strength", &mut c.indirect_strength, 0.0, 100.0),
                         ] {
-                            let row = ui.label(name).id;
-                            changed |= ui
-                                .add(egui::DragValue::new(v).speed(0.01).range(lo..=hi))
-                                .labelled_by(row)
-                                .changed();
-                            ui.end_row();
+                            changed |= drag_row(
+                                ui,
+                                name,
+                                egui::DragValue::new(v).speed(0.01).range(lo..=hi),
+                            );
                         }
-                        let row = ui.label("AO cones").id;
-                        changed |= ui
-                            .add(egui::DragValue::new(&mut c.ao_cones).range(1..=64))
-                            .labelled_by(row)
-                            .changed();
-                        ui.end_row();
+                        changed |= drag_row(
+                            ui,
+                            "AO cones",
+                            egui::DragValue::new(&mut c.ao_cones).range(1..=64),
+                        );
                     });
                 });
         }
@@ -1156,6 +1107,23 @@ impl ViewerApp {
     }
 }
 
+/// A grid row: `label`, then `value` named by it (for screen readers and UI tests);
+/// whether the value changed.
+fn drag_row(ui: &mut egui::Ui, label: &str, value: egui::DragValue) -> bool {
+    let row = ui.label(label).id;
+    let changed = ui.add(value).labelled_by(row).changed();
+    ui.end_row();
+    changed
+}
+
+/// A grid row of a vector: `label`, then its three drag values.
+fn vec3_row(ui: &mut egui::Ui, label: &str, v: &mut DVec3, speed: f64, min: Option<f64>) -> bool {
+    let row = ui.label(label).id;
+    let changed = vec3_edit(ui, row, v, speed, min);
+    ui.end_row();
+    changed
+}
+
 /// Three drag values for a vector, named by the row's `label`; `min` bounds each
 /// component.
 fn vec3_edit(
@@ -1222,18 +1190,13 @@ fn light_edit(
                     Light::Point(p) => (&mut p.position, &mut p.color, &mut p.intensity),
                     Light::Area(a) => (&mut a.position, &mut a.color, &mut a.intensity),
                 };
-                let row = ui.label("position").id;
-                changed |= vec3_edit(ui, row, position, 0.01, None);
-                ui.end_row();
-                let row = ui.label("color").id;
-                changed |= vec3_edit(ui, row, color, 0.01, Some(0.0));
-                ui.end_row();
-                let row = ui.label("intensity").id;
-                changed |= ui
-                    .add(egui::DragValue::new(intensity).speed(0.05).range(0.0..=1e9))
-                    .labelled_by(row)
-                    .changed();
-                ui.end_row();
+                changed |= vec3_row(ui, "position", position, 0.01, None);
+                changed |= vec3_row(ui, "color", color, 0.01, Some(0.0));
+                changed |= drag_row(
+                    ui,
+                    "intensity",
+                    egui::DragValue::new(intensity).speed(0.05).range(0.0..=1e9),
+                );
                 if let Light::Area(a) = light {
                     match &mut a.shape {
                         AreaShape::Rect { width, height } => {
@@ -1251,12 +1214,11 @@ fn light_edit(
                             ui.end_row();
                         }
                         AreaShape::Disk { radius } | AreaShape::Sphere { radius } => {
-                            let row = ui.label("radius").id;
-                            changed |= ui
-                                .add(egui::DragValue::new(radius).speed(0.01).range(0.0..=1e6))
-                                .labelled_by(row)
-                                .changed();
-                            ui.end_row();
+                            changed |= drag_row(
+                                ui,
+                                "radius",
+                                egui::DragValue::new(radius).speed(0.01).range(0.0..=1e6),
+                            );
                         }
                     }
                     if !matches!(a.shape, AreaShape::Sphere { .. }) {
