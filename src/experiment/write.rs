@@ -232,6 +232,22 @@ pub fn material_table(m: &Material) -> Table {
 /// `[render]`: every setting, and the scene's ambient colour (which the file keeps
 /// here).
 pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
+    // Exhaustive on purpose: a new setting does not compile until it is written here
+    // (or, for `features` and `cones`, in their own tables).
+    let RenderSettings {
+        width: _,
+        height: _,
+        max_reflection_depth: _,
+        max_refraction_depth: _,
+        falloff: _,
+        falloff_min_distance: _,
+        ray_offset: _,
+        features: _,
+        light_samples: _,
+        spp: _,
+        seed: _,
+        cones: _,
+    } = s;
     let mut t = Table::new();
     let int = |v: u32| Value::Integer(i64::from(v));
     t.insert("width".into(), int(s.width));
@@ -250,17 +266,35 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
 
 /// `[features]`: all five switches, the transmittance model by name.
 pub fn features_table(f: &Features) -> Table {
+    // Exhaustive on purpose: a new feature does not compile until it is written.
+    let Features {
+        area_lights,
+        transmittance,
+        cone_shadows,
+        ambient_occlusion,
+        indirect,
+    } = f;
     let mut t = Table::new();
-    t.insert("area_lights".into(), f.area_lights.into());
-    t.insert("transmittance".into(), f.transmittance.name().into());
-    t.insert("cone_shadows".into(), f.cone_shadows.into());
-    t.insert("ambient_occlusion".into(), f.ambient_occlusion.into());
-    t.insert("indirect".into(), f.indirect.into());
+    t.insert("area_lights".into(), (*area_lights).into());
+    t.insert("transmittance".into(), transmittance.name().into());
+    t.insert("cone_shadows".into(), (*cone_shadows).into());
+    t.insert("ambient_occlusion".into(), (*ambient_occlusion).into());
+    t.insert("indirect".into(), (*indirect).into());
     t
 }
 
 /// `[cones]`: every knob.
 pub fn cones_table(c: &ConeSettings) -> Table {
+    // Exhaustive on purpose: a new knob does not compile until it is written here.
+    let ConeSettings {
+        levels: _,
+        step_factor: _,
+        aperture_deg: _,
+        start_offset: _,
+        ao_cones: _,
+        ao_range: _,
+        indirect_strength: _,
+    } = c;
     let mut t = Table::new();
     t.insert("levels".into(), i64::from(c.levels).into());
     t.insert("step_factor".into(), c.step_factor.into());
