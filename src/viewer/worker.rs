@@ -97,6 +97,15 @@ impl Drop for Worker {
     }
 }
 
+/// The job a worker is on: its settings at the traced size, the frames it accumulates
+/// in all, and those done.
+struct Current {
+    job: Job,
+    settings: crate::render::RenderSettings,
+    total: u32,
+    done: u32,
+}
+
 fn run(jobs: Receiver<Job>, send: impl Fn(Report)) {
     let mut tracer = match GpuTracer::new() {
         Ok(t) => t,
@@ -111,12 +120,12 @@ fn run(jobs: Receiver<Job>, send: impl Fn(Report)) {
     send(Report::Ready {
         adapter: tracer.adapter_summary(),
     });
-    let mut current: Option<(Job, u32)> = None;
+    let mut current: Option<Current> = None;
     // Time per frame of the latest batch, to size the next one.
     let mut per_frame: Option<Duration> = None;
     loop {
         // The newest job wins; with nothing left to do, wait for one.
-        let idle = current.as_ref().is_none_or(|(j, done)| *done >= j.frames);
+        let idle = current.as_ref().is_none_or(|c| c.done >= c.total);
         let next = if idle {
             match jobs.recv() {
                 Ok(j) => Some(j),
@@ -133,21 +142,32 @@ fn run(jobs: Receiver<Job>, send: impl Fn(Report)) {
                 Err(TryRecvError::Disconnected) => return,
             }
         }
-        if let Some(j) = newest {
-            current = Some((j, 0));
+        if let Some(job) = newest {
+            // Once per job: the plan scans the grid for the materials it uses.
+            let settings = crate::render::RenderSettings {
+                width: job.width,
+                height: job.height,
+                spp: job.frames.max(1),
+                ..job.experiment.settings.clone()
+            };
+            let total = Plan::new(&job.experiment.scene, &settings).frames(&settings);
+            current = Some(Current {
+                job,
+                settings,
+                total,
+                done: 0,
+            });
         }
-        let Some((job, done)) = current.as_mut() else {
+        let Some(Current {
+            job,
+            settings,
+            total,
+            done,
+        }) = current.as_mut()
+        else {
             continue;
         };
-        let e = &job.experiment;
-        let settings = crate::render::RenderSettings {
-            width: job.width,
-            height: job.height,
-            spp: job.frames.max(1),
-            ..e.settings.clone()
-        };
-        let total = Plan::new(&e.scene, &settings).frames(&settings);
-        job.frames = total;
+        let (e, total) = (&job.experiment, *total);
         let batch = match per_frame {
             Some(t) if !t.is_zero() => {
                 (job.batch_budget.as_secs_f64() / t.as_secs_f64()).floor() as u32
@@ -159,7 +179,7 @@ fn run(jobs: Receiver<Job>, send: impl Fn(Report)) {
         // panicking) becomes this job's error instead of a silently dead thread.
         let frames = *done..*done + batch;
         let rendered = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            tracer.render_frames(&e.scene, &settings, frames)
+            tracer.render_frames(&e.scene, settings, frames)
         }))
         .unwrap_or_else(|panic| {
             let what = panic
