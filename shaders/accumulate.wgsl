@@ -1,28 +1,34 @@
-// Progressive accumulation (ACCUMULATE): the frames of a pixel are summed in f32 with
-// Kahan-Babuska (Neumaier) compensation, and the sum and its compensation live in the
-// `output` and `compensation` buffers between dispatches, so a render of many frames may
-// be split into several dispatches without changing the sum. The host divides by the
-// number of frames at readback (in f64): nothing is rounded to 8 bits until the image is
-// written. Contract: "Progressive accumulation".
-#define_import_path voxlab::accumulate
+// Progressive accumulation (ACCUMULATE): the tracer writes each frame of a dispatch to its
+// own slice of a buffer (shaders/trace.wgsl, one invocation per pixel and frame), and this
+// kernel adds the slices to each pixel's running sum in frame order, in f32 with
+// Kahan-Babuska (Neumaier) compensation. The sum and its compensation stay in their
+// buffers between dispatches, so a render of many frames may be split into several
+// dispatches without changing the sum. The host divides by the number of frames at
+// readback (in f64): nothing is rounded to 8 bits until the image is written.
+// Contract: "Progressive accumulation".
+//
+// The loop below runs `frame_count` times in every invocation alike, and the host caps
+// frame_count (MAX_FRAMES_PER_DISPATCH in src/gpu/mod.rs) far below the software
+// driver's loop limit (shaders/counters.wgsl), so no driver can cut it short.
 
-#import voxlab::bindings::{params, output, compensation}
+struct ReduceParams {
+    pixels: u32,
+    // Pixels per row of the dispatch grid (invocations along x of all its workgroups).
+    row: u32,
+    // Frames frame_begin .. frame_begin + frame_count; frame_begin 0 starts the sums.
+    frame_begin: u32,
+    frame_count: u32,
+}
+
+@group(0) @binding(0) var<uniform> rp: ReduceParams;
+// frame_count slices of `pixels` radiances, frame by frame (w unused).
+@group(0) @binding(1) var<storage, read> frames: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read_write> sums: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> compensation: array<vec4<f32>>;
 
 struct Sum {
     sum: vec3<f32>,
     c: vec3<f32>,
-}
-
-// The running sum of pixel i: zero on the first dispatch, else what the last one left.
-fn load_sum(i: u32) -> Sum {
-    var a: Sum;
-    a.sum = vec3<f32>(0.0);
-    a.c = vec3<f32>(0.0);
-    if params.frame_begin > 0u {
-        a.sum = output[i].xyz;
-        a.c = compensation[i].xyz;
-    }
-    return a;
 }
 
 // Neumaier's variant of Kahan summation: exact to the last bit of the running sum for
@@ -35,7 +41,22 @@ fn add(a: ptr<function, Sum>, x: vec3<f32>) {
     (*a).sum = t;
 }
 
-fn store_sum(i: u32, a: Sum) {
-    output[i] = vec4<f32>(a.sum, 1.0);
+@compute @workgroup_size(64, 1, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.y * rp.row + gid.x;
+    if i >= rp.pixels {
+        return;
+    }
+    var a: Sum;
+    a.sum = vec3<f32>(0.0);
+    a.c = vec3<f32>(0.0);
+    if rp.frame_begin > 0u {
+        a.sum = sums[i].xyz;
+        a.c = compensation[i].xyz;
+    }
+    for (var f = 0u; f < rp.frame_count; f++) {
+        add(&a, frames[f * rp.pixels + i].xyz);
+    }
+    sums[i] = vec4<f32>(a.sum, 1.0);
     compensation[i] = vec4<f32>(a.c, 0.0);
 }

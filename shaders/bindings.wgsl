@@ -9,14 +9,13 @@
 @group(0) @binding(1) var grid: texture_3d<u32>;
 @group(0) @binding(2) var<storage, read> materials: array<Material>;
 @group(0) @binding(3) var<storage, read> lights: array<Light>;
-// Linear radiance per pixel, rows from the top; w is unused.
+// Linear radiance per pixel, rows from the top; w is unused. With ACCUMULATE, one such
+// image per frame of the dispatch, frame by frame (shaders/accumulate.wgsl sums them).
 @group(0) @binding(4) var<storage, read_write> output: array<vec4<f32>>;
-// Ray counters as 64-bit (lo, hi) pairs: primary, secondary, shadow, voxel steps.
-@group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, 8>;
-// ACCUMULATE: the Kahan compensation of the running sum in `output`, per pixel (rgb).
-// A one-entry dummy is bound when the plan does not accumulate.
-@group(0) @binding(6) var<storage, read_write> compensation: array<vec4<f32>>;
-
+// Ray counters as 64-bit (lo, hi) pairs: primary, secondary, shadow, voxel steps; then
+// the invocations whose loops the driver cut short (shaders/counters.wgsl, loop_cut)
+// and one unused word.
+@group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, 10>;
 fn voxel_material(v: vec3<i32>) -> u32 {
     return textureLoad(grid, v, 0).r;
 }

@@ -44,6 +44,11 @@ struct ConeResult {
     radiance: vec3<f32>,
 }
 
+// Set when a loop here ended without meeting any of its own exit conditions: the
+// software driver's loop limit (shaders/counters.wgsl, loop_cut, which the tracer's
+// entry point calls for it; this module is also composed without the counters).
+var<private> cone_loop_cut: bool;
+
 const OCCLUSION_CUTOFF: f32 = 0.99;
 const MAX_CONE_STEPS: u32 = 4096u;
 const GOLDEN_ANGLE: f32 = 2.399963229728653;
@@ -113,13 +118,17 @@ fn march(o: vec3<f32>, w: vec3<f32>, tan_half: f32, max_dist: f32, gather: bool)
     r.radiance = vec3<f32>(0.0);
     let k = cone.step_factor;
     var t = 0.0;
-    for (var i = 0u; i < MAX_CONE_STEPS; i++) {
+    var i = 0u;
+    var ended = false;
+    for (; i < MAX_CONE_STEPS; i++) {
         if !(t < max_dist) {
+            ended = true;
             break;
         }
         let d = max(2.0 * t * tan_half, 1.0);
         let x = o + t * w;
         if leaving(x, w) {
+            ended = true;
             break;
         }
         let lod = log2(d);
@@ -149,9 +158,14 @@ fn march(o: vec3<f32>, w: vec3<f32>, tan_half: f32, max_dist: f32, gather: bool)
         r.occlusion += (1.0 - r.occlusion) * ac;
         if r.occlusion >= OCCLUSION_CUTOFF {
             r.occlusion = 1.0;
+            ended = true;
             break;
         }
         t += k * d;
+    }
+    // Any other way out is the driver's loop limit (shaders/counters.wgsl).
+    if !ended && i < MAX_CONE_STEPS {
+        cone_loop_cut = true;
     }
     return r;
 }
@@ -178,9 +192,13 @@ fn hemisphere_dir(n: vec3<f32>, k: u32, count: u32) -> vec3<f32> {
 fn ambient_occlusion(p: vec3<f32>, n: vec3<f32>) -> f32 {
     let o = p + cone.start_offset * n;
     var sum = 0.0;
-    for (var k = 0u; k < cone.ao_cones; k++) {
+    var k = 0u;
+    for (; k < cone.ao_cones; k++) {
         let w = hemisphere_dir(n, k, cone.ao_cones);
         sum += 1.0 - march(o, w, cone.hemi_tan_half, cone.ao_range, false).occlusion;
+    }
+    if k < cone.ao_cones {
+        cone_loop_cut = true;
     }
     return sum / f32(cone.ao_cones);
 }
@@ -190,9 +208,13 @@ fn ambient_occlusion(p: vec3<f32>, n: vec3<f32>) -> f32 {
 fn indirect_light(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let o = p + cone.start_offset * n;
     var sum = vec3<f32>(0.0);
-    for (var k = 0u; k < cone.ao_cones; k++) {
+    var k = 0u;
+    for (; k < cone.ao_cones; k++) {
         let w = hemisphere_dir(n, k, cone.ao_cones);
         sum += march(o, w, cone.hemi_tan_half, cone.indirect_range, true).radiance;
+    }
+    if k < cone.ao_cones {
+        cone_loop_cut = true;
     }
     return sum / f32(cone.ao_cones);
 }

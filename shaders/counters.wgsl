@@ -5,6 +5,23 @@
 
 #import voxlab::bindings::counters
 
+// Index of the counter of invocations whose loops the driver cut short (see loop_cut).
+const LOOPS_CUT: u32 = 8u;
+
+// Set when a loop of this invocation ended without meeting any of its own exit
+// conditions. Mesa's software rasteriser (llvmpipe, lavapipe) builds every shader with
+// one loop limiter per SIMD vector of invocations, shared by all of its loops
+// (LP_MAX_TGSI_LOOP_ITERATIONS = 65535 back edges, src/gallium/auxiliary/gallivm/
+// lp_bld_limits.h and lp_bld_ir_common.c, lp_exec_endloop); once it runs out, every loop
+// leaves at its next back edge, silently. Each loop of the tracer checks after it ends
+// that it ended for a reason of its own and calls this otherwise, so a cut walk is an
+// error on the host (src/gpu/mod.rs), never a wrong image.
+var<private> loops_cut: bool;
+
+fn loop_cut() {
+    loops_cut = true;
+}
+
 // primary, secondary, shadow, voxel steps. One invocation's counts fit u32 easily.
 var<private> local_counts: vec4<u32>;
 
@@ -47,6 +64,9 @@ fn add64(i: u32, v: u32) {
 #endif
 
 fn flush_counts() {
+    if loops_cut {
+        atomicAdd(&counters[LOOPS_CUT], 1u);
+    }
 #ifdef COUNT_RAYS
     add64(0u, local_counts.x);
     add64(1u, local_counts.y);

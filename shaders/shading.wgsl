@@ -7,7 +7,7 @@
 
 #import voxlab::types::{Material, Light, LIGHT_POINT}
 #import voxlab::bindings::{params, lights}
-#import voxlab::counters::count_shadow
+#import voxlab::counters::{count_shadow, loop_cut}
 #import voxlab::sampling::SampleKey
 #ifdef BEER_LAMBERT
 #import voxlab::shadow_beer_lambert::transmittance_rgb
@@ -80,8 +80,9 @@ fn unshadowed(
     }
     let nl = dot(n, l);
     let diffuse = max(0.0, nl);
+    // No highlight from a light behind the surface (textbook Phong's n.l > 0 gate).
     let r = l - 2.0 * nl * n;
-    let rd = dot(r, d);
+    let rd = select(0.0, dot(r, d), nl > 0.0);
     var spec = 0.0;
     if rd > 0.0 {
         spec = pow(rd, s.shininess);
@@ -97,7 +98,8 @@ fn local_light(p: vec3<f32>, n: vec3<f32>, d: vec3<f32>, s: Material, key: Sampl
         return local;
     }
     let q = p + params.eps * n;
-    for (var j = 0u; j < params.num_lights; j++) {
+    var j = 0u;
+    for (; j < params.num_lights; j++) {
         let light = lights[j];
 #ifdef CONE_SHADOWS
         // One cone to the light's centre replaces the shadow ray and the area samples
@@ -113,16 +115,24 @@ fn local_light(p: vec3<f32>, n: vec3<f32>, d: vec3<f32>, s: Material, key: Sampl
         if light.kind != LIGHT_POINT {
             let count = max(params.light_samples, 1u);
             var sum = vec3<f32>(0.0);
-            for (var k = 0u; k < count; k++) {
+            var k = 0u;
+            for (; k < count; k++) {
                 let st = light_sample(params.seed, key, j, k, count);
                 let x = sample_point(light, st);
                 sum += point_contribution(q, p, n, d, x, light.radiance, s);
+            }
+            // Only the driver's loop limit ends it early (shaders/counters.wgsl).
+            if k < count {
+                loop_cut();
             }
             local += sum / f32(count);
             continue;
         }
 #endif
         local += point_contribution(q, p, n, d, light.position, light.radiance, s);
+    }
+    if j < params.num_lights {
+        loop_cut();
     }
     return local * s.albedo;
 }

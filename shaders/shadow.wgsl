@@ -4,13 +4,29 @@
 #define_import_path voxlab::shadow
 
 #import voxlab::bindings::{materials, voxel_material, voxel_inside}
-#import voxlab::traversal::{enter, dda_init, dda_axis, dda_advance, max_steps}
+#import voxlab::traversal::{Dda, UNROLL, enter, dda_init, dda_axis, dda_advance, max_steps}
+#import voxlab::counters::loop_cut
 
 fn kt_of(m: u32) -> f32 {
     if m == 0u {
         return 1.0;
     }
     return materials[m].kt;
+}
+
+// One step of the walk: true when it is over (past the segment, out of the grid, or
+// fully shadowed), v the smallest kt so far.
+fn min_kt_step(s: ptr<function, Dda>, v: ptr<function, f32>, len: f32) -> bool {
+    let a = dda_axis((*s).t_max);
+    if !((*s).t_max[a] < len) {
+        return true;
+    }
+    dda_advance(s, a);
+    if !voxel_inside((*s).voxel) {
+        return true;
+    }
+    *v = min(*v, kt_of(voxel_material((*s).voxel)));
+    return *v <= 0.0;
 }
 
 // Transmittance of the segment from q along d (unit) of length len > 0: every voxel
@@ -26,19 +42,22 @@ fn transmittance(q: vec3<f32>, d: vec3<f32>, len: f32) -> f32 {
     }
     var s = dda_init(q, d, e.voxel);
     let n = max_steps();
-    for (var i = 0u; i < n; i++) {
-        let a = dda_axis(s.t_max);
-        if !(s.t_max[a] < len) {
-            break;
-        }
-        dda_advance(&s, a);
-        if !voxel_inside(s.voxel) {
-            break;
-        }
-        v = min(v, kt_of(voxel_material(s.voxel)));
-        if v <= 0.0 {
-            return 0.0;
-        }
+    // UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
+    var done = false;
+    var i = 0u;
+    for (; i < n && !done; i += UNROLL) {
+        done = min_kt_step(&s, &v, len);
+        if !done { done = min_kt_step(&s, &v, len); }
+        if !done { done = min_kt_step(&s, &v, len); }
+        if !done { done = min_kt_step(&s, &v, len); }
+        if !done { done = min_kt_step(&s, &v, len); }
+        if !done { done = min_kt_step(&s, &v, len); }
+        if !done { done = min_kt_step(&s, &v, len); }
+        if !done { done = min_kt_step(&s, &v, len); }
+    }
+    // Any other way out is the driver's loop limit (shaders/counters.wgsl).
+    if !done && i < n {
+        loop_cut();
     }
     return v;
 }

@@ -7,7 +7,8 @@
 #define_import_path voxlab::shadow_beer_lambert
 
 #import voxlab::bindings::{materials, voxel_material, voxel_inside}
-#import voxlab::traversal::{enter, dda_init, dda_axis, dda_advance, max_steps}
+#import voxlab::traversal::{Dda, UNROLL, enter, dda_init, dda_axis, dda_advance, max_steps}
+#import voxlab::counters::loop_cut
 
 // Absorption per voxel unit; void's entry is uploaded too (zero unless it transmits
 // less than fully, which the palette never allows).
@@ -20,43 +21,79 @@ fn opaque(m: u32) -> bool {
     return materials[m].kt <= 0.0;
 }
 
+// The walk's state: the voxel being crossed (its absorption and where the segment
+// entered it), the optical depth so far, where the walk ended, whether it met an
+// opaque voxel.
+struct Walk {
+    sigma: vec3<f32>,
+    t_in: f32,
+    depth: vec3<f32>,
+    t_end: f32,
+    opaque: bool,
+}
+
+// One step: true when the walk is over (past the segment, out of the grid, or opaque).
+fn beer_lambert_step(s: ptr<function, Dda>, w: ptr<function, Walk>, len: f32) -> bool {
+    let a = dda_axis((*s).t_max);
+    let t = (*s).t_max[a];
+    if !(t < len) {
+        (*w).t_end = len;
+        return true;
+    }
+    dda_advance(s, a);
+    if !voxel_inside((*s).voxel) {
+        (*w).t_end = t;
+        return true;
+    }
+    (*w).depth += (*w).sigma * (t - (*w).t_in);
+    let m = voxel_material((*s).voxel);
+    if opaque(m) {
+        (*w).opaque = true;
+        return true;
+    }
+    (*w).sigma = sigma_of(m);
+    (*w).t_in = t;
+    return false;
+}
+
 // Transmittance of the segment from q along d (unit) of length len > 0.
 fn transmittance_rgb(q: vec3<f32>, d: vec3<f32>, len: f32) -> vec3<f32> {
     let e = enter(q, d);
     if !e.valid || !(e.t < len) {
         return vec3<f32>(1.0);
     }
-    var m = voxel_material(e.voxel);
+    let m = voxel_material(e.voxel);
     if opaque(m) {
         return vec3<f32>(0.0);
     }
-    // The voxel being crossed: its absorption and where the segment entered it.
-    var sigma = sigma_of(m);
-    var t0 = e.t;
-    var t_end = t0;
-    var depth = vec3<f32>(0.0);
+    var w: Walk;
+    w.sigma = sigma_of(m);
+    w.t_in = e.t;
+    w.t_end = e.t;
+    w.depth = vec3<f32>(0.0);
+    w.opaque = false;
     var s = dda_init(q, d, e.voxel);
     let n = max_steps();
-    for (var i = 0u; i < n; i++) {
-        let a = dda_axis(s.t_max);
-        let t = s.t_max[a];
-        if !(t < len) {
-            t_end = len;
-            break;
-        }
-        dda_advance(&s, a);
-        if !voxel_inside(s.voxel) {
-            t_end = t;
-            break;
-        }
-        depth += sigma * (t - t0);
-        m = voxel_material(s.voxel);
-        if opaque(m) {
-            return vec3<f32>(0.0);
-        }
-        sigma = sigma_of(m);
-        t0 = t;
+    // UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
+    var done = false;
+    var i = 0u;
+    for (; i < n && !done; i += UNROLL) {
+        done = beer_lambert_step(&s, &w, len);
+        if !done { done = beer_lambert_step(&s, &w, len); }
+        if !done { done = beer_lambert_step(&s, &w, len); }
+        if !done { done = beer_lambert_step(&s, &w, len); }
+        if !done { done = beer_lambert_step(&s, &w, len); }
+        if !done { done = beer_lambert_step(&s, &w, len); }
+        if !done { done = beer_lambert_step(&s, &w, len); }
+        if !done { done = beer_lambert_step(&s, &w, len); }
     }
-    depth += sigma * max(min(t_end, len) - t0, 0.0);
+    // Any other way out is the driver's loop limit (shaders/counters.wgsl).
+    if !done && i < n {
+        loop_cut();
+    }
+    if w.opaque {
+        return vec3<f32>(0.0);
+    }
+    let depth = w.depth + w.sigma * max(min(w.t_end, len) - w.t_in, 0.0);
     return exp(-depth);
 }

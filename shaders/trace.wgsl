@@ -5,17 +5,17 @@
 //
 // Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, EMISSION, AREA_LIGHTS,
 // BEER_LAMBERT, ACCUMULATE, COUNT_RAYS, RAY_STACK_SIZE, and the cone-tracing
-// CONE_SHADOWS, AMBIENT_OCCLUSION, INDIRECT (shaders/cone.wgsl, group 1). The shadow and
-// light models live in their own files (shading.wgsl composes them); this file only
-// walks the ray tree and loops over the frames of a dispatch.
+// CONE_SHADOWS, AMBIENT_OCCLUSION, INDIRECT (shaders/cone.wgsl, group 1; CONES when any
+// is on). The shadow and light models live in their own files (shading.wgsl composes
+// them); this file only walks the ray tree of one frame of one pixel.
 
-#import voxlab::types::{BIG, Material}
+#import voxlab::types::{BIG, Material, RULES_SEED}
 #import voxlab::bindings::{params, materials, output}
 #import voxlab::traversal::cast_ray
-#import voxlab::counters::{count_primary, count_secondary, flush_counts}
+#import voxlab::counters::{count_primary, count_secondary, flush_counts, loop_cut}
 #import voxlab::sampling::SampleKey
-#ifdef ACCUMULATE
-#import voxlab::accumulate::{Sum, load_sum, add, store_sum}
+#ifdef CONES
+#import voxlab::cone::cone_loop_cut
 #endif
 #ifdef SHADOWS
 #import voxlab::shading::local_light
@@ -50,6 +50,21 @@ fn push(r: RayEntry) {
     }
 }
 
+// Whether ray r may spawn a reflection (`reflection`) or a refraction ray: the depth
+// limits under the rules in force, and the total limit. As RenderSettings::may_spawn.
+fn may_spawn(r: RayEntry, reflection: bool) -> bool {
+    let depth = r.depth_reflection + r.depth_refraction;
+    if depth >= params.max_total_depth {
+        return false;
+    }
+    // Under the seed's rules the one recursion depth a + b meets both limits.
+    var own = select(r.depth_refraction, r.depth_reflection, reflection);
+    if params.rules == RULES_SEED {
+        own = depth;
+    }
+    return own < select(params.max_refraction_depth, params.max_reflection_depth, reflection);
+}
+
 // Pushes the refraction ray, then the reflection ray (contract order), for a hit of
 // ray r at p with normal n on voxel material h, shaded by s.
 fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, h: u32, s: Material) {
@@ -60,11 +75,14 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, h: u32, s: Material) {
         let c = -dot(n, d);
         let k = 1.0 - eta * eta * (1.0 - c * c);
         if k < 0.0 {
-            // Total internal reflection: the refracted share goes to the reflection.
-            w_r += s.kt;
+            // Total internal reflection: the refracted share goes to the reflection;
+            // under the seed's rules it is lost (GLSL's refract gives the zero vector).
+            if params.rules != RULES_SEED {
+                w_r += s.kt;
+            }
         } else {
 #ifdef REFRACTION
-            if r.depth_refraction < params.max_refraction_depth {
+            if may_spawn(r, false) {
                 var t: RayEntry;
                 t.origin = p - params.eps * n;
                 t.dir = normalize(eta * d + (eta * c - sqrt(k)) * n);
@@ -78,7 +96,7 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, h: u32, s: Material) {
         }
     }
 #ifdef REFLECTION
-    if w_r > 0.0 && r.depth_reflection < params.max_reflection_depth {
+    if w_r > 0.0 && may_spawn(r, true) {
         var f: RayEntry;
         f.origin = p + params.eps * n;
         f.dir = d - 2.0 * dot(d, n) * n;
@@ -150,12 +168,19 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
 #endif
 #endif
     }
+    // The stack empties or nothing: any other way out is the driver's loop limit.
+    if sp > 0u {
+        loop_cut();
+    }
     return radiance;
 }
 
+// One invocation per pixel and frame: the frames of a dispatch are its z, never a loop
+// in one invocation, so what one invocation does (and what the driver's loop limit sees,
+// shaders/counters.wgsl) is one frame's ray tree however many frames a dispatch holds.
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= params.width || gid.y >= params.height {
+    if gid.x >= params.width || gid.y >= params.height || gid.z >= params.frame_count {
         return;
     }
     // Pixel centre, rows from the top (CameraFrame::primary_dir).
@@ -165,19 +190,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.y * params.width + gid.x;
     var key: SampleKey;
     key.pixel = i;
-    key.frame = params.frame_begin;
-
-#ifdef ACCUMULATE
-    // Frames frame_begin .. frame_begin + frame_count, added to the running sum.
-    var acc = load_sum(i);
-    for (var f = 0u; f < params.frame_count; f++) {
-        key.frame = params.frame_begin + f;
-        add(&acc, trace_pixel(dir, key));
+    key.frame = params.frame_begin + gid.z;
+    let radiance = trace_pixel(dir, key);
+#ifdef CONES
+    if cone_loop_cut {
+        loop_cut();
     }
-    store_sum(i, acc);
-#else
-    // One frame: the image itself.
-    output[i] = vec4<f32>(trace_pixel(dir, key), 1.0);
 #endif
+    // ACCUMULATE: frame z's slice of `output`; shaders/accumulate.wgsl adds the slices to
+    // the running sums in frame order. Otherwise one frame, the image itself.
+    output[gid.z * params.width * params.height + i] = vec4<f32>(radiance, 1.0);
     flush_counts();
 }

@@ -4,9 +4,9 @@
 // f64, so both must change together.
 #define_import_path voxlab::traversal
 
-#import voxlab::types::BIG
+#import voxlab::types::{BIG, RULES_CONSISTENT}
 #import voxlab::bindings::{params, voxel_material, voxel_inside}
-#import voxlab::counters::count_step
+#import voxlab::counters::{count_step, loop_cut}
 
 struct Hit {
     hit: bool,
@@ -51,22 +51,19 @@ fn enter(o: vec3<f32>, d: vec3<f32>) -> Entry {
         return e;
     }
     let hi = vec3<f32>(params.dims);
-    var near = vec3<f32>(-BIG);
-    var far = vec3<f32>(BIG);
-    for (var a = 0; a < 3; a++) {
-        if d[a] == 0.0 {
-            // An axis-parallel ray: the slab is everything or nothing (no 0 * inf).
-            if o[a] < 0.0 || o[a] > hi[a] {
-                e.valid = false;
-                return e;
-            }
-        } else {
-            let t0 = (0.0 - o[a]) / d[a];
-            let t1 = (hi[a] - o[a]) / d[a];
-            near[a] = min(t0, t1);
-            far[a] = max(t0, t1);
-        }
+    // An axis the ray does not move along is a slab of everything or nothing (no 0 * inf).
+    // Written on whole vectors, without a loop over the axes: per component the same
+    // operations as the contract's, and no loop for the driver's limiter to cut.
+    let parallel = d == vec3<f32>(0.0);
+    if any(parallel & ((o < vec3<f32>(0.0)) | (o > hi))) {
+        e.valid = false;
+        return e;
     }
+    let safe = select(d, vec3<f32>(1.0), parallel);
+    let t0 = (vec3<f32>(0.0) - o) / safe;
+    let t1 = (hi - o) / safe;
+    let near = select(min(t0, t1), vec3<f32>(-BIG), parallel);
+    let far = select(max(t0, t1), vec3<f32>(BIG), parallel);
     let t_enter = max(max(near.x, near.y), max(near.z, 0.0));
     let t_exit = min(far.x, min(far.y, far.z));
     if t_enter > t_exit {
@@ -101,19 +98,14 @@ fn dda_init(o: vec3<f32>, d: vec3<f32>, v: vec3<i32>) -> Dda {
     s.voxel = v;
     s.origin = o;
     s.dir = d;
-    for (var a = 0; a < 3; a++) {
-        if d[a] == 0.0 {
-            s.step[a] = 0;
-            s.t_max[a] = BIG;
-            s.t_delta[a] = BIG;
-        } else {
-            let positive = d[a] > 0.0;
-            s.step[a] = select(-1, 1, positive);
-            let boundary = f32(v[a] + select(0, 1, positive));
-            s.t_max[a] = min((boundary - o[a]) / d[a], BIG);
-            s.t_delta[a] = min(1.0 / abs(d[a]), BIG);
-        }
-    }
+    // Per axis as the contract says, on whole vectors (no loop: see enter).
+    let parallel = d == vec3<f32>(0.0);
+    let positive = d > vec3<f32>(0.0);
+    let safe = select(d, vec3<f32>(1.0), parallel);
+    s.step = select(select(vec3<i32>(-1), vec3<i32>(1), positive), vec3<i32>(0), parallel);
+    let boundary = vec3<f32>(v + select(vec3<i32>(0), vec3<i32>(1), positive));
+    s.t_max = select(min((boundary - o) / safe, vec3<f32>(BIG)), vec3<f32>(BIG), parallel);
+    s.t_delta = select(min(1.0 / abs(safe), vec3<f32>(BIG)), vec3<f32>(BIG), parallel);
     return s;
 }
 
@@ -148,6 +140,40 @@ fn max_steps() -> u32 {
     return params.dims.x + params.dims.y + params.dims.z + 3u;
 }
 
+// DDA steps per iteration of the walks' loops (written out in each loop).
+const UNROLL: u32 = 8u;
+
+// One step of cast_ray's walk (contract "cast", step 3); true when the walk is over,
+// with the hit, if any, in h.
+fn cast_step(s: ptr<function, Dda>, h: ptr<function, Hit>, medium: u32, t_limit: f32) -> bool {
+    let a = dda_axis((*s).t_max);
+    let t = (*s).t_max[a];
+    if t > t_limit {
+        return true;
+    }
+    dda_advance(s, a);
+    if !voxel_inside((*s).voxel) {
+        // Outside the grid is void: leaving a non-void medium is a hit on void at the
+        // exit face. The seed's rules make it a miss.
+        if params.rules == RULES_CONSISTENT && medium != 0u {
+            (*h).hit = true;
+            (*h).t = t;
+            (*h).normal = -f32((*s).step[a]) * axis_vec(a);
+            (*h).material = 0u;
+        }
+        return true;
+    }
+    let m = voxel_material((*s).voxel);
+    if m != medium {
+        (*h).hit = true;
+        (*h).t = t;
+        (*h).normal = -f32((*s).step[a]) * axis_vec(a);
+        (*h).material = m;
+        return true;
+    }
+    return false;
+}
+
 // cast(o, d, medium, t_limit) of the contract (`cast` is reserved in WGSL): the first voxel whose material differs
 // from `medium`.
 fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
@@ -169,24 +195,25 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
     }
     var s = dda_init(o, d, e.voxel);
     let n = max_steps();
-    for (var i = 0u; i < n; i++) {
-        let a = dda_axis(s.t_max);
-        let t = s.t_max[a];
-        if t > t_limit {
-            return h;
-        }
-        dda_advance(&s, a);
-        if !voxel_inside(s.voxel) {
-            return h;
-        }
-        let m = voxel_material(s.voxel);
-        if m != medium {
-            h.hit = true;
-            h.t = t;
-            h.normal = -f32(s.step[a]) * axis_vec(a);
-            h.material = m;
-            return h;
-        }
+    // UNROLL steps per loop iteration: the software driver's loop limit counts back
+    // edges, not work (shaders/counters.wgsl), so a walk of k voxels spends k / UNROLL
+    // of it. `done` is set by the step that ends the walk; the ones after it do nothing.
+    var done = false;
+    var i = 0u;
+    for (; i < n && !done; i += UNROLL) {
+        done = cast_step(&s, &h, medium, t_limit);
+        if !done { done = cast_step(&s, &h, medium, t_limit); }
+        if !done { done = cast_step(&s, &h, medium, t_limit); }
+        if !done { done = cast_step(&s, &h, medium, t_limit); }
+        if !done { done = cast_step(&s, &h, medium, t_limit); }
+        if !done { done = cast_step(&s, &h, medium, t_limit); }
+        if !done { done = cast_step(&s, &h, medium, t_limit); }
+        if !done { done = cast_step(&s, &h, medium, t_limit); }
+    }
+    // The walk ends by a step, or after max_steps; leaving the loop any other way is the
+    // driver's loop limit (shaders/counters.wgsl, loop_cut).
+    if !done && i < n {
+        loop_cut();
     }
     return h;
 }

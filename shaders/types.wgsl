@@ -31,11 +31,23 @@ struct Params {
     // Area-light sampling (AREA_LIGHTS): samples per pixel, light and frame; the hash seed.
     light_samples: u32,
     seed: u32,
-    // The frames this dispatch traces: frame_begin .. frame_begin + frame_count. With
-    // ACCUMULATE, frame_begin > 0 continues the sums already in the buffers.
+    // The frames this dispatch traces: frame_begin .. frame_begin + frame_count, one per
+    // invocation along the dispatch's z (ACCUMULATE), each written to its own slice of
+    // `output`; shaders/accumulate.wgsl then adds them to the running sums in order.
     frame_begin: u32,
     frame_count: u32,
+    // Total depth of the ray tree (RenderSettings::total_depth_limit).
+    max_total_depth: u32,
+    // RULES_CONSISTENT or RULES_SEED (crate::render::Rules).
+    rules: u32,
+    pad_e: u32,
+    pad_f: u32,
 }
+
+// crate::render::Rules: voxlab's model, or the seed's (one recursion depth, leaving the
+// grid is a miss, the refracted share lost under total internal reflection).
+const RULES_CONSISTENT: u32 = 0u;
+const RULES_SEED: u32 = 1u;
 
 struct Material {
     albedo: vec3<f32>,

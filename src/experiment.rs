@@ -58,6 +58,14 @@ struct RawCones {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+enum RulesName {
+    #[serde(rename = "consistent")]
+    Consistent,
+    #[serde(rename = "seed")]
+    Seed,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 enum TransmittanceName {
     #[serde(rename = "min-kt")]
     MinKt,
@@ -272,6 +280,8 @@ struct RawRender {
     height: Option<i64>,
     max_reflection_depth: Option<i64>,
     max_refraction_depth: Option<i64>,
+    max_depth: Option<i64>,
+    rules: Option<RulesName>,
     falloff: Option<bool>,
     falloff_min_distance: Option<f64>,
     ray_offset: Option<f64>,
@@ -741,6 +751,21 @@ fn build(
             .map_or(Ok(d.max_refraction_depth), |v| {
                 int_in(ctx, "render.max_refraction_depth", v, depth)
             })?,
+        max_depth: r
+            .max_depth
+            .map(|v| {
+                int_in(
+                    ctx,
+                    "render.max_depth",
+                    v,
+                    0..=crate::render::MAX_TOTAL_DEPTH_LIMIT as i64,
+                )
+            })
+            .transpose()?,
+        rules: match r.rules {
+            None | Some(RulesName::Consistent) => crate::render::Rules::Consistent,
+            Some(RulesName::Seed) => crate::render::Rules::Seed,
+        },
         falloff: r.falloff.unwrap_or(d.falloff),
         falloff_min_distance: r
             .falloff_min_distance

@@ -8,14 +8,14 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use voxlab::experiment::Experiment;
 use voxlab::gpu::GpuTracer;
 use voxlab::output::{OutputFormat, write_frame};
 use voxlab::plan::Plan;
-use voxlab::render::{MAX_IMAGE_SIDE, RenderOutput};
+use voxlab::render::{Frame, MAX_IMAGE_SIDE, RenderOutput};
 
 /// Whitted ray tracing over a voxel grid, on the GPU (wgpu) with an f64 CPU reference.
 ///
@@ -256,6 +256,14 @@ struct RenderOpts {
     /// With `gpu` and no adapter, the CPU reference renders instead (and says so).
     #[arg(long, value_enum, default_value_t = Backend::Gpu)]
     backend: Backend,
+    /// After a GPU render, re-render a SIDE x SIDE crop at the image's centre (the whole
+    /// image when it is smaller) with the f64 CPU reference, the same samples, and print
+    /// how the two differ; fails when they differ by more than the GPU tests allow
+    /// (0.5 % of the crop's pixels over 2/255 or a mean difference of 1e-3, displayed
+    /// values). A check of the GPU image on any driver.
+    #[arg(long, value_name = "SIDE", num_args = 0..=1, default_missing_value = "32",
+          value_parser = clap::value_parser!(u32).range(1..=4096))]
+    check: Option<u32>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -621,5 +629,49 @@ fn cmd_render(mut e: Experiment, opts: &RenderOpts) -> Result<()> {
     }
     write_frame(&result.frame, &out)?;
     println!("output:     {}", out.display());
+    if let Some(side) = opts.check {
+        check_against_cpu(&e, &result.frame, side, &renderer)?;
+    }
     Ok(())
+}
+
+/// `render --check`: the centre crop of `frame` against the CPU reference's.
+fn check_against_cpu(e: &Experiment, frame: &Frame, side: u32, renderer: &Renderer) -> Result<()> {
+    if matches!(renderer, Renderer::Cpu { .. }) {
+        println!("check:      the image is the CPU reference's own; nothing to check");
+        return Ok(());
+    }
+    let (w, h) = (frame.width, frame.height);
+    let (cw, ch) = (side.min(w), side.min(h));
+    let (x0, y0) = ((w - cw) / 2, (h - ch) / 2);
+    let reference = voxlab::cpu::render_region(&e.scene, &e.settings, x0..x0 + cw, y0..y0 + ch);
+    let mut crop = Frame::new(cw, ch);
+    for y in 0..ch {
+        for x in 0..cw {
+            crop.pixels[(y * cw + x) as usize] = frame.get(x0 + x, y0 + y);
+        }
+    }
+    let d = voxlab::metrics::compare(
+        &crop,
+        &reference.frame,
+        voxlab::metrics::Domain::Display,
+        2.0 / 255.0,
+    )
+    .expect("same size");
+    println!(
+        "check:      pixels ({x0}, {y0})..({}, {}) against the CPU reference (f64, same \
+         samples, {:.1} s): {d}",
+        x0 + cw,
+        y0 + ch,
+        reference.trace_time.as_secs_f64()
+    );
+    if d.fraction_over() < 0.005 && d.mean_abs < 1e-3 && crop.all_finite() {
+        println!("check:      agrees within the GPU tests' tolerance");
+        Ok(())
+    } else {
+        bail!(
+            "the GPU image differs from the CPU reference by more than the GPU tests allow \
+             (under 0.5 % of pixels over 2/255 and a mean below 1e-3): {d}"
+        )
+    }
 }

@@ -394,6 +394,10 @@ impl Plan {
                 defs.insert(f.to_string(), ShaderDefValue::Bool(true));
             }
         }
+        // Any cone feature: the pyramids' bindings and the cone module are in.
+        if self.pyramid.is_some() {
+            defs.insert("CONES".to_string(), ShaderDefValue::Bool(true));
+        }
         defs.insert(
             "RAY_STACK_SIZE".to_string(),
             ShaderDefValue::UInt(self.ray_stack_size.max(1)),

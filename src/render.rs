@@ -22,6 +22,32 @@ impl Transmittance {
     }
 }
 
+/// Which rules of the ray tree the tracers follow (DESIGN section 1; the seed's code is
+/// `shaders/raytracing.frag` of its repository).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Rules {
+    /// voxlab's model: reflection and refraction depths counted apart, outside the grid
+    /// is void (a ray leaving a non-void medium through the boundary hits void at the
+    /// exit face, so padding a scene with void never changes its image), and under total
+    /// internal reflection the refracted share `kt` goes to the reflection ray.
+    #[default]
+    Consistent,
+    /// The seed's code: one recursion depth per ray, checked against both limits (a
+    /// tree of 4/4 is at most 4 deep); leaving the grid is a miss; under total internal
+    /// reflection GLSL's `refract` returns the zero vector, whose ray hits nothing, so
+    /// the refracted share is lost and the reflection keeps its own `kr`.
+    Seed,
+}
+
+impl Rules {
+    pub fn name(self) -> &'static str {
+        match self {
+            Rules::Consistent => "consistent",
+            Rules::Seed => "seed",
+        }
+    }
+}
+
 /// Extensions beyond the seed. `Features::default()` is the baseline: every one off.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Features {
@@ -96,6 +122,13 @@ pub struct RenderSettings {
     /// Reflection and refraction have separate depth limits (seed: 4 and 4).
     pub max_reflection_depth: u32,
     pub max_refraction_depth: u32,
+    /// Total depth of the ray tree: a secondary ray is spawned only while its parent's
+    /// reflection plus refraction depth is below it. `None`: no limit beyond the two
+    /// above. Separate limits let a glass scene's tree grow with its mixed paths
+    /// (2^(a+b) rays at 4/4 and beyond); this bounds it.
+    pub max_depth: Option<u32>,
+    /// The ray-tree rules: voxlab's consistent model or the seed's.
+    pub rules: Rules,
     /// Inverse-square falloff of point lights.
     pub falloff: bool,
     /// `E = I / max(d^2, d_min^2)`: `d_min` in world units, so a light at distance 0 stays finite.
@@ -121,6 +154,9 @@ pub const MAX_SAMPLES: u32 = 1 << 16;
 /// entries, and the ray tree grows as 2^depth.
 pub const MAX_DEPTH_LIMIT: u32 = 16;
 
+/// Largest `max_depth` accepted: the two limits' sum at most.
+pub const MAX_TOTAL_DEPTH_LIMIT: u32 = 2 * MAX_DEPTH_LIMIT;
+
 /// Largest image side accepted.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
 
@@ -132,6 +168,8 @@ impl Default for RenderSettings {
             height: 512,
             max_reflection_depth: 4,
             max_refraction_depth: 4,
+            max_depth: None,
+            rules: Rules::Consistent,
             falloff: true,
             falloff_min_distance: 0.01,
             ray_offset: 0.001,
@@ -149,6 +187,29 @@ impl RenderSettings {
     /// children per level and pops one, so depth limits a and b need a + b + 1 slots.
     pub fn ray_stack_size(&self) -> u32 {
         self.max_reflection_depth + self.max_refraction_depth + 1
+    }
+
+    /// The total depth limit in force: `max_depth`, or the sum of the two limits (which
+    /// no tree can exceed) when it is not set.
+    pub fn total_depth_limit(&self) -> u32 {
+        let sum = self.max_reflection_depth + self.max_refraction_depth;
+        self.max_depth.map_or(sum, |d| d.min(sum))
+    }
+
+    /// Whether a ray whose reflection and refraction depths are `(a, b)` may spawn a
+    /// reflection (`reflection`) or a refraction ray, under [`Self::rules`] and the
+    /// total limit. Under the seed's rules its one recursion depth is `a + b`.
+    pub fn may_spawn(&self, a: u32, b: u32, reflection: bool) -> bool {
+        let depth = a + b;
+        if depth >= self.total_depth_limit() {
+            return false;
+        }
+        match (self.rules, reflection) {
+            (Rules::Consistent, true) => a < self.max_reflection_depth,
+            (Rules::Consistent, false) => b < self.max_refraction_depth,
+            (Rules::Seed, true) => depth < self.max_reflection_depth,
+            (Rules::Seed, false) => depth < self.max_refraction_depth,
+        }
     }
 }
 

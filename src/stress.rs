@@ -391,6 +391,49 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         s,
         st,
     ));
+    // Many frames in one dispatch: every frame of a small image is one invocation
+    // along the dispatch's z, so the image must not depend on how many there are (it
+    // did when they were a loop in one invocation: Mesa's software driver cuts an
+    // invocation's loops after 65535 iterations in all, shaders/counters.wgsl).
+    for (side, spp, samples) in [(8u32, 256u32, 4u32), (32, 64, 8), (128, 100, 1)] {
+        let mut s = seed16();
+        let (c, w) = (s.grid.centre(), s.grid.width());
+        for (k, shape) in [
+            AreaShape::Rect {
+                width: 5.0,
+                height: 3.0,
+            },
+            AreaShape::Disk { radius: 2.0 },
+            AreaShape::Sphere { radius: 1.5 },
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let position = c + w * DVec3::new(0.6 * k as f64 - 0.6, 0.9, 0.8);
+            s.lights.push(Light::Area(AreaLight {
+                shape,
+                position,
+                normal: (c - position).normalize(),
+                rotation: 0.2,
+                color: DVec3::ONE,
+                intensity: 100.0,
+            }));
+        }
+        let mut st = settings(side, side);
+        st.features.area_lights = true;
+        st.light_samples = samples;
+        st.spp = spp;
+        let per_dispatch = ((1u32 << 20) / (side * side)).min(spp).min(4096);
+        out.push(case(
+            &format!("many-frames-{side}"),
+            &format!(
+                "{side}x{side}, {spp} frames ({per_dispatch} per dispatch), {samples} \
+                 samples on each of 3 area lights"
+            ),
+            s,
+            st,
+        ));
+    }
     // Cone tracing on odd, tiny and far-away grids: pyramids of odd sizes, a one-level
     // pyramid, a vanishing aperture, AO with a range past the grid, and indirect light.
     let all_cones = |st: &mut RenderSettings| {

@@ -135,6 +135,23 @@ fn check_ray(g: &Grid, o: DVec3, d: DVec3) {
             assert_eq!(h.t, e.t_enter);
             assert_eq!(h.material, g.get(e.voxel));
         }
+        // Outside the grid is void: a ray in a non-void medium that meets no other
+        // material hits void where it leaves the grid's box.
+        (Some(h), None) if medium != 0 => {
+            let (lo, hi) = (g.world_min(), g.world_max());
+            let t_exit = (0..3)
+                .filter(|&a| d[a] != 0.0)
+                .map(|a| ((lo[a] - o[a]) / d[a]).max((hi[a] - o[a]) / d[a]))
+                .fold(f64::INFINITY, f64::min);
+            assert_eq!(h.material, 0, "ray {o} {d}: exit hit {h:?}");
+            assert!(!g.contains(h.voxel), "ray {o} {d}: exit hit inside {h:?}");
+            assert!(
+                (h.t - t_exit).abs() < 1e-9 * (1.0 + t_exit),
+                "ray {o} {d}: exit hit at {} but the box ends at {t_exit}",
+                h.t
+            );
+            assert_eq!(h.normal.dot(d).signum(), -1.0, "ray {o} {d}: {h:?}");
+        }
         (h, e) => panic!("ray {o} {d}: cast {h:?}, expected {e:?}"),
     }
 }

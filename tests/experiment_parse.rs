@@ -141,7 +141,8 @@ fn lights_absent_means_seed_lights_and_empty_list_means_none() {
         e.scene.lights[0].position(),
         c + 32.0 * DVec3::new(0.9, 0.8, 1.0)
     );
-    assert_eq!(e.scene.camera.distance, 80.0);
+    // 2.5 W and the seed's VIEW_OFFSET of 3.
+    assert_eq!(e.scene.camera.distance, 83.0);
 }
 
 #[test]

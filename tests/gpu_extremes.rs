@@ -45,7 +45,16 @@ fn axis_parallel_rays_along_voxel_edges() {
     scene.camera.yaw = 0.0;
     scene.camera.pitch = 0.0;
     let mut gpu = tracer();
-    agree(&mut gpu, "axis-parallel, 65x65", &scene, &settings(65));
+    // Rays along voxel edges are ill-conditioned (below); since a ray leaving glass
+    // through the grid's boundary is split there too, each such ray meets more of those
+    // choices, and 0.52 % of the pixels differ: the wider limit of the view below.
+    agree_within(
+        &mut gpu,
+        "axis-parallel, 65x65",
+        &scene,
+        &settings(65),
+        0.01,
+    );
     // Looking straight down the y axis. The pixels that differ here (and above) lie on
     // the image diagonals: there |dx| == |dy| exactly, the rays run through voxel edges,
     // and which voxel a secondary ray starts in depends on how its hit point rounds

@@ -34,6 +34,10 @@ pub struct Dda<'a> {
     /// Where the last visited voxel ends along the ray once the traversal is over: the
     /// grid's exit or `t_limit`, whichever comes first.
     pub t_end: f64,
+    /// Set when the traversal ended by leaving the grid: the voxel outside it that the
+    /// last step reached and the normal of the face it left through (facing against
+    /// the ray). `None` while it goes on, or when it ended at `t_limit` or never entered.
+    pub exit: Option<(IVec3, DVec3)>,
 }
 
 /// Index of the smallest component, ties to the lowest axis.
@@ -79,6 +83,7 @@ impl<'a> Dda<'a> {
             done: true,
             steps: 0,
             t_end: 0.0,
+            exit: None,
         };
         let lo = grid.world_min();
         let hi = grid.world_max();
@@ -167,6 +172,7 @@ impl Iterator for Dda<'_> {
         if !self.grid.contains(self.voxel) {
             self.done = true;
             self.t_end = t;
+            self.exit = Some((self.voxel, -(self.step[a] as f64) * axis(a)));
             return None;
         }
         Some(Visit {
@@ -186,9 +192,24 @@ pub struct Hit {
     pub material: u8,
 }
 
-/// Casts a ray travelling in `medium`: the start voxel of a ray that starts inside the
-/// grid is never a hit. Returns the hit (if any) and the voxel steps taken.
+/// Casts a ray travelling in `medium` under voxlab's model: the start voxel of a ray that
+/// starts inside the grid is never a hit, and outside the grid is void, so a ray that
+/// leaves a non-void medium through the grid's boundary hits void at the exit face
+/// (`voxel` is then the first voxel outside the grid). Returns the hit (if any) and the
+/// voxel steps taken.
 pub fn cast(grid: &Grid, origin: DVec3, dir: DVec3, medium: u8) -> (Option<Hit>, u64) {
+    cast_with(grid, origin, dir, medium, true)
+}
+
+/// [`cast`] with the boundary rule chosen: `exit_hits` false is the seed's, where
+/// leaving the grid is always a miss.
+pub fn cast_with(
+    grid: &Grid,
+    origin: DVec3,
+    dir: DVec3,
+    medium: u8,
+    exit_hits: bool,
+) -> (Option<Hit>, u64) {
     let mut dda = Dda::new(grid, origin, dir, f64::INFINITY);
     let mut hit = None;
     for v in dda.by_ref() {
@@ -205,6 +226,18 @@ pub fn cast(grid: &Grid, origin: DVec3, dir: DVec3, medium: u8) -> (Option<Hit>,
             });
             break;
         }
+    }
+    if hit.is_none()
+        && exit_hits
+        && medium != crate::scene::VOID
+        && let Some((voxel, normal)) = dda.exit
+    {
+        hit = Some(Hit {
+            voxel,
+            t: dda.t_end,
+            normal,
+            material: crate::scene::VOID,
+        });
     }
     (hit, dda.steps)
 }

@@ -12,10 +12,10 @@ use std::time::Instant;
 use glam::DVec3;
 use rayon::prelude::*;
 
-pub use dda::{Dda, Hit, Visit, cast};
+pub use dda::{Dda, Hit, Visit, cast, cast_with};
 
 use crate::plan::Plan;
-use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Transmittance};
+use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Rules, Transmittance};
 use crate::sampling::light_sample;
 use crate::scene::{Light, Material, Scene};
 
@@ -32,6 +32,18 @@ pub fn backend_summary() -> String {
 /// never drifts. When nothing is sampled every frame is the same image, so one is
 /// rendered ([`Plan::frames`], as the GPU does).
 pub fn render(scene: &Scene, settings: &RenderSettings) -> RenderOutput {
+    render_region(scene, settings, 0..settings.width, 0..settings.height)
+}
+
+/// The pixels `columns` x `rows` of [`render`]'s image (bit for bit the same values, so
+/// a crop of a large GPU image can be checked against the reference cheaply); the
+/// frame returned is the crop's size.
+pub fn render_region(
+    scene: &Scene,
+    settings: &RenderSettings,
+    columns: std::ops::Range<u32>,
+    rows: std::ops::Range<u32>,
+) -> RenderOutput {
     let start = Instant::now();
     let frame_cam = scene.camera.frame();
     let (w, h) = (settings.width, settings.height);
@@ -39,11 +51,13 @@ pub fn render(scene: &Scene, settings: &RenderSettings) -> RenderOutput {
     let frames = plan.frames(settings);
     // Pyramids once per render, only when the plan has a cone feature.
     let cones = cone::ConeScene::new(scene, settings, &plan);
-    let rows: Vec<(Vec<[f32; 3]>, RayStats)> = (0..h)
+    let out: Vec<(Vec<[f32; 3]>, RayStats)> = rows
+        .clone()
         .into_par_iter()
         .map(|j| {
             let mut stats = RayStats::default();
-            let row = (0..w)
+            let row = columns
+                .clone()
                 .map(|i| {
                     let dir = frame_cam.primary_dir(i, j, w, h);
                     let mut sum = DVec3::ZERO;
@@ -69,11 +83,12 @@ pub fn render(scene: &Scene, settings: &RenderSettings) -> RenderOutput {
             (row, stats)
         })
         .collect();
-    let mut frame = Frame::new(w, h);
+    let cw = columns.len() as u32;
+    let mut frame = Frame::new(cw, rows.len() as u32);
     let mut stats = RayStats::default();
-    for (j, (row, s)) in rows.into_iter().enumerate() {
-        let at = j * w as usize;
-        frame.pixels[at..at + w as usize].copy_from_slice(&row);
+    for (j, (row, s)) in out.into_iter().enumerate() {
+        let at = j * cw as usize;
+        frame.pixels[at..at + cw as usize].copy_from_slice(&row);
         stats += s;
     }
     RenderOutput {
@@ -142,7 +157,8 @@ pub fn trace_ray_cones(
     stats.primary += 1;
 
     while let Some(ray) = stack.pop() {
-        let (hit, steps) = cast(grid, ray.origin, ray.dir, ray.medium);
+        let exit_hits = settings.rules == Rules::Consistent;
+        let (hit, steps) = cast_with(grid, ray.origin, ray.dir, ray.medium, exit_hits);
         stats.voxel_steps += steps;
         let Some(hit) = hit else { continue };
 
@@ -181,34 +197,38 @@ pub fn trace_ray_cones(
         }
 
         let mut reflection_weight = m.kr;
+        let (a, b) = (ray.reflection_depth, ray.refraction_depth);
         if m.kt > 0.0 {
             let eta = scene.materials[ray.medium as usize].ior
                 / scene.materials[hit.material as usize].ior;
             match refract(ray.dir, n, eta) {
-                // Total internal reflection: the refracted share goes to the reflection.
+                // Total internal reflection: the refracted share goes to the reflection,
+                // except under the seed's rules, where it is lost (GLSL's refract gives
+                // the zero vector, a ray that hits nothing).
+                None if settings.rules == Rules::Seed => {}
                 None => reflection_weight += m.kt,
-                Some(_) if ray.refraction_depth >= settings.max_refraction_depth => {}
+                Some(_) if !settings.may_spawn(a, b, false) => {}
                 Some(refracted) => {
                     stats.secondary += 1;
                     stack.push(StackRay {
                         origin: p - eps * n,
                         dir: refracted,
                         throughput: ray.throughput * m.kt,
-                        reflection_depth: ray.reflection_depth,
-                        refraction_depth: ray.refraction_depth + 1,
+                        reflection_depth: a,
+                        refraction_depth: b + 1,
                         medium: hit.material,
                     });
                 }
             }
         }
-        if reflection_weight > 0.0 && ray.reflection_depth < settings.max_reflection_depth {
+        if reflection_weight > 0.0 && settings.may_spawn(a, b, true) {
             stats.secondary += 1;
             stack.push(StackRay {
                 origin: p + eps * n,
                 dir: ray.dir - 2.0 * ray.dir.dot(n) * n,
                 throughput: ray.throughput * reflection_weight,
-                reflection_depth: ray.reflection_depth + 1,
-                refraction_depth: ray.refraction_depth,
+                reflection_depth: a + 1,
+                refraction_depth: b,
                 medium: ray.medium,
             });
         }
@@ -334,10 +354,18 @@ fn unshadowed(
     } else {
         radiance
     };
-    let diffuse = n.dot(l).max(0.0);
-    let r = l - 2.0 * n.dot(l) * n;
+    let nl = n.dot(l);
+    let diffuse = nl.max(0.0);
+    // A light behind the surface gives no highlight: textbook Phong gates the specular
+    // term by n.l > 0 (a transmitting face lets its own shadow ray through, so without
+    // the gate glass lit from behind would glow towards the viewer).
+    let r = l - 2.0 * nl * n;
     let rd = r.dot(d);
-    let spec = if rd > 0.0 { rd.powf(m.shininess) } else { 0.0 };
+    let spec = if nl > 0.0 && rd > 0.0 {
+        rd.powf(m.shininess)
+    } else {
+        0.0
+    };
     e * (m.kd * diffuse + m.ks * spec)
 }
 

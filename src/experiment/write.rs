@@ -239,6 +239,8 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
         height: _,
         max_reflection_depth: _,
         max_refraction_depth: _,
+        max_depth: _,
+        rules: _,
         falloff: _,
         falloff_min_distance: _,
         ray_offset: _,
@@ -254,6 +256,10 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
     t.insert("height".into(), int(s.height));
     t.insert("max_reflection_depth".into(), int(s.max_reflection_depth));
     t.insert("max_refraction_depth".into(), int(s.max_refraction_depth));
+    if let Some(d) = s.max_depth {
+        t.insert("max_depth".into(), int(d));
+    }
+    t.insert("rules".into(), s.rules.name().into());
     t.insert("falloff".into(), s.falloff.into());
     t.insert("falloff_min_distance".into(), s.falloff_min_distance.into());
     t.insert("ray_offset".into(), s.ray_offset.into());
@@ -450,6 +456,8 @@ const RENDER_KEYS: &[&str] = &[
     "height",
     "max_reflection_depth",
     "max_refraction_depth",
+    "max_depth",
+    "rules",
     "falloff",
     "falloff_min_distance",
     "ray_offset",

@@ -49,10 +49,6 @@ const MODULES: &[(&str, &str)] = &[
         "shaders/area_lights.wgsl",
         include_str!("../../shaders/area_lights.wgsl"),
     ),
-    (
-        "shaders/accumulate.wgsl",
-        include_str!("../../shaders/accumulate.wgsl"),
-    ),
     super::pyramid::CONE_MODULE,
     (
         "shaders/shading.wgsl",
@@ -67,6 +63,12 @@ const TRACE: (&str, &str) = (
 );
 
 pub const ENTRY_POINT: &str = "main";
+
+/// The accumulation kernel (`shaders/accumulate.wgsl`): standalone, entry point `main`.
+pub const ACCUMULATE: (&str, &str) = (
+    "shaders/accumulate.wgsl",
+    include_str!("../../shaders/accumulate.wgsl"),
+);
 
 #[derive(Debug, thiserror::Error)]
 pub enum ShaderError {

@@ -18,7 +18,7 @@ use glam::DVec3;
 
 use crate::plan::{Plan, ShaderDefs};
 use crate::render::{
-    Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings,
+    Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings, Rules,
 };
 use crate::scene::{AreaShape, Light, Scene};
 use util::{
@@ -54,7 +54,24 @@ struct GpuParams {
     seed: u32,
     frame_begin: u32,
     frame_count: u32,
+    max_total_depth: u32,
+    rules: u32,
+    _pad: [u32; 2],
 }
+
+/// `ReduceParams` of `shaders/accumulate.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct ReduceParams {
+    pixels: u32,
+    row: u32,
+    frame_begin: u32,
+    frame_count: u32,
+}
+
+/// `RULES_*` of `shaders/types.wgsl`.
+const RULES_CONSISTENT: u32 = 0;
+const RULES_SEED: u32 = 1;
 
 /// `Material` of `shaders/types.wgsl` (64-byte array stride).
 #[repr(C)]
@@ -98,13 +115,27 @@ const LIGHT_SPHERE: u32 = 3;
 
 /// Pixel-frames traced by one dispatch at most: a render of many frames is split into
 /// dispatches of whole frames (the sums carry over in the buffers), so no single
-/// dispatch runs long enough to trip a driver's watchdog.
+/// dispatch runs long enough to trip a driver's watchdog, and the frame slices stay
+/// at most 16 MiB.
 const PIXEL_FRAMES_PER_DISPATCH: u64 = 1 << 20;
 
-const COUNTER_BYTES: u64 = 8 * 4;
+/// Frames of one dispatch at most: each is one invocation per pixel along the
+/// dispatch's z (at most 65535 workgroups), and the accumulation kernel loops over them
+/// in every invocation alike, so this also keeps that loop far below the 65535 loop
+/// iterations Mesa's software driver allows an invocation (shaders/counters.wgsl).
+const MAX_FRAMES_PER_DISPATCH: u32 = 4096;
 
-// The WGSL uniform struct is 128 bytes (8 rows of 16).
-const _: () = assert!(std::mem::size_of::<GpuParams>() == 128);
+/// Ray counters (4 x 64 bit), the invocations whose loops the driver cut, one unused word.
+const COUNTER_WORDS: usize = 10;
+const COUNTER_BYTES: u64 = COUNTER_WORDS as u64 * 4;
+/// Word of `counters` that counts invocations whose loops the driver cut short.
+const LOOPS_CUT: usize = 8;
+
+/// `@workgroup_size(64, 1, 1)` of `shaders/accumulate.wgsl`.
+const REDUCE_WORKGROUP: u32 = 64;
+
+// The WGSL uniform struct is 144 bytes (9 rows of 16).
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 144);
 const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuLight>() == 80);
 
@@ -208,8 +239,11 @@ pub struct GpuTracer {
     lights: Option<(u64, wgpu::Buffer)>,
     /// Kahan compensation per pixel, only while a plan accumulates (`ACCUMULATE`).
     compensation: Option<(u64, wgpu::Buffer)>,
-    /// Bound in its place when the plan does not accumulate (a binding cannot be empty).
-    compensation_dummy: wgpu::Buffer,
+    /// The radiance of each frame of a dispatch, only while a plan accumulates.
+    frame_slices: Option<(u64, wgpu::Buffer)>,
+    /// The accumulation kernel, its bind group layout and parameters, made on the
+    /// first accumulating render.
+    reduce: Option<(wgpu::BindGroupLayout, wgpu::ComputePipeline, wgpu::Buffer)>,
     grid: Option<GridUpload>,
     buffers: Option<Buffers>,
     /// The pyramid-build kernels, made on the first build.
@@ -357,7 +391,6 @@ impl GpuTracer {
                 storage_entry(3, true),
                 storage_entry(4, false),
                 storage_entry(5, false),
-                storage_entry(6, false),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -386,12 +419,6 @@ impl GpuTracer {
                 | wgpu::BufferUsages::COPY_DST,
         );
         let counters_readback = readback(&device, "ray counters readback", COUNTER_BYTES);
-        let compensation_dummy = buffer(
-            &device,
-            "compensation (unused)",
-            16,
-            wgpu::BufferUsages::STORAGE,
-        );
         Ok(Self {
             adapter,
             device,
@@ -407,7 +434,8 @@ impl GpuTracer {
             materials: None,
             lights: None,
             compensation: None,
-            compensation_dummy,
+            frame_slices: None,
+            reduce: None,
             grid: None,
             buffers: None,
             build_pipelines: None,
@@ -745,6 +773,12 @@ impl GpuTracer {
             seed: settings.seed,
             frame_begin: 0,
             frame_count: 1,
+            max_total_depth: settings.total_depth_limit(),
+            rules: match settings.rules {
+                Rules::Consistent => RULES_CONSISTENT,
+                Rules::Seed => RULES_SEED,
+            },
+            _pad: [0; 2],
         }
     }
 
@@ -939,7 +973,8 @@ impl GpuTracer {
         let pixels = settings.width as u64 * settings.height as u64;
         let todo = frames.end - frames.start;
         let per_dispatch = if plan.accumulate {
-            (PIXEL_FRAMES_PER_DISPATCH / pixels).clamp(1, todo as u64) as u32
+            (PIXEL_FRAMES_PER_DISPATCH / pixels).clamp(1, todo.min(MAX_FRAMES_PER_DISPATCH) as u64)
+                as u32
         } else {
             1
         };
@@ -954,19 +989,35 @@ impl GpuTracer {
             .write_buffer(&self.counters, 0, &[0u8; COUNTER_BYTES as usize]);
 
         let (output, readback) = self.output_buffers(pixels);
-        let compensation = if plan.accumulate {
-            Some(Self::grow(
+        // Accumulating, the tracer writes each frame of a dispatch to its own slice and
+        // the accumulation kernel adds them to the sums in `output` and `compensation`.
+        let accumulation = if plan.accumulate {
+            let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+            let compensation = Self::grow(
                 &self.device,
                 &mut self.compensation,
                 pixels * 16,
                 "compensation",
-                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            ))
+                storage,
+            );
+            let slices = Self::grow(
+                &self.device,
+                &mut self.frame_slices,
+                pixels * 16 * per_dispatch as u64,
+                "frame slices",
+                wgpu::BufferUsages::STORAGE,
+            );
+            Some((compensation, slices))
         } else {
-            // Only accumulating renders hold one.
+            // Only accumulating renders hold them.
             self.compensation = None;
+            self.frame_slices = None;
             None
         };
+        let compensation = accumulation.as_ref().map(|a| a.0.clone());
+        let reduce = accumulation
+            .as_ref()
+            .map(|(compensation, slices)| self.reduce_bind_group(&output, compensation, slices));
         let grid_view = &self.grid.as_ref().expect("grid uploaded").view;
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("voxlab tracer"),
@@ -976,9 +1027,8 @@ impl GpuTracer {
                 view_entry(1, grid_view),
                 buffer_entry(2, &mat_buf),
                 buffer_entry(3, &light_buf),
-                buffer_entry(4, &output),
+                buffer_entry(4, accumulation.as_ref().map_or(&output, |a| &a.1)),
                 buffer_entry(5, &self.counters),
-                buffer_entry(6, compensation.as_ref().unwrap_or(&self.compensation_dummy)),
             ],
         });
 
@@ -1010,18 +1060,21 @@ impl GpuTracer {
         self.wait()?;
 
         let pipeline = &self.pipelines[&plan.shader_defs()];
-        // Two timestamps per dispatch (start and end of its pass).
+        // Two timestamps per pass (its start and end): the trace's, and with
+        // accumulation the accumulation kernel's.
         let dispatches = todo.div_ceil(per_dispatch);
+        let passes = dispatches * if reduce.is_some() { 2 } else { 1 };
         let queries = self.timestamps.then(|| {
             self.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("voxlab trace timestamps"),
                 ty: wgpu::QueryType::Timestamp,
-                count: 2 * dispatches,
+                count: 2 * passes,
             })
         });
+        let (reduce_x, reduce_y) = Self::reduce_grid(pixels);
+        let mut pass_index = 0u32;
         let start = Instant::now();
         let mut begin = frames.start;
-        let mut dispatch = 0u32;
         while begin < frames.end {
             let count = per_dispatch.min(frames.end - begin);
             if begin > frames.start {
@@ -1029,6 +1082,18 @@ impl GpuTracer {
                 params.frame_count = count;
                 self.queue
                     .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            }
+            if let Some((_, _, reduce_params)) = &self.reduce
+                && reduce.is_some()
+            {
+                let rp = ReduceParams {
+                    pixels: pixels as u32,
+                    row: reduce_x * REDUCE_WORKGROUP,
+                    frame_begin: begin,
+                    frame_count: count,
+                };
+                self.queue
+                    .write_buffer(reduce_params, 0, bytemuck::bytes_of(&rp));
             }
             let mut encoder = self
                 .device
@@ -1040,29 +1105,44 @@ impl GpuTracer {
                     label: Some("voxlab trace"),
                     timestamp_writes: queries.as_ref().map(|q| wgpu::ComputePassTimestampWrites {
                         query_set: q,
-                        beginning_of_pass_write_index: Some(2 * dispatch),
-                        end_of_pass_write_index: Some(2 * dispatch + 1),
+                        beginning_of_pass_write_index: Some(2 * pass_index),
+                        end_of_pass_write_index: Some(2 * pass_index + 1),
                     }),
                 });
+                pass_index += 1;
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, &bind_group, &[]);
                 if let Some(g) = &cone_group {
                     pass.set_bind_group(1, g, &[]);
                 }
+                // One invocation per pixel and frame (frames along z).
                 pass.dispatch_workgroups(
                     settings.width.div_ceil(WORKGROUP),
                     settings.height.div_ceil(WORKGROUP),
-                    1,
+                    if plan.accumulate { count } else { 1 },
                 );
+            }
+            if let (Some(group), Some((_, reduce_pipeline, _))) = (&reduce, &self.reduce) {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("voxlab accumulate"),
+                    timestamp_writes: queries.as_ref().map(|q| wgpu::ComputePassTimestampWrites {
+                        query_set: q,
+                        beginning_of_pass_write_index: Some(2 * pass_index),
+                        end_of_pass_write_index: Some(2 * pass_index + 1),
+                    }),
+                });
+                pass_index += 1;
+                pass.set_pipeline(reduce_pipeline);
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(reduce_x, reduce_y, 1);
             }
             self.queue.submit([encoder.finish()]);
             begin += count;
-            dispatch += 1;
         }
         self.wait()?;
         let trace_time = start.elapsed();
         self.last_gpu_time = match &queries {
-            Some(q) => Some(self.pass_time(q, dispatches)?),
+            Some(q) => Some(self.pass_time(q, passes)?),
             None => None,
         };
 
@@ -1094,6 +1174,30 @@ impl GpuTracer {
             None => None,
         };
         let counts: Vec<u32> = self.read(&self.counters_readback, COUNTER_BYTES)?;
+        if counts[LOOPS_CUT] > 0 {
+            let info = self.adapter.get_info();
+            bail!(
+                "{} of {} pixel-frames of this image were cut short by the driver ({}, {}): \
+                 Mesa's software driver (llvmpipe, lavapipe) ends every loop of an \
+                 invocation after 65535 loop iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS, \
+                 counted over the 8 or 16 SIMD lanes that run together), and one frame of \
+                 these pixels needs more (depth limits {}/{}, {} light sample(s), {} \
+                 light(s), grid {}x{}x{}). The image would be wrong, so none is returned: \
+                 lower light_samples, the depth limits (or max_depth) or the grid size, \
+                 or render with --backend cpu or on a hardware GPU",
+                counts[LOOPS_CUT],
+                pixels * todo as u64,
+                info.name,
+                info.driver_info,
+                settings.max_reflection_depth,
+                settings.max_refraction_depth,
+                settings.light_samples,
+                scene.lights.len(),
+                scene.grid.dims().x,
+                scene.grid.dims().y,
+                scene.grid.dims().z,
+            );
+        }
         let c = |i: usize| counts[2 * i] as u64 | (counts[2 * i + 1] as u64) << 32;
         let stats = if count {
             RayStats {
@@ -1132,7 +1236,9 @@ impl GpuTracer {
             grid: scene.grid.voxel_count() as u64,
             scene: mat_buf.size() + light_buf.size() + self.params.size() + 2 * COUNTER_BYTES,
             image: output.size() + readback.size(),
-            accumulation: if plan.accumulate { pixels * 16 } else { 0 },
+            accumulation: accumulation
+                .as_ref()
+                .map_or(0, |(c, slices)| c.size() + slices.size()),
             pyramids,
         });
         if let Some(key) = key
@@ -1150,6 +1256,80 @@ impl GpuTracer {
             frame,
             stats,
             trace_time,
+        })
+    }
+
+    /// The accumulation kernel's dispatch grid for `pixels`: 64-wide workgroups along x
+    /// up to the per-dimension limit, then rows of them along y.
+    fn reduce_grid(pixels: u64) -> (u32, u32) {
+        let groups = pixels.div_ceil(REDUCE_WORKGROUP as u64);
+        let x = groups.min(32768) as u32;
+        (x, groups.div_ceil(x as u64) as u32)
+    }
+
+    /// The accumulation kernel's bind group (made with the kernel on first use): frame
+    /// slices in, running sums and compensation in and out.
+    fn reduce_bind_group(
+        &mut self,
+        sums: &wgpu::Buffer,
+        compensation: &wgpu::Buffer,
+        slices: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        if self.reduce.is_none() {
+            let layout = self
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("voxlab accumulate"),
+                    entries: &[
+                        uniform_entry(0),
+                        storage_entry(1, true),
+                        storage_entry(2, false),
+                        storage_entry(3, false),
+                    ],
+                });
+            let pipeline_layout =
+                self.device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("voxlab accumulate"),
+                        bind_group_layouts: &[Some(&layout)],
+                        immediate_size: 0,
+                    });
+            let module = compose::compose(&[], compose::ACCUMULATE, HashMap::new())
+                .expect("shaders/accumulate.wgsl composes: it imports nothing");
+            let shader = self
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("voxlab accumulate"),
+                    source: wgpu::ShaderSource::Naga(Cow::Owned(module)),
+                });
+            let pipeline = self
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("voxlab accumulate"),
+                    layout: Some(&pipeline_layout),
+                    module: &shader,
+                    entry_point: Some(ENTRY_POINT),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+            let params = buffer(
+                &self.device,
+                "accumulate params",
+                std::mem::size_of::<ReduceParams>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            );
+            self.reduce = Some((layout, pipeline, params));
+        }
+        let (layout, _, params) = self.reduce.as_ref().expect("made above");
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("voxlab accumulate"),
+            layout,
+            entries: &[
+                buffer_entry(0, params),
+                buffer_entry(1, slices),
+                buffer_entry(2, sums),
+                buffer_entry(3, compensation),
+            ],
         })
     }
 

@@ -84,10 +84,18 @@ pub fn seed_lights(c: DVec3, w: f64) -> Vec<Light> {
     ]
 }
 
+/// The seed's camera for a grid of centre `c` and width `w`: it orbits `c` at 2.5 W and
+/// then moves the eye a further 3 units back along the view axis (`VIEW_OFFSET 3.0`
+/// in the seed's `camera.cpp`, applied in camera space after the orbit), so the eye
+/// sits at 2.5 W + 3 from `c` (units as the seed's lights' `1.5`: world units, one voxel
+/// width at the seed's size).
+/// The seed's `VIEW_OFFSET`: how far the eye moves back from the orbit, world units.
+pub const SEED_VIEW_OFFSET: f64 = 3.0;
+
 pub fn seed_camera(c: DVec3, w: f64) -> OrbitCamera {
     OrbitCamera {
         target: c,
-        distance: 2.5 * w,
+        distance: 2.5 * w + SEED_VIEW_OFFSET,
         yaw: 0.2 * std::f64::consts::PI,
         pitch: 0.125 * std::f64::consts::PI,
         vfov: 2.0 * (1.0f64 / 3.0).atan(),
