@@ -110,64 +110,89 @@ fn leaving(x: vec3<f32>, w: vec3<f32>) -> bool {
     return any(lo | hi);
 }
 
-// One cone from apex o along unit w, tan(theta/2) = tan_half, up to max_dist; gathers
-// radiance when `gather` (INDIRECT only). Steps as src/cpu/cone.rs `march`.
-fn march(o: vec3<f32>, w: vec3<f32>, tan_half: f32, max_dist: f32, gather: bool) -> ConeResult {
-    var r: ConeResult;
-    r.occlusion = 0.0;
-    r.radiance = vec3<f32>(0.0);
-    let k = cone.step_factor;
-    var t = 0.0;
-    var i = 0u;
-    var ended = false;
-    for (; i < MAX_CONE_STEPS; i++) {
-        if !(t < max_dist) {
-            ended = true;
-            break;
-        }
-        let d = max(2.0 * t * tan_half, 1.0);
-        let x = o + t * w;
-        if leaving(x, w) {
-            ended = true;
-            break;
-        }
-        let lod = log2(d);
-        var a = 0.0;
-        var c = vec3<f32>(0.0);
-#ifdef INDIRECT
-        if gather {
-            let s = radiance_at(x, lod);
-            a = s.w;
-            c = s.xyz;
-        } else {
-            a = opacity_at(x, lod);
-        }
-#else
-        a = opacity_at(x, lod);
-#endif
-        a = clamp(a, 0.0, 1.0);
-        // Opacity of a slab step_factor texels thick.
-        let ac = 1.0 - pow(1.0 - a, k);
-        if gather {
-            var ratio = k;
-            if a > 1.0e-4 {
-                ratio = ac / a;
-            }
-            r.radiance += (1.0 - r.occlusion) * c * ratio;
-        }
-        r.occlusion += (1.0 - r.occlusion) * ac;
-        if r.occlusion >= OCCLUSION_CUTOFF {
-            r.occlusion = 1.0;
-            ended = true;
-            break;
-        }
-        t += k * d;
+// A cone march in progress: the distance reached, the steps taken, the result so far.
+struct March {
+    t: f32,
+    i: u32,
+    r: ConeResult,
+}
+
+// One step of `march`: true when the march is over (MAX_CONE_STEPS taken, past
+// max_dist, leaving the pyramid, or opaque).
+fn march_step(m: ptr<function, March>, o: vec3<f32>, w: vec3<f32>, tan_half: f32, max_dist: f32, gather: bool) -> bool {
+    if (*m).i >= MAX_CONE_STEPS {
+        return true;
     }
-    // Any other way out is the driver's loop limit (shaders/counters.wgsl).
-    if !ended && i < MAX_CONE_STEPS {
+    (*m).i += 1u;
+    let t = (*m).t;
+    if !(t < max_dist) {
+        return true;
+    }
+    let k = cone.step_factor;
+    let d = max(2.0 * t * tan_half, 1.0);
+    let x = o + t * w;
+    if leaving(x, w) {
+        return true;
+    }
+    let lod = log2(d);
+    var a = 0.0;
+    var c = vec3<f32>(0.0);
+#ifdef INDIRECT
+    if gather {
+        let s = radiance_at(x, lod);
+        a = s.w;
+        c = s.xyz;
+    } else {
+        a = opacity_at(x, lod);
+    }
+#else
+    a = opacity_at(x, lod);
+#endif
+    a = clamp(a, 0.0, 1.0);
+    // Opacity of a slab step_factor texels thick.
+    let ac = 1.0 - pow(1.0 - a, k);
+    if gather {
+        var ratio = k;
+        if a > 1.0e-4 {
+            ratio = ac / a;
+        }
+        (*m).r.radiance += (1.0 - (*m).r.occlusion) * c * ratio;
+    }
+    (*m).r.occlusion += (1.0 - (*m).r.occlusion) * ac;
+    if (*m).r.occlusion >= OCCLUSION_CUTOFF {
+        (*m).r.occlusion = 1.0;
+        return true;
+    }
+    (*m).t = t + k * d;
+    return false;
+}
+
+// One cone from apex o along unit w, tan(theta/2) = tan_half, up to max_dist; gathers
+// radiance when `gather` (INDIRECT only). Steps as src/cpu/cone.rs `march`, four per
+// loop iteration: the software driver's loop limit counts back edges, not work
+// (shaders/counters.wgsl).
+fn march(o: vec3<f32>, w: vec3<f32>, tan_half: f32, max_dist: f32, gather: bool) -> ConeResult {
+    var m: March;
+    m.t = 0.0;
+    m.i = 0u;
+    m.r.occlusion = 0.0;
+    m.r.radiance = vec3<f32>(0.0);
+    var done = false;
+    loop {
+        if done {
+            break;
+        }
+        done = march_step(&m, o, w, tan_half, max_dist, gather);
+        if !done { done = march_step(&m, o, w, tan_half, max_dist, gather); }
+        if !done { done = march_step(&m, o, w, tan_half, max_dist, gather); }
+        if !done { done = march_step(&m, o, w, tan_half, max_dist, gather); }
+    }
+    // Every step count ends the march (MAX_CONE_STEPS), so the loop ends with `done`;
+    // any other way out is the driver's loop limit (shaders/counters.wgsl).
+    if !done {
         cone_loop_cut = true;
     }
-    return r;
+    return m.r;
 }
 
 fn tangent_frame(n: vec3<f32>) -> mat2x3<f32> {
