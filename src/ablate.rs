@@ -397,10 +397,7 @@ impl AblateConfig {
 pub fn load(path: impl AsRef<Path>) -> Result<(Experiment, AblateConfig, String), ExperimentError> {
     let path = path.as_ref();
     let experiment = Experiment::load(path)?;
-    let text = std::fs::read_to_string(path).map_err(|source| ExperimentError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::experiment::read_text(path)?;
     let config = AblateConfig::from_str(&text, path)?;
     Ok((experiment, config, text))
 }

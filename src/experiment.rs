@@ -27,7 +27,8 @@ use crate::render::{
 };
 use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
 use crate::scene::{
-    AreaLight, AreaShape, Grid, Light, MAX_VOXELS, Material, PointLight, SEED_SHININESS, Scene,
+    AreaLight, AreaShape, Grid, Light, MAX_VOXEL_SIZE, MAX_VOXELS, MIN_VOXEL_SIZE, Material,
+    PointLight, SEED_SHININESS, Scene,
 };
 
 /// Grid side of the seed scene (`[scene] size` when neither `size` nor `dims` is given).
@@ -85,14 +86,37 @@ pub struct Experiment {
     pub settings: RenderSettings,
 }
 
+/// The text of the experiment file `path`: a regular file of at most
+/// [`crate::input::MAX_EXPERIMENT_BYTES`], in UTF-8.
+pub fn read_text(path: &Path) -> Result<String, ExperimentError> {
+    let io = |error| ExperimentError::Io {
+        path: path.to_path_buf(),
+        error,
+    };
+    let bytes =
+        crate::input::read_file(path, crate::input::MAX_EXPERIMENT_BYTES, "experiment file")
+            .map_err(io)?;
+    String::from_utf8(bytes).map_err(|e| {
+        io(crate::input::ReadError::Io(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ),
+        )))
+    })
+}
+
 /// Why an experiment could not be loaded. Every variant's message names the file; all
 /// but `Io` also name the line.
 #[derive(Debug, thiserror::Error)]
 pub enum ExperimentError {
-    #[error("cannot read experiment file {}: {source}", path.display())]
+    // Not `source`: the message already holds the OS error, and anyhow's `{:#}` would
+    // print it a second time.
+    #[error("cannot read experiment file {}: {error}", path.display())]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: crate::input::ReadError,
     },
     /// The text is not TOML.
     #[error("{}: malformed TOML: {message}", location(file, *line))]
@@ -308,10 +332,7 @@ impl Experiment {
     /// Reads and validates an experiment file.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, ExperimentError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| ExperimentError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = read_text(path)?;
         let mut e = Self::from_str(&text, path)?;
         e.source_path = Some(path.to_path_buf());
         Ok(e)
@@ -870,6 +891,24 @@ fn build(
     // Everything above checks its own key; this catches what only the whole can tell
     // (a future generator using more materials than are defined).
     scene.validate().map_err(|e| ctx.invalid("scene", e))?;
+    // Cone pyramids scale with the grid: estimated before any render builds them.
+    if let Some(layout) = crate::plan::Plan::new(&scene, &settings).pyramid {
+        use crate::cpu::pyramid::{MAX_PYRAMID_BYTES, cpu_pyramid_bytes};
+        let indirect = settings.features.indirect;
+        let bytes = cpu_pyramid_bytes(&layout, indirect);
+        if bytes > MAX_PYRAMID_BYTES {
+            let d = scene.grid.dims();
+            return Err(ctx.invalid(
+                "features",
+                format!(
+                    "cone tracing on a {}x{}x{} grid needs pyramids of {bytes} bytes (the f64 \
+                     reference's), more than the {MAX_PYRAMID_BYTES} allowed: use a smaller \
+                     grid or turn the cone features off",
+                    d.x, d.y, d.z
+                ),
+            ));
+        }
+    }
 
     Ok(Experiment {
         name,
@@ -1119,7 +1158,13 @@ fn load_scene_file(
         let v = load_vox(dir.join(p), model).map_err(|e| ctx.invalid(key, e))?;
         let mut grid = v.grid;
         if let Some(vs) = s.voxel_size {
-            let vs = float_where(ctx, "scene.voxel_size", vs, |x| x > 0.0, "> 0")?;
+            let vs = float_where(
+                ctx,
+                "scene.voxel_size",
+                vs,
+                |x| (MIN_VOXEL_SIZE..=MAX_VOXEL_SIZE).contains(&x),
+                "in [1e-6, 1e6] (world units)",
+            )?;
             let mut g = Grid::new(grid.dims(), vs, grid.origin())
                 .map_err(|e| ctx.invalid("scene.voxel_size", e))?;
             g.data_mut().copy_from_slice(grid.data());
@@ -1249,7 +1294,13 @@ fn build_grid(s: &RawScene, ctx: &Ctx) -> Result<Grid, ExperimentError> {
         ));
     }
     let voxel_size = match s.voxel_size {
-        Some(v) => float_where(ctx, "scene.voxel_size", v, |x| x > 0.0, "> 0")?,
+        Some(v) => float_where(
+            ctx,
+            "scene.voxel_size",
+            v,
+            |x| (MIN_VOXEL_SIZE..=MAX_VOXEL_SIZE).contains(&x),
+            "in [1e-6, 1e6] (world units)",
+        )?,
         None => 1.0,
     };
     let origin = match s.origin {

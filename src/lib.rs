@@ -9,6 +9,7 @@ pub mod bench;
 pub mod cpu;
 pub mod experiment;
 pub mod gpu;
+pub mod input;
 pub mod metrics;
 pub mod output;
 pub mod plan;

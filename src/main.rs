@@ -519,6 +519,28 @@ fn cmd_stress(a: &StressArgs) -> Result<()> {
 
 fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
     use voxlab::scene::{VoxelizeOptions, voxelize_mesh, write_vox};
+    // The output is a .vox and never the input: checked before the work is done.
+    let is_vox = a
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vox"));
+    if !is_vox {
+        bail!(
+            "--out {}: the output of voxelize is a MagicaVoxel file, so its name must end in .vox",
+            a.out.display()
+        );
+    }
+    let same = |x: &Path, y: &Path| match (x.canonicalize(), y.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    };
+    if same(&a.out, &a.mesh) {
+        bail!(
+            "--out {} is the input mesh {}: voxelize never overwrites its input",
+            a.out.display(),
+            a.mesh.display()
+        );
+    }
     let start = Instant::now();
     let v = voxelize_mesh(&a.mesh, &VoxelizeOptions::count(a.resolution))?;
     for w in &v.warnings {

@@ -207,7 +207,12 @@ fn nan_inf_and_negative_floats() {
     );
     assert_has(
         &err("[scene]\nvoxel_size = 0.0"),
-        &["x.toml:2:", "scene.voxel_size = 0.0", "> 0"],
+        &["x.toml:2:", "scene.voxel_size = 0.0", "[1e-6, 1e6]"],
+    );
+    // 1e308 overflowed the camera distance and hung the CPU walk.
+    assert_has(
+        &err("[scene]\nvoxel_size = 1e308"),
+        &["x.toml:2:", "scene.voxel_size", "[1e-6, 1e6]"],
     );
     assert_has(
         &err("[camera]\npitch_deg = 91"),

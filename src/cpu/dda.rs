@@ -161,7 +161,11 @@ impl Iterator for Dda<'_> {
         }
         let a = argmin(self.t_max);
         let t = self.t_max[a];
-        if t >= self.t_limit || t.is_nan() {
+        // A ray visits at most nx + ny + nz voxels: the bound ends any walk that float
+        // error (or a non-finite input) could stall, as the kernel's max_steps does.
+        let d = self.grid.dims();
+        let max_steps = d.x as u64 + d.y as u64 + d.z as u64 + 3;
+        if t >= self.t_limit || t.is_nan() || self.steps >= max_steps {
             self.done = true;
             self.t_end = self.t_limit;
             return None;

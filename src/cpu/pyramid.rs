@@ -124,6 +124,21 @@ impl PyramidLayout {
     }
 }
 
+/// Largest pyramid memory a render may ask for on either backend: the f64 CPU
+/// reference's (8 bytes of opacity and 32 of radiance per texel) is the larger. A grid
+/// of 1290^3 with cone shadows asked for 17 GB; it is refused before anything is built.
+pub const MAX_PYRAMID_BYTES: u64 = 4 << 30;
+
+/// Bytes the CPU reference's pyramids of `layout` take (radiance with `indirect`).
+pub fn cpu_pyramid_bytes(layout: &PyramidLayout, indirect: bool) -> u64 {
+    layout.texture_bytes(8)
+        + if indirect {
+            layout.texture_bytes(32)
+        } else {
+            0
+        }
+}
+
 /// Pyramid memory in words: one line for the plan printout.
 pub fn memory_line(layout: &PyramidLayout, radiance: bool) -> String {
     let op = layout.texture_bytes(OPACITY_TEXEL_BYTES);

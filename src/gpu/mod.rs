@@ -956,6 +956,11 @@ impl GpuTracer {
         self.check(scene, settings)?;
         Self::check_frames(settings, &plan, &frames)?;
         self.pipeline(&plan)?;
+        // Device allocations fail as errors of the render, never through wgpu's default
+        // handler (a panic): a grid texture or buffer the device cannot hold is reported
+        // with its size. Popped (in reverse order) once everything is uploaded.
+        let oom_scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation_scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.upload_grid(scene);
         let key = continuable.then(|| AccumulationKey::new(scene, settings, &plan));
         if frames.start > 0 {
@@ -1058,6 +1063,28 @@ impl GpuTracer {
         // Finish the uploads first so the timed submission holds the trace alone.
         self.queue.submit([]);
         self.wait()?;
+        let validation = pollster::block_on(validation_scope.pop());
+        let oom = pollster::block_on(oom_scope.pop());
+        if let Some(e) = oom.or(validation) {
+            // Whatever was made is not to be trusted: the next render starts over.
+            self.grid = None;
+            self.buffers = None;
+            self.compensation = None;
+            self.frame_slices = None;
+            self.pyramid = None;
+            let d = scene.grid.dims();
+            bail!(
+                "the device could not hold this render (grid {}x{}x{}: {} bytes of texture; \
+                 image {}x{}: {} bytes of radiance buffers): {e}",
+                d.x,
+                d.y,
+                d.z,
+                scene.grid.voxel_count(),
+                settings.width,
+                settings.height,
+                settings.width as u64 * settings.height as u64 * 16 * 2
+            );
+        }
 
         let pipeline = &self.pipelines[&plan.shader_defs()];
         // Two timestamps per pass (its start and end): the trace's, and with

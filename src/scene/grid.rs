@@ -11,6 +11,13 @@ pub const VOID: u8 = 0;
 /// (2^31 bytes): a guard against allocating without bound on malformed input.
 pub const MAX_VOXELS: u64 = 1 << 31;
 
+/// Smallest and largest voxel size a grid may have, world units. A voxel of 1e308 made
+/// the camera distance overflow and the CPU walk revisit one voxel forever; within this
+/// range every distance the tracers compute (up to 1e6 voxels times 1e6) is far from
+/// overflow, and squared falloff distances stay finite.
+pub const MIN_VOXEL_SIZE: f64 = 1e-6;
+pub const MAX_VOXEL_SIZE: f64 = 1e6;
+
 /// A dense voxel grid. Voxel `(x, y, z)` covers the world box
 /// `origin + voxel_size * [x, x+1] x [y, y+1] x [z, z+1]`.
 /// Storage is x-fastest, then y, then z (the layout of a 3D texture upload).
@@ -38,9 +45,11 @@ impl Grid {
                 dims.x, dims.y, dims.z
             )));
         }
-        if !(voxel_size.is_finite() && voxel_size > 0.0) {
+        if !(MIN_VOXEL_SIZE..=MAX_VOXEL_SIZE).contains(&voxel_size) {
             return Err(SceneError::new(format!(
-                "voxel size {voxel_size}: must be finite and > 0"
+                "voxel size {voxel_size}: must be in [{MIN_VOXEL_SIZE:e}, {MAX_VOXEL_SIZE:e}] \
+                 (world units; beyond them camera distances and light falloff leave f64's \
+                 range)"
             )));
         }
         if !origin.is_finite() {

@@ -102,15 +102,17 @@ impl TriangleMesh {
 pub fn load_mesh(path: impl AsRef<Path>) -> Result<TriangleMesh, LoadError> {
     let path = path.as_ref();
     let fail = |kind| LoadError::new(path, kind);
-    // Read errors first, so a missing file says so rather than a parser's guess.
-    std::fs::metadata(path).map_err(|e| fail(LoadErrorKind::Read(e)))?;
+    // Read errors first, so a missing file says so rather than a parser's guess; only a
+    // regular file of at most MAX_MESH_BYTES is read.
+    let bytes = crate::input::read_file(path, crate::input::MAX_MESH_BYTES, "mesh file")
+        .map_err(|e| fail(LoadErrorKind::Input(e)))?;
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
     let mesh = match ext.as_str() {
-        "obj" => load_obj(path),
-        "gltf" | "glb" => load_gltf(path),
+        "obj" => load_obj(path, &bytes),
+        "gltf" | "glb" => load_gltf(path, &bytes),
         _ => Err(LoadErrorKind::InvalidMesh(format!(
             "unknown mesh format {:?}: expected .obj, .gltf or .glb",
             ext
@@ -130,15 +132,34 @@ pub fn load_mesh(path: impl AsRef<Path>) -> Result<TriangleMesh, LoadError> {
     Ok(mesh)
 }
 
-fn load_obj(path: &Path) -> Result<TriangleMesh, LoadErrorKind> {
+fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, mtl) = tobj::load_obj(path, &options)
-        .map_err(|e| LoadErrorKind::InvalidMesh(format!("OBJ: {e}")))?;
+    // tobj reads a `mtllib` itself unless given a loader: this one reads it (relative to
+    // the OBJ's directory, as tobj would) as a regular file of bounded size.
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let mtl_loader = |name: &Path| -> tobj::MTLLoadResult {
+        let mtl_path = dir.join(name);
+        match crate::input::read_file(&mtl_path, crate::input::MAX_MESH_BYTES, "material library") {
+            Ok(b) => tobj::load_mtl_buf(&mut std::io::Cursor::new(b)),
+            Err(_) => Err(tobj::LoadError::OpenFileFailed),
+        }
+    };
+    // tobj panics on some malformed lines (a `Kd` with fewer than three values): its
+    // panics become errors naming the file.
+    let parsed = crate::input::guarded(|| {
+        tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &options, mtl_loader)
+    })
+    .map_err(|p| {
+        LoadErrorKind::InvalidMesh(format!(
+            "OBJ: the OBJ/MTL parser (tobj) failed on it or its material library: {p}"
+        ))
+    })?;
+    let (models, mtl) = parsed.map_err(|e| LoadErrorKind::InvalidMesh(format!("OBJ: {e}")))?;
     let mut mesh = TriangleMesh::default();
     let mtl = match mtl {
         Ok(m) => m,
@@ -195,19 +216,68 @@ fn load_obj(path: &Path) -> Result<TriangleMesh, LoadErrorKind> {
     Ok(mesh)
 }
 
-fn load_gltf(path: &Path) -> Result<TriangleMesh, LoadErrorKind> {
+fn load_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
     let invalid = |what: String| LoadErrorKind::InvalidMesh(format!("glTF: {what}"));
-    let bytes = std::fs::read(path).map_err(LoadErrorKind::Read)?;
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| invalid(e.to_string()))?;
-    let buffers = gltf::import_buffers(&gltf.document, path.parent(), gltf.blob.clone())
+    // The gltf crate panics on some hostile documents (an index into a missing
+    // accessor, index accessors of a float type): every call into it is guarded.
+    let panicked = |p: String| invalid(format!("the glTF parser (gltf) failed on it: {p}"));
+    let gltf = crate::input::guarded(|| gltf::Gltf::from_slice(bytes))
+        .map_err(panicked)?
         .map_err(|e| invalid(e.to_string()))?;
-    // The gltf crate validates the document, but its accessor readers index buffers
-    // directly; a hostile file must give an error, not abort the caller.
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        gltf_triangles(&gltf.document, &buffers)
-    }))
-    .unwrap_or_else(|_| Err("its accessors point outside their buffers".into()))
-    .map_err(invalid)
+    let buffers = gltf_buffers(&gltf, path).map_err(invalid)?;
+    crate::input::guarded(|| gltf_triangles(&gltf.document, &buffers))
+        .map_err(panicked)?
+        .map_err(invalid)
+}
+
+/// The glTF's buffers: the GLB's binary chunk, `data:` URIs (base64), or files
+/// beside it read as regular files of bounded size; each at least its declared length.
+fn gltf_buffers(gltf: &gltf::Gltf, path: &Path) -> Result<Vec<gltf::buffer::Data>, String> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mut out = Vec::new();
+    for buffer in gltf.document.buffers() {
+        let i = buffer.index();
+        let mut data = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or_else(|| format!("buffer {i} names the binary chunk, which is missing"))?,
+            gltf::buffer::Source::Uri(uri) => {
+                if let Some(rest) = uri.strip_prefix("data:") {
+                    let (_, payload) = rest.split_once(";base64,").ok_or_else(|| {
+                        format!("buffer {i}: a data URI that is not base64 (\"data:...;base64,\")")
+                    })?;
+                    base64::decode(payload)
+                        .map_err(|e| format!("buffer {i}: its base64 data URI: {e}"))?
+                } else {
+                    let name = percent_encoding::percent_decode_str(uri)
+                        .decode_utf8()
+                        .map_err(|_| {
+                            format!(
+                                "buffer {i}: its URI {:?} percent-decodes to invalid UTF-8",
+                                crate::input::excerpt(uri, 80)
+                            )
+                        })?;
+                    let file = dir.join(name.as_ref());
+                    crate::input::read_file(&file, crate::input::MAX_MESH_BYTES, "glTF buffer")
+                        .map_err(|e| format!("buffer {i} ({}): {e}", file.display()))?
+                }
+            }
+        };
+        if data.len() < buffer.length() {
+            return Err(format!(
+                "buffer {i} holds {} bytes but declares {}",
+                data.len(),
+                buffer.length()
+            ));
+        }
+        // As the gltf crate's importer: padded to a multiple of 4.
+        while data.len() % 4 != 0 {
+            data.push(0);
+        }
+        out.push(gltf::buffer::Data(data));
+    }
+    Ok(out)
 }
 
 fn gltf_triangles(
@@ -229,6 +299,25 @@ fn gltf_triangles(
                     m.index()
                 ));
                 continue;
+            }
+            // glTF allows only unsigned integer indices; the gltf crate's reader treats
+            // any other type as unreachable.
+            if let Some(acc) = prim.indices() {
+                use gltf::accessor::{DataType, Dimensions};
+                if !matches!(
+                    acc.data_type(),
+                    DataType::U8 | DataType::U16 | DataType::U32
+                ) || acc.dimensions() != Dimensions::Scalar
+                {
+                    return Err(format!(
+                        "mesh {}: index accessor {} is {:?} {:?}; indices must be scalar \
+                         UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT",
+                        m.index(),
+                        acc.index(),
+                        acc.data_type(),
+                        acc.dimensions()
+                    ));
+                }
             }
             let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
             let Some(pos) = reader.read_positions() else {
@@ -398,6 +487,18 @@ pub fn voxelize(
         }
     };
     let dims = grid_layout(extent, voxel_size).map_err(LoadErrorKind::TooLarge)?;
+    let voxels = dims.x as u64 * dims.y as u64 * dims.z as u64;
+    let fill = super::voxelize::fill_bytes(voxels);
+    if fill > super::voxelize::MAX_FILL_BYTES {
+        return Err(LoadErrorKind::TooLarge(format!(
+            "a grid of {}x{}x{} voxels: filling its interior may need {fill} bytes, more than \
+             the {} allowed (9 bytes per voxel); choose a coarser resolution",
+            dims.x,
+            dims.y,
+            dims.z,
+            super::voxelize::MAX_FILL_BYTES
+        )));
+    }
     let mut grid = Grid::new(dims, voxel_size, lo).map_err(|e| LoadErrorKind::TooLarge(e.0))?;
 
     let mut materials = vec![seed_palette()[0].clone()];

@@ -10,7 +10,7 @@ pub mod vox;
 pub mod voxelize;
 
 pub use camera::{CameraFrame, OrbitCamera};
-pub use grid::{Grid, MAX_VOXELS, VOID};
+pub use grid::{Grid, MAX_VOXEL_SIZE, MAX_VOXELS, MIN_VOXEL_SIZE, VOID};
 pub use light::{AreaLight, AreaShape, Light, PointLight};
 pub use material::{MIN_KT_FOR_SIGMA, Material, SEED_SHININESS, seed_ids, seed_palette};
 pub use mesh::{Resolution, VoxelizeOptions, Voxelized, load_mesh, voxelize_mesh};

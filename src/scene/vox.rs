@@ -70,6 +70,8 @@ pub struct LoadError {
 pub enum LoadErrorKind {
     #[error("cannot read the file: {0}")]
     Read(std::io::Error),
+    #[error("cannot read the file: {0}")]
+    Input(crate::input::ReadError),
     #[error("cannot write the file: {0}")]
     Write(std::io::Error),
     #[error("not a valid MagicaVoxel .vox file: {0}")]
@@ -332,10 +334,77 @@ fn vox_material(file_index: u32, c: Color, matl: Option<&dot_vox::Material>) -> 
 pub fn load_vox(path: impl AsRef<Path>, model: Option<usize>) -> Result<VoxScene, LoadError> {
     let path = path.as_ref();
     let fail = |kind| LoadError::new(path, kind);
-    let bytes = std::fs::read(path).map_err(|e| fail(LoadErrorKind::Read(e)))?;
-    let data =
-        dot_vox::load_bytes(&bytes).map_err(|e| fail(LoadErrorKind::InvalidVox(e.to_string())))?;
+    let bytes = crate::input::read_file(path, crate::input::MAX_VOX_BYTES, ".vox file")
+        .map_err(|e| fail(LoadErrorKind::Input(e)))?;
+    check_chunks(&bytes).map_err(fail)?;
+    let data = crate::input::guarded(|| dot_vox::load_bytes(&bytes))
+        .map_err(|p| {
+            fail(LoadErrorKind::InvalidVox(format!(
+                "the .vox parser (dot_vox) failed on it: {p}"
+            )))
+        })?
+        .map_err(|e| fail(LoadErrorKind::InvalidVox(e.to_string())))?;
     vox_from_data(&data, model).map_err(fail)
+}
+
+/// Deepest chunk nesting a `.vox` file may have. MagicaVoxel writes MAIN with children
+/// one level down; dot_vox parses children recursively, so a file nesting thousands of
+/// chunks would overflow the stack in it.
+pub const MAX_VOX_CHUNK_DEPTH: usize = 16;
+
+/// Walks the RIFF-style chunk tree of a `.vox` file (id, content size, children size,
+/// content, children) without recursion before any parser sees it: every chunk lies
+/// inside its parent and the file, and nesting stays within [`MAX_VOX_CHUNK_DEPTH`].
+/// Errors name the chunk and its byte offset.
+fn check_chunks(bytes: &[u8]) -> Result<(), LoadErrorKind> {
+    let invalid = |m: String| LoadErrorKind::InvalidVox(m);
+    if bytes.len() < 8 || &bytes[..4] != b"VOX " {
+        return Err(invalid(
+            "it does not start with the magic \"VOX \" and a version (8 bytes)".into(),
+        ));
+    }
+    let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
+    // Where the children of each chunk being walked end (the file's end at the top).
+    let mut parents: Vec<usize> = vec![bytes.len()];
+    let mut at = 8usize;
+    while let Some(&end) = parents.last() {
+        if at == end {
+            parents.pop();
+            continue;
+        }
+        let id = String::from_utf8_lossy(&bytes[at..(at + 4).min(bytes.len())]).to_string();
+        if at + 12 > end {
+            return Err(invalid(format!(
+                "chunk {id:?} at byte {at}: its 12-byte header runs past its parent's end \
+                 (byte {end})"
+            )));
+        }
+        let content = word(at + 4) as usize;
+        let children = word(at + 8) as usize;
+        let body = at + 12;
+        let child_start = body.checked_add(content);
+        let chunk_end = child_start.and_then(|c| c.checked_add(children));
+        let Some(chunk_end) = chunk_end.filter(|&e| e <= end) else {
+            return Err(invalid(format!(
+                "chunk {id:?} at byte {at}: {content} content bytes and {children} children \
+                 bytes run past its parent's end (byte {end})"
+            )));
+        };
+        if children > 0 {
+            if parents.len() >= MAX_VOX_CHUNK_DEPTH {
+                return Err(invalid(format!(
+                    "chunk {id:?} at byte {at}: chunks nest more than {MAX_VOX_CHUNK_DEPTH} \
+                     deep (MagicaVoxel writes 2)"
+                )));
+            }
+            // Its children follow its content; after them, its next sibling.
+            parents.push(chunk_end);
+            at = child_start.expect("checked above");
+        } else {
+            at = chunk_end;
+        }
+    }
+    Ok(())
 }
 
 fn vox_from_data(data: &DotVoxData, model: Option<usize>) -> Result<VoxScene, LoadErrorKind> {

@@ -165,6 +165,16 @@ pub fn voxelize_triangles(grid: &mut Grid, triangles: &[[DVec3; 3]], materials: 
 /// the flood cannot leak in. Inside voxels take the material of the nearest shell voxel
 /// (breadth-first from the shell), so a multi-material mesh is filled by its own
 /// materials. Returns the number of voxels filled.
+/// Bytes [`fill_interior`] may allocate for a grid of `voxels` at most: a state byte per
+/// voxel and two queues of u32 indices that can each hold every voxel.
+pub fn fill_bytes(voxels: u64) -> u64 {
+    voxels * (1 + 4 + 4)
+}
+
+/// Largest [`fill_bytes`] a voxelization may need; a larger one is refused before
+/// anything is allocated.
+pub const MAX_FILL_BYTES: u64 = 8 << 30;
+
 pub fn fill_interior(grid: &mut Grid) -> usize {
     let d = grid.dims();
     let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
@@ -199,11 +209,12 @@ pub fn fill_interior(grid: &mut Grid) -> usize {
     };
 
     // Outside flood, seeded from the void voxels of the six border faces.
-    let mut queue: Vec<usize> = Vec::new();
-    let seed = |i: usize, state: &mut [u8], queue: &mut Vec<usize>| {
+    // u32 indices: a grid holds at most MAX_VOXELS (2^31) voxels.
+    let mut queue: Vec<u32> = Vec::new();
+    let seed = |i: usize, state: &mut [u8], queue: &mut Vec<u32>| {
         if data[i] == VOID && state[i] == UNSEEN {
             state[i] = OUTSIDE;
-            queue.push(i);
+            queue.push(i as u32);
         }
     };
     for z in 0..nz {
@@ -216,26 +227,29 @@ pub fn fill_interior(grid: &mut Grid) -> usize {
         }
     }
     while let Some(i) = queue.pop() {
-        for j in neighbours(i) {
+        for j in neighbours(i as usize) {
             if j != usize::MAX && data[j] == VOID && state[j] == UNSEEN {
                 state[j] = OUTSIDE;
-                queue.push(j);
+                queue.push(j as u32);
             }
         }
     }
 
     // Inside: breadth-first from the shell so each inside voxel copies the material of
     // a nearest shell voxel.
-    let mut bfs: VecDeque<usize> = (0..data.len()).filter(|&i| data[i] != VOID).collect();
+    let mut bfs: VecDeque<u32> = (0..data.len())
+        .filter(|&i| data[i] != VOID)
+        .map(|i| i as u32)
+        .collect();
     let mut filled = 0;
     while let Some(i) = bfs.pop_front() {
-        let m = data[i];
-        for j in neighbours(i) {
+        let m = data[i as usize];
+        for j in neighbours(i as usize) {
             if j != usize::MAX && data[j] == VOID && state[j] == UNSEEN {
                 state[j] = DONE;
                 data[j] = m;
                 filled += 1;
-                bfs.push_back(j);
+                bfs.push_back(j as u32);
             }
         }
     }

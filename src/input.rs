@@ -1,0 +1,186 @@
+//! Reading untrusted input: only regular files, never more than a stated size, and
+//! third-party parsers run where their panics cannot take the process down.
+//!
+//! Every loader (experiment TOML, MagicaVoxel `.vox`, OBJ and its `.mtl`, glTF and its
+//! buffers) reads through [`read_file`], so `/dev/zero`, a FIFO or a directory (directly
+//! or through a link) is an error at once rather than a read that never ends, and a
+//! file larger than its kind allows is refused before it is read. Parsers written by
+//! others (tobj, gltf, dot_vox) run inside [`guarded`]: a panic in one becomes an error
+//! that names the file, and nothing is printed on the way.
+
+use std::cell::Cell;
+use std::io::Read;
+use std::path::Path;
+use std::sync::Once;
+
+/// Largest experiment file read, bytes.
+pub const MAX_EXPERIMENT_BYTES: u64 = 16 << 20;
+/// Largest `.vox` file read, bytes.
+pub const MAX_VOX_BYTES: u64 = 512 << 20;
+/// Largest mesh file (OBJ, MTL, glTF, GLB or a glTF buffer) read, bytes.
+pub const MAX_MESH_BYTES: u64 = 1 << 30;
+
+/// Why an input file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ReadError {
+    /// The OS error alone: it already says what went wrong.
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+    #[error("not a regular file ({0}): only regular files are read")]
+    NotRegular(&'static str),
+    #[error("{size} bytes: larger than the {limit} bytes a {what} may have")]
+    TooLarge {
+        size: u64,
+        limit: u64,
+        what: &'static str,
+    },
+}
+
+/// The bytes of the regular file `path` (links followed), of at most `limit` bytes;
+/// `what` names the kind of file in the error.
+pub fn read_file(path: &Path, limit: u64, what: &'static str) -> Result<Vec<u8>, ReadError> {
+    let meta = std::fs::metadata(path)?;
+    let ft = meta.file_type();
+    if !ft.is_file() {
+        return Err(ReadError::NotRegular(kind_of(&ft)));
+    }
+    if meta.len() > limit {
+        return Err(ReadError::TooLarge {
+            size: meta.len(),
+            limit,
+            what,
+        });
+    }
+    let file = std::fs::File::open(path)?;
+    // The file may grow between the check and the read: never read past the limit.
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(limit + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(ReadError::TooLarge {
+            size: bytes.len() as u64,
+            limit,
+            what,
+        });
+    }
+    Ok(bytes)
+}
+
+fn kind_of(ft: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if ft.is_char_device() {
+            return "a character device";
+        }
+        if ft.is_block_device() {
+            return "a block device";
+        }
+        if ft.is_fifo() {
+            return "a FIFO";
+        }
+        if ft.is_socket() {
+            return "a socket";
+        }
+    }
+    if ft.is_dir() {
+        "a directory"
+    } else {
+        "not a plain file"
+    }
+}
+
+thread_local! {
+    /// Set while this thread runs a guarded parser: its panics are not printed.
+    static QUIET: Cell<bool> = const { Cell::new(false) };
+    /// The message of the last panic a guarded parser raised on this thread.
+    static LAST_PANIC: Cell<Option<String>> = const { Cell::new(None) };
+}
+
+/// Installs, once, a panic hook that stays quiet on threads running [`guarded`] (and
+/// keeps the message for the error) and defers to the previous hook everywhere else.
+fn install_hook() {
+    static HOOK: Once = Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if QUIET.with(Cell::get) {
+                let message = info
+                    .payload()
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| info.payload().downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "a panic without a message".to_string());
+                let at = info
+                    .location()
+                    .map(|l| format!(" at {}:{}", l.file(), l.line()))
+                    .unwrap_or_default();
+                LAST_PANIC.with(|p| p.set(Some(format!("{message}{at}"))));
+            } else {
+                previous(info);
+            }
+        }));
+    });
+}
+
+/// Runs a third-party parser `f`; a panic inside it becomes `Err` with its message
+/// (where in the parser it happened), printed nowhere.
+pub fn guarded<T>(f: impl FnOnce() -> T) -> Result<T, String> {
+    install_hook();
+    let was = QUIET.with(|q| q.replace(true));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    QUIET.with(|q| q.set(was));
+    result.map_err(|_| {
+        LAST_PANIC
+            .with(Cell::take)
+            .unwrap_or_else(|| "a panic".to_string())
+    })
+}
+
+/// `text` cut to at most `max` characters for an error message, with how much was cut.
+pub fn excerpt(text: &str, max: usize) -> String {
+    let n = text.chars().count();
+    if n <= max {
+        return text.to_string();
+    }
+    let head: String = text.chars().take(max).collect();
+    format!("{head}... ({} more characters)", n - max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn devices_fifos_and_directories_are_refused_at_once() {
+        for p in ["/dev/zero", "/dev/null", "/"] {
+            let e = read_file(Path::new(p), 1 << 20, "test file").unwrap_err();
+            assert!(matches!(e, ReadError::NotRegular(_)), "{p}: {e}");
+        }
+    }
+
+    #[test]
+    fn files_over_the_limit_are_refused_before_reading() {
+        let dir = std::env::temp_dir().join(format!("voxlab-input-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("big.txt");
+        std::fs::write(&p, vec![b'x'; 100]).unwrap();
+        assert_eq!(read_file(&p, 100, "t").unwrap().len(), 100);
+        let e = read_file(&p, 99, "test file").unwrap_err().to_string();
+        assert!(e.contains("100 bytes") && e.contains("99 bytes"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_panic_in_a_guarded_parser_is_an_error_with_its_message() {
+        let r: Result<(), String> = guarded(|| panic!("index out of bounds: 7"));
+        let e = r.unwrap_err();
+        assert!(e.contains("index out of bounds: 7"), "{e}");
+        assert_eq!(guarded(|| 5).unwrap(), 5);
+    }
+
+    #[test]
+    fn excerpts_are_cut() {
+        assert_eq!(excerpt("abc", 5), "abc");
+        assert_eq!(excerpt("abcdef", 3), "abc... (3 more characters)");
+    }
+}
