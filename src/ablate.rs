@@ -439,7 +439,14 @@ impl Point {
                 _ => {}
             }
         }
-        s.trim_matches('_').to_string()
+        let s = s.trim_matches('_').to_string();
+        // A value such as 1e-300 prints as 300 digits: long names are cut and keep a
+        // hash of the whole so they stay unique and within file-name limits.
+        if s.len() <= 80 {
+            return s;
+        }
+        let hash = blake3::hash(raw.as_bytes()).to_hex();
+        format!("{}-{}", &s[..64], &hash[..12])
     }
 }
 

@@ -495,8 +495,13 @@ impl<'a> Ctx<'a> {
 
     /// `key = value: what is allowed`, at the key's line.
     fn invalid(&self, key: &str, requirement: impl fmt::Display) -> ExperimentError {
+        // Quoted values are cut: a 10 MB `name` must not make a 10 MB message.
+        let requirement = crate::input::excerpt(&requirement.to_string(), 400);
         let message = match self.raw_value(key) {
-            Some(v) => format!(" = {v}: {requirement}"),
+            Some(v) => format!(
+                " = {}: {requirement}",
+                crate::input::excerpt(&v.to_string(), 120)
+            ),
             None => format!(": {requirement}"),
         };
         ExperimentError::Invalid {
@@ -518,6 +523,7 @@ impl<'a> Ctx<'a> {
             .trim()
             .replace("expected i64", "expected an integer")
             .replace("expected f64", "expected a number");
+        let msg = crate::input::excerpt(&msg, 400);
         let Some(doc) = self.doc.as_ref() else {
             return ExperimentError::Syntax {
                 file: self.file.clone(),

@@ -559,11 +559,7 @@ fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
         v.grid.voxel_size(),
         v.shell_voxels,
         v.interior_voxels,
-        if v.closed {
-            ""
-        } else {
-            ": open mesh, not filled"
-        },
+        if v.closed { "" } else { ": open mesh" },
         v.materials.len() - 1,
         start.elapsed().as_secs_f64(),
         a.out.display()

@@ -48,6 +48,8 @@ impl OutputFormat {
     }
 }
 
+/// Every variant holds its cause in `error`, not `source`: the message already includes
+/// it, and a `source` would print it twice through anyhow's `{:#}`.
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
     #[error(
@@ -55,37 +57,50 @@ pub enum OutputError {
         path.display()
     )]
     UnknownExtension { path: PathBuf },
-    #[error("cannot create directory {} for {}: {source}", dir.display(), path.display())]
+    #[error("cannot create directory {} for {}: {error}", dir.display(), path.display())]
     CreateDir {
         dir: PathBuf,
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    #[error("cannot write {}: {source}", path.display())]
+    #[error("cannot write {}: {}", path.display(), encoding_text(error))]
     Write {
         path: PathBuf,
-        source: image::ImageError,
+        error: image::ImageError,
     },
-    #[error("cannot write {}: {source}", path.display())]
+    #[error("cannot write {}: {error}", path.display())]
     WriteFile {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    #[error("cannot write {}: {source}", path.display())]
+    #[error("cannot write {}: {error}", path.display())]
     Rename {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}: {error}", path.display())]
     Read {
         path: PathBuf,
-        source: image::ImageError,
+        error: image::ImageError,
     },
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}: {error}", path.display())]
     Open {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
+}
+
+/// An encoder's error as what it is: the image crate reports some failures of its EXR
+/// encoder as decoding errors ("Format error decoding OpenExr"), which reads wrongly
+/// while writing.
+fn encoding_text(e: &image::ImageError) -> String {
+    match e {
+        image::ImageError::Decoding(d) => match std::error::Error::source(d) {
+            Some(inner) => format!("the {:?} encoder failed: {inner}", d.format_hint()),
+            None => format!("the {:?} encoder failed", d.format_hint()),
+        },
+        other => other.to_string(),
+    }
 }
 
 /// Writes `frame` to `path` in the format its extension names (`.png` or `.exr`),
@@ -108,9 +123,9 @@ pub fn write_frame(frame: &Frame, path: impl AsRef<Path>) -> Result<(), OutputEr
                 img.save_with_format(tmp, format.image_format())
             }
         };
-        written.map_err(|source| OutputError::Write {
+        written.map_err(|error| OutputError::Write {
             path: path.to_path_buf(),
-            source,
+            error,
         })
     })
 }
@@ -121,9 +136,9 @@ pub fn write_frame(frame: &Frame, path: impl AsRef<Path>) -> Result<(), OutputEr
 pub fn write_file(path: impl AsRef<Path>, bytes: &[u8]) -> Result<(), OutputError> {
     let path = path.as_ref();
     write_atomically(path, |tmp| {
-        std::fs::write(tmp, bytes).map_err(|source| OutputError::WriteFile {
+        std::fs::write(tmp, bytes).map_err(|error| OutputError::WriteFile {
             path: path.to_path_buf(),
-            source,
+            error,
         })
     })
 }
@@ -138,21 +153,21 @@ fn write_atomically(
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    std::fs::create_dir_all(&dir).map_err(|source| OutputError::CreateDir {
+    std::fs::create_dir_all(&dir).map_err(|error| OutputError::CreateDir {
         dir: dir.clone(),
         path: path.to_path_buf(),
-        source,
+        error,
     })?;
     let tmp = temp_path(&dir, path);
     if let Err(e) = write(&tmp) {
         let _ = std::fs::remove_file(&tmp);
         return Err(e);
     }
-    std::fs::rename(&tmp, path).map_err(|source| {
+    std::fs::rename(&tmp, path).map_err(|error| {
         let _ = std::fs::remove_file(&tmp);
         OutputError::Rename {
             path: path.to_path_buf(),
-            source,
+            error,
         }
     })
 }
@@ -167,17 +182,21 @@ fn temp_path(dir: &Path, path: &Path) -> PathBuf {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "frame".to_string());
     // The format is passed explicitly, so the temporary suffix need not be an image one.
-    dir.join(format!(".{name}.{}.{n}.tmp", std::process::id()))
+    // Short and fixed in length: an output name of 250-255 bytes (the file-name limit)
+    // must not make its temporary name too long. The first characters of the name say
+    // whose it is.
+    let head: String = name.chars().take(32).collect();
+    dir.join(format!(".{head}.{}.{n}.tmp", std::process::id()))
 }
 
 fn read(path: &Path, format: ImageFormat) -> Result<image::DynamicImage, OutputError> {
-    let file = File::open(path).map_err(|source| OutputError::Open {
+    let file = File::open(path).map_err(|error| OutputError::Open {
         path: path.to_path_buf(),
-        source,
+        error,
     })?;
-    image::load(BufReader::new(file), format).map_err(|source| OutputError::Read {
+    image::load(BufReader::new(file), format).map_err(|error| OutputError::Read {
         path: path.to_path_buf(),
-        source,
+        error,
     })
 }
 

@@ -2,10 +2,12 @@
 //!
 //! The grid's corner is the mesh's bounding-box minimum and its voxel size is in the
 //! mesh's units. Every voxel a triangle touches is solid (conservative, exact
-//! separating-axis test, see [`super::voxelize`]); a closed mesh is then filled. A mesh
+//! separating-axis test, see [`super::voxelize`]); then every voxel the outside cannot
+//! reach through void voxels is filled (cavities included), so a closed volume with
+//! non-manifold edges, cracks or pinholes narrower than a voxel comes out solid. A mesh
 //! is closed when, after welding vertices at identical positions, every edge is shared
-//! by exactly two triangles; otherwise only its surface shell is kept and a warning
-//! says so. Closedness is judged over the whole file, not per object.
+//! by exactly two triangles; an open one is filled the same way and a warning says so.
+//! Closedness is judged over the whole file, not per object.
 //!
 //! Conservative voxels cover the surface, so the solid's volume exceeds the mesh's by
 //! roughly a shell of half a voxel times the surface area (about 7 % for a sphere 64
@@ -64,7 +66,8 @@ pub struct Voxelized {
     pub materials: Vec<Material>,
     /// Things the caller should tell the user (an open mesh, skipped primitives).
     pub warnings: Vec<String>,
-    /// Whether the mesh was closed and its interior filled.
+    /// Whether the mesh was closed (every welded edge shared by exactly two triangles).
+    /// The interior is filled either way: see `interior_voxels`.
     pub closed: bool,
     pub triangle_count: usize,
     /// Voxels touched by the surface, and voxels filled inside it.
@@ -528,15 +531,17 @@ pub fn voxelize(
     let shell_voxels = voxelize_triangles(&mut grid, tris, &ids);
     let open_edges = boundary_edge_count(tris);
     let mut warnings = Vec::new();
-    let interior_voxels = if open_edges == 0 {
-        fill_interior(&mut grid)
-    } else {
+    // Whatever the outside flood does not reach is inside, whatever the topology says:
+    // a closed volume with a non-manifold edge, a tiny crack or a pinhole (sealed by the
+    // conservative shell) comes out solid. Enclosed cavities are filled too.
+    let interior_voxels = fill_interior(&mut grid);
+    if open_edges > 0 {
         warnings.push(format!(
             "the mesh is not closed ({open_edges} edges are not shared by exactly two \
-             triangles): only its surface shell was voxelized, the inside is left empty"
+             triangles): {interior_voxels} voxels the outside could not reach were filled; \
+             a hole wider than a voxel leaves the inside empty"
         ));
-        0
-    };
+    }
     Ok(Voxelized {
         grid,
         materials,

@@ -18,8 +18,10 @@
 //! and layers marked hidden are left out). As in MagicaVoxel, a model's pivot is its
 //! centre rounded down, `floor(size / 2)`: voxel `v` lands in the world cell
 //! `floor(R (v + 0.5 - floor(size / 2)) + t)`. Where models overlap, the later one wins.
-//! A file without a scene graph (the old format) places its models unmoved. A chosen
-//! model is loaded alone, unmoved, in a grid of its own SIZE.
+//! A file without a scene graph (the old format) holds the frames of an animation:
+//! model 0 is loaded, as MagicaVoxel shows frame 0. A chosen model is loaded alone,
+//! unmoved, in a grid of its own SIZE. A voxel of colour index 0 is empty, as in
+//! MagicaVoxel (dot_vox reads it as colour 1, so the chunk walk marks such records).
 //!
 //! # Materials
 //!
@@ -336,7 +338,7 @@ pub fn load_vox(path: impl AsRef<Path>, model: Option<usize>) -> Result<VoxScene
     let fail = |kind| LoadError::new(path, kind);
     let bytes = crate::input::read_file(path, crate::input::MAX_VOX_BYTES, ".vox file")
         .map_err(|e| fail(LoadErrorKind::Input(e)))?;
-    check_chunks(&bytes).map_err(fail)?;
+    let empty = check_chunks(&bytes).map_err(fail)?;
     let data = crate::input::guarded(|| dot_vox::load_bytes(&bytes))
         .map_err(|p| {
             fail(LoadErrorKind::InvalidVox(format!(
@@ -344,7 +346,7 @@ pub fn load_vox(path: impl AsRef<Path>, model: Option<usize>) -> Result<VoxScene
             )))
         })?
         .map_err(|e| fail(LoadErrorKind::InvalidVox(e.to_string())))?;
-    vox_from_data(&data, model).map_err(fail)
+    vox_from_data(&data, model, &empty).map_err(fail)
 }
 
 /// Deepest chunk nesting a `.vox` file may have. MagicaVoxel writes MAIN with children
@@ -356,7 +358,10 @@ pub const MAX_VOX_CHUNK_DEPTH: usize = 16;
 /// content, children) without recursion before any parser sees it: every chunk lies
 /// inside its parent and the file, and nesting stays within [`MAX_VOX_CHUNK_DEPTH`].
 /// Errors name the chunk and its byte offset.
-fn check_chunks(bytes: &[u8]) -> Result<(), LoadErrorKind> {
+///
+/// Returns, per XYZI chunk in file order (one per model), which voxel records have colour
+/// index 0: MagicaVoxel treats them as empty, but dot_vox reads index 0 as colour 1.
+fn check_chunks(bytes: &[u8]) -> Result<Vec<Vec<bool>>, LoadErrorKind> {
     let invalid = |m: String| LoadErrorKind::InvalidVox(m);
     if bytes.len() < 8 || &bytes[..4] != b"VOX " {
         return Err(invalid(
@@ -366,6 +371,7 @@ fn check_chunks(bytes: &[u8]) -> Result<(), LoadErrorKind> {
     let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
     // Where the children of each chunk being walked end (the file's end at the top).
     let mut parents: Vec<usize> = vec![bytes.len()];
+    let mut empty: Vec<Vec<bool>> = Vec::new();
     let mut at = 8usize;
     while let Some(&end) = parents.last() {
         if at == end {
@@ -382,6 +388,19 @@ fn check_chunks(bytes: &[u8]) -> Result<(), LoadErrorKind> {
         let content = word(at + 4) as usize;
         let children = word(at + 8) as usize;
         let body = at + 12;
+        if &bytes[at..at + 4] == b"XYZI" && body.checked_add(content).is_some_and(|e| e <= end) {
+            // count, then count records of x, y, z, colour index.
+            let n = if content >= 4 { word(body) as usize } else { 0 };
+            let records = n.min(content.saturating_sub(4) / 4);
+            let flags: Vec<bool> = (0..records)
+                .map(|k| bytes[body + 4 + 4 * k + 3] == 0)
+                .collect();
+            empty.push(if flags.iter().any(|&f| f) {
+                flags
+            } else {
+                Vec::new()
+            });
+        }
         let child_start = body.checked_add(content);
         let chunk_end = child_start.and_then(|c| c.checked_add(children));
         let Some(chunk_end) = chunk_end.filter(|&e| e <= end) else {
@@ -404,10 +423,23 @@ fn check_chunks(bytes: &[u8]) -> Result<(), LoadErrorKind> {
             at = chunk_end;
         }
     }
-    Ok(())
+    Ok(empty)
 }
 
-fn vox_from_data(data: &DotVoxData, model: Option<usize>) -> Result<VoxScene, LoadErrorKind> {
+/// Whether record `k` of model `id` is an empty voxel (colour index 0 in the file).
+fn is_empty(empty: &[Vec<bool>], id: usize, k: usize) -> bool {
+    empty
+        .get(id)
+        .and_then(|f| f.get(k))
+        .copied()
+        .unwrap_or(false)
+}
+
+fn vox_from_data(
+    data: &DotVoxData,
+    model: Option<usize>,
+    empty: &[Vec<bool>],
+) -> Result<VoxScene, LoadErrorKind> {
     let invalid = LoadErrorKind::InvalidVox;
     let count = data.models.len();
     if count == 0 {
@@ -421,7 +453,9 @@ fn vox_from_data(data: &DotVoxData, model: Option<usize>) -> Result<VoxScene, Lo
             return Err(LoadErrorKind::ModelOutOfRange { index, count });
         }
         Some(index) => vec![(index, Place::Local)],
-        None if data.scenes.is_empty() => (0..count).map(|i| (i, Place::Local)).collect(),
+        // Without a scene graph (files before MagicaVoxel 0.99) several models are the
+        // frames of an animation: MagicaVoxel shows frame 0, and so does voxlab.
+        None if data.scenes.is_empty() => vec![(0, Place::Local)],
         None => {
             let mut out = Vec::new();
             walk_graph(data, 0, IDENTITY, [0; 3], 0, &mut out).map_err(invalid)?;
@@ -488,8 +522,10 @@ fn vox_from_data(data: &DotVoxData, model: Option<usize>) -> Result<VoxScene, Lo
     // palette[i]; MATL ids are the file's colour indices, i + 1.
     let mut used = [false; 256];
     for (id, _) in &placements {
-        for v in &data.models[*id].voxels {
-            used[v.i as usize] = true;
+        for (k, v) in data.models[*id].voxels.iter().enumerate() {
+            if !is_empty(empty, *id, k) {
+                used[v.i as usize] = true;
+            }
         }
     }
     let matl: HashMap<u32, &dot_vox::Material> = data.materials.iter().map(|m| (m.id, m)).collect();
@@ -523,7 +559,10 @@ fn vox_from_data(data: &DotVoxData, model: Option<usize>) -> Result<VoxScene, Lo
     let mut grid = Grid::new(dims, 1.0, DVec3::ZERO).map_err(|e| invalid(e.0))?;
     for (id, place) in &placements {
         let m = &data.models[*id];
-        for v in &m.voxels {
+        for (k, v) in m.voxels.iter().enumerate() {
+            if is_empty(empty, *id, k) {
+                continue;
+            }
             let c = [v.x as f64 + 0.5, v.y as f64 + 0.5, v.z as f64 + 0.5];
             let cell = cell_of(place, m.size, c);
             let g = IVec3::new(

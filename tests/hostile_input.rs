@@ -1,0 +1,159 @@
+//! Details of issue 14 that the fuzz harness cannot see: what malformed-but-plausible
+//! input turns into (MagicaVoxel's own reading of a .vox, a cracked closed mesh), and
+//! messages and outputs at their limits.
+
+use std::path::PathBuf;
+
+use glam::IVec3;
+use voxlab::Frame;
+use voxlab::ablate::Point;
+use voxlab::experiment::Experiment;
+use voxlab::render::RenderSettings;
+use voxlab::scene::{VoxelizeOptions, load_vox, voxelize_mesh};
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("voxlab-hostile-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn chunk(id: &[u8; 4], content: &[u8], children: &[u8]) -> Vec<u8> {
+    let mut c = id.to_vec();
+    c.extend((content.len() as u32).to_le_bytes());
+    c.extend((children.len() as u32).to_le_bytes());
+    c.extend(content);
+    c.extend(children);
+    c
+}
+
+/// A .vox without a scene graph: `models` as (size, voxels of x, y, z, colour index).
+fn vox(models: &[([u32; 3], Vec<[u8; 4]>)]) -> Vec<u8> {
+    let mut children = Vec::new();
+    for (size, voxels) in models {
+        let s: Vec<u8> = size.iter().flat_map(|v| v.to_le_bytes()).collect();
+        children.extend(chunk(b"SIZE", &s, &[]));
+        let mut x = (voxels.len() as u32).to_le_bytes().to_vec();
+        for v in voxels {
+            x.extend(v);
+        }
+        children.extend(chunk(b"XYZI", &x, &[]));
+    }
+    let mut f = b"VOX ".to_vec();
+    f.extend(150u32.to_le_bytes());
+    f.extend(chunk(b"MAIN", &[], &children));
+    f
+}
+
+fn solid(g: &voxlab::scene::Grid) -> usize {
+    g.data().iter().filter(|&&m| m != 0).count()
+}
+
+#[test]
+fn a_vox_voxel_of_colour_index_0_is_empty() {
+    let dir = temp_dir("index0");
+    let p = dir.join("a.vox");
+    std::fs::write(
+        &p,
+        vox(&[([3, 1, 1], vec![[0, 0, 0, 0], [1, 0, 0, 5], [2, 0, 0, 0]])]),
+    )
+    .unwrap();
+    let v = load_vox(&p, None).unwrap();
+    assert_eq!(solid(&v.grid), 1, "index 0 loaded as a solid voxel");
+    assert_eq!(v.palette_index, vec![0, 5]);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn an_old_multi_model_vox_shows_frame_0() {
+    let dir = temp_dir("frames");
+    let p = dir.join("frames.vox");
+    std::fs::write(
+        &p,
+        vox(&[
+            ([2, 2, 2], vec![[0, 0, 0, 1]]),
+            ([2, 2, 2], vec![[1, 1, 1, 2], [0, 1, 1, 2]]),
+        ]),
+    )
+    .unwrap();
+    let v = load_vox(&p, None).unwrap();
+    assert_eq!(v.model_count, 2);
+    assert_eq!(solid(&v.grid), 1, "frames overlaid");
+    // Frame 1 is still there when asked for.
+    assert_eq!(solid(&load_vox(&p, Some(1)).unwrap().grid), 2);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A cube whose top face does not share its vertices with the sides (a crack of 1e-7,
+/// so its edges are open topologically) still comes out solid.
+#[test]
+fn a_cracked_closed_cube_comes_out_solid_with_a_warning() {
+    let dir = temp_dir("crack");
+    let e = 1e-7;
+    let obj = format!(
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+         v {e} {} {e}\nv {} {} {e}\nv {} {} {}\nv {e} {} {}\n\
+         f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 1 5 8 4\nf 9 12 11 10\n",
+        1.0 + e,
+        1.0 - e,
+        1.0 + e,
+        1.0 - e,
+        1.0 + e,
+        1.0 - e,
+        1.0 + e,
+        1.0 - e,
+    );
+    let p = dir.join("cracked.obj");
+    std::fs::write(&p, obj).unwrap();
+    let v = voxelize_mesh(&p, &VoxelizeOptions::count(16)).unwrap();
+    assert!(!v.closed);
+    assert!(
+        v.warnings.iter().any(|w| w.contains("not closed")),
+        "{:?}",
+        v.warnings
+    );
+    let d = v.grid.dims();
+    let centre = IVec3::new(d.x as i32 / 2, d.y as i32 / 2, d.z as i32 / 2);
+    assert_ne!(v.grid.get(centre), 0, "the inside was left empty");
+    assert!(v.interior_voxels > 0);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn output_names_at_the_file_name_limit_are_written() {
+    let dir = temp_dir("names");
+    let name = format!("{}.png", "n".repeat(251));
+    assert_eq!(name.len(), 255);
+    let p = dir.join(&name);
+    voxlab::output::write_frame(&Frame::new(2, 2), &p).unwrap();
+    assert!(p.exists());
+    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert_eq!(left.len(), 1, "a temporary file was left behind");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn quoted_values_in_errors_are_cut() {
+    let long = "x".repeat(10_000_000);
+    let text = format!("name = \"{long}\"\n");
+    let e = Experiment::from_str(&text, "x.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.len() < 2000, "a {}-byte message", e.len());
+    assert!(e.contains("x.toml:1") && e.contains("name"), "{e}");
+}
+
+#[test]
+fn ablation_point_names_stay_short_and_unique() {
+    let point = |value: f64| Point {
+        model: "cone at set aperture".into(),
+        knob: "aperture_deg".into(),
+        value: format!("{value}"),
+        settings: RenderSettings::default(),
+        lights_as_points: true,
+    };
+    let a = point(1e-300).slug();
+    let b = point(2e-300).slug();
+    assert!(a.len() <= 80, "{a}");
+    assert_ne!(a, b);
+    assert_eq!(point(4.0).slug(), "cone_at_set_aperture_aperture_deg00004");
+}
