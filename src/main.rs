@@ -274,6 +274,12 @@ enum Backend {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Ctrl-C during a write removes the temporary file instead of leaving it behind.
+    if let Err(e) = voxlab::output::remove_temporaries_on_interrupt() {
+        eprintln!(
+            "warning: no interrupt handler ({e}): an interrupted write may leave a temporary file"
+        );
+    }
     let result = match cli.command {
         None => cmd_render(Experiment::seed_default(), &cli.render),
         Some(Command::Render(args)) => Experiment::load(&args.experiment)

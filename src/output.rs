@@ -159,6 +159,7 @@ fn write_atomically(
         error,
     })?;
     let tmp = temp_path(&dir, path);
+    let _pending = Pending::new(&tmp);
     if let Err(e) = write(&tmp) {
         let _ = std::fs::remove_file(&tmp);
         return Err(e);
@@ -170,6 +171,47 @@ fn write_atomically(
             error,
         }
     })
+}
+
+/// Temporary files being written right now, removed by [`remove_temporaries_on_interrupt`]'s
+/// handler if the process is interrupted (Ctrl-C) before they are renamed.
+static PENDING: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// A temporary file registered in [`PENDING`] for as long as this lives.
+struct Pending(PathBuf);
+
+impl Pending {
+    fn new(tmp: &Path) -> Self {
+        if let Ok(mut p) = PENDING.lock() {
+            p.push(tmp.to_path_buf());
+        }
+        Self(tmp.to_path_buf())
+    }
+}
+
+impl Drop for Pending {
+    fn drop(&mut self) {
+        if let Ok(mut p) = PENDING.lock() {
+            p.retain(|x| x != &self.0);
+        }
+    }
+}
+
+/// Installs a SIGINT/SIGTERM handler (once per process; the binary calls it at start)
+/// that removes every temporary output file still being written and exits with status
+/// 130: an interrupted write leaves neither a half-written output nor a hidden
+/// temporary file. Err when another handler is already installed.
+pub fn remove_temporaries_on_interrupt() -> Result<(), String> {
+    ctrlc::set_handler(|| {
+        if let Ok(p) = PENDING.lock() {
+            for tmp in p.iter() {
+                let _ = std::fs::remove_file(tmp);
+            }
+        }
+        eprintln!("voxlab: interrupted; no partial output left behind");
+        std::process::exit(130);
+    })
+    .map_err(|e| e.to_string())
 }
 
 /// A hidden name in the target's directory (a rename across file systems is not atomic),

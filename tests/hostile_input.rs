@@ -157,3 +157,57 @@ fn ablation_point_names_stay_short_and_unique() {
     assert_ne!(a, b);
     assert_eq!(point(4.0).slug(), "cone_at_set_aperture_aperture_deg00004");
 }
+
+/// Ctrl-C while an image is being written leaves neither the image nor its hidden
+/// temporary file, and exits 130.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_write_leaves_nothing_behind() {
+    let dir = temp_dir("interrupt");
+    let exp = dir.join("empty.toml");
+    // A one-voxel empty scene: the trace is instant, the 8000x8000 EXR takes a while.
+    std::fs::write(
+        &exp,
+        "lights = []\n[scene]\ngenerator = \"empty\"\nsize = 1\n[render]\nwidth = 8000\nheight = 8000\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_voxlab"))
+        .args(["render", exp.to_str().unwrap(), "--backend", "cpu", "--out"])
+        .arg(out.join("big.exr"))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    let tmp_seen = loop {
+        let any = std::fs::read_dir(&out)
+            .unwrap()
+            .any(|e| e.unwrap().file_name().to_string_lossy().ends_with(".tmp"));
+        if any || start.elapsed().as_secs() > 60 {
+            break any;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    };
+    assert!(tmp_seen, "the write never started");
+    let ok = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success();
+    assert!(ok);
+    let status = child.wait().unwrap();
+    let left: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    // The write may have finished just before the signal: then the image is whole.
+    if status.success() {
+        assert_eq!(left.len(), 1, "{left:?}");
+    } else {
+        assert_eq!(status.code(), Some(130), "{status:?}");
+        assert!(left.is_empty(), "left behind: {left:?}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
