@@ -523,7 +523,18 @@ impl<'a> Ctx<'a> {
             .trim()
             .replace("expected i64", "expected an integer")
             .replace("expected f64", "expected a number");
-        let msg = crate::input::excerpt(&msg, 400);
+        let mut msg = crate::input::excerpt(&msg, 400);
+        // toml says "duplicate key" without the key: its span covers the key's text (the
+        // header's for a table defined twice).
+        if msg == "duplicate key"
+            && let Some(name) = span.as_ref().and_then(|s| self.text.get(s.clone()))
+        {
+            let name = name.trim().trim_matches(['[', ']']).trim();
+            msg = format!(
+                "duplicate key `{}`: each key (and each table) may be given once",
+                crate::input::excerpt(name, 80)
+            );
+        }
         let Some(doc) = self.doc.as_ref() else {
             return ExperimentError::Syntax {
                 file: self.file.clone(),

@@ -211,3 +211,15 @@ fn an_interrupted_write_leaves_nothing_behind() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn a_duplicate_key_is_named() {
+    let e = Experiment::from_str("name = \"a\"\nname = \"b\"\n", "x.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("x.toml:2") && e.contains("duplicate key `name`"), "{e}");
+    let e = Experiment::from_str("[render]\nwidth = 8\n[render]\nheight = 8\n", "x.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("x.toml:3") && e.contains("duplicate key `render`"), "{e}");
+}
