@@ -217,9 +217,38 @@ fn a_duplicate_key_is_named() {
     let e = Experiment::from_str("name = \"a\"\nname = \"b\"\n", "x.toml")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("x.toml:2") && e.contains("duplicate key `name`"), "{e}");
+    assert!(
+        e.contains("x.toml:2") && e.contains("duplicate key `name`"),
+        "{e}"
+    );
     let e = Experiment::from_str("[render]\nwidth = 8\n[render]\nheight = 8\n", "x.toml")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("x.toml:3") && e.contains("duplicate key `render`"), "{e}");
+    assert!(
+        e.contains("x.toml:3") && e.contains("duplicate key `render`"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_required_extension_is_the_reason_given() {
+    let dir = temp_dir("draco");
+    let p = dir.join("draco.gltf");
+    std::fs::write(
+        &p,
+        r#"{"asset":{"version":"2.0"},"extensionsUsed":["KHR_draco_mesh_compression"],
+"extensionsRequired":["KHR_draco_mesh_compression"],
+"accessors":[{"componentType":5126,"count":3,"type":"VEC3"}],
+"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]}"#,
+    )
+    .unwrap();
+    let e = voxelize_mesh(&p, &VoxelizeOptions::count(4))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("requires the extension(s) KHR_draco_mesh_compression")
+            && !e.contains("Missing"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }

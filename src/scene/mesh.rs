@@ -224,6 +224,23 @@ fn load_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
     // The gltf crate panics on some hostile documents (an index into a missing
     // accessor, index accessors of a float type): every call into it is guarded.
     let panicked = |p: String| invalid(format!("the glTF parser (gltf) failed on it: {p}"));
+    // A required extension the reader lacks (Draco compression, say) is the reason to
+    // give, before any validation error its missing data would cause.
+    if let Ok(Ok(raw)) = crate::input::guarded(|| gltf::Gltf::from_slice_without_validation(bytes))
+    {
+        let missing: Vec<&str> = raw
+            .document
+            .extensions_required()
+            .filter(|e| !gltf::json::extensions::ENABLED_EXTENSIONS.contains(e))
+            .collect();
+        if !missing.is_empty() {
+            return Err(invalid(format!(
+                "it requires the extension(s) {}, which voxlab's glTF reader does not \
+                 support",
+                missing.join(", ")
+            )));
+        }
+    }
     let gltf = crate::input::guarded(|| gltf::Gltf::from_slice(bytes))
         .map_err(panicked)?
         .map_err(|e| invalid(e.to_string()))?;
