@@ -252,3 +252,47 @@ fn a_required_extension_is_the_reason_given() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn obj_and_mtl_errors_name_their_line() {
+    let dir = temp_dir("objline");
+    let p = dir.join("bad.obj");
+    std::fs::write(&p, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 x 2\nf 1 2 3\n").unwrap();
+    let e = voxelize_mesh(&p, &VoxelizeOptions::count(4))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("bad.obj") && e.contains("line 4 (\"v 1 x 2\")"),
+        "{e}"
+    );
+    let p = dir.join("m.obj");
+    std::fs::write(
+        &p,
+        "mtllib m.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    std::fs::write(dir.join("m.mtl"), "newmtl a\nNs 10\nKd 0.5\n").unwrap();
+    let e = voxelize_mesh(&p, &VoxelizeOptions::count(4))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("m.mtl, line 3 (\"Kd 0.5\")"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_malformed_vox_chunk_is_named_with_its_offset() {
+    let deer = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/deer.vox");
+    let mut b = std::fs::read(&deer).expect("../shared/data/deer.vox");
+    let i = b.windows(4).position(|w| w == b"XYZI").unwrap();
+    let n = u32::from_le_bytes(b[i + 12..i + 16].try_into().unwrap());
+    b[i + 12..i + 16].copy_from_slice(&(n + 1).to_le_bytes());
+    let dir = temp_dir("xyzi");
+    let p = dir.join("bad.vox");
+    std::fs::write(&p, &b).unwrap();
+    let e = load_vox(&p, None).unwrap_err().to_string();
+    assert!(
+        e.contains("bad.vox") && e.contains(&format!("chunk \"XYZI\" at byte {i}")),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -154,15 +154,57 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
     };
     // tobj panics on some malformed lines (a `Kd` with fewer than three values): its
     // panics become errors naming the file.
-    let parsed = crate::input::guarded(|| {
-        tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &options, mtl_loader)
-    })
-    .map_err(|p| {
-        LoadErrorKind::InvalidMesh(format!(
-            "OBJ: the OBJ/MTL parser (tobj) failed on it or its material library: {p}"
-        ))
-    })?;
-    let (models, mtl) = parsed.map_err(|e| LoadErrorKind::InvalidMesh(format!("OBJ: {e}")))?;
+    let parse = |b: &[u8]| {
+        crate::input::guarded(|| {
+            tobj::load_obj_buf(&mut std::io::Cursor::new(b), &options, mtl_loader)
+        })
+    };
+    let (models, mtl) = match parse(bytes) {
+        Ok(Ok(parsed)) => parsed,
+        failure => {
+            // tobj names no line: the first line at which a prefix of the file fails is
+            // the one. A failure at a `mtllib` line lies in the material library.
+            let why = match failure {
+                Ok(Err(e)) => e.to_string(),
+                Err(p) => format!("the parser (tobj) failed: {p}"),
+                Ok(Ok(_)) => unreachable!("matched above"),
+            };
+            let fails = |prefix: &[u8]| !matches!(parse(prefix), Ok(Ok(_)));
+            let Some((n, line)) = first_failing_line(bytes, fails) else {
+                return Err(LoadErrorKind::InvalidMesh(format!("OBJ: {why}")));
+            };
+            let text = String::from_utf8_lossy(line);
+            let text = text.trim();
+            if let Some(lib) = text.strip_prefix("mtllib") {
+                let mtl_path = dir.join(lib.trim());
+                if let Ok(mb) = crate::input::read_file(
+                    &mtl_path,
+                    crate::input::MAX_MESH_BYTES,
+                    "material library",
+                ) {
+                    let mtl_fails = |prefix: &[u8]| {
+                        !matches!(
+                            crate::input::guarded(|| tobj::load_mtl_buf(
+                                &mut std::io::Cursor::new(prefix)
+                            )),
+                            Ok(Ok(_))
+                        )
+                    };
+                    if let Some((m, mline)) = first_failing_line(&mb, mtl_fails) {
+                        return Err(LoadErrorKind::InvalidMesh(format!(
+                            "its material library {}, line {m} ({:?}): {why}",
+                            mtl_path.display(),
+                            crate::input::excerpt(String::from_utf8_lossy(mline).trim(), 80)
+                        )));
+                    }
+                }
+            }
+            return Err(LoadErrorKind::InvalidMesh(format!(
+                "OBJ line {n} ({:?}): {why}",
+                crate::input::excerpt(text, 80)
+            )));
+        }
+    };
     let mut mesh = TriangleMesh::default();
     let mtl = match mtl {
         Ok(m) => m,
@@ -434,6 +476,36 @@ fn gltf_triangles(
         }
     }
     Ok(mesh)
+}
+
+/// The first line (1-based, with its text) at which the prefix of `bytes` ending there
+/// `fails`, by bisection over line ends: a line-by-line parser that stops at its first
+/// bad line fails on every longer prefix too. `None` if even the whole does not fail.
+fn first_failing_line(bytes: &[u8], fails: impl Fn(&[u8]) -> bool) -> Option<(usize, &[u8])> {
+    let mut ends: Vec<usize> = bytes
+        .iter()
+        .enumerate()
+        .filter(|(_, b)| **b == b'\n')
+        .map(|(i, _)| i + 1)
+        .collect();
+    if ends.last() != Some(&bytes.len()) {
+        ends.push(bytes.len());
+    }
+    if !fails(bytes) {
+        return None;
+    }
+    // The smallest k whose prefix of k + 1 lines fails.
+    let (mut lo, mut hi) = (0usize, ends.len() - 1);
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        if fails(&bytes[..ends[mid]]) {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    let start = if lo == 0 { 0 } else { ends[lo - 1] };
+    Some((lo + 1, &bytes[start..ends[lo]]))
 }
 
 /// Loads a mesh file and voxelizes it; see the module documentation.

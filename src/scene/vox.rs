@@ -345,8 +345,25 @@ pub fn load_vox(path: impl AsRef<Path>, model: Option<usize>) -> Result<VoxScene
                 "the .vox parser (dot_vox) failed on it: {p}"
             )))
         })?
-        .map_err(|e| fail(LoadErrorKind::InvalidVox(e.to_string())))?;
-    vox_from_data(&data, model, &empty).map_err(fail)
+        .map_err(|e| {
+            // dot_vox says what failed, not where: find the chunk whose content does not
+            // have its kind's structure.
+            let at = first_malformed_chunk(&bytes)
+                .map(|w| format!("; {w}"))
+                .unwrap_or_default();
+            fail(LoadErrorKind::InvalidVox(format!("{e}{at}")))
+        })?;
+    vox_from_data(&data, model, &empty).map_err(|k| match k {
+        // dot_vox skips what it cannot read (a model whose XYZI count is wrong, say):
+        // the chunk at fault explains what is missing.
+        LoadErrorKind::InvalidVox(m) => {
+            let at = first_malformed_chunk(&bytes)
+                .map(|w| format!("; {w}"))
+                .unwrap_or_default();
+            fail(LoadErrorKind::InvalidVox(format!("{m}{at}")))
+        }
+        other => fail(other),
+    })
 }
 
 /// Deepest chunk nesting a `.vox` file may have. MagicaVoxel writes MAIN with children
@@ -433,6 +450,138 @@ fn is_empty(empty: &[Vec<bool>], id: usize, k: usize) -> bool {
         .and_then(|f| f.get(k))
         .copied()
         .unwrap_or(false)
+}
+
+/// The first chunk (id and byte offset) whose content does not have the structure of its
+/// kind (fixed sizes; counts; the DICTs and strings of the scene-graph, material and
+/// layer chunks), with what is wrong; `None` when every known chunk is well formed.
+/// Only for messages: the chunk tree itself is checked by [`check_chunks`].
+fn first_malformed_chunk(bytes: &[u8]) -> Option<String> {
+    // A reader over one chunk's content.
+    struct R<'a> {
+        b: &'a [u8],
+        at: usize,
+    }
+    impl R<'_> {
+        fn i32(&mut self) -> Result<i64, String> {
+            let w = self.b.get(self.at..self.at + 4).ok_or_else(|| {
+                format!("its content ends at byte {} inside a number", self.b.len())
+            })?;
+            self.at += 4;
+            Ok(i32::from_le_bytes(w.try_into().expect("4 bytes")) as i64)
+        }
+        fn count(&mut self, what: &str) -> Result<usize, String> {
+            let n = self.i32()?;
+            if n < 0 || n as usize > self.b.len() {
+                return Err(format!(
+                    "{what} count {n} cannot fit its {} bytes",
+                    self.b.len()
+                ));
+            }
+            Ok(n as usize)
+        }
+        fn string(&mut self) -> Result<(), String> {
+            let n = self.count("string length")?;
+            if self.at + n > self.b.len() {
+                return Err(format!("a string of {n} bytes runs past its content"));
+            }
+            self.at += n;
+            Ok(())
+        }
+        fn dict(&mut self) -> Result<(), String> {
+            for _ in 0..self.count("DICT entry")? {
+                self.string()?;
+                self.string()?;
+            }
+            Ok(())
+        }
+    }
+    let check = |id: &[u8], c: &[u8]| -> Result<(), String> {
+        let mut r = R { b: c, at: 0 };
+        match id {
+            b"SIZE" if c.len() != 12 => Err(format!("{} content bytes; SIZE has 12", c.len())),
+            b"XYZI" => {
+                let n = r.count("voxel")?;
+                if c.len() != 4 + 4 * n {
+                    return Err(format!(
+                        "{n} voxels need {} bytes; it has {}",
+                        4 + 4 * n,
+                        c.len()
+                    ));
+                }
+                Ok(())
+            }
+            b"RGBA" if c.len() != 1024 => Err(format!("{} content bytes; RGBA has 1024", c.len())),
+            b"nTRN" => {
+                r.i32()?;
+                r.dict()?;
+                r.i32()?;
+                r.i32()?;
+                r.i32()?;
+                for _ in 0..r.count("frame")? {
+                    r.dict()?;
+                }
+                Ok(())
+            }
+            b"nGRP" => {
+                r.i32()?;
+                r.dict()?;
+                for _ in 0..r.count("child")? {
+                    r.i32()?;
+                }
+                Ok(())
+            }
+            b"nSHP" => {
+                r.i32()?;
+                r.dict()?;
+                for _ in 0..r.count("model")? {
+                    r.i32()?;
+                    r.dict()?;
+                }
+                Ok(())
+            }
+            b"MATL" | b"rCAM" => {
+                r.i32()?;
+                r.dict()
+            }
+            b"LAYR" => {
+                r.i32()?;
+                r.dict()?;
+                r.i32().map(|_| ())
+            }
+            b"rOBJ" => r.dict(),
+            _ => Ok(()),
+        }
+    };
+    let word = |at: usize| -> Option<usize> {
+        Some(u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?) as usize)
+    };
+    // Depth first over the tree, as check_chunks walks it.
+    let mut parents = vec![bytes.len()];
+    let mut at = 8usize;
+    while let Some(&end) = parents.last() {
+        if at >= end {
+            parents.pop();
+            continue;
+        }
+        let id = bytes.get(at..at + 4)?;
+        let (content, children) = (word(at + 4)?, word(at + 8)?);
+        let body = at + 12;
+        let c = bytes.get(body..body.checked_add(content)?)?;
+        if let Err(what) = check(id, c) {
+            return Some(format!(
+                "chunk {:?} at byte {at}: {what}",
+                String::from_utf8_lossy(id)
+            ));
+        }
+        if children > 0 && parents.len() < MAX_VOX_CHUNK_DEPTH {
+            parents.push(body + content + children);
+            at = body + content;
+        } else {
+            at = body + content + children;
+        }
+    }
+    None
 }
 
 fn vox_from_data(
