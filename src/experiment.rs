@@ -343,7 +343,8 @@ impl Experiment {
     pub fn from_str(text: &str, path: impl AsRef<Path>) -> Result<Self, ExperimentError> {
         let path = path.as_ref();
         let ctx = Ctx::new(text, path);
-        let raw: RawExperiment = toml::from_str(text).map_err(|e| ctx.serde_error(&e))?;
+        let raw: RawExperiment = toml::from_str(text)
+            .map_err(|e| with_allowed_range(ctx.serde_error(&e), text, path))?;
         build(raw, &ctx, None)
     }
 
@@ -359,7 +360,8 @@ impl Experiment {
     ) -> Result<Self, ExperimentError> {
         let path = path.as_ref();
         let ctx = Ctx::new(text, path);
-        let raw: RawExperiment = toml::from_str(text).map_err(|e| ctx.serde_error(&e))?;
+        let raw: RawExperiment = toml::from_str(text)
+            .map_err(|e| with_allowed_range(ctx.serde_error(&e), text, path))?;
         build(raw, &ctx, Some(cache))
     }
 }
@@ -580,6 +582,62 @@ impl<'a> Ctx<'a> {
             },
             key,
         }
+    }
+}
+
+/// A type error ("invalid type: string, expected an integer") with the key's allowed
+/// range added. The range is declared once, by the check that parses the key: the text is
+/// parsed again with the value replaced by one of the right type that no range admits
+/// (the smallest integer, or -1e300), and that check's requirement is quoted. Keys of
+/// arrays of tables, and keys whose check admits the probe, keep the message as it was.
+fn with_allowed_range(e: ExperimentError, text: &str, path: &Path) -> ExperimentError {
+    let ExperimentError::Invalid {
+        file,
+        line,
+        key,
+        message,
+    } = e
+    else {
+        return e;
+    };
+    let probe = if message.contains("expected an integer") {
+        Some(toml_edit::value(i64::MIN))
+    } else if message.contains("expected a number") {
+        Some(toml_edit::value(-1e300))
+    } else {
+        None
+    };
+    let range = probe.and_then(|value| {
+        if key.contains('[') {
+            return None;
+        }
+        let mut doc: toml_edit::DocumentMut = text.parse().ok()?;
+        let mut parts: Vec<&str> = key.split('.').collect();
+        let last = parts.pop()?;
+        let mut table = doc.as_table_mut();
+        for p in parts {
+            table = table.get_mut(p)?.as_table_mut()?;
+        }
+        *table.get_mut(last)? = value;
+        let probed = doc.to_string();
+        let ctx = Ctx::new(&probed, path);
+        let raw: RawExperiment = toml::from_str(&probed).ok()?;
+        match build(raw, &ctx, None) {
+            Err(ExperimentError::Invalid {
+                key: k, message: m, ..
+            }) if k == key => m.rsplit_once(": ").map(|(_, req)| req.to_string()),
+            _ => None,
+        }
+    });
+    let message = match range {
+        Some(r) => format!("{message}; {r}"),
+        None => message,
+    };
+    ExperimentError::Invalid {
+        file,
+        line,
+        key,
+        message,
     }
 }
 

@@ -296,3 +296,18 @@ fn a_malformed_vox_chunk_is_named_with_its_offset() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn a_type_error_states_the_allowed_range() {
+    let e = Experiment::from_str("[render]\nwidth = \"x\"\n", "x.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("x.toml:2") && e.contains("expected an integer") && e.contains("1..=16384"),
+        "{e}"
+    );
+    let e = Experiment::from_str("[camera]\ndistance = \"far\"\n", "x.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("expected a number") && e.contains("> 0"), "{e}");
+}
