@@ -272,7 +272,33 @@ enum Backend {
     Cpu,
 }
 
+/// Mesa's Vulkan drivers probe Wayland when the instance is made, and libwayland prints
+/// "error: XDG_RUNTIME_DIR is invalid or not set in the environment." (twice per render,
+/// in the same form as voxlab's own errors) when the variable is missing, as it is under
+/// CI and in containers. voxlab draws no Wayland surface: a private directory stands in.
+fn quiet_wayland_probe() {
+    let valid = std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| Path::new(&d).is_dir());
+    if valid {
+        return;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::{MetadataExt, PermissionsExt};
+        let uid = std::fs::metadata("/proc/self")
+            .map(|m| m.uid())
+            .unwrap_or(0);
+        let dir = std::env::temp_dir().join(format!("voxlab-runtime-{uid}"));
+        if std::fs::create_dir_all(&dir).is_ok()
+            && std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700)).is_ok()
+        {
+            // SAFETY: called first thing in main, before any other thread exists.
+            unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
+        }
+    }
+}
+
 fn main() -> ExitCode {
+    quiet_wayland_probe();
     let cli = Cli::parse();
     // Ctrl-C during a write removes the temporary file instead of leaving it behind.
     if let Err(e) = voxlab::output::remove_temporaries_on_interrupt() {

@@ -49,6 +49,13 @@ if ! command -v cargo >/dev/null; then
     exit 1
 fi
 
+# Mesa's Vulkan drivers probe Wayland and libwayland complains on every device when
+# XDG_RUNTIME_DIR is missing (as under CI): a private one keeps the test output readable.
+if [ -z "${XDG_RUNTIME_DIR:-}" ] || [ ! -d "${XDG_RUNTIME_DIR}" ]; then
+    XDG_RUNTIME_DIR="$(mktemp -d)"
+    export XDG_RUNTIME_DIR
+fi
+
 # Release mode: the f64 reference renders real images in the tests, and the README's
 # render command builds the same artifacts.
 cargo test --release --locked "$@"
