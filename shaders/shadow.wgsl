@@ -4,7 +4,7 @@
 #define_import_path voxlab::shadow
 
 #import voxlab::bindings::{materials, voxel_material, voxel_inside}
-#import voxlab::traversal::{Dda, UNROLL, enter, dda_init, dda_axis, dda_advance, max_steps}
+#import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, max_steps}
 #import voxlab::counters::loop_cut
 
 fn kt_of(m: u32) -> f32 {
@@ -42,18 +42,24 @@ fn transmittance(q: vec3<f32>, d: vec3<f32>, len: f32) -> f32 {
     }
     var s = dda_init(q, d, e.voxel);
     let n = max_steps();
-    // UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
+    // DDA_UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
     var done = false;
     var i = 0u;
-    for (; i < n && !done; i += UNROLL) {
+    for (; i < n && !done; i += #{DDA_UNROLL}u) {
         done = min_kt_step(&s, &v, len);
+#if DDA_UNROLL >= 2
+        if !done { done = min_kt_step(&s, &v, len); }
+#endif
+#if DDA_UNROLL >= 4
+        if !done { done = min_kt_step(&s, &v, len); }
+        if !done { done = min_kt_step(&s, &v, len); }
+#endif
+#if DDA_UNROLL >= 8
         if !done { done = min_kt_step(&s, &v, len); }
         if !done { done = min_kt_step(&s, &v, len); }
         if !done { done = min_kt_step(&s, &v, len); }
         if !done { done = min_kt_step(&s, &v, len); }
-        if !done { done = min_kt_step(&s, &v, len); }
-        if !done { done = min_kt_step(&s, &v, len); }
-        if !done { done = min_kt_step(&s, &v, len); }
+#endif
     }
     // Any other way out is the driver's loop limit (shaders/counters.wgsl).
     if !done && i < n {

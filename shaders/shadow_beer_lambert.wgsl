@@ -7,7 +7,7 @@
 #define_import_path voxlab::shadow_beer_lambert
 
 #import voxlab::bindings::{materials, voxel_material, voxel_inside}
-#import voxlab::traversal::{Dda, UNROLL, enter, dda_init, dda_axis, dda_advance, max_steps}
+#import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, max_steps}
 #import voxlab::counters::loop_cut
 
 // Absorption per voxel unit; void's entry is uploaded too (zero unless it transmits
@@ -74,18 +74,24 @@ fn transmittance_rgb(q: vec3<f32>, d: vec3<f32>, len: f32) -> vec3<f32> {
     w.opaque = false;
     var s = dda_init(q, d, e.voxel);
     let n = max_steps();
-    // UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
+    // DDA_UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
     var done = false;
     var i = 0u;
-    for (; i < n && !done; i += UNROLL) {
+    for (; i < n && !done; i += #{DDA_UNROLL}u) {
         done = beer_lambert_step(&s, &w, len);
+#if DDA_UNROLL >= 2
+        if !done { done = beer_lambert_step(&s, &w, len); }
+#endif
+#if DDA_UNROLL >= 4
+        if !done { done = beer_lambert_step(&s, &w, len); }
+        if !done { done = beer_lambert_step(&s, &w, len); }
+#endif
+#if DDA_UNROLL >= 8
         if !done { done = beer_lambert_step(&s, &w, len); }
         if !done { done = beer_lambert_step(&s, &w, len); }
         if !done { done = beer_lambert_step(&s, &w, len); }
         if !done { done = beer_lambert_step(&s, &w, len); }
-        if !done { done = beer_lambert_step(&s, &w, len); }
-        if !done { done = beer_lambert_step(&s, &w, len); }
-        if !done { done = beer_lambert_step(&s, &w, len); }
+#endif
     }
     // Any other way out is the driver's loop limit (shaders/counters.wgsl).
     if !done && i < n {

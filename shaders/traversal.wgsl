@@ -140,9 +140,6 @@ fn max_steps() -> u32 {
     return params.dims.x + params.dims.y + params.dims.z + 3u;
 }
 
-// DDA steps per iteration of the walks' loops (written out in each loop).
-const UNROLL: u32 = 8u;
-
 // One step of cast_ray's walk (contract "cast", step 3); true when the walk is over,
 // with the hit, if any, in h.
 fn cast_step(s: ptr<function, Dda>, h: ptr<function, Hit>, medium: u32, t_limit: f32) -> bool {
@@ -195,20 +192,28 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
     }
     var s = dda_init(o, d, e.voxel);
     let n = max_steps();
-    // UNROLL steps per loop iteration: the software driver's loop limit counts back
-    // edges, not work (shaders/counters.wgsl), so a walk of k voxels spends k / UNROLL
-    // of it. `done` is set by the step that ends the walk; the ones after it do nothing.
+    // DDA_UNROLL steps (1, 2, 4 or 8; the host's choice per device, src/gpu/mod.rs) per
+    // loop iteration: the software driver's loop limit counts back edges, not work
+    // (shaders/counters.wgsl), so a walk of k voxels spends k / DDA_UNROLL of it. But
+    // that driver runs every step written out whatever `done` says (its branches are
+    // masks), so each walk also pays up to DDA_UNROLL - 1 idle steps.
     var done = false;
     var i = 0u;
-    for (; i < n && !done; i += UNROLL) {
+    for (; i < n && !done; i += #{DDA_UNROLL}u) {
         done = cast_step(&s, &h, medium, t_limit);
+#if DDA_UNROLL >= 2
+        if !done { done = cast_step(&s, &h, medium, t_limit); }
+#endif
+#if DDA_UNROLL >= 4
+        if !done { done = cast_step(&s, &h, medium, t_limit); }
+        if !done { done = cast_step(&s, &h, medium, t_limit); }
+#endif
+#if DDA_UNROLL >= 8
         if !done { done = cast_step(&s, &h, medium, t_limit); }
         if !done { done = cast_step(&s, &h, medium, t_limit); }
         if !done { done = cast_step(&s, &h, medium, t_limit); }
         if !done { done = cast_step(&s, &h, medium, t_limit); }
-        if !done { done = cast_step(&s, &h, medium, t_limit); }
-        if !done { done = cast_step(&s, &h, medium, t_limit); }
-        if !done { done = cast_step(&s, &h, medium, t_limit); }
+#endif
     }
     // The walk ends by a step, or after max_steps; leaving the loop any other way is the
     // driver's loop limit (shaders/counters.wgsl, loop_cut).

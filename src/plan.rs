@@ -72,6 +72,11 @@ pub struct Plan {
     pub count_rays: bool,
     /// Entries of the explicit ray stack (`RAY_STACK_SIZE`).
     pub ray_stack_size: u32,
+    /// Voxel steps per iteration of the walks' loops (`DDA_UNROLL`: 1, 2, 4 or 8). Not
+    /// the scene's choice but the device's (`GpuTracer` sets it): it changes no image,
+    /// only how often a loop takes its back edge, which Mesa's software driver limits
+    /// (shaders/counters.wgsl).
+    pub dda_unroll: u32,
     /// What was left out and why, in plain words.
     pub reasons: Vec<String>,
 }
@@ -298,6 +303,7 @@ impl Plan {
             pyramid,
             count_rays: false,
             ray_stack_size,
+            dda_unroll: 1,
             reasons,
         }
     }
@@ -375,6 +381,7 @@ impl Plan {
                     pyramid: None,
                     count_rays: false,
                     ray_stack_size,
+                    dda_unroll: 1,
                     reasons: Vec::new(),
                 };
                 for (i, f) in Self::FLAGS.iter().enumerate() {
@@ -398,6 +405,10 @@ impl Plan {
         if self.pyramid.is_some() {
             defs.insert("CONES".to_string(), ShaderDefValue::Bool(true));
         }
+        defs.insert(
+            "DDA_UNROLL".to_string(),
+            ShaderDefValue::UInt(self.dda_unroll),
+        );
         defs.insert(
             "RAY_STACK_SIZE".to_string(),
             ShaderDefValue::UInt(self.ray_stack_size.max(1)),
@@ -463,7 +474,8 @@ mod tests {
         assert_eq!(p.ray_stack_size, 1);
         // Depth 0/0 needs one stack entry anyway: no stack note.
         assert_eq!(p.reasons.len(), 4, "{p}");
-        assert_eq!(p.shader_defs().len(), 1);
+        // RAY_STACK_SIZE and DDA_UNROLL, always defined.
+        assert_eq!(p.shader_defs().len(), 2);
     }
 
     #[test]

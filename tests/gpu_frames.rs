@@ -223,3 +223,59 @@ fn frames_in_pieces_equal_frames_in_one_dispatch() {
     }
     assert_eq!(pieces.unwrap().frame, whole);
 }
+
+/// The steps a walk takes per loop iteration change no image: the same voxels in the
+/// same order, on every shadow and transmittance model.
+#[test]
+fn steps_per_loop_iteration_change_nothing() {
+    let mut rng = StdRng::seed_from_u64(11);
+    let scene = random_scene(&mut rng, UVec3::new(9, 7, 9), 4);
+    let mut gpu = tracer();
+    for model in [Transmittance::MinKt, Transmittance::BeerLambert] {
+        let mut settings = RenderSettings {
+            width: 24,
+            height: 24,
+            spp: 3,
+            light_samples: 2,
+            ..Default::default()
+        };
+        settings.features.area_lights = true;
+        settings.features.transmittance = model;
+        let mut images = Vec::new();
+        for n in [1, 2, 4, 8] {
+            gpu.set_dda_unroll(n).unwrap();
+            images.push(gpu.render(&scene, &settings).expect("GPU").frame);
+        }
+        for (k, image) in images.iter().enumerate().skip(1) {
+            assert_eq!(image, &images[0], "{}: unroll index {k}", model.name());
+        }
+    }
+    assert!(gpu.set_dda_unroll(3).is_err());
+}
+
+/// A render the software driver's loop limit cuts at one step per loop iteration is
+/// rendered again with more (and right): the seed scene at 256^3 needs it on lavapipe.
+/// On a hardware GPU nothing is cut and the first render stands.
+#[test]
+fn a_cut_render_is_rendered_again_with_more_steps_per_iteration() {
+    let scene = voxlab::scene::seed_scene(256).unwrap();
+    let settings = RenderSettings {
+        width: 32,
+        height: 32,
+        ..Default::default()
+    };
+    let mut gpu = tracer();
+    gpu.set_dda_unroll(1).unwrap();
+    let g = gpu
+        .render(&scene, &settings)
+        .expect("rendered, if need be again");
+    let c = voxlab::cpu::render(&scene, &settings);
+    assert_agree("seed 256^3 after a retry", &g.frame, &c.frame);
+    if gpu.adapter_info().device_type == wgpu::DeviceType::Cpu {
+        assert_eq!(
+            gpu.dda_unroll(),
+            8,
+            "lavapipe cuts this scene at one step per iteration"
+        );
+    }
+}

@@ -266,6 +266,8 @@ pub struct GpuTracer {
     /// The accumulation a `render_frames` call may continue; any other render, or a
     /// failed one, clears it.
     accumulation: Option<Accumulation>,
+    /// Voxel steps per loop iteration in the walks (`Plan::dda_unroll`) on this device.
+    dda_unroll: u32,
 }
 
 /// Device memory bound by one render, in bytes: what a plan's leaving out saves.
@@ -304,6 +306,50 @@ impl std::fmt::Display for GpuMemory {
         )
     }
 }
+
+/// Voxel steps per loop iteration for a device: Mesa's software driver ends every loop
+/// of an invocation after 65535 back edges in all (shaders/counters.wgsl), so on a CPU
+/// device the walks take several steps per back edge; hardware has no such limit, and
+/// there every step written out but not needed costs. `VOXLAB_DDA_UNROLL` (1, 2, 4 or
+/// 8) overrides it, for measuring.
+fn dda_unroll_for(info: &wgpu::AdapterInfo) -> u32 {
+    if let Some(n) = std::env::var("VOXLAB_DDA_UNROLL")
+        .ok()
+        .and_then(|v| v.parse::<u32>().ok())
+        .filter(|n| [1, 2, 4, 8].contains(n))
+    {
+        return n;
+    }
+    if info.device_type == wgpu::DeviceType::Cpu {
+        SOFTWARE_FIRST_DDA_UNROLL
+    } else {
+        1
+    }
+}
+
+/// Steps per loop iteration a software device falls back to when a render runs into
+/// the driver's loop limit (`GpuTracer::render_range`).
+const SOFTWARE_DDA_UNROLL: u32 = 8;
+
+/// Steps per loop iteration a software device starts with: short walks (small grids)
+/// pay least for steps written out but not needed (1305 ms per seed frame at 16^3 and
+/// 512x512 against 1802 ms with 8, on lavapipe), and one step per back edge is what the
+/// limit allows least of, so a render that needs more is retried with
+/// `SOFTWARE_DDA_UNROLL` (587 ms against 216 ms per 32x32 frame of the seed scene at
+/// 256^3 with 4 and 8).
+const SOFTWARE_FIRST_DDA_UNROLL: u32 = 1;
+
+/// A render some invocation of which the driver's loop limit cut short.
+#[derive(Debug)]
+struct LoopsCut;
+
+impl std::fmt::Display for LoopsCut {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "the driver's loop limit cut the walk")
+    }
+}
+
+impl std::error::Error for LoopsCut {}
 
 /// Hardware before software, and the primary backends before GL.
 fn adapter_rank(info: &wgpu::AdapterInfo) -> (u32, u32) {
@@ -382,6 +428,7 @@ impl GpuTracer {
         }))
         .with_context(|| format!("opening a device on {}", adapter.get_info().name))?;
 
+        let dda_unroll = dda_unroll_for(&adapter.get_info());
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("voxlab tracer"),
             entries: &[
@@ -447,6 +494,7 @@ impl GpuTracer {
             last_plan: None,
             last_memory: None,
             accumulation: None,
+            dda_unroll,
         })
     }
 
@@ -466,6 +514,21 @@ impl GpuTracer {
     /// Largest 3D texture side this device allows: the largest grid side.
     pub fn max_grid_side(&self) -> u32 {
         self.device.limits().max_texture_dimension_3d
+    }
+
+    /// Voxel steps per loop iteration of the walks on this tracer (`Plan::dda_unroll`).
+    pub fn dda_unroll(&self) -> u32 {
+        self.dda_unroll
+    }
+
+    /// Sets the voxel steps per loop iteration (1, 2, 4 or 8) for the next renders: for
+    /// benchmarks and the tests that hold that it changes no image.
+    pub fn set_dda_unroll(&mut self, n: u32) -> Result<()> {
+        if ![1, 2, 4, 8].contains(&n) {
+            bail!("dda_unroll {n}: must be 1, 2, 4 or 8");
+        }
+        self.dda_unroll = n;
+        Ok(())
     }
 
     /// The plan of the latest render.
@@ -944,6 +1007,11 @@ impl GpuTracer {
     /// over `0..frames.end`; a start above 0 continues the sums in the buffers. With
     /// `continuable` (render_frames) an accumulating render is recorded so the next
     /// call may continue it; otherwise the record is cleared.
+    ///
+    /// On a software device the walks start with few steps per loop iteration (fast for
+    /// short walks); a render the driver's loop limit cut is rendered again with
+    /// [`SOFTWARE_DDA_UNROLL`], which this tracer then keeps. A continued accumulation
+    /// cannot be rendered again (its sums were overwritten): that is the error.
     fn render_range(
         &mut self,
         scene: &Scene,
@@ -952,6 +1020,31 @@ impl GpuTracer {
         frames: Range<u32>,
         continuable: bool,
     ) -> Result<RenderOutput> {
+        let first =
+            self.render_range_once(scene, settings, plan.clone(), frames.clone(), continuable);
+        match first {
+            Err(e)
+                if e.downcast_ref::<LoopsCut>().is_some()
+                    && frames.start == 0
+                    && self.dda_unroll < SOFTWARE_DDA_UNROLL =>
+            {
+                self.dda_unroll = SOFTWARE_DDA_UNROLL;
+                self.render_range_once(scene, settings, plan, frames, continuable)
+            }
+            other => other,
+        }
+    }
+
+    fn render_range_once(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        plan: Plan,
+        frames: Range<u32>,
+        continuable: bool,
+    ) -> Result<RenderOutput> {
+        let mut plan = plan;
+        plan.dda_unroll = self.dda_unroll;
         let count = plan.count_rays;
         self.check(scene, settings)?;
         Self::check_frames(settings, &plan, &frames)?;
@@ -1203,15 +1296,16 @@ impl GpuTracer {
         let counts: Vec<u32> = self.read(&self.counters_readback, COUNTER_BYTES)?;
         if counts[LOOPS_CUT] > 0 {
             let info = self.adapter.get_info();
-            bail!(
+            return Err(anyhow::Error::new(LoopsCut).context(format!(
                 "{} of {} pixel-frames of this image were cut short by the driver ({}, {}): \
                  Mesa's software driver (llvmpipe, lavapipe) ends every loop of an \
                  invocation after 65535 loop iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS, \
                  counted over the 8 or 16 SIMD lanes that run together), and one frame of \
                  these pixels needs more (depth limits {}/{}, {} light sample(s), {} \
-                 light(s), grid {}x{}x{}). The image would be wrong, so none is returned: \
-                 lower light_samples, the depth limits (or max_depth) or the grid size, \
-                 or render with --backend cpu or on a hardware GPU",
+                 light(s), grid {}x{}x{}; {} voxel steps per loop iteration). The image \
+                 would be wrong, so none is returned: lower light_samples, the depth limits \
+                 (or max_depth) or the grid size, or render with --backend cpu or on a \
+                 hardware GPU",
                 counts[LOOPS_CUT],
                 pixels * todo as u64,
                 info.name,
@@ -1223,7 +1317,8 @@ impl GpuTracer {
                 scene.grid.dims().x,
                 scene.grid.dims().y,
                 scene.grid.dims().z,
-            );
+                plan.dda_unroll,
+            )));
         }
         let c = |i: usize| counts[2 * i] as u64 | (counts[2 * i + 1] as u64) << 32;
         let stats = if count {
