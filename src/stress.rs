@@ -430,7 +430,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         st.features.area_lights = true;
         st.light_samples = samples;
         st.spp = spp;
-        let per_dispatch = ((1u32 << 20) / (side * side)).min(spp).min(4096);
+        let per_dispatch = crate::gpu::frames_per_dispatch((side * side) as u64, spp);
         out.push(case(
             &format!("many-frames-{side}"),
             &format!(

@@ -135,13 +135,13 @@ fn run(i: usize, case: &Case, rng: &mut StdRng, gpu: &mut voxlab::gpu::GpuTracer
     let g = gpu.render(&scene, &settings).expect("GPU render");
     let c = voxlab::cpu::render(&scene, &settings);
     let pixels = (case.side * case.side) as u64;
-    let per_dispatch = ((1u64 << 20) / pixels).clamp(1, case.spp.min(4096) as u64);
+    let per_dispatch = voxlab::gpu::frames_per_dispatch(pixels, case.spp);
     let name = format!(
         "case {i}: {0}x{0}, {1} spp ({per_dispatch} frames per dispatch, {2} dispatches), \
          {3} light samples, {4} lights, {5}, rules {6}, depth {7:?}, grid {dims}",
         case.side,
         case.spp,
-        (case.spp as u64).div_ceil(per_dispatch),
+        case.spp.div_ceil(per_dispatch),
         case.light_samples,
         case.lights,
         case.transmittance.name(),

@@ -31,6 +31,9 @@ pub struct Dda<'a> {
     pending: Option<Visit>,
     done: bool,
     pub steps: u64,
+    /// A ray visits at most nx + ny + nz voxels: the bound ends any walk that float
+    /// error (or a non-finite input) could stall, as the kernel's max_steps does.
+    max_steps: u64,
     /// Where the last visited voxel ends along the ray once the traversal is over: the
     /// grid's exit or `t_limit`, whichever comes first.
     pub t_end: f64,
@@ -82,6 +85,10 @@ impl<'a> Dda<'a> {
             pending: None,
             done: true,
             steps: 0,
+            max_steps: {
+                let d = grid.dims();
+                d.x as u64 + d.y as u64 + d.z as u64 + 3
+            },
             t_end: 0.0,
             exit: None,
         };
@@ -161,11 +168,7 @@ impl Iterator for Dda<'_> {
         }
         let a = argmin(self.t_max);
         let t = self.t_max[a];
-        // A ray visits at most nx + ny + nz voxels: the bound ends any walk that float
-        // error (or a non-finite input) could stall, as the kernel's max_steps does.
-        let d = self.grid.dims();
-        let max_steps = d.x as u64 + d.y as u64 + d.z as u64 + 3;
-        if t >= self.t_limit || t.is_nan() || self.steps >= max_steps {
+        if t >= self.t_limit || t.is_nan() || self.steps >= self.max_steps {
             self.done = true;
             self.t_end = self.t_limit;
             return None;

@@ -351,6 +351,33 @@ impl std::fmt::Display for LoopsCut {
 
 impl std::error::Error for LoopsCut {}
 
+/// A compute pass whose start and end are timestamps 2i and 2i + 1 of `queries` (when
+/// the device has them), i the running pass index, which this advances.
+fn timed_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    queries: Option<&wgpu::QuerySet>,
+    index: &mut u32,
+) -> wgpu::ComputePass<'e> {
+    let i = *index;
+    *index += 1;
+    encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes: queries.map(|q| wgpu::ComputePassTimestampWrites {
+            query_set: q,
+            beginning_of_pass_write_index: Some(2 * i),
+            end_of_pass_write_index: Some(2 * i + 1),
+        }),
+    })
+}
+
+/// Frames one dispatch of an accumulating render traces, for an image of `pixels` and
+/// `frames` frames to go: at most 2^20 pixel-frames and 4096 frames, at least one.
+pub fn frames_per_dispatch(pixels: u64, frames: u32) -> u32 {
+    let most = frames.clamp(1, MAX_FRAMES_PER_DISPATCH) as u64;
+    (PIXEL_FRAMES_PER_DISPATCH / pixels.max(1)).clamp(1, most) as u32
+}
+
 /// Hardware before software, and the primary backends before GL.
 fn adapter_rank(info: &wgpu::AdapterInfo) -> (u32, u32) {
     let backend = match info.backend {
@@ -1071,8 +1098,7 @@ impl GpuTracer {
         let pixels = settings.width as u64 * settings.height as u64;
         let todo = frames.end - frames.start;
         let per_dispatch = if plan.accumulate {
-            (PIXEL_FRAMES_PER_DISPATCH / pixels).clamp(1, todo.min(MAX_FRAMES_PER_DISPATCH) as u64)
-                as u32
+            frames_per_dispatch(pixels, todo)
         } else {
             1
         };
@@ -1221,15 +1247,12 @@ impl GpuTracer {
                     label: Some("voxlab trace"),
                 });
             {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("voxlab trace"),
-                    timestamp_writes: queries.as_ref().map(|q| wgpu::ComputePassTimestampWrites {
-                        query_set: q,
-                        beginning_of_pass_write_index: Some(2 * pass_index),
-                        end_of_pass_write_index: Some(2 * pass_index + 1),
-                    }),
-                });
-                pass_index += 1;
+                let mut pass = timed_pass(
+                    &mut encoder,
+                    "voxlab trace",
+                    queries.as_ref(),
+                    &mut pass_index,
+                );
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, &bind_group, &[]);
                 if let Some(g) = &cone_group {
@@ -1243,15 +1266,12 @@ impl GpuTracer {
                 );
             }
             if let (Some(group), Some((_, reduce_pipeline, _))) = (&reduce, &self.reduce) {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("voxlab accumulate"),
-                    timestamp_writes: queries.as_ref().map(|q| wgpu::ComputePassTimestampWrites {
-                        query_set: q,
-                        beginning_of_pass_write_index: Some(2 * pass_index),
-                        end_of_pass_write_index: Some(2 * pass_index + 1),
-                    }),
-                });
-                pass_index += 1;
+                let mut pass = timed_pass(
+                    &mut encoder,
+                    "voxlab accumulate",
+                    queries.as_ref(),
+                    &mut pass_index,
+                );
                 pass.set_pipeline(reduce_pipeline);
                 pass.set_bind_group(0, group, &[]);
                 pass.dispatch_workgroups(reduce_x, reduce_y, 1);

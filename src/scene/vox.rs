@@ -374,11 +374,12 @@ pub const MAX_VOX_CHUNK_DEPTH: usize = 16;
 /// Walks the RIFF-style chunk tree of a `.vox` file (id, content size, children size,
 /// content, children) without recursion before any parser sees it: every chunk lies
 /// inside its parent and the file, and nesting stays within [`MAX_VOX_CHUNK_DEPTH`].
-/// Errors name the chunk and its byte offset.
-///
-/// Returns, per XYZI chunk in file order (one per model), which voxel records have colour
-/// index 0: MagicaVoxel treats them as empty, but dot_vox reads index 0 as colour 1.
-fn check_chunks(bytes: &[u8]) -> Result<Vec<Vec<bool>>, LoadErrorKind> {
+/// `visit` sees each chunk's id, byte offset and content, depth first; its error, like
+/// the walk's own, names the chunk and its offset.
+fn walk_chunks(
+    bytes: &[u8],
+    mut visit: impl FnMut(&[u8], usize, &[u8]) -> Result<(), String>,
+) -> Result<(), LoadErrorKind> {
     let invalid = |m: String| LoadErrorKind::InvalidVox(m);
     if bytes.len() < 8 || &bytes[..4] != b"VOX " {
         return Err(invalid(
@@ -388,7 +389,6 @@ fn check_chunks(bytes: &[u8]) -> Result<Vec<Vec<bool>>, LoadErrorKind> {
     let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
     // Where the children of each chunk being walked end (the file's end at the top).
     let mut parents: Vec<usize> = vec![bytes.len()];
-    let mut empty: Vec<Vec<bool>> = Vec::new();
     let mut at = 8usize;
     while let Some(&end) = parents.last() {
         if at == end {
@@ -405,19 +405,6 @@ fn check_chunks(bytes: &[u8]) -> Result<Vec<Vec<bool>>, LoadErrorKind> {
         let content = word(at + 4) as usize;
         let children = word(at + 8) as usize;
         let body = at + 12;
-        if &bytes[at..at + 4] == b"XYZI" && body.checked_add(content).is_some_and(|e| e <= end) {
-            // count, then count records of x, y, z, colour index.
-            let n = if content >= 4 { word(body) as usize } else { 0 };
-            let records = n.min(content.saturating_sub(4) / 4);
-            let flags: Vec<bool> = (0..records)
-                .map(|k| bytes[body + 4 + 4 * k + 3] == 0)
-                .collect();
-            empty.push(if flags.iter().any(|&f| f) {
-                flags
-            } else {
-                Vec::new()
-            });
-        }
         let child_start = body.checked_add(content);
         let chunk_end = child_start.and_then(|c| c.checked_add(children));
         let Some(chunk_end) = chunk_end.filter(|&e| e <= end) else {
@@ -426,6 +413,9 @@ fn check_chunks(bytes: &[u8]) -> Result<Vec<Vec<bool>>, LoadErrorKind> {
                  bytes run past its parent's end (byte {end})"
             )));
         };
+        let child_start = child_start.expect("checked above");
+        visit(&bytes[at..at + 4], at, &bytes[body..child_start])
+            .map_err(|what| invalid(format!("chunk {id:?} at byte {at}: {what}")))?;
         if children > 0 {
             if parents.len() >= MAX_VOX_CHUNK_DEPTH {
                 return Err(invalid(format!(
@@ -435,11 +425,35 @@ fn check_chunks(bytes: &[u8]) -> Result<Vec<Vec<bool>>, LoadErrorKind> {
             }
             // Its children follow its content; after them, its next sibling.
             parents.push(chunk_end);
-            at = child_start.expect("checked above");
+            at = child_start;
         } else {
             at = chunk_end;
         }
     }
+    Ok(())
+}
+
+/// [`walk_chunks`] before dot_vox parses the file. Returns, per XYZI chunk in file order
+/// (one per model), which voxel records have colour index 0: MagicaVoxel treats them as
+/// empty, but dot_vox reads index 0 as colour 1.
+fn check_chunks(bytes: &[u8]) -> Result<Vec<Vec<bool>>, LoadErrorKind> {
+    let mut empty: Vec<Vec<bool>> = Vec::new();
+    walk_chunks(bytes, |id, _, c| {
+        if id == b"XYZI" {
+            // count, then count records of x, y, z, colour index.
+            let n = c.get(..4).map_or(0, |w| {
+                u32::from_le_bytes(w.try_into().expect("4 bytes")) as usize
+            });
+            let records = n.min(c.len().saturating_sub(4) / 4);
+            let flags: Vec<bool> = (0..records).map(|k| c[4 + 4 * k + 3] == 0).collect();
+            empty.push(if flags.iter().any(|&f| f) {
+                flags
+            } else {
+                Vec::new()
+            });
+        }
+        Ok(())
+    })?;
     Ok(empty)
 }
 
@@ -455,7 +469,7 @@ fn is_empty(empty: &[Vec<bool>], id: usize, k: usize) -> bool {
 /// The first chunk (id and byte offset) whose content does not have the structure of its
 /// kind (fixed sizes; counts; the DICTs and strings of the scene-graph, material and
 /// layer chunks), with what is wrong; `None` when every known chunk is well formed.
-/// Only for messages: the chunk tree itself is checked by [`check_chunks`].
+/// Only for messages, after dot_vox failed: the walk itself passed [`check_chunks`].
 fn first_malformed_chunk(bytes: &[u8]) -> Option<String> {
     // A reader over one chunk's content.
     struct R<'a> {
@@ -553,35 +567,10 @@ fn first_malformed_chunk(bytes: &[u8]) -> Option<String> {
             _ => Ok(()),
         }
     };
-    let word = |at: usize| -> Option<usize> {
-        Some(u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?) as usize)
-    };
-    // Depth first over the tree, as check_chunks walks it.
-    let mut parents = vec![bytes.len()];
-    let mut at = 8usize;
-    while let Some(&end) = parents.last() {
-        if at >= end {
-            parents.pop();
-            continue;
-        }
-        let id = bytes.get(at..at + 4)?;
-        let (content, children) = (word(at + 4)?, word(at + 8)?);
-        let body = at + 12;
-        let c = bytes.get(body..body.checked_add(content)?)?;
-        if let Err(what) = check(id, c) {
-            return Some(format!(
-                "chunk {:?} at byte {at}: {what}",
-                String::from_utf8_lossy(id)
-            ));
-        }
-        if children > 0 && parents.len() < MAX_VOX_CHUNK_DEPTH {
-            parents.push(body + content + children);
-            at = body + content;
-        } else {
-            at = body + content + children;
-        }
+    match walk_chunks(bytes, |id, _, c| check(id, c)) {
+        Err(LoadErrorKind::InvalidVox(m)) => Some(m),
+        _ => None,
     }
-    None
 }
 
 fn vox_from_data(
