@@ -16,6 +16,9 @@
 // the invocations whose loops the driver cut short (shaders/counters.wgsl, loop_cut)
 // and one unused word.
 @group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, 10>;
+// What a plug-in technique reads (src/technique/, `ShadowModel::gpu_data`): made on the
+// host when the plan uses the technique, a placeholder otherwise.
+@group(0) @binding(6) var<storage, read> technique_data: array<f32>;
 fn voxel_material(v: vec3<i32>) -> u32 {
     return textureLoad(grid, v, 0).r;
 }

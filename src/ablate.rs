@@ -514,6 +514,7 @@ fn hard_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
                     cone_shadows: false,
                     ambient_occlusion: false,
                     indirect: false,
+                    shadow_model: None,
                 },
                 spp: 1,
                 ..e.settings.clone()
@@ -639,9 +640,56 @@ fn reference_features(e: &Experiment) -> Features {
     }
 }
 
-/// All points of all sweeps.
+/// The curve of each plug-in shadow model (`crate::technique::SHADOW_MODELS`), over
+/// the knob it declares: `spp` (the `[ablate] spp` list) or one of its settings (its
+/// declared sweep values), at one frame unless it samples; the rest as the reference.
+fn plug_in_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
+    let t = e.settings.features.transmittance;
+    let mut out = Vec::new();
+    for m in crate::technique::SHADOW_MODELS {
+        let mut features = reference_features(e);
+        features.set_shadow_model(m.name);
+        let base = RenderSettings {
+            features,
+            spp: if m.stochastic { e.settings.spp } else { 1 },
+            ..e.settings.clone()
+        };
+        let model = format!("{} ({})", m.name, t.name());
+        if m.ablate_knob == "spp" {
+            out.extend(c.spp.iter().map(|&n| Point {
+                model: model.clone(),
+                knob: "spp".into(),
+                value: n.to_string(),
+                settings: RenderSettings {
+                    spp: n,
+                    ..base.clone()
+                },
+                lights_as_points: false,
+            }));
+        } else if let Some(knob) = m.setting(m.ablate_knob) {
+            out.extend(knob.sweep.iter().map(|&v| {
+                let mut settings = base.clone();
+                settings.technique_params.set(m.name, knob.key, v);
+                Point {
+                    model: model.clone(),
+                    knob: knob.key.into(),
+                    value: format!("{v}"),
+                    settings,
+                    lights_as_points: false,
+                }
+            }));
+        }
+    }
+    out
+}
+
+/// All points of all sweeps, the plug-in shadow models' last.
 pub fn points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
-    SWEEPS.iter().flat_map(|s| (s.points)(e, c)).collect()
+    SWEEPS
+        .iter()
+        .flat_map(|s| (s.points)(e, c))
+        .chain(plug_in_points(e, c))
+        .collect()
 }
 
 // ---------------------------------------------------------------------------------------
@@ -960,6 +1008,8 @@ pub struct Row {
     pub spp: u32,
     pub light_samples: u32,
     pub area_lights: bool,
+    /// The shadow model the plan used (`hard`, `area`, `cone` or a plug-in's name).
+    pub shadow_model: &'static str,
     pub transmittance: &'static str,
     /// `gpu` or `cpu`.
     pub backend: &'static str,
@@ -1066,6 +1116,12 @@ fn measure(
         spp: s.spp,
         light_samples: s.light_samples,
         area_lights: s.features.area_lights,
+        shadow_model: match &r.plan {
+            p if p.shadow_model.is_some() => p.shadow_model.map_or("", |m| m.name),
+            p if p.cone_shadows => "cone",
+            p if p.area_lights => "area",
+            _ => "hard",
+        },
         transmittance: s.features.transmittance.name(),
         backend: r.backend,
         fallback: r.fallback,
@@ -1264,13 +1320,14 @@ fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
     write_bytes(path, bytes.get_ref())
 }
 
-pub const CSV_COLUMNS: [&str; 25] = [
+pub const CSV_COLUMNS: [&str; 26] = [
     "model",
     "knob",
     "value",
     "spp",
     "light_samples",
     "area_lights",
+    "shadow_model",
     "transmittance",
     "backend",
     "timer",
@@ -1311,6 +1368,7 @@ fn csv(rows: &[Row], r: &Reference) -> String {
             row.spp.to_string(),
             row.light_samples.to_string(),
             row.area_lights.to_string(),
+            row.shadow_model.to_string(),
             row.transmittance.to_string(),
             row.backend.to_string(),
             row.timer.to_string(),
@@ -1528,6 +1586,7 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
             t.insert("knob".into(), row.knob.clone().into());
             t.insert("value".into(), row.value.clone().into());
             t.insert("area_lights".into(), row.area_lights.into());
+            t.insert("shadow_model".into(), row.shadow_model.into());
             t.insert("transmittance".into(), row.transmittance.into());
             t.insert("spp".into(), i64::from(row.spp).into());
             t.insert("cone_shadows".into(), row.cone_shadows.into());

@@ -43,6 +43,8 @@ struct RawFeatures {
     cone_shadows: Option<bool>,
     ambient_occlusion: Option<bool>,
     indirect: Option<bool>,
+    /// A shadow model by name (`crate::technique::shadow_model_names`).
+    shadow_model: Option<String>,
 }
 
 /// `[cones]`: the knobs of voxel cone tracing (`crate::render::ConeSettings`).
@@ -188,6 +190,9 @@ struct RawExperiment {
     features: RawFeatures,
     #[serde(default)]
     cones: RawCones,
+    /// `[techniques.<name>]`: settings of plug-in techniques, checked against their
+    /// declarations (`crate::technique`).
+    techniques: Option<toml::Table>,
     /// `[ablate]`: the sweep of `voxlab ablate`, validated there (`crate::ablate`), so
     /// the same file also renders with `voxlab render`.
     #[allow(dead_code)]
@@ -877,16 +882,8 @@ fn build(
                 "in [0, 1) (voxel widths)",
             )
         })?,
-        features: Features {
-            area_lights: raw.features.area_lights.unwrap_or(false),
-            transmittance: match raw.features.transmittance {
-                None | Some(TransmittanceName::MinKt) => Transmittance::MinKt,
-                Some(TransmittanceName::BeerLambert) => Transmittance::BeerLambert,
-            },
-            cone_shadows: raw.features.cone_shadows.unwrap_or(false),
-            ambient_occlusion: raw.features.ambient_occlusion.unwrap_or(false),
-            indirect: raw.features.indirect.unwrap_or(false),
-        },
+        features: build_features(&raw.features, ctx)?,
+        technique_params: build_technique_params(raw.techniques.as_ref(), ctx)?,
         cones: build_cones(&raw.cones, ctx)?,
         light_samples: r.light_samples.map_or(Ok(d.light_samples), |v| {
             int_in(ctx, "render.light_samples", v, 1..=MAX_SAMPLES as i64)
@@ -991,6 +988,104 @@ fn build(
         scene,
         settings,
     })
+}
+
+/// `[features]`: the switches, and `shadow_model` by name, which cannot be given
+/// beside a built-in model's own switch set to true.
+fn build_features(f: &RawFeatures, ctx: &Ctx) -> Result<Features, ExperimentError> {
+    let mut features = Features {
+        area_lights: f.area_lights.unwrap_or(false),
+        transmittance: match f.transmittance {
+            None | Some(TransmittanceName::MinKt) => Transmittance::MinKt,
+            Some(TransmittanceName::BeerLambert) => Transmittance::BeerLambert,
+        },
+        cone_shadows: f.cone_shadows.unwrap_or(false),
+        ambient_occlusion: f.ambient_occlusion.unwrap_or(false),
+        indirect: f.indirect.unwrap_or(false),
+        shadow_model: None,
+    };
+    if let Some(name) = &f.shadow_model {
+        let key = "features.shadow_model";
+        if features.area_lights || features.cone_shadows {
+            return Err(ctx.invalid(
+                key,
+                "give either shadow_model or area_lights = true / cone_shadows = true, not both",
+            ));
+        }
+        if !features.set_shadow_model(name) {
+            return Err(ctx.invalid(
+                key,
+                format!(
+                    "no such shadow model; allowed: {}",
+                    crate::technique::shadow_model_names().join(", ")
+                ),
+            ));
+        }
+    }
+    Ok(features)
+}
+
+/// `[techniques.<name>]`: every key a declared setting of that plug-in technique, every
+/// value of its type and in its range (`crate::technique::Setting`).
+fn build_technique_params(
+    t: Option<&toml::Table>,
+    ctx: &Ctx,
+) -> Result<crate::technique::TechniqueParams, ExperimentError> {
+    use crate::technique::{SHADOW_MODELS, shadow_model};
+    let mut params = crate::technique::TechniqueParams::default();
+    let Some(t) = t else {
+        return Ok(params);
+    };
+    let names = || {
+        SHADOW_MODELS
+            .iter()
+            .map(|m| m.name)
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    for (name, table) in t {
+        let key = format!("techniques.{name}");
+        let Some(model) = shadow_model(name) else {
+            return Err(ExperimentError::UnknownKey {
+                file: ctx.file.clone(),
+                line: ctx.span_of(&key).map(|s| ctx.line_of(s.start)),
+                key,
+                allowed: names(),
+            });
+        };
+        let Some(table) = table.as_table() else {
+            return Err(ctx.invalid(&key, "must be a table of the technique's settings"));
+        };
+        for (k, v) in table {
+            let key = format!("techniques.{name}.{k}");
+            let Some(setting) = model.setting(k) else {
+                let allowed: Vec<&str> = model.settings.iter().map(|s| s.key).collect();
+                return Err(ExperimentError::UnknownKey {
+                    file: ctx.file.clone(),
+                    line: ctx.span_of(&key).map(|s| ctx.line_of(s.start)),
+                    key,
+                    allowed: if allowed.is_empty() {
+                        "none (this technique has no settings)".to_string()
+                    } else {
+                        allowed.join(", ")
+                    },
+                });
+            };
+            let value = match v {
+                toml::Value::Integer(i) => Some(*i as f64),
+                toml::Value::Float(x) => Some(*x),
+                _ => None,
+            };
+            let checked = value
+                .ok_or_else(|| setting.range_text())
+                .and_then(|x| setting.check(x));
+            match checked {
+                Ok(x) => params.set(name, k, x),
+                Err(req) => return Err(ctx.invalid(&key, req)),
+            }
+        }
+    }
+    Ok(params)
 }
 
 /// `[cones]`, each key checked against its range; keys left out keep the defaults.

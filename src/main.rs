@@ -51,8 +51,19 @@ enum Command {
     /// converged reference, PNG + TOML export that `voxlab render` reproduces exactly.
     #[cfg(feature = "viewer")]
     View(ViewArgs),
+    /// List every technique (shadow models, transmittance, lighting terms): its slot,
+    /// the `[features]` switch, its settings with type, default and range, and the paper
+    /// it follows.
+    Techniques(TechniquesArgs),
     // Further subcommands go here, one variant each, with their own Args struct and
     // `cmd_*` function.
+}
+
+#[derive(Args, Debug)]
+struct TechniquesArgs {
+    /// Print the markdown table the README's "Techniques" section holds.
+    #[arg(long)]
+    markdown: bool,
 }
 
 #[cfg(feature = "viewer")]
@@ -317,6 +328,17 @@ fn main() -> ExitCode {
         Some(Command::Stress(args)) => cmd_stress(&args),
         #[cfg(feature = "viewer")]
         Some(Command::View(args)) => cmd_view(args),
+        Some(Command::Techniques(args)) => {
+            print!(
+                "{}",
+                if args.markdown {
+                    voxlab::technique::listing_markdown()
+                } else {
+                    voxlab::technique::listing_text()
+                }
+            );
+            Ok(())
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

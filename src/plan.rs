@@ -23,6 +23,7 @@ use naga_oil::compose::ShaderDefValue;
 use crate::cpu::pyramid::{PyramidLayout, memory_line};
 use crate::render::{RenderSettings, Transmittance};
 use crate::scene::{Material, Scene, VOID};
+use crate::technique::ShadowModel;
 
 /// Shader defs of one kernel variant, ordered so they can key a pipeline cache.
 pub type ShaderDefs = BTreeMap<String, ShaderDefValue>;
@@ -65,6 +66,10 @@ pub struct Plan {
     /// One-bounce indirect diffuse light (`INDIRECT`): the feature is on, some material
     /// is diffuse and there is a light to inject (else the radiance pyramid is 0).
     pub indirect: bool,
+    /// A plug-in shadow model (`SHADOW_MODEL`, its module composed in as
+    /// `voxlab::shadow_model`): `features.shadow_model` names it, there are shadow rays,
+    /// and its own plan rule keeps it for this scene.
+    pub shadow_model: Option<&'static ShadowModel>,
     /// The pyramids' layout, when a cone flag is on (the radiance pyramid only with
     /// `indirect`).
     pub pyramid: Option<PyramidLayout>,
@@ -228,8 +233,34 @@ impl Plan {
             true
         };
 
-        let accumulate = area_lights && settings.spp > 1;
-        if !area_lights && settings.spp > 1 {
+        let shadow_model = match settings.features.shadow_model {
+            None => None,
+            Some(name) => match crate::technique::shadow_model(name) {
+                None => {
+                    reasons.push(format!("shadow model {name}: not registered"));
+                    None
+                }
+                Some(m) if !shadows => {
+                    reasons.push(format!("shadow model {}: no shadow rays", m.name));
+                    None
+                }
+                Some(m) => match (m.plan)(scene, settings) {
+                    Ok(()) => Some(m),
+                    Err(why) => {
+                        reasons.push(format!(
+                            "shadow model {}: {why}; hard shadows at the light centres instead",
+                            m.name
+                        ));
+                        None
+                    }
+                },
+            },
+        };
+        // A plug-in model shades every light itself: the built-in models' code is dead.
+        let area_lights = area_lights && shadow_model.is_none();
+        let sampled = area_lights || shadow_model.is_some_and(|m| m.stochastic);
+        let accumulate = sampled && settings.spp > 1;
+        if !sampled && settings.spp > 1 {
             reasons.push(format!(
                 "accumulation: spp {} but nothing is sampled, so every frame is the same \
                  image; rendered once",
@@ -258,7 +289,7 @@ impl Plan {
         };
 
         let f = &settings.features;
-        let cone_shadows = f.cone_shadows && shadows;
+        let cone_shadows = f.cone_shadows && shadows && shadow_model.is_none();
         if f.cone_shadows && !shadows {
             reasons.push("cone shadows: no shadow rays to replace".to_string());
         }
@@ -300,6 +331,7 @@ impl Plan {
             cone_shadows,
             ambient_occlusion,
             indirect,
+            shadow_model,
             pyramid,
             count_rays: false,
             ray_stack_size,
@@ -378,6 +410,7 @@ impl Plan {
                     cone_shadows: false,
                     ambient_occlusion: false,
                     indirect: false,
+                    shadow_model: None,
                     pyramid: None,
                     count_rays: false,
                     ray_stack_size,
@@ -401,6 +434,14 @@ impl Plan {
                 defs.insert(f.to_string(), ShaderDefValue::Bool(true));
             }
         }
+        // The plug-in shadow model: its module is composed in; its index keys the cache.
+        if let Some(m) = self.shadow_model {
+            defs.insert("SHADOW_MODEL".to_string(), ShaderDefValue::Bool(true));
+            defs.insert(
+                "SHADOW_MODEL_ID".to_string(),
+                ShaderDefValue::UInt(m.index()),
+            );
+        }
         // Any cone feature: the pyramids' bindings and the cone module are in.
         if self.pyramid.is_some() {
             defs.insert("CONES".to_string(), ShaderDefValue::Bool(true));
@@ -419,11 +460,15 @@ impl Plan {
 
 impl fmt::Display for Plan {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let shadow_model = self
+            .shadow_model
+            .map(|m| format!("SHADOW_MODEL({})", m.name));
         let on: Vec<&str> = Self::FLAGS
             .iter()
             .chain(&Self::CONE_FLAGS)
             .copied()
             .filter(|n| self.flag(n))
+            .chain(shadow_model.as_deref())
             .collect();
         write!(
             f,

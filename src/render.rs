@@ -69,9 +69,40 @@ pub struct Features {
     /// every hit of a diffuse material; `L_ind` the mean radiance the hemisphere cones
     /// gather from the radiance pyramid.
     pub indirect: bool,
+    /// A plug-in shadow model (`crate::technique::SHADOW_MODELS`) by name; it replaces
+    /// the shadow rays (and the area samples) of every light. `None`: the built-in
+    /// models above decide.
+    pub shadow_model: Option<&'static str>,
 }
 
 impl Features {
+    /// The shadow model in force, by its name in `[features] shadow_model`: a plug-in,
+    /// else `cone`, `area` or `hard`.
+    pub fn shadow_model_name(&self) -> &'static str {
+        match self.shadow_model {
+            Some(name) => name,
+            None if self.cone_shadows => "cone",
+            None if self.area_lights => "area",
+            None => "hard",
+        }
+    }
+
+    /// Chooses the shadow model called `name` (a built-in or a registered plug-in);
+    /// false, and nothing changed, for an unknown name.
+    pub fn set_shadow_model(&mut self, name: &str) -> bool {
+        let (area, cone, plug_in) = match name {
+            "hard" => (false, false, None),
+            "area" => (true, false, None),
+            "cone" => (false, true, None),
+            _ => match crate::technique::shadow_model(name) {
+                Some(m) => (false, false, Some(m.name)),
+                None => return false,
+            },
+        };
+        (self.area_lights, self.cone_shadows, self.shadow_model) = (area, cone, plug_in);
+        true
+    }
+
     /// Whether any feature needs the cone-tracing pyramids.
     pub fn cones(&self) -> bool {
         self.cone_shadows || self.ambient_occlusion || self.indirect
@@ -145,6 +176,8 @@ pub struct RenderSettings {
     pub seed: u32,
     /// Cone-tracing knobs, used only when a cone feature is on.
     pub cones: ConeSettings,
+    /// Settings of plug-in techniques (`[techniques.<name>]`).
+    pub technique_params: crate::technique::TechniqueParams,
 }
 
 /// Largest `light_samples` and `spp` accepted.
@@ -178,6 +211,7 @@ impl Default for RenderSettings {
             spp: 1,
             seed: 0,
             cones: ConeSettings::default(),
+            technique_params: Default::default(),
         }
     }
 }

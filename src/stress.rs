@@ -395,9 +395,39 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
     out.push(case(
         "area-light",
         "rect area light, 4 samples x 2 frames, beer-lambert",
-        s,
-        st,
+        s.clone(),
+        st.clone(),
     ));
+    // Every plug-in shadow model (crate::technique) on the same scene: at its defaults,
+    // and with the light shrunk to a point (its degenerate setting).
+    for m in crate::technique::SHADOW_MODELS {
+        let mut st = st.clone();
+        st.features.set_shadow_model(m.name);
+        out.push(case(
+            &format!("shadow-{}", m.name),
+            &format!(
+                "shadow model {} on the rect area light: {}",
+                m.name, m.summary
+            ),
+            s.clone(),
+            st.clone(),
+        ));
+        let mut tiny = s.clone();
+        for l in &mut tiny.lights {
+            if let Light::Area(a) = l {
+                a.shape = AreaShape::Rect {
+                    width: 1e-9,
+                    height: 1e-9,
+                };
+            }
+        }
+        out.push(case(
+            &format!("shadow-{}-vanishing", m.name),
+            &format!("shadow model {} with the area light shrunk to 1e-9", m.name),
+            tiny,
+            st,
+        ));
+    }
     // Many frames in one dispatch: every frame of a small image is one invocation
     // along the dispatch's z, so the image must not depend on how many there are (it
     // did when they were a loop in one invocation: Mesa's software driver cuts an
@@ -787,8 +817,8 @@ pub fn ill_conditioned(case: &StressCase, oracle: &Frame) -> Vec<bool> {
     let plan = crate::plan::Plan::new(&case.scene, &case.settings);
     let frames = plan.frames(&case.settings);
     // Once for the image: `trace_ray` would derive the plan (a scan of the grid) per ray.
-    let cones = crate::cpu::cone::ConeScene::new(&case.scene, &case.settings, &plan);
-    let cones = cones.as_ref();
+    let prepared = crate::cpu::Prepared::new(&case.scene, &case.settings, &plan);
+    let prepared = &prepared;
     (0..h)
         .into_par_iter()
         .flat_map_iter(|j| {
@@ -805,10 +835,10 @@ pub fn ill_conditioned(case: &StressCase, oracle: &Frame) -> Vec<bool> {
                                 pixel: j * w + i,
                                 frame,
                             };
-                            sum += crate::cpu::trace_ray_cones(
+                            sum += crate::cpu::trace_ray_with(
                                 &case.scene,
                                 &case.settings,
-                                cones,
+                                prepared,
                                 key,
                                 cam.eye,
                                 d,

@@ -60,9 +60,9 @@ fn export_relocates_scene_files_next_to_the_export() {
 fn default_sides_compare_the_file_with_a_soft_shadow_model() {
     // An area light in the scene: the right side samples it with Beer-Lambert.
     let s = load_state(&experiment("baseline.toml")).unwrap();
-    assert_eq!(ShadowModel::of(&s.sides[0].features), ShadowModel::Hard);
+    assert_eq!(ShadowModel::of(&s.sides[0].features), ShadowModel::HARD);
     // The seed has point lights only: cones soften them, sampling would not.
-    assert_eq!(ShadowModel::of(&s.sides[1].features), ShadowModel::Cone);
+    assert_eq!(ShadowModel::of(&s.sides[1].features), ShadowModel::CONE);
     let mut e = Experiment::load(format!(
         "{}/experiments/area_lights.toml",
         env!("CARGO_MANIFEST_DIR")
@@ -70,10 +70,7 @@ fn default_sides_compare_the_file_with_a_soft_shadow_model() {
     .unwrap();
     e.settings.features.area_lights = false;
     let s = ViewerState::new(e, None, None).unwrap();
-    assert_eq!(
-        ShadowModel::of(&s.sides[1].features),
-        ShadowModel::AreaSampled
-    );
+    assert_eq!(ShadowModel::of(&s.sides[1].features), ShadowModel::AREA);
     assert_eq!(
         s.sides[1].features.transmittance,
         Transmittance::BeerLambert

@@ -49,8 +49,8 @@ pub fn render_region(
     let (w, h) = (settings.width, settings.height);
     let plan = Plan::new(scene, settings);
     let frames = plan.frames(settings);
-    // Pyramids once per render, only when the plan has a cone feature.
-    let cones = cone::ConeScene::new(scene, settings, &plan);
+    // Pyramids (and a plug-in model's data) once per render, only when planned.
+    let prepared = Prepared::new(scene, settings, &plan);
     let out: Vec<(Vec<[f32; 3]>, RayStats)> = rows
         .clone()
         .into_par_iter()
@@ -66,10 +66,10 @@ pub fn render_region(
                             pixel: j * w + i,
                             frame,
                         };
-                        sum += trace_ray_cones(
+                        sum += trace_ray_with(
                             scene,
                             settings,
-                            cones.as_ref(),
+                            &prepared,
                             key,
                             frame_cam.eye,
                             dir,
@@ -117,9 +117,25 @@ struct StackRay {
     medium: u8,
 }
 
+/// What a render builds once from the scene before tracing, as its plan asks: the cone
+/// features' pyramids and the plug-in shadow model's own data.
+pub struct Prepared {
+    pub cones: Option<cone::ConeScene>,
+    pub shadow_model: Option<Box<dyn crate::technique::CpuShadow>>,
+}
+
+impl Prepared {
+    pub fn new(scene: &Scene, settings: &RenderSettings, plan: &Plan) -> Self {
+        Self {
+            cones: cone::ConeScene::new(scene, settings, plan),
+            shadow_model: plan.shadow_model.map(|m| (m.cpu)(scene, settings)),
+        }
+    }
+}
+
 /// Radiance seen along a primary ray from `eye` in direction `dir` (unit), ambient included.
-/// With a cone feature on this builds the pyramids for the one ray; [`render`] builds
-/// them once and calls [`trace_ray_cones`].
+/// This plans and prepares the scene for the one ray; [`render`] does it once and calls
+/// [`trace_ray_with`].
 pub fn trace_ray(
     scene: &Scene,
     settings: &RenderSettings,
@@ -128,21 +144,22 @@ pub fn trace_ray(
     dir: DVec3,
     stats: &mut RayStats,
 ) -> DVec3 {
-    let cones = cone::ConeScene::new(scene, settings, &Plan::new(scene, settings));
-    trace_ray_cones(scene, settings, cones.as_ref(), key, eye, dir, stats)
+    let prepared = Prepared::new(scene, settings, &Plan::new(scene, settings));
+    trace_ray_with(scene, settings, &prepared, key, eye, dir, stats)
 }
 
-/// [`trace_ray`] with the cone features' pyramids built by the caller.
-pub fn trace_ray_cones(
+/// [`trace_ray`] with the scene prepared by the caller.
+pub fn trace_ray_with(
     scene: &Scene,
     settings: &RenderSettings,
-    cones: Option<&cone::ConeScene>,
+    prepared: &Prepared,
     key: SampleKey,
     eye: DVec3,
     dir: DVec3,
     stats: &mut RayStats,
 ) -> DVec3 {
     let grid = &scene.grid;
+    let cones = prepared.cones.as_ref();
     let eps = settings.ray_offset * grid.voxel_size();
     let mut color = scene.ambient;
     let mut stack = Vec::with_capacity(settings.ray_stack_size() as usize);
@@ -174,7 +191,9 @@ pub fn trace_ray_cones(
         // Emission is seen, not cast: emissive voxels light nothing else.
         color += ray.throughput * m.emission;
         if m.is_lit() {
-            let local = direct_light(scene, settings, cones, key, p, n, ray.dir, shade_id, stats);
+            let local = direct_light(
+                scene, settings, prepared, key, p, n, ray.dir, shade_id, stats,
+            );
             color += ray.throughput * local;
         }
         if let Some(c) = cones
@@ -251,7 +270,7 @@ pub fn refract(d: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
 fn direct_light(
     scene: &Scene,
     settings: &RenderSettings,
-    cones: Option<&cone::ConeScene>,
+    prepared: &Prepared,
     key: SampleKey,
     p: DVec3,
     n: DVec3,
@@ -264,8 +283,25 @@ fn direct_light(
     let q = p + eps * n;
     let mut sum = DVec3::ZERO;
     for (j, light) in scene.lights.iter().enumerate() {
+        if let Some(model) = &prepared.shadow_model {
+            // A plug-in shadow model shades the whole light (crate::technique).
+            let at = crate::technique::LightQuery {
+                scene,
+                settings,
+                material: m,
+                p,
+                n,
+                d,
+                q,
+                key,
+                index: j as u32,
+                light,
+            };
+            sum += model.light_term(&at, stats);
+            continue;
+        }
         let radiance = light.color() * light.intensity();
-        if let Some(c) = cones.filter(|c| c.shadows) {
+        if let Some(c) = prepared.cones.as_ref().filter(|c| c.shadows) {
             // One cone to the light's centre replaces the shadow ray (and the area
             // samples), in grid-local units.
             stats.shadow += 1;
@@ -315,7 +351,7 @@ fn direct_light(
 /// One point emitter at `x` of radiance `radiance` (colour times intensity) seen from the
 /// hit point `p` (shadow ray from `q`): `V E (kd diffuse + ks specular)`, before albedo.
 #[allow(clippy::too_many_arguments)]
-fn point_contribution(
+pub fn point_contribution(
     scene: &Scene,
     settings: &RenderSettings,
     m: &Material,
@@ -337,7 +373,7 @@ fn point_contribution(
 
 /// `E (kd diffuse + ks specular)` of a point emitter at `x` seen from `p`, before
 /// visibility and albedo.
-fn unshadowed(
+pub fn unshadowed(
     settings: &RenderSettings,
     m: &Material,
     p: DVec3,

@@ -249,6 +249,7 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
         spp: _,
         seed: _,
         cones: _,
+        technique_params: _,
     } = s;
     let mut t = Table::new();
     let int = |v: u32| Value::Integer(i64::from(v));
@@ -279,6 +280,7 @@ pub fn features_table(f: &Features) -> Table {
         cone_shadows,
         ambient_occlusion,
         indirect,
+        shadow_model,
     } = f;
     let mut t = Table::new();
     t.insert("area_lights".into(), (*area_lights).into());
@@ -286,7 +288,30 @@ pub fn features_table(f: &Features) -> Table {
     t.insert("cone_shadows".into(), (*cone_shadows).into());
     t.insert("ambient_occlusion".into(), (*ambient_occlusion).into());
     t.insert("indirect".into(), (*indirect).into());
+    if let Some(name) = shadow_model {
+        t.insert("shadow_model".into(), (*name).into());
+    }
     t
+}
+
+/// `[techniques.<name>]` of each plug-in technique with a setting given, in each
+/// setting's declared type; `None` when none is given.
+pub fn techniques_table(p: &crate::technique::TechniqueParams) -> Option<Table> {
+    let mut t = Table::new();
+    for (name, values) in p.iter() {
+        let model = crate::technique::shadow_model(name);
+        let table: Table = values
+            .iter()
+            .map(|(k, &v)| {
+                let value = model
+                    .and_then(|m| m.setting(k))
+                    .map_or(Value::Float(v), |s| s.toml_value(v));
+                (k.clone(), value)
+            })
+            .collect();
+        t.insert(name.to_string(), Value::Table(table));
+    }
+    (!t.is_empty()).then_some(t)
 }
 
 /// `[cones]`: every knob.
@@ -423,6 +448,14 @@ pub fn to_toml(e: &Experiment, scene_source: &Table) -> Result<String, WriteErro
         &cones_table(&e.settings.cones),
         CONE_KEYS,
     )?;
+    if let Some(t) = techniques_table(&e.settings.technique_params) {
+        for (name, v) in &t {
+            if let Value::Table(table) = v {
+                let key = format!("techniques.{name}");
+                section(&format!("[{key}]"), &key, table, &[])?;
+            }
+        }
+    }
     Ok(out)
 }
 
@@ -472,6 +505,7 @@ const FEATURE_KEYS: &[&str] = &[
     "cone_shadows",
     "ambient_occlusion",
     "indirect",
+    "shadow_model",
 ];
 const CONE_KEYS: &[&str] = &[
     "levels",

@@ -51,10 +51,23 @@ const MODULES: &[(&str, &str)] = &[
     ),
     super::pyramid::CONE_MODULE,
     (
-        "shaders/shading.wgsl",
-        include_str!("../../shaders/shading.wgsl"),
+        "shaders/phong.wgsl",
+        include_str!("../../shaders/phong.wgsl"),
     ),
 ];
+
+/// `voxlab::shadow_model` when the plan has no plug-in shadow model.
+const NO_SHADOW_MODEL: (&str, &str) = (
+    "shaders/shadow_model_none.wgsl",
+    include_str!("../../shaders/shadow_model_none.wgsl"),
+);
+
+/// Composed after [`MODULES`] and the plan's plug-in shadow model (which may import
+/// any of them): the local light, which imports the model.
+const SHADING: (&str, &str) = (
+    "shaders/shading.wgsl",
+    include_str!("../../shaders/shading.wgsl"),
+);
 
 /// The entry point's file; its entry point is `main`.
 const TRACE: (&str, &str) = (
@@ -116,7 +129,10 @@ pub(super) fn compose(
 /// Composes and validates the tracer kernel for `plan`. Pure CPU: no device needed.
 pub fn compose_shader(plan: &Plan) -> Result<naga::Module, ShaderError> {
     let defs: HashMap<_, _> = plan.shader_defs().into_iter().collect();
-    let module = compose(MODULES, TRACE, defs).map_err(|message| ShaderError::Compose {
+    let mut modules = MODULES.to_vec();
+    modules.push(plan.shadow_model.map_or(NO_SHADOW_MODEL, |m| m.wgsl));
+    modules.push(SHADING);
+    let module = compose(&modules, TRACE, defs).map_err(|message| ShaderError::Compose {
         defs: defs_string(plan),
         message,
     })?;

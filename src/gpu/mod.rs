@@ -268,6 +268,11 @@ pub struct GpuTracer {
     accumulation: Option<Accumulation>,
     /// Voxel steps per loop iteration in the walks (`Plan::dda_unroll`) on this device.
     dda_unroll: u32,
+    /// `technique_data` of a plug-in technique (`crate::technique::ShadowModel::gpu_data`)
+    /// and what it was made from; kept while renders need the same.
+    technique_data: Option<(blake3::Hash, wgpu::Buffer)>,
+    /// Bound as `technique_data` when the plan needs none (a binding needs a buffer).
+    no_technique_data: wgpu::Buffer,
 }
 
 /// Device memory bound by one render, in bytes: what a plan's leaving out saves.
@@ -283,11 +288,13 @@ pub struct GpuMemory {
     pub accumulation: u64,
     /// Opacity and radiance pyramids, only with a cone feature.
     pub pyramids: u64,
+    /// A plug-in technique's data (`technique_data`), only when the plan uses it.
+    pub technique: u64,
 }
 
 impl GpuMemory {
     pub fn total(&self) -> u64 {
-        self.grid + self.scene + self.image + self.accumulation + self.pyramids
+        self.grid + self.scene + self.image + self.accumulation + self.pyramids + self.technique
     }
 }
 
@@ -296,13 +303,15 @@ impl std::fmt::Display for GpuMemory {
         let mib = |b: u64| b as f64 / 1048576.0;
         write!(
             f,
-            "{:.2} MiB (grid {:.2}, scene {:.3}, image {:.2}, accumulation {:.2}, pyramids {:.2})",
+            "{:.2} MiB (grid {:.2}, scene {:.3}, image {:.2}, accumulation {:.2}, pyramids {:.2}, \
+             technique data {:.2})",
             mib(self.total()),
             mib(self.grid),
             mib(self.scene),
             mib(self.image),
             mib(self.accumulation),
-            mib(self.pyramids)
+            mib(self.pyramids),
+            mib(self.technique)
         )
     }
 }
@@ -465,6 +474,7 @@ impl GpuTracer {
                 storage_entry(3, true),
                 storage_entry(4, false),
                 storage_entry(5, false),
+                storage_entry(6, true),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -493,6 +503,12 @@ impl GpuTracer {
                 | wgpu::BufferUsages::COPY_DST,
         );
         let counters_readback = readback(&device, "ray counters readback", COUNTER_BYTES);
+        let no_technique_data = buffer(
+            &device,
+            "no technique data",
+            16,
+            wgpu::BufferUsages::STORAGE,
+        );
         Ok(Self {
             adapter,
             device,
@@ -522,6 +538,8 @@ impl GpuTracer {
             last_memory: None,
             accumulation: None,
             dda_unroll,
+            technique_data: None,
+            no_technique_data,
         })
     }
 
@@ -873,7 +891,7 @@ impl GpuTracer {
     }
 
     /// A light as the kernel sees it. Point lights, area lights of size 0 and area
-    /// lights with sampling off are points at their centres (exactly the baseline's
+    /// lights with sampling and plug-in shadow models off are points at their centres (exactly the baseline's
     /// upload); sampled ones carry their kind and their axes scaled by their size, from
     /// AreaLight::frame in f64, divided by the voxel size into voxel units.
     fn light(scene: &Scene, settings: &RenderSettings, light: &Light) -> GpuLight {
@@ -885,7 +903,9 @@ impl GpuTracer {
             ..GpuLight::zeroed()
         };
         let Light::Area(a) = light else { return g };
-        if !(settings.features.area_lights && light.is_area()) {
+        // A plug-in shadow model reads the light's shape whether it samples it or not.
+        let shaped = settings.features.area_lights || settings.features.shadow_model.is_some();
+        if !(shaped && light.is_area()) {
             return g;
         }
         let local = |v: DVec3| f3(v / grid.voxel_size());
@@ -1062,6 +1082,56 @@ impl GpuTracer {
         }
     }
 
+    /// Makes (or keeps) the `technique_data` of the plan's plug-in shadow model and
+    /// returns its size in bytes; 0, with any held data dropped, when the plan needs none.
+    fn upload_technique_data(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        plan: &Plan,
+    ) -> u64 {
+        let Some(make) = plan.shadow_model.and_then(|m| m.gpu_data.map(|f| (m, f))) else {
+            self.technique_data = None;
+            return 0;
+        };
+        let (model, make) = make;
+        // Its inputs: the technique, its settings, the voxels (by upload generation) and
+        // everything else of the scene but the camera.
+        let key = blake3::hash(
+            format!(
+                "{} {:?} {} {:?} {:?} {:?} {:?}",
+                model.name,
+                settings.technique_params,
+                self.grid_generation(),
+                scene.grid.voxel_size(),
+                scene.grid.origin(),
+                scene.materials,
+                scene.lights
+            )
+            .as_bytes(),
+        );
+        if let Some((k, b)) = &self.technique_data
+            && *k == key
+        {
+            return b.size();
+        }
+        let mut data = make(scene, settings);
+        if data.is_empty() {
+            data.push(0.0);
+        }
+        let buf = buffer(
+            &self.device,
+            model.name,
+            (data.len() * 4) as u64,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        );
+        self.queue
+            .write_buffer(&buf, 0, bytemuck::cast_slice(&data));
+        let size = buf.size();
+        self.technique_data = Some((key, buf));
+        size
+    }
+
     fn render_range_once(
         &mut self,
         scene: &Scene,
@@ -1142,6 +1212,11 @@ impl GpuTracer {
         let reduce = accumulation
             .as_ref()
             .map(|(compensation, slices)| self.reduce_bind_group(&output, compensation, slices));
+        let technique_bytes = self.upload_technique_data(scene, settings, &plan);
+        let technique_data = match (&self.technique_data, technique_bytes) {
+            (Some((_, b)), 1..) => b,
+            _ => &self.no_technique_data,
+        };
         let grid_view = &self.grid.as_ref().expect("grid uploaded").view;
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("voxlab tracer"),
@@ -1153,6 +1228,7 @@ impl GpuTracer {
                 buffer_entry(3, &light_buf),
                 buffer_entry(4, accumulation.as_ref().map_or(&output, |a| &a.1)),
                 buffer_entry(5, &self.counters),
+                buffer_entry(6, technique_data),
             ],
         });
 
@@ -1191,6 +1267,7 @@ impl GpuTracer {
             self.compensation = None;
             self.frame_slices = None;
             self.pyramid = None;
+            self.technique_data = None;
             let d = scene.grid.dims();
             bail!(
                 "the device could not hold this render (grid {}x{}x{}: {} bytes of texture; \
@@ -1382,6 +1459,7 @@ impl GpuTracer {
                 .as_ref()
                 .map_or(0, |(c, slices)| c.size() + slices.size()),
             pyramids,
+            technique: technique_bytes,
         });
         if let Some(key) = key
             && plan.accumulate

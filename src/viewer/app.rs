@@ -21,6 +21,36 @@ use crate::metrics::{Domain, compare};
 use crate::render::{Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, Transmittance};
 use crate::scene::{AreaShape, Light};
 
+/// One row of a technique's declared setting: a drag value over its declared range,
+/// written back only when the declaration's check accepts it.
+fn technique_setting_row(
+    ui: &mut egui::Ui,
+    technique: &str,
+    setting: &crate::technique::Setting,
+    params: &mut crate::technique::TechniqueParams,
+) -> bool {
+    use crate::technique::Kind;
+    let mut v = params.get(technique, setting);
+    let (lo, hi, decimals) = match setting.kind {
+        Kind::Int { min, max } => (min as f64, max as f64, Some(0)),
+        Kind::Float { min, max, .. } => (min, max, None),
+    };
+    let mut value = egui::DragValue::new(&mut v)
+        .range(lo..=hi)
+        .speed((hi - lo).min(100.0) / 1000.0);
+    if let Some(d) = decimals {
+        value = value.max_decimals(d);
+    }
+    let changed = drag_row(ui, setting.key, value);
+    match setting.check(v) {
+        Ok(v) if changed => {
+            params.set(technique, setting.key, v);
+            true
+        }
+        _ => false,
+    }
+}
+
 /// Where a report came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Channel {
@@ -357,7 +387,7 @@ impl ViewerApp {
     /// model), `references.spp` frames, an independent seed.
     fn reference_experiment(&self, side: Side) -> anyhow::Result<(String, Experiment)> {
         let mut e = self.state.rendered(side).as_ref().clone();
-        ShadowModel::AreaSampled.apply(&mut e.settings.features);
+        ShadowModel::AREA.apply(&mut e.settings.features);
         e.settings.spp = self.references.spp;
         e.settings.seed = e.settings.seed.wrapping_add(REFERENCE_SEED_OFFSET);
         // The key is the experiment's file text: equal text, equal reference.
@@ -881,7 +911,7 @@ impl ViewerApp {
         egui::ComboBox::from_label(format!("shadows ({})", side.name()))
             .selected_text(model.name())
             .show_ui(ui, |ui| {
-                for m in ShadowModel::ALL {
+                for m in ShadowModel::all() {
                     changed |= ui.selectable_value(&mut model, m, m.name()).changed();
                 }
             });
@@ -949,6 +979,24 @@ impl ViewerApp {
                             "AO cones",
                             egui::DragValue::new(&mut c.ao_cones).range(1..=64),
                         );
+                    });
+                });
+        }
+        // The plug-in shadow model's settings, from its declaration.
+        if let Some(m) = s
+            .features
+            .shadow_model
+            .and_then(crate::technique::shadow_model)
+            .filter(|m| !m.settings.is_empty())
+        {
+            egui::CollapsingHeader::new(format!("{} knobs", m.name))
+                .id_salt((m.name, i))
+                .show(ui, |ui| {
+                    egui::Grid::new((m.name, "grid", i)).show(ui, |ui| {
+                        for st in m.settings {
+                            changed |=
+                                technique_setting_row(ui, m.name, st, &mut s.technique_params);
+                        }
                     });
                 });
         }

@@ -43,48 +43,44 @@ impl Side {
     }
 }
 
-/// How a side computes light visibility: the three shadow models the viewer compares.
+/// How a side computes light visibility: a shadow model by its `[features]
+/// shadow_model` name, built-in or plug-in (`crate::technique`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ShadowModel {
-    /// One shadow ray to each light's centre (the seed's hard shadows).
-    Hard,
-    /// Area lights sampled over their shape, accumulated over frames (soft, noisy).
-    AreaSampled,
-    /// One cone through the opacity pyramid per light (soft, biased, noise-free).
-    Cone,
-}
+pub struct ShadowModel(pub &'static str);
 
 impl ShadowModel {
-    pub const ALL: [ShadowModel; 3] = [
-        ShadowModel::Hard,
-        ShadowModel::AreaSampled,
-        ShadowModel::Cone,
-    ];
+    /// One shadow ray to each light's centre (the seed's hard shadows).
+    pub const HARD: ShadowModel = ShadowModel("hard");
+    /// Area lights sampled over their shape, accumulated over frames (soft, noisy).
+    pub const AREA: ShadowModel = ShadowModel("area");
+    /// One cone through the opacity pyramid per light (soft, biased, noise-free).
+    pub const CONE: ShadowModel = ShadowModel("cone");
 
+    /// Every shadow model, the registry's plug-ins after the built-in three.
+    pub fn all() -> Vec<ShadowModel> {
+        crate::technique::shadow_model_names()
+            .into_iter()
+            .map(ShadowModel)
+            .collect()
+    }
+
+    /// Its label in the viewer.
     pub fn name(self) -> &'static str {
-        match self {
-            ShadowModel::Hard => "hard (light centres)",
-            ShadowModel::AreaSampled => "area lights, sampled",
-            ShadowModel::Cone => "cone traced",
+        match self.0 {
+            "hard" => "hard (light centres)",
+            "area" => "area lights, sampled",
+            "cone" => "cone traced",
+            plug_in => plug_in,
         }
     }
 
     pub fn of(f: &Features) -> Self {
-        if f.cone_shadows {
-            ShadowModel::Cone
-        } else if f.area_lights {
-            ShadowModel::AreaSampled
-        } else {
-            ShadowModel::Hard
-        }
+        ShadowModel(f.shadow_model_name())
     }
 
     pub fn apply(self, f: &mut Features) {
-        (f.area_lights, f.cone_shadows) = match self {
-            ShadowModel::Hard => (false, false),
-            ShadowModel::AreaSampled => (true, false),
-            ShadowModel::Cone => (false, true),
-        };
+        let known = f.set_shadow_model(self.0);
+        debug_assert!(known, "{} is a registered shadow model", self.0);
     }
 }
 
@@ -93,6 +89,8 @@ impl ShadowModel {
 pub struct SideSettings {
     pub features: Features,
     pub cones: ConeSettings,
+    /// Settings of plug-in techniques (`[techniques.<name>]`).
+    pub technique_params: crate::technique::TechniqueParams,
     /// Light samples per pixel, light and frame (`render.light_samples`).
     pub light_samples: u32,
     /// Accumulation stops after this many frames (the `render.spp` cap).
@@ -104,19 +102,21 @@ impl SideSettings {
         Self {
             features: s.features.clone(),
             cones: s.cones.clone(),
+            technique_params: s.technique_params.clone(),
             light_samples: s.light_samples,
             max_spp,
         }
     }
 
-    /// Parses a comma-separated feature list (`--left`, `--right`): `hard`, `area`,
-    /// `cone`, `min-kt`, `beer-lambert`, `ao`, `indirect`, `samples=N`.
+    /// Parses a comma-separated feature list (`--left`, `--right`): a shadow model's
+    /// name (`hard`, `area`, `cone` or a plug-in's), `min-kt`, `beer-lambert`, `ao`,
+    /// `indirect`, `samples=N`.
     pub fn parse_list(&mut self, list: &str) -> Result<()> {
         for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            if self.features.set_shadow_model(item) {
+                continue;
+            }
             match item {
-                "hard" => ShadowModel::Hard.apply(&mut self.features),
-                "area" => ShadowModel::AreaSampled.apply(&mut self.features),
-                "cone" => ShadowModel::Cone.apply(&mut self.features),
                 "min-kt" => self.features.transmittance = Transmittance::MinKt,
                 "beer-lambert" => self.features.transmittance = Transmittance::BeerLambert,
                 "ao" => self.features.ambient_occlusion = true,
@@ -136,8 +136,9 @@ impl SideSettings {
                             })?;
                     } else {
                         return Err(anyhow!(
-                            "feature list item `{item}`: allowed are hard, area, cone, min-kt, \
-                             beer-lambert, ao, indirect, samples=N"
+                            "feature list item `{item}`: allowed are {}, min-kt, \
+                             beer-lambert, ao, indirect, samples=N",
+                            crate::technique::shadow_model_names().join(", ")
                         ));
                     }
                 }
@@ -204,13 +205,13 @@ impl ViewerState {
             .any(|l| matches!(l, Light::Area(a) if !a.is_degenerate()));
         let mut other = right.features.clone();
         if has_area {
-            ShadowModel::AreaSampled.apply(&mut other);
+            ShadowModel::AREA.apply(&mut other);
             other.transmittance = Transmittance::BeerLambert;
         } else {
-            ShadowModel::Cone.apply(&mut other);
+            ShadowModel::CONE.apply(&mut other);
         }
         if other == right.features {
-            ShadowModel::Hard.apply(&mut other);
+            ShadowModel::HARD.apply(&mut other);
         }
         right.features = other;
         let home_camera = base.scene.camera.clone();
@@ -242,6 +243,7 @@ impl ViewerState {
         let mut e = self.base.clone();
         e.settings.features = s.features.clone();
         e.settings.cones = s.cones.clone();
+        e.settings.technique_params = s.technique_params.clone();
         e.settings.light_samples = s.light_samples;
         e.settings.spp = spp.max(1);
         e.settings.width = width;

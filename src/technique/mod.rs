@@ -1,0 +1,418 @@
+//! Techniques: the parts of the rendering model that vary, each declared once.
+//!
+//! A *slot* is a part of the model with several implementations (how a light's
+//! visibility is estimated, how a shadow segment is attenuated, what lighting terms are
+//! added). A *technique* fills a slot. What a shadow model needs is one
+//! [`ShadowModel`] value in its own file (`src/technique/<name>.rs`): its name and the
+//! paper it follows, its settings (each with type, default and range, from which the
+//! experiment parser, the writer, the viewer's lists, `voxlab ablate`'s curves, the
+//! stress suite and `voxlab techniques` follow), its plan rule, its WGSL module, the GPU
+//! data it reads (made only when the plan uses it) and its f64 CPU implementation.
+//! Registering it is one line in [`SHADOW_MODELS`].
+//!
+//! The seed's techniques (hard shadows, sampled area lights, cones; min-kt and
+//! Beer-Lambert; ambient occlusion and indirect light) are declared in [`BUILT_IN`] with
+//! their settings, so the listing and the README's table cover them too; their code
+//! predates this registry and still lives in `cpu/`, `shaders/` and `plan.rs`.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use glam::DVec3;
+
+use crate::cpu::SampleKey;
+use crate::render::{RayStats, RenderSettings};
+use crate::scene::{Light, Material, Scene};
+
+/// Plug-in shadow models, in the order they are listed and offered. One line each.
+pub const SHADOW_MODELS: &[&ShadowModel] = &[];
+
+/// A part of the model with several implementations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Slot {
+    /// How the visibility of a light from a surface point is estimated.
+    Shadow,
+    /// How a shadow segment through semi-transparent voxels is attenuated.
+    Transmittance,
+    /// Terms added to the local light at every diffuse hit.
+    Lighting,
+}
+
+impl Slot {
+    pub fn name(self) -> &'static str {
+        match self {
+            Slot::Shadow => "shadow model",
+            Slot::Transmittance => "transmittance",
+            Slot::Lighting => "lighting term",
+        }
+    }
+
+    /// The `[features]` key that chooses the slot's technique.
+    pub fn key(self) -> &'static str {
+        match self {
+            Slot::Shadow => "features.shadow_model",
+            Slot::Transmittance => "features.transmittance",
+            Slot::Lighting => "features.<name> = true",
+        }
+    }
+}
+
+/// The type and allowed range of a setting.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Kind {
+    /// An integer in `min..=max`.
+    Int { min: i64, max: i64 },
+    /// A finite number in `[min, max]`, or `(min, max]` when `min_open`.
+    Float { min: f64, max: f64, min_open: bool },
+}
+
+/// One experiment setting of a technique, declared once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Setting {
+    /// Key within the technique's table (`[techniques.<name>]` for plug-ins).
+    pub key: &'static str,
+    pub kind: Kind,
+    pub default: f64,
+    /// What it does, one line.
+    pub doc: &'static str,
+    /// Values `voxlab ablate` sweeps it over (empty: not a quality knob).
+    pub sweep: &'static [f64],
+}
+
+impl Setting {
+    /// The allowed range in the words of the experiment parser's messages.
+    pub fn range_text(&self) -> String {
+        match self.kind {
+            Kind::Int { min, max } => format!("must be an integer in {min}..={max}"),
+            Kind::Float {
+                min,
+                max,
+                min_open: true,
+            } => format!("must be a finite number in ({min}, {max}]"),
+            Kind::Float { min, max, .. } => format!("must be a finite number in [{min}, {max}]"),
+        }
+    }
+
+    /// `Ok(v)` when `v` is of the declared type and in range, else the requirement.
+    pub fn check(&self, v: f64) -> Result<f64, String> {
+        let ok = match self.kind {
+            Kind::Int { min, max } => v.fract() == 0.0 && (min as f64..=max as f64).contains(&v),
+            Kind::Float { min, max, min_open } => {
+                v.is_finite() && v <= max && if min_open { v > min } else { v >= min }
+            }
+        };
+        if ok { Ok(v) } else { Err(self.range_text()) }
+    }
+
+    /// The TOML value of `v` in this setting's type.
+    pub fn toml_value(&self, v: f64) -> toml::Value {
+        match self.kind {
+            Kind::Int { .. } => toml::Value::Integer(v as i64),
+            Kind::Float { .. } => toml::Value::Float(v),
+        }
+    }
+}
+
+/// The settings of plug-in techniques as the experiment gives them: technique name ->
+/// key -> value. A key left out takes its declared default ([`TechniqueParams::get`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TechniqueParams {
+    values: BTreeMap<String, BTreeMap<String, f64>>,
+}
+
+impl TechniqueParams {
+    /// The value of `setting` of technique `name`: as set, else its default.
+    pub fn get(&self, name: &str, setting: &Setting) -> f64 {
+        self.values
+            .get(name)
+            .and_then(|t| t.get(setting.key))
+            .copied()
+            .unwrap_or(setting.default)
+    }
+
+    /// Sets a value (checked by the caller against the setting's range).
+    pub fn set(&mut self, name: &str, key: &str, v: f64) {
+        self.values
+            .entry(name.to_string())
+            .or_default()
+            .insert(key.to_string(), v);
+    }
+
+    /// The values set, by technique.
+    pub fn iter(&self) -> impl Iterator<Item = (&str, &BTreeMap<String, f64>)> {
+        self.values.iter().map(|(k, v)| (k.as_str(), v))
+    }
+}
+
+/// What a shadow model's CPU implementation is asked for one light at one hit.
+pub struct LightQuery<'a> {
+    pub scene: &'a Scene,
+    pub settings: &'a RenderSettings,
+    /// The shading material.
+    pub material: &'a Material,
+    /// The hit point, its unit normal (facing the ray) and the ray's unit direction.
+    pub p: DVec3,
+    pub n: DVec3,
+    pub d: DVec3,
+    /// Where shadow rays start: `p + eps n`.
+    pub q: DVec3,
+    pub key: SampleKey,
+    /// The light's index and the light.
+    pub index: u32,
+    pub light: &'a Light,
+}
+
+/// A shadow model's f64 reference, made once per render (its per-scene data built).
+pub trait CpuShadow: Send + Sync {
+    /// Light `at.light`'s local radiance at the hit before albedo: visibility times
+    /// `E (kd diffuse + ks specular)` (`crate::cpu::unshadowed`), however the model
+    /// estimates it. Counts its shadow rays and voxel steps in `stats`.
+    fn light_term(&self, at: &LightQuery, stats: &mut RayStats) -> DVec3;
+}
+
+/// A plug-in shadow model: everything about it, in one value.
+pub struct ShadowModel {
+    /// Its name in experiment files (`[features] shadow_model`), lists and file names.
+    pub name: &'static str,
+    /// What it is, one line, with the paper or section it follows.
+    pub summary: &'static str,
+    /// Its settings (`[techniques.<name>]`).
+    pub settings: &'static [Setting],
+    /// Whether each frame draws new light samples, so `spp` frames are accumulated.
+    pub stochastic: bool,
+    /// The plan rule, given that shadow rays are in: `Err(reason)` leaves the model out
+    /// of this scene (every light is then shaded by hard shadows at its centre).
+    pub plan: fn(&Scene, &RenderSettings) -> Result<(), String>,
+    /// Its WGSL module (path, source): `#define_import_path voxlab::shadow_model` with
+    /// `fn light_term(q, p, n, d: vec3<f32>, light: Light, j: u32, s: Material, key:
+    /// SampleKey) -> vec3<f32>`, the GPU twin of [`CpuShadow::light_term`]. It may read
+    /// `technique_data` (shaders/bindings.wgsl), filled by `gpu_data`.
+    pub wgsl: (&'static str, &'static str),
+    /// The data the kernel reads from `technique_data`, made when the plan uses the
+    /// model and its inputs changed. `None`: it reads none.
+    pub gpu_data: Option<fn(&Scene, &RenderSettings) -> Vec<f32>>,
+    /// Makes the CPU implementation for a render.
+    pub cpu: fn(&Scene, &RenderSettings) -> Box<dyn CpuShadow>,
+    /// The knob its ablation curve sweeps: one of its settings, or `"spp"` (the
+    /// `[ablate] spp` list) for a stochastic model whose quality is its sample count.
+    pub ablate_knob: &'static str,
+}
+
+impl ShadowModel {
+    /// Its setting `key`.
+    pub fn setting(&self, key: &str) -> Option<&'static Setting> {
+        self.settings.iter().find(|s| s.key == key)
+    }
+
+    /// The value of its setting `key` in `settings` (declared default if unset).
+    pub fn value(&self, settings: &RenderSettings, key: &str) -> f64 {
+        let s = self
+            .setting(key)
+            .unwrap_or_else(|| panic!("{} has no setting {key}", self.name));
+        settings.technique_params.get(self.name, s)
+    }
+
+    /// Its index in [`SHADOW_MODELS`] (keys the kernel variant).
+    pub fn index(&self) -> u32 {
+        SHADOW_MODELS
+            .iter()
+            .position(|m| m.name == self.name)
+            .expect("registered") as u32
+    }
+}
+
+// A model is its name: the registry holds one value per name.
+impl PartialEq for ShadowModel {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+    }
+}
+
+impl Eq for ShadowModel {}
+
+impl fmt::Debug for ShadowModel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "ShadowModel({})", self.name)
+    }
+}
+
+/// The plug-in shadow model called `name`.
+pub fn shadow_model(name: &str) -> Option<&'static ShadowModel> {
+    SHADOW_MODELS.iter().copied().find(|m| m.name == name)
+}
+
+/// A technique of the seed's set, declared for the listing and the switch lists.
+#[derive(Clone, Copy, Debug)]
+pub struct BuiltIn {
+    pub name: &'static str,
+    pub slot: Slot,
+    pub summary: &'static str,
+    /// Its settings as `table.key` (their ranges are the parser's).
+    pub settings: &'static [&'static str],
+}
+
+/// The seed's techniques and voxlab's first extensions, in listing order.
+pub const BUILT_IN: &[BuiltIn] = &[
+    BuiltIn {
+        name: "hard",
+        slot: Slot::Shadow,
+        summary: "one shadow ray to each light's centre (the seed's hard shadows, Whitted 1980)",
+        settings: &[],
+    },
+    BuiltIn {
+        name: "area",
+        slot: Slot::Shadow,
+        summary: "area lights sampled over their shape, stratified, accumulated over frames \
+                  (Cook, Porter and Carpenter 1984)",
+        settings: &["render.light_samples", "render.spp"],
+    },
+    BuiltIn {
+        name: "cone",
+        slot: Slot::Shadow,
+        summary: "one cone per light through the opacity pyramid (Crassin et al. 2011, section 4)",
+        settings: &[
+            "cones.levels",
+            "cones.step_factor",
+            "cones.aperture_deg",
+            "cones.start_offset",
+        ],
+    },
+    BuiltIn {
+        name: "min-kt",
+        slot: Slot::Transmittance,
+        summary: "the smallest kt of the voxels a shadow segment crosses (the seed's O1)",
+        settings: &[],
+    },
+    BuiltIn {
+        name: "beer-lambert",
+        slot: Slot::Transmittance,
+        summary: "exp(-sum sigma_m len_m) with each voxel's exact length (Beer-Lambert law)",
+        settings: &["materials.sigma"],
+    },
+    BuiltIn {
+        name: "ambient_occlusion",
+        slot: Slot::Lighting,
+        summary: "ambient times the visibility of cosine-weighted hemisphere cones \
+                  (Crassin et al. 2011)",
+        settings: &["cones.ao_cones", "cones.ao_range"],
+    },
+    BuiltIn {
+        name: "indirect",
+        slot: Slot::Lighting,
+        summary: "one bounce of diffuse light gathered by hemisphere cones from the radiance \
+                  pyramid (Crassin et al. 2011, section 4.2)",
+        settings: &["cones.indirect_strength"],
+    },
+];
+
+/// Names a `[features] shadow_model` may take: the built-in shadow models, then the
+/// plug-ins.
+pub fn shadow_model_names() -> Vec<&'static str> {
+    BUILT_IN
+        .iter()
+        .filter(|b| b.slot == Slot::Shadow)
+        .map(|b| b.name)
+        .chain(SHADOW_MODELS.iter().map(|m| m.name))
+        .collect()
+}
+
+/// One row of the listing: name, slot, how it is switched on, settings, summary.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ListingRow {
+    pub name: &'static str,
+    pub slot: Slot,
+    pub switch: String,
+    pub settings: Vec<String>,
+    pub summary: &'static str,
+}
+
+/// Every technique, built-in first.
+pub fn listing() -> Vec<ListingRow> {
+    let mut rows: Vec<ListingRow> = BUILT_IN
+        .iter()
+        .map(|b| ListingRow {
+            name: b.name,
+            slot: b.slot,
+            switch: match b.slot {
+                Slot::Shadow => format!("shadow_model = \"{}\"", b.name),
+                Slot::Transmittance => format!("transmittance = \"{}\"", b.name),
+                Slot::Lighting => format!("{} = true", b.name),
+            },
+            settings: b.settings.iter().map(|s| s.to_string()).collect(),
+            summary: b.summary,
+        })
+        .collect();
+    for m in SHADOW_MODELS {
+        rows.push(ListingRow {
+            name: m.name,
+            slot: Slot::Shadow,
+            switch: format!("shadow_model = \"{}\"", m.name),
+            settings: m
+                .settings
+                .iter()
+                .map(|s| format!("techniques.{}.{}", m.name, s.key))
+                .collect(),
+            summary: m.summary,
+        });
+    }
+    rows
+}
+
+/// The listing as a markdown table (what `voxlab techniques --markdown` prints and the
+/// README's table must equal).
+pub fn listing_markdown() -> String {
+    let mut out = String::from(
+        "| technique | slot | `[features]` | settings | what it is |\n|---|---|---|---|---|\n",
+    );
+    for r in listing() {
+        let settings = if r.settings.is_empty() {
+            "-".to_string()
+        } else {
+            r.settings
+                .iter()
+                .map(|s| format!("`{s}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        out += &format!(
+            "| {} | {} | `{}` | {} | {} |\n",
+            r.name,
+            r.slot.name(),
+            r.switch,
+            settings,
+            r.summary
+        );
+    }
+    out
+}
+
+/// The listing as plain text, with each plug-in setting's type, default and range.
+pub fn listing_text() -> String {
+    let mut out = String::new();
+    for r in listing() {
+        out += &format!(
+            "{} ({}; {})\n  {}\n",
+            r.name,
+            r.slot.name(),
+            r.switch,
+            r.summary
+        );
+        if let Some(m) = shadow_model(r.name) {
+            for s in m.settings {
+                out += &format!(
+                    "  [techniques.{}] {} = {} ({}; {})\n",
+                    m.name,
+                    s.key,
+                    s.default,
+                    s.range_text().trim_start_matches("must be "),
+                    s.doc
+                );
+            }
+        } else {
+            for s in &r.settings {
+                out += &format!("  {s}\n");
+            }
+        }
+    }
+    out
+}
