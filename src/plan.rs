@@ -196,7 +196,8 @@ impl Plan {
 
         let sampled_lights = scene.lights.iter().filter(|l| l.is_area()).count();
         let area_lights = if !settings.features.area_lights {
-            if sampled_lights > 0 {
+            // A plug-in shadow model shades the area lights itself.
+            if sampled_lights > 0 && settings.features.shadow_model.is_none() {
                 reasons.push(format!(
                     "area lights: features.area_lights is off; {sampled_lights} area \
                      light(s) act as point lights at their centres"
