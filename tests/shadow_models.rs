@@ -251,7 +251,10 @@ fn gpu_agrees_with_cpu_over_the_space() {
             (24, 1, 1, 4, 2.0),
             (33, 3, 4, 2, 4.0),
             (16, 64, 1, 1, 3.0),
-            (40, 2, 9, 6, 1.0),
+            (40, 2, 9, 3, 1.0),
+            // Deep trees with few samples: lavapipe's loop limit (shaders/counters.wgsl)
+            // refuses 6/6 with 9 samples on each of 3 lights.
+            (20, 2, 2, 6, 2.0),
         ] {
             let s = scene(size);
             let mut st = settings(m, side);

@@ -15,6 +15,8 @@
 //! their settings, so the listing and the README's table cover them too; their code
 //! predates this registry and still lives in `cpu/`, `shaders/` and `plan.rs`.
 
+pub mod ratio;
+
 use std::collections::BTreeMap;
 use std::fmt;
 
@@ -25,7 +27,7 @@ use crate::render::{RayStats, RenderSettings};
 use crate::scene::{Light, Material, Scene};
 
 /// Plug-in shadow models, in the order they are listed and offered. One line each.
-pub const SHADOW_MODELS: &[&ShadowModel] = &[];
+pub const SHADOW_MODELS: &[&ShadowModel] = &[&ratio::MODEL];
 
 /// A part of the model with several implementations.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

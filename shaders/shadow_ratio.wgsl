@@ -1,0 +1,166 @@
+// The ratio estimator (Heitz, Hill and McGuire, I3D 2018): a rectangle light's
+// unshadowed diffuse light in closed form times the sampled ratio of shadowed to
+// unshadowed light; other area lights sampled as the area model does, points at their
+// centres. The contract and the formulas: src/technique/ratio.rs. Grid-local units:
+// lengths in voxels, so falloff multiplies squared lengths by voxel_size^2; the field
+// integral F is dimensionless and the area is divided by voxel_size^2.
+#define_import_path voxlab::shadow_model
+
+#import voxlab::types::{Material, Light, LIGHT_POINT, LIGHT_RECT}
+#import voxlab::bindings::params
+#import voxlab::counters::{count_shadow, loop_cut}
+#import voxlab::sampling::{SampleKey, light_sample}
+#import voxlab::area_lights::sample_point
+#import voxlab::phong::{point_contribution, shadow_to}
+
+// crate::technique::ratio::SMALL_LIGHT
+const SMALL_LIGHT: f32 = 1e-3;
+
+// The clipped polygon, relative to p: a rectangle cut by a plane has at most 5 corners.
+var<private> poly: array<vec3<f32>, 5>;
+var<private> poly_len: u32;
+
+fn poly_push(v: vec3<f32>) {
+    poly[poly_len] = v;
+    poly_len += 1u;
+}
+
+// One edge of Sutherland-Hodgman against n . x >= 0 (relative coordinates).
+fn clip_edge(a: vec3<f32>, b: vec3<f32>, n: vec3<f32>) {
+    let da = dot(n, a);
+    let db = dot(n, b);
+    if da >= 0.0 {
+        poly_push(a);
+    }
+    if (da >= 0.0) != (db >= 0.0) {
+        poly_push(a + da / (da - db) * (b - a));
+    }
+}
+
+fn triangle_solid_angle(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> f32 {
+    let la = length(a);
+    let lb = length(b);
+    let lc = length(c);
+    let num = abs(dot(a, cross(b, c)));
+    let den = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la;
+    return 2.0 * atan2(num, den);
+}
+
+// The in-plane field of edge i: -m_e ln((r_a + r_b + L) / (r_a + r_b - L)).
+fn edge_field(i: u32, normal: vec3<f32>) -> vec3<f32> {
+    if i >= poly_len {
+        return vec3<f32>(0.0);
+    }
+    let a = poly[i];
+    let b = poly[(i + 1u) % poly_len];
+    let e = b - a;
+    let len = length(e);
+    if !(len > 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let ra = length(a);
+    let rb = length(b);
+    let gap = max(2.0 * (ra * rb + dot(a, b)), 1e-30);
+    let l = 2.0 * log(ra + rb + len) - log(gap);
+    return -(cross(e, normal) / len) * l;
+}
+
+// n . F over the rectangle (centre c, axes au, av, unit normal ne) clipped to the
+// half-space in front of p (module notes of src/technique/ratio.rs). No loops: at most
+// 5 corners, 3 fan triangles and 5 edges, written out.
+fn clipped_field(p: vec3<f32>, n: vec3<f32>, c: vec3<f32>, au: vec3<f32>, av: vec3<f32>, ne: vec3<f32>) -> f32 {
+    let c0 = c - 0.5 * au - 0.5 * av - p;
+    let c1 = c + 0.5 * au - 0.5 * av - p;
+    let c2 = c + 0.5 * au + 0.5 * av - p;
+    let c3 = c - 0.5 * au + 0.5 * av - p;
+    poly_len = 0u;
+    clip_edge(c0, c1, n);
+    clip_edge(c1, c2, n);
+    clip_edge(c2, c3, n);
+    clip_edge(c3, c0, n);
+    if poly_len < 3u {
+        return 0.0;
+    }
+    var omega = triangle_solid_angle(poly[0], poly[1], poly[2]);
+    if poly_len > 3u {
+        omega += triangle_solid_angle(poly[0], poly[2], poly[3]);
+    }
+    if poly_len > 4u {
+        omega += triangle_solid_angle(poly[0], poly[3], poly[4]);
+    }
+    let h = dot(ne, poly[0]);
+    var field = select(-1.0, 1.0, h >= 0.0) * omega * ne;
+    field += edge_field(0u, ne) + edge_field(1u, ne) + edge_field(2u, ne);
+    field += edge_field(3u, ne) + edge_field(4u, ne);
+    return dot(n, field);
+}
+
+fn light_term(
+    q: vec3<f32>,
+    p: vec3<f32>,
+    n: vec3<f32>,
+    d: vec3<f32>,
+    light: Light,
+    j: u32,
+    s: Material,
+    key: SampleKey,
+) -> vec3<f32> {
+    if light.kind == LIGHT_POINT {
+        return point_contribution(q, p, n, d, light.position, light.radiance, s);
+    }
+    let count = max(params.light_samples, 1u);
+    let analytic = light.kind == LIGHT_RECT && length(light.axis_u) > 0.0
+        && length(light.axis_v) > 0.0 && params.falloff != 0u;
+    var sampled = vec3<f32>(0.0);
+    var shadowed = vec3<f32>(0.0);
+    var free = 0.0;
+    var specular = vec3<f32>(0.0);
+    var visible = vec3<f32>(0.0);
+    let vs2 = params.voxel_size * params.voxel_size;
+    var k = 0u;
+    for (; k < count; k++) {
+        let x = sample_point(light, light_sample(params.seed, key, j, k, count));
+        if !analytic {
+            sampled += point_contribution(q, p, n, d, x, light.radiance, s);
+            continue;
+        }
+        count_shadow();
+        let vis = shadow_to(q, x);
+        let to = x - p;
+        let dl = length(to);
+        var l = n;
+        if dl > 0.0 {
+            l = to / dl;
+        }
+        let e = 1.0 / max(dl * dl * vs2, params.falloff_min_dist_sq);
+        let nl = dot(n, l);
+        let f = e * max(nl, 0.0);
+        let rd = dot(l - 2.0 * nl * n, d);
+        if nl > 0.0 && rd > 0.0 {
+            specular += vis * e * s.ks * pow(rd, s.shininess);
+        }
+        shadowed += vis * f;
+        free += f;
+        visible += vis;
+    }
+    // Only the driver's loop limit ends it early (shaders/counters.wgsl).
+    if k < count {
+        loop_cut();
+    }
+    if !analytic {
+        return sampled / f32(count);
+    }
+    var ratio = visible / f32(count);
+    if free > 0.0 {
+        ratio = shadowed / free;
+    }
+    // A light seen at under SMALL_LIGHT radians: the samples' mean (ratio.rs).
+    if length(light.axis_u + light.axis_v) < SMALL_LIGHT * length(light.position - p) {
+        return light.radiance * (s.kd * shadowed + specular) / f32(count);
+    }
+    let normal_area = cross(light.axis_u, light.axis_v);
+    let area = length(normal_area);
+    let irradiance = clipped_field(p, n, light.position, light.axis_u, light.axis_v, normal_area / area)
+        / (area * vs2);
+    return light.radiance * (s.kd * irradiance * ratio + specular / f32(count));
+}
