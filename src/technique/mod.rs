@@ -16,6 +16,7 @@
 //! predates this registry and still lives in `cpu/`, `shaders/` and `plan.rs`.
 
 pub mod ratio;
+pub mod sdf;
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -27,7 +28,7 @@ use crate::render::{RayStats, RenderSettings};
 use crate::scene::{Light, Material, Scene};
 
 /// Plug-in shadow models, in the order they are listed and offered. One line each.
-pub const SHADOW_MODELS: &[&ShadowModel] = &[&ratio::MODEL];
+pub const SHADOW_MODELS: &[&ShadowModel] = &[&ratio::MODEL, &sdf::MODEL];
 
 /// A part of the model with several implementations.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
