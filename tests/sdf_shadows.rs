@@ -45,7 +45,12 @@ fn the_transform_is_exact() {
                 .filter(|&j| sites[j])
                 .map(|j| (at(i) - at(j)).length_squared() as f64)
                 .fold(f64::INFINITY, f64::min);
-            assert_eq!(transformed, brute, "case {case}, dims {dims}, voxel {}", at(i));
+            assert_eq!(
+                transformed,
+                brute,
+                "case {case}, dims {dims}, voxel {}",
+                at(i)
+            );
         }
     }
 }
@@ -165,5 +170,69 @@ fn penumbrae_grow_from_the_hard_shadow() {
         }
         assert!(darker > 10, "softness {s}: only {darker} penumbra pixels");
         previous = soft;
+    }
+}
+
+/// The device builds the same field as the CPU, value for value, on random grids of
+/// random shapes (odd sides, one-voxel lines, no occluder at all).
+#[test]
+fn the_device_builds_the_same_field() {
+    let mut gpu = tracer();
+    let mut rng = StdRng::seed_from_u64(11);
+    let palette = seed_palette();
+    let opaque = palette
+        .iter()
+        .position(|m| m.kt <= 0.0 && m.name != "void")
+        .unwrap() as u8;
+    let glass = palette
+        .iter()
+        .position(|m| m.kt > 0.0 && m.kt < 1.0)
+        .unwrap() as u8;
+    for case in 0..24 {
+        let dims = UVec3::new(
+            rng.random_range(1..40),
+            rng.random_range(1..24),
+            rng.random_range(1..40),
+        );
+        let mut scene = seed_scene(16).unwrap();
+        let mut grid = Grid::new(dims, 1.0, DVec3::ZERO).unwrap();
+        let density = [0.0, 0.01, 0.1, 0.5][case % 4];
+        for z in 0..dims.z as i32 {
+            for y in 0..dims.y as i32 {
+                for x in 0..dims.x as i32 {
+                    let r: f64 = rng.random_range(0.0..1.0);
+                    if r < density {
+                        grid.set(IVec3::new(x, y, z), opaque);
+                    } else if r < 2.0 * density {
+                        grid.set(IVec3::new(x, y, z), glass);
+                    }
+                }
+            }
+        }
+        // Something lit, so the plan keeps shadows (glass: no occluder).
+        grid.set(IVec3::ZERO, glass);
+        scene.grid = grid;
+        scene.materials = palette.clone();
+        let mut st = RenderSettings {
+            width: 8,
+            height: 8,
+            ..Default::default()
+        };
+        st.features.set_shadow_model("sdf");
+        st.technique_params.set("sdf", "softness", 1.5);
+        gpu.render(&scene, &st).unwrap();
+        let device = gpu.read_technique_data().unwrap().expect("the sdf field");
+        let cpu: Vec<f32> = distance_field(&scene)
+            .into_iter()
+            .map(|d| d.min(f32::MAX as f64) as f32)
+            .collect();
+        assert_eq!(device.len(), cpu.len() + 1, "case {case}");
+        assert_eq!(device[cpu.len()], 1.5, "softness after the field");
+        for (i, (g, c)) in device.iter().zip(&cpu).enumerate() {
+            assert!(
+                g == c || (g - c).abs() <= 1e-6 * c.abs(),
+                "case {case}, dims {dims}, voxel {i}: device {g}, cpu {c}"
+            );
+        }
     }
 }

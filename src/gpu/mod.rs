@@ -1089,12 +1089,11 @@ impl GpuTracer {
         scene: &Scene,
         settings: &RenderSettings,
         plan: &Plan,
-    ) -> u64 {
-        let Some(make) = plan.shadow_model.and_then(|m| m.gpu_data.map(|f| (m, f))) else {
+    ) -> Result<u64> {
+        let Some((model, make)) = plan.shadow_model.and_then(|m| m.gpu_data.map(|f| (m, f))) else {
             self.technique_data = None;
-            return 0;
+            return Ok(0);
         };
-        let (model, make) = make;
         // Its inputs: the technique, its settings, the voxels (by upload generation) and
         // everything else of the scene but the camera.
         let key = blake3::hash(
@@ -1113,23 +1112,43 @@ impl GpuTracer {
         if let Some((k, b)) = &self.technique_data
             && *k == key
         {
-            return b.size();
+            return Ok(b.size());
         }
-        let mut data = make(scene, settings);
-        if data.is_empty() {
-            data.push(0.0);
-        }
-        let buf = buffer(
-            &self.device,
-            model.name,
-            (data.len() * 4) as u64,
-            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        );
-        self.queue
-            .write_buffer(&buf, 0, bytemuck::cast_slice(&data));
+        // Dropped first: a failed build leaves nothing that looks current.
+        self.technique_data = None;
+        let buf = match make {
+            crate::technique::GpuData::Host(make) => {
+                let mut data = make(scene, settings);
+                if data.is_empty() {
+                    data.push(0.0);
+                }
+                let buf = buffer(
+                    &self.device,
+                    model.name,
+                    (data.len() * 4) as u64,
+                    wgpu::BufferUsages::STORAGE
+                        | wgpu::BufferUsages::COPY_DST
+                        | wgpu::BufferUsages::COPY_SRC,
+                );
+                self.queue
+                    .write_buffer(&buf, 0, bytemuck::cast_slice(&data));
+                buf
+            }
+            crate::technique::GpuData::Device(build) => {
+                let grid = &self.grid.as_ref().expect("grid uploaded").view;
+                build(&crate::technique::GpuBuild {
+                    device: &self.device,
+                    queue: &self.queue,
+                    grid,
+                    scene,
+                    settings,
+                })
+                .with_context(|| format!("building the data of shadow model {}", model.name))?
+            }
+        };
         let size = buf.size();
         self.technique_data = Some((key, buf));
-        size
+        Ok(size)
     }
 
     fn render_range_once(
@@ -1212,7 +1231,7 @@ impl GpuTracer {
         let reduce = accumulation
             .as_ref()
             .map(|(compensation, slices)| self.reduce_bind_group(&output, compensation, slices));
-        let technique_bytes = self.upload_technique_data(scene, settings, &plan);
+        let technique_bytes = self.upload_technique_data(scene, settings, &plan)?;
         let technique_data = match (&self.technique_data, technique_bytes) {
             (Some((_, b)), 1..) => b,
             _ => &self.no_technique_data,
@@ -1594,6 +1613,20 @@ impl GpuTracer {
             .map(|p| p[1].saturating_sub(p[0]) as f64 * period)
             .sum();
         Ok(Duration::from_nanos(ns.round() as u64))
+    }
+
+    /// The `technique_data` of the latest render whose plan had a plug-in shadow model
+    /// with data (`None` otherwise), read back: for tests that hold the device's build to
+    /// the CPU's.
+    pub fn read_technique_data(&self) -> Result<Option<Vec<f32>>> {
+        let Some((_, buf)) = &self.technique_data else {
+            return Ok(None);
+        };
+        let copy = readback(&self.device, "technique data readback", buf.size());
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(buf, 0, &copy, 0, buf.size());
+        self.queue.submit([encoder.finish()]);
+        self.read(&copy, buf.size()).map(Some)
     }
 
     fn read<T: Pod>(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<T>> {

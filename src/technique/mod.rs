@@ -173,6 +173,26 @@ pub trait CpuShadow: Send + Sync {
     fn light_term(&self, at: &LightQuery, stats: &mut RayStats) -> DVec3;
 }
 
+/// How a technique's `technique_data` is made.
+#[derive(Clone, Copy)]
+pub enum GpuData {
+    /// On the host, uploaded as it is.
+    Host(fn(&Scene, &RenderSettings) -> Vec<f32>),
+    /// On the device, by compute passes the technique encodes and submits; the buffer
+    /// returned has `STORAGE` and `COPY_SRC` usage. An error fails the render.
+    Device(fn(&GpuBuild) -> anyhow::Result<wgpu::Buffer>),
+}
+
+/// What a technique's device build is given.
+pub struct GpuBuild<'a> {
+    pub device: &'a wgpu::Device,
+    pub queue: &'a wgpu::Queue,
+    /// The voxel grid as uploaded: one material index per voxel (R8Uint, dims).
+    pub grid: &'a wgpu::TextureView,
+    pub scene: &'a Scene,
+    pub settings: &'a RenderSettings,
+}
+
 /// A plug-in shadow model: everything about it, in one value.
 pub struct ShadowModel {
     /// Its name in experiment files (`[features] shadow_model`), lists and file names.
@@ -193,7 +213,7 @@ pub struct ShadowModel {
     pub wgsl: (&'static str, &'static str),
     /// The data the kernel reads from `technique_data`, made when the plan uses the
     /// model and its inputs changed. `None`: it reads none.
-    pub gpu_data: Option<fn(&Scene, &RenderSettings) -> Vec<f32>>,
+    pub gpu_data: Option<GpuData>,
     /// Makes the CPU implementation for a render.
     pub cpu: fn(&Scene, &RenderSettings) -> Box<dyn CpuShadow>,
     /// The knob its ablation curve sweeps: one of its settings, or `"spp"` (the

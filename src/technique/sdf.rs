@@ -10,8 +10,9 @@
 //!   occluder's centre, minus half a voxel (the distance from a centre to the face of a
 //!   face-adjacent voxel), in voxels; 0 on occluders. Off the axes it overestimates the
 //!   distance to the occluder's box by at most `(sqrt 3 - 1) / 2` voxel. Built once per
-//!   scene on the host (squared distances are integers, exact in f64; the kernel reads
-//!   them as f32 from `technique_data`, x fastest).
+//!   scene by each backend on its own: in f64 here, in f32 on the device
+//!   (`shaders/sdf_edt.wgsl`, read by the kernel from `technique_data`, x fastest).
+//!   Squared distances are integers, exact in f32 below 2^24, so both are exact.
 //! - A light is shaded at its centre `x`: `T P E (kd diffuse + ks specular)`, with `T`
 //!   the shadow transmittance of the segment from `q` to `x` under the experiment's
 //!   transmittance model, and, when `T` is not zero, `P = clamp(min_v D(v) len / (s R
@@ -31,13 +32,14 @@
 
 use glam::{DVec3, IVec3, UVec3};
 
-use super::{CpuShadow, Kind, LightQuery, Setting, ShadowModel};
+use super::{CpuShadow, GpuBuild, GpuData, Kind, LightQuery, Setting, ShadowModel};
 use crate::cpu::{Dda, shadow_transmittance, unshadowed};
 use crate::render::{RayStats, RenderSettings};
 use crate::scene::{Scene, VOID};
 
-/// Largest grid (voxels) the field is built for: 128 MiB of f32 on the device.
-pub const MAX_FIELD_VOXELS: u64 = 1 << 25;
+/// Largest grid (voxels) the field is built for: 64 MiB of f32 on the device (and
+/// twice that of scratch while it is built), 128 MiB of f64 for the CPU reference.
+pub const MAX_FIELD_VOXELS: u64 = 1 << 24;
 
 const SETTINGS: &[Setting] = &[Setting {
     key: "softness",
@@ -63,15 +65,9 @@ pub const MODEL: ShadowModel = ShadowModel {
         "shaders/shadow_sdf.wgsl",
         include_str!("../../shaders/shadow_sdf.wgsl"),
     ),
-    // The field, then `softness` (shaders/shadow_sdf.wgsl reads it after the field).
-    gpu_data: Some(|scene, settings| {
-        let mut data: Vec<f32> = distance_field(scene)
-            .into_iter()
-            .map(|d| d.min(f32::MAX as f64) as f32)
-            .collect();
-        data.push(MODEL.value(settings, "softness") as f32);
-        data
-    }),
+    // The field, built on the device, then `softness` (shaders/shadow_sdf.wgsl reads it
+    // after the field).
+    gpu_data: Some(GpuData::Device(build_on_device)),
     cpu: |scene, settings| {
         Box::new(Sdf {
             field: distance_field(scene),
@@ -264,4 +260,218 @@ impl CpuShadow for Sdf {
         }
         t * p * unshadowed(s, at.material, at.p, at.n, at.d, x, radiance)
     }
+}
+
+/// `shaders/sdf_edt.wgsl`: the field on the device.
+const EDT: &str = include_str!("../../shaders/sdf_edt.wgsl");
+
+/// Builds `D` on the device (one envelope pass per axis, then the finishing pass) into a
+/// buffer of `voxels + 1` floats, the last one `softness`; an error when the driver's
+/// loop limit cut a line short.
+fn build_on_device(b: &GpuBuild) -> anyhow::Result<wgpu::Buffer> {
+    use wgpu::util::DeviceExt;
+    let (device, queue) = (b.device, b.queue);
+    let dims = b.scene.grid.dims();
+    let voxels = dims.as_u64vec3().element_product();
+    let opaque: Vec<u32> = b
+        .scene
+        .materials
+        .iter()
+        .enumerate()
+        .map(|(i, m)| u32::from(i != VOID as usize && m.kt <= 0.0))
+        .collect();
+    let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("sdf field"),
+        entries: &[
+            wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            },
+            wgpu::BindGroupLayoutEntry {
+                binding: 1,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Uint,
+                    view_dimension: wgpu::TextureViewDimension::D3,
+                    multisampled: false,
+                },
+                count: None,
+            },
+            storage(2, true),
+            storage(3, true),
+            storage(4, false),
+            storage(5, false),
+            storage(6, false),
+            storage(7, false),
+        ],
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("sdf field"),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("shaders/sdf_edt.wgsl"),
+        source: wgpu::ShaderSource::Wgsl(EDT.into()),
+    });
+    let pipeline = |entry: &str| {
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
+    };
+    let (envelope, finish) = (pipeline("envelope"), pipeline("finish"));
+    let buffer = |label, size: u64, usage| {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: size.max(4),
+            usage,
+            mapped_at_creation: false,
+        })
+    };
+    let storage_usage = wgpu::BufferUsages::STORAGE;
+    let field = buffer(
+        "sdf field",
+        (voxels + 1) * 4,
+        storage_usage | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+    );
+    let other = buffer("sdf field (pass)", voxels * 4, storage_usage);
+    let roots = buffer("sdf envelope roots", voxels * 4, storage_usage);
+    let lines = [dims.y * dims.z, dims.x * dims.z, dims.x * dims.y].map(u64::from);
+    let most_lines = lines.into_iter().max().unwrap_or(1);
+    let bounds = buffer(
+        "sdf envelope bounds",
+        (voxels + most_lines) * 4,
+        storage_usage,
+    );
+    let cut = buffer(
+        "sdf loop cut",
+        4,
+        storage_usage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+    );
+    let cut_read = buffer(
+        "sdf loop cut readback",
+        4,
+        wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+    );
+    let opaque = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("sdf opaque materials"),
+        contents: bytemuck::cast_slice(&opaque),
+        usage: storage_usage,
+    });
+    queue.write_buffer(&cut, 0, &[0; 4]);
+    let mut encoder = device.create_command_encoder(&Default::default());
+    // x: grid -> field; y: field -> other; z: other -> field; finish: field in place.
+    for (axis, src, dst) in [
+        (0u32, &other, &field),
+        (1, &field, &other),
+        (2, &other, &field),
+        (3, &other, &field),
+    ] {
+        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("sdf field params"),
+            contents: bytemuck::cast_slice(&[dims.x, dims.y, dims.z, axis]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("sdf field"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(b.grid),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: opaque.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: src.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: dst.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: roots.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: bounds.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: cut.as_entire_binding(),
+                },
+            ],
+        });
+        let items = if axis < 3 {
+            lines[axis as usize]
+        } else {
+            voxels
+        };
+        let groups = items.div_ceil(64).max(1);
+        let gx = groups.min(65535) as u32;
+        let gy = groups.div_ceil(u64::from(gx)) as u32;
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(if axis < 3 { &envelope } else { &finish });
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(gx, gy, 1);
+    }
+    encoder.copy_buffer_to_buffer(&cut, 0, &cut_read, 0, 4);
+    queue.submit([encoder.finish()]);
+    let slice = cut_read.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| anyhow::anyhow!("waiting for the GPU: {e}"))?;
+    rx.recv()??;
+    let was_cut = {
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| anyhow::anyhow!("reading a mapped buffer: {e:?}"))?;
+        bytemuck::cast_slice::<u8, u32>(&view)[0] != 0
+    };
+    cut_read.unmap();
+    if was_cut {
+        anyhow::bail!(
+            "the driver's loop limit cut the distance transform of a {}x{}x{} grid short \
+             (shaders/counters.wgsl); render with --backend cpu or on a hardware GPU",
+            dims.x,
+            dims.y,
+            dims.z
+        );
+    }
+    let softness = MODEL.value(b.settings, "softness") as f32;
+    queue.write_buffer(&field, voxels * 4, bytemuck::bytes_of(&softness));
+    Ok(field)
 }
