@@ -23,7 +23,6 @@ use serde::Deserialize;
 
 use crate::render::{
     ConeSettings, Features, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, RenderSettings,
-    Transmittance,
 };
 use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
 use crate::scene::{
@@ -34,46 +33,12 @@ use crate::scene::{
 /// Grid side of the seed scene (`[scene] size` when neither `size` nor `dims` is given).
 pub const SEED_SIZE: u32 = 16;
 
-/// `[features]` as written: every extension's switch, all off by default (the baseline).
-#[derive(Clone, Debug, Default, PartialEq, Eq, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawFeatures {
-    area_lights: Option<bool>,
-    transmittance: Option<TransmittanceName>,
-    cone_shadows: Option<bool>,
-    ambient_occlusion: Option<bool>,
-    indirect: Option<bool>,
-    /// A shadow model by name (`crate::technique::shadow_model_names`).
-    shadow_model: Option<String>,
-}
-
-/// `[cones]`: the knobs of voxel cone tracing (`crate::render::ConeSettings`).
-#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawCones {
-    levels: Option<i64>,
-    step_factor: Option<f64>,
-    aperture_deg: Option<f64>,
-    start_offset: Option<f64>,
-    ao_cones: Option<i64>,
-    ao_range: Option<f64>,
-    indirect_strength: Option<f64>,
-}
-
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 enum RulesName {
     #[serde(rename = "consistent")]
     Consistent,
     #[serde(rename = "seed")]
     Seed,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-enum TransmittanceName {
-    #[serde(rename = "min-kt")]
-    MinKt,
-    #[serde(rename = "beer-lambert")]
-    BeerLambert,
 }
 
 /// A validated experiment: everything a tracer needs to render it.
@@ -186,10 +151,10 @@ struct RawExperiment {
     materials: Vec<RawMaterial>,
     #[serde(default)]
     render: RawRender,
-    #[serde(default)]
-    features: RawFeatures,
-    #[serde(default)]
-    cones: RawCones,
+    /// `[features]`: checked against the declarations of `crate::technique`.
+    features: Option<toml::Table>,
+    /// `[cones]`: checked against `crate::technique::cones::CONE_SETTINGS`.
+    cones: Option<toml::Table>,
     /// `[techniques.<name>]`: settings of plug-in techniques, checked against their
     /// declarations (`crate::technique`).
     techniques: Option<toml::Table>,
@@ -882,9 +847,9 @@ fn build(
                 "in [0, 1) (voxel widths)",
             )
         })?,
-        features: build_features(&raw.features, ctx)?,
+        features: build_features(raw.features.as_ref(), ctx)?,
         technique_params: build_technique_params(raw.techniques.as_ref(), ctx)?,
-        cones: build_cones(&raw.cones, ctx)?,
+        cones: build_cones(raw.cones.as_ref(), ctx)?,
         light_samples: r.light_samples.map_or(Ok(d.light_samples), |v| {
             int_in(ctx, "render.light_samples", v, 1..=MAX_SAMPLES as i64)
         })?,
@@ -990,21 +955,59 @@ fn build(
     })
 }
 
-/// `[features]`: the switches, and `shadow_model` by name, which cannot be given
-/// beside a built-in model's own switch set to true.
-fn build_features(f: &RawFeatures, ctx: &Ctx) -> Result<Features, ExperimentError> {
-    let mut features = Features {
-        area_lights: f.area_lights.unwrap_or(false),
-        transmittance: match f.transmittance {
-            None | Some(TransmittanceName::MinKt) => Transmittance::MinKt,
-            Some(TransmittanceName::BeerLambert) => Transmittance::BeerLambert,
-        },
-        cone_shadows: f.cone_shadows.unwrap_or(false),
-        ambient_occlusion: f.ambient_occlusion.unwrap_or(false),
-        indirect: f.indirect.unwrap_or(false),
-        shadow_model: None,
+/// `[features]`: every key one of `crate::technique::feature_keys` (the slots'
+/// choices by name, the built-in techniques' flags); `shadow_model` cannot be given
+/// beside a built-in model's own flag set to true.
+fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, ExperimentError> {
+    use crate::technique::{
+        BUILT_IN, feature_keys, shadow_model_names, transmittance, transmittance_names,
     };
-    if let Some(name) = &f.shadow_model {
+    let mut features = Features::default();
+    let Some(t) = t else {
+        return Ok(features);
+    };
+    let mut shadow_model = None;
+    for (k, v) in t {
+        let key = format!("features.{k}");
+        let text = |names: Vec<&str>| {
+            v.as_str().map(str::to_string).ok_or_else(|| {
+                ctx.invalid(
+                    &key,
+                    format!("must be a string, one of: {}", names.join(", ")),
+                )
+            })
+        };
+        match k.as_str() {
+            "shadow_model" => shadow_model = Some(text(shadow_model_names())?),
+            "transmittance" => {
+                let name = text(transmittance_names())?;
+                features.transmittance = transmittance(&name).ok_or_else(|| {
+                    ctx.invalid(
+                        &key,
+                        format!(
+                            "no such transmittance model; allowed: {}",
+                            transmittance_names().join(", ")
+                        ),
+                    )
+                })?;
+            }
+            _ => {
+                let Some(flag) = BUILT_IN.iter().filter_map(|b| b.flag).find(|f| f.key == k) else {
+                    return Err(ExperimentError::UnknownKey {
+                        file: ctx.file.clone(),
+                        line: ctx.span_of(&key).map(|s| ctx.line_of(s.start)),
+                        key,
+                        allowed: feature_keys().join(", "),
+                    });
+                };
+                let on = v
+                    .as_bool()
+                    .ok_or_else(|| ctx.invalid(&key, "must be true or false"))?;
+                (flag.set)(&mut features, on);
+            }
+        }
+    }
+    if let Some(name) = shadow_model {
         let key = "features.shadow_model";
         if features.area_lights || features.cone_shadows {
             return Err(ctx.invalid(
@@ -1012,12 +1015,12 @@ fn build_features(f: &RawFeatures, ctx: &Ctx) -> Result<Features, ExperimentErro
                 "give either shadow_model or area_lights = true / cone_shadows = true, not both",
             ));
         }
-        if !features.set_shadow_model(name) {
+        if !features.set_shadow_model(&name) {
             return Err(ctx.invalid(
                 key,
                 format!(
                     "no such shadow model; allowed: {}",
-                    crate::technique::shadow_model_names().join(", ")
+                    shadow_model_names().join(", ")
                 ),
             ));
         }
@@ -1056,94 +1059,70 @@ fn build_technique_params(
         let Some(table) = table.as_table() else {
             return Err(ctx.invalid(&key, "must be a table of the technique's settings"));
         };
-        for (k, v) in table {
-            let key = format!("techniques.{name}.{k}");
-            let Some(setting) = model.setting(k) else {
-                let allowed: Vec<&str> = model.settings.iter().map(|s| s.key).collect();
-                return Err(ExperimentError::UnknownKey {
-                    file: ctx.file.clone(),
-                    line: ctx.span_of(&key).map(|s| ctx.line_of(s.start)),
-                    key,
-                    allowed: if allowed.is_empty() {
-                        "none (this technique has no settings)".to_string()
-                    } else {
-                        allowed.join(", ")
-                    },
-                });
-            };
-            let value = match v {
-                toml::Value::Integer(i) => Some(*i as f64),
-                toml::Value::Float(x) => Some(*x),
-                _ => None,
-            };
-            let checked = value
-                .ok_or_else(|| setting.range_text())
-                .and_then(|x| setting.check(x));
-            match checked {
-                Ok(x) => params.set(name, k, x),
-                Err(req) => return Err(ctx.invalid(&key, req)),
-            }
+        let declared: Vec<&crate::technique::Setting> = model.settings.iter().collect();
+        for (setting, v) in declared_values(table, &key, &declared, ctx)? {
+            params.set(name, setting.key, v);
         }
     }
     Ok(params)
 }
 
-/// `[cones]`, each key checked against its range; keys left out keep the defaults.
-fn build_cones(c: &RawCones, ctx: &Ctx) -> Result<ConeSettings, ExperimentError> {
-    let d = ConeSettings::default();
-    let positive = |key: &str, v: Option<f64>, dflt: f64, max: f64| {
-        v.map_or(Ok(dflt), |v| {
-            float_where(
-                ctx,
-                key,
-                v,
-                |x| x > 0.0 && x <= max,
-                &format!("in (0, {max}]"),
-            )
-        })
+/// `[cones]`, each key checked against its declaration; keys left out keep the
+/// defaults.
+fn build_cones(t: Option<&toml::Table>, ctx: &Ctx) -> Result<ConeSettings, ExperimentError> {
+    use crate::technique::cones::{CONE_SETTINGS, cone_setting};
+    let mut cones = ConeSettings::default();
+    let Some(t) = t else {
+        return Ok(cones);
     };
-    Ok(ConeSettings {
-        levels: c.levels.map_or(Ok(d.levels), |v| {
-            int_in(
-                ctx,
-                "cones.levels",
-                v,
-                0..=crate::cpu::pyramid::MAX_LEVELS as i64,
-            )
-        })?,
-        step_factor: positive("cones.step_factor", c.step_factor, d.step_factor, 4.0)?,
-        aperture_deg: c.aperture_deg.map_or(Ok(d.aperture_deg), |v| {
-            float_where(
-                ctx,
-                "cones.aperture_deg",
-                v,
-                |x| (0.0..=120.0).contains(&x),
-                "in [0, 120]",
-            )
-        })?,
-        start_offset: c.start_offset.map_or(Ok(d.start_offset), |v| {
-            float_where(
-                ctx,
-                "cones.start_offset",
-                v,
-                |x| (0.0..=16.0).contains(&x),
-                "in [0, 16] (voxels)",
-            )
-        })?,
-        ao_cones: c
-            .ao_cones
-            .map_or(Ok(d.ao_cones), |v| int_in(ctx, "cones.ao_cones", v, 1..=64))?,
-        ao_range: positive("cones.ao_range", c.ao_range, d.ao_range, 1e6)?,
-        indirect_strength: c.indirect_strength.map_or(Ok(d.indirect_strength), |v| {
-            float_where(
-                ctx,
-                "cones.indirect_strength",
-                v,
-                |x| (0.0..=100.0).contains(&x),
-                "in [0, 100]",
-            )
-        })?,
-    })
+    let declared: Vec<&crate::technique::Setting> =
+        CONE_SETTINGS.iter().map(|c| &c.setting).collect();
+    for (setting, v) in declared_values(t, "cones", &declared, ctx)? {
+        let c = cone_setting(setting.key).expect("declared");
+        (c.set)(&mut cones, v);
+    }
+    Ok(cones)
+}
+
+/// The values of a table of declared settings (`[cones]`, `[techniques.<name>]`):
+/// every key one of `settings`, every value a number of its type in its range, else an
+/// error naming the file, the line, the key and the allowed keys or range.
+fn declared_values(
+    t: &toml::Table,
+    table: &str,
+    settings: &[&'static crate::technique::Setting],
+    ctx: &Ctx,
+) -> Result<Vec<(&'static crate::technique::Setting, f64)>, ExperimentError> {
+    let mut out = Vec::new();
+    for (k, v) in t {
+        let key = format!("{table}.{k}");
+        let Some(&setting) = settings.iter().find(|s| s.key == k) else {
+            let allowed: Vec<&str> = settings.iter().map(|s| s.key).collect();
+            return Err(ExperimentError::UnknownKey {
+                file: ctx.file.clone(),
+                line: ctx.span_of(&key).map(|s| ctx.line_of(s.start)),
+                key,
+                allowed: if allowed.is_empty() {
+                    "none (this table has no keys yet)".to_string()
+                } else {
+                    allowed.join(", ")
+                },
+            });
+        };
+        let value = match v {
+            toml::Value::Integer(i) => Some(*i as f64),
+            toml::Value::Float(x) => Some(*x),
+            _ => None,
+        };
+        match value
+            .ok_or_else(|| setting.range_text())
+            .and_then(|x| setting.check(x))
+        {
+            Ok(x) => out.push((setting, x)),
+            Err(req) => return Err(ctx.invalid(&key, req)),
+        }
+    }
+    Ok(out)
 }
 
 /// `|n.n - 1|` up to which a light's normal counts as unit and is kept as written: far

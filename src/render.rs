@@ -132,15 +132,17 @@ pub struct ConeSettings {
 }
 
 impl Default for ConeSettings {
+    /// The defaults declared with each `[cones]` key (`crate::technique::cones`).
     fn default() -> Self {
+        let d = crate::technique::cones::declared_default;
         Self {
-            levels: 0,
-            step_factor: 0.5,
-            aperture_deg: 5.0,
-            start_offset: 1.0,
-            ao_cones: 8,
-            ao_range: 6.0,
-            indirect_strength: 1.0,
+            levels: d("levels") as u32,
+            step_factor: d("step_factor"),
+            aperture_deg: d("aperture_deg"),
+            start_offset: d("start_offset"),
+            ao_cones: d("ao_cones") as u32,
+            ao_range: d("ao_range"),
+            indirect_strength: d("indirect_strength"),
         }
     }
 }

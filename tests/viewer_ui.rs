@@ -549,7 +549,7 @@ fn current_update_shows_its_frame_count_and_stale_updates_are_ignored() {
     assert_eq!(rig.app().frames(Side::Left), 3);
 
     // A change of the left side makes its image stale.
-    rig.checkbox("indirect light (left)").click();
+    rig.checkbox("indirect (left)").click();
     rig.harness.run_steps(2);
     assert!(rig.app().latest(Side::Left).is_none());
     assert!(!rig.has_label(&format!("3 / {cap} frames at {W}x{H}")));

@@ -271,25 +271,16 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
     t
 }
 
-/// `[features]`: all five switches, the transmittance model by name.
+/// `[features]`: every built-in technique's flag, the transmittance model by name, and
+/// a plug-in shadow model's name (`crate::technique`).
 pub fn features_table(f: &Features) -> Table {
-    // Exhaustive on purpose: a new feature does not compile until it is written.
-    let Features {
-        area_lights,
-        transmittance,
-        cone_shadows,
-        ambient_occlusion,
-        indirect,
-        shadow_model,
-    } = f;
     let mut t = Table::new();
-    t.insert("area_lights".into(), (*area_lights).into());
-    t.insert("transmittance".into(), transmittance.name().into());
-    t.insert("cone_shadows".into(), (*cone_shadows).into());
-    t.insert("ambient_occlusion".into(), (*ambient_occlusion).into());
-    t.insert("indirect".into(), (*indirect).into());
-    if let Some(name) = shadow_model {
-        t.insert("shadow_model".into(), (*name).into());
+    for flag in crate::technique::BUILT_IN.iter().filter_map(|b| b.flag) {
+        t.insert(flag.key.into(), (flag.get)(f).into());
+    }
+    t.insert("transmittance".into(), f.transmittance.name().into());
+    if let Some(name) = f.shadow_model {
+        t.insert("shadow_model".into(), name.into());
     }
     t
 }
@@ -314,27 +305,12 @@ pub fn techniques_table(p: &crate::technique::TechniqueParams) -> Option<Table> 
     (!t.is_empty()).then_some(t)
 }
 
-/// `[cones]`: every knob.
+/// `[cones]`: every knob, each in its declared type (`crate::technique::cones`).
 pub fn cones_table(c: &ConeSettings) -> Table {
-    // Exhaustive on purpose: a new knob does not compile until it is written here.
-    let ConeSettings {
-        levels: _,
-        step_factor: _,
-        aperture_deg: _,
-        start_offset: _,
-        ao_cones: _,
-        ao_range: _,
-        indirect_strength: _,
-    } = c;
-    let mut t = Table::new();
-    t.insert("levels".into(), i64::from(c.levels).into());
-    t.insert("step_factor".into(), c.step_factor.into());
-    t.insert("aperture_deg".into(), c.aperture_deg.into());
-    t.insert("start_offset".into(), c.start_offset.into());
-    t.insert("ao_cones".into(), i64::from(c.ao_cones).into());
-    t.insert("ao_range".into(), c.ao_range.into());
-    t.insert("indirect_strength".into(), c.indirect_strength.into());
-    t
+    crate::technique::cones::CONE_SETTINGS
+        .iter()
+        .map(|k| (k.setting.key.to_string(), k.setting.toml_value((k.get)(c))))
+        .collect()
 }
 
 /// `e` as a complete experiment file: a comment line, `name`, `[scene]` = `scene_source`
@@ -441,12 +417,20 @@ pub fn to_toml(e: &Experiment, scene_source: &Table) -> Result<String, WriteErro
     let render = render_table(&e.settings, e.scene.ambient);
     section("[render]", "render", &render, RENDER_KEYS)?;
     let features = features_table(&e.settings.features);
-    section("[features]", "features", &features, FEATURE_KEYS)?;
+    section(
+        "[features]",
+        "features",
+        &features,
+        &crate::technique::feature_keys(),
+    )?;
     section(
         "[cones]",
         "cones",
         &cones_table(&e.settings.cones),
-        CONE_KEYS,
+        &crate::technique::cones::CONE_SETTINGS
+            .iter()
+            .map(|c| c.setting.key)
+            .collect::<Vec<_>>(),
     )?;
     if let Some(t) = techniques_table(&e.settings.technique_params) {
         for (name, v) in &t {
@@ -498,23 +482,6 @@ const RENDER_KEYS: &[&str] = &[
     "light_samples",
     "spp",
     "seed",
-];
-const FEATURE_KEYS: &[&str] = &[
-    "area_lights",
-    "transmittance",
-    "cone_shadows",
-    "ambient_occlusion",
-    "indirect",
-    "shadow_model",
-];
-const CONE_KEYS: &[&str] = &[
-    "levels",
-    "step_factor",
-    "aperture_deg",
-    "start_offset",
-    "ao_cones",
-    "ao_range",
-    "indirect_strength",
 ];
 
 /// `key = value` lines of a table of plain values, the keys in `order` first, then any

@@ -12,9 +12,12 @@
 //!
 //! The seed's techniques (hard shadows, sampled area lights, cones; min-kt and
 //! Beer-Lambert; ambient occlusion and indirect light) are declared in [`BUILT_IN`] with
-//! their settings, so the listing and the README's table cover them too; their code
-//! predates this registry and still lives in `cpu/`, `shaders/` and `plan.rs`.
+//! their settings, so the listing and the README's table cover them too; the `[cones]`
+//! settings are declared in [`cones`], from which the parser, the writer and the viewer
+//! take them. Their code predates this registry and still lives in `cpu/`, `shaders/`
+//! and `plan.rs`.
 
+pub mod cones;
 pub mod ratio;
 pub mod sdf;
 
@@ -24,7 +27,7 @@ use std::fmt;
 use glam::DVec3;
 
 use crate::cpu::SampleKey;
-use crate::render::{RayStats, RenderSettings};
+use crate::render::{Features, RayStats, RenderSettings, Transmittance};
 use crate::scene::{Light, Material, Scene};
 
 /// Plug-in shadow models, in the order they are listed and offered. One line each.
@@ -264,14 +267,28 @@ pub fn shadow_model(name: &str) -> Option<&'static ShadowModel> {
     SHADOW_MODELS.iter().copied().find(|m| m.name == name)
 }
 
-/// A technique of the seed's set, declared for the listing and the switch lists.
+/// A `[features]` boolean key of a built-in technique and the `Features` field it is.
+#[derive(Clone, Copy, Debug)]
+pub struct Flag {
+    pub key: &'static str,
+    pub get: fn(&Features) -> bool,
+    pub set: fn(&mut Features, bool),
+}
+
+/// A technique of the seed's set, declared for the listing, the parser and writer of
+/// `[features]`, and the viewer's lists.
 #[derive(Clone, Copy, Debug)]
 pub struct BuiltIn {
     pub name: &'static str,
     pub slot: Slot,
     pub summary: &'static str,
-    /// Its settings as `table.key` (their ranges are the parser's).
+    /// Its settings as `table.key` (`[cones]` ones declared in [`cones`]).
     pub settings: &'static [&'static str],
+    /// Its boolean `[features]` key: a lighting term's switch, or a shadow model's
+    /// older key (`area_lights`, `cone_shadows`) beside `shadow_model`.
+    pub flag: Option<Flag>,
+    /// A transmittance model: the value of `features.transmittance` it is.
+    pub transmittance: Option<Transmittance>,
 }
 
 /// The seed's techniques and voxlab's first extensions, in listing order.
@@ -281,6 +298,8 @@ pub const BUILT_IN: &[BuiltIn] = &[
         slot: Slot::Shadow,
         summary: "one shadow ray to each light's centre (the seed's hard shadows, Whitted 1980)",
         settings: &[],
+        flag: None,
+        transmittance: None,
     },
     BuiltIn {
         name: "area",
@@ -288,6 +307,12 @@ pub const BUILT_IN: &[BuiltIn] = &[
         summary: "area lights sampled over their shape, stratified, accumulated over frames \
                   (Cook, Porter and Carpenter 1984)",
         settings: &["render.light_samples", "render.spp"],
+        flag: Some(Flag {
+            key: "area_lights",
+            get: |f| f.area_lights,
+            set: |f, on| f.area_lights = on,
+        }),
+        transmittance: None,
     },
     BuiltIn {
         name: "cone",
@@ -299,18 +324,28 @@ pub const BUILT_IN: &[BuiltIn] = &[
             "cones.aperture_deg",
             "cones.start_offset",
         ],
+        flag: Some(Flag {
+            key: "cone_shadows",
+            get: |f| f.cone_shadows,
+            set: |f, on| f.cone_shadows = on,
+        }),
+        transmittance: None,
     },
     BuiltIn {
         name: "min-kt",
         slot: Slot::Transmittance,
         summary: "the smallest kt of the voxels a shadow segment crosses (the seed's O1)",
         settings: &[],
+        flag: None,
+        transmittance: Some(Transmittance::MinKt),
     },
     BuiltIn {
         name: "beer-lambert",
         slot: Slot::Transmittance,
         summary: "exp(-sum sigma_m len_m) with each voxel's exact length (Beer-Lambert law)",
         settings: &["materials.sigma"],
+        flag: None,
+        transmittance: Some(Transmittance::BeerLambert),
     },
     BuiltIn {
         name: "ambient_occlusion",
@@ -318,6 +353,12 @@ pub const BUILT_IN: &[BuiltIn] = &[
         summary: "ambient times the visibility of cosine-weighted hemisphere cones \
                   (Crassin et al. 2011)",
         settings: &["cones.ao_cones", "cones.ao_range"],
+        flag: Some(Flag {
+            key: "ambient_occlusion",
+            get: |f| f.ambient_occlusion,
+            set: |f, on| f.ambient_occlusion = on,
+        }),
+        transmittance: None,
     },
     BuiltIn {
         name: "indirect",
@@ -325,8 +366,48 @@ pub const BUILT_IN: &[BuiltIn] = &[
         summary: "one bounce of diffuse light gathered by hemisphere cones from the radiance \
                   pyramid (Crassin et al. 2011, section 4.2)",
         settings: &["cones.indirect_strength"],
+        flag: Some(Flag {
+            key: "indirect",
+            get: |f| f.indirect,
+            set: |f, on| f.indirect = on,
+        }),
+        transmittance: None,
     },
 ];
+
+/// The `[features]` keys in the order they are written: `shadow_model`, `transmittance`,
+/// then every built-in's flag.
+pub fn feature_keys() -> Vec<&'static str> {
+    ["shadow_model", "transmittance"]
+        .into_iter()
+        .chain(BUILT_IN.iter().filter_map(|b| b.flag.map(|f| f.key)))
+        .collect()
+}
+
+/// The transmittance model called `name`.
+pub fn transmittance(name: &str) -> Option<Transmittance> {
+    BUILT_IN
+        .iter()
+        .find(|b| b.name == name)
+        .and_then(|b| b.transmittance)
+}
+
+/// Names `[features] transmittance` may take.
+pub fn transmittance_names() -> Vec<&'static str> {
+    BUILT_IN
+        .iter()
+        .filter(|b| b.transmittance.is_some())
+        .map(|b| b.name)
+        .collect()
+}
+
+/// The lighting terms: their names and switches.
+pub fn lighting_terms() -> impl Iterator<Item = (&'static str, Flag)> {
+    BUILT_IN
+        .iter()
+        .filter(|b| b.slot == Slot::Lighting)
+        .filter_map(|b| b.flag.map(|f| (b.name, f)))
+}
 
 /// Names a `[features] shadow_model` may take: the built-in shadow models, then the
 /// plug-ins.
@@ -432,8 +513,21 @@ pub fn listing_text() -> String {
                 );
             }
         } else {
-            for s in &r.settings {
-                out += &format!("  {s}\n");
+            for key in &r.settings {
+                let declared = key
+                    .strip_prefix("cones.")
+                    .and_then(cones::cone_setting)
+                    .map(|c| &c.setting);
+                out += &match declared {
+                    Some(s) => format!(
+                        "  [cones] {} = {} ({}; {})\n",
+                        s.key,
+                        s.default,
+                        s.range_text().trim_start_matches("must be "),
+                        s.doc
+                    ),
+                    None => format!("  {key}\n"),
+                };
             }
         }
     }

@@ -18,37 +18,47 @@ use super::state::{
 use super::worker::{Job, Report, Update};
 use crate::experiment::Experiment;
 use crate::metrics::{Domain, compare};
-use crate::render::{Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, Transmittance};
+use crate::render::{Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES};
 use crate::scene::{AreaShape, Light};
 
-/// One row of a technique's declared setting: a drag value over its declared range,
-/// written back only when the declaration's check accepts it.
-fn technique_setting_row(
-    ui: &mut egui::Ui,
-    technique: &str,
-    setting: &crate::technique::Setting,
-    params: &mut crate::technique::TechniqueParams,
-) -> bool {
+/// One row of a declared setting (`crate::technique::Setting`): a drag value over its
+/// declared range; true when it changed to a value the declaration's check accepts.
+fn setting_row(ui: &mut egui::Ui, setting: &crate::technique::Setting, v: &mut f64) -> bool {
     use crate::technique::Kind;
-    let mut v = params.get(technique, setting);
     let (lo, hi, decimals) = match setting.kind {
         Kind::Int { min, max } => (min as f64, max as f64, Some(0)),
         Kind::Float { min, max, .. } => (min, max, None),
     };
-    let mut value = egui::DragValue::new(&mut v)
+    let mut edited = *v;
+    let mut value = egui::DragValue::new(&mut edited)
         .range(lo..=hi)
         .speed((hi - lo).min(100.0) / 1000.0);
     if let Some(d) = decimals {
         value = value.max_decimals(d);
     }
     let changed = drag_row(ui, setting.key, value);
-    match setting.check(v) {
-        Ok(v) if changed => {
-            params.set(technique, setting.key, v);
+    match setting.check(edited) {
+        Ok(x) if changed => {
+            *v = x;
             true
         }
         _ => false,
     }
+}
+
+/// One row of a plug-in technique's declared setting, read from and written to `params`.
+fn technique_setting_row(
+    ui: &mut egui::Ui,
+    technique: &str,
+    setting: &crate::technique::Setting,
+    params: &mut crate::technique::TechniqueParams,
+) -> bool {
+    let mut v = params.get(technique, setting);
+    let changed = setting_row(ui, setting, &mut v);
+    if changed {
+        params.set(technique, setting.key, v);
+    }
+    changed
 }
 
 /// Where a report came from.
@@ -920,23 +930,27 @@ impl ViewerApp {
         egui::ComboBox::from_label(format!("transmittance ({})", side.name()))
             .selected_text(t.name())
             .show_ui(ui, |ui| {
-                for m in [Transmittance::MinKt, Transmittance::BeerLambert] {
-                    changed |= ui.selectable_value(&mut t, m, m.name()).changed();
+                for name in crate::technique::transmittance_names() {
+                    if let Some(m) = crate::technique::transmittance(name) {
+                        changed |= ui.selectable_value(&mut t, m, name).changed();
+                    }
                 }
             });
         s.features.transmittance = t;
-        changed |= ui
-            .checkbox(
-                &mut s.features.ambient_occlusion,
-                format!("ambient occlusion ({})", side.name()),
-            )
-            .changed();
-        changed |= ui
-            .checkbox(
-                &mut s.features.indirect,
-                format!("indirect light ({})", side.name()),
-            )
-            .changed();
+        // The lighting terms, each its own switch (crate::technique::BUILT_IN).
+        for (name, flag) in crate::technique::lighting_terms() {
+            let mut on = (flag.get)(&s.features);
+            if ui
+                .checkbox(
+                    &mut on,
+                    format!("{} ({})", name.replace('_', " "), side.name()),
+                )
+                .changed()
+            {
+                (flag.set)(&mut s.features, on);
+                changed = true;
+            }
+        }
         egui::Grid::new(("side-grid", i)).show(ui, |ui| {
             changed |= drag_row(
                 ui,
@@ -953,32 +967,14 @@ impl ViewerApp {
             egui::CollapsingHeader::new("cone knobs")
                 .id_salt(("cones", i))
                 .show(ui, |ui| {
-                    let c = &mut s.cones;
                     egui::Grid::new(("cone-grid", i)).show(ui, |ui| {
-                        changed |= drag_row(
-                            ui,
-                            "levels (0 auto)",
-                            egui::DragValue::new(&mut c.levels)
-                                .range(0..=crate::cpu::pyramid::MAX_LEVELS),
-                        );
-                        for (name, v, lo, hi) in [
-                            ("step factor", &mut c.step_factor, 0.05, 4.0),
-                            ("aperture deg", &mut c.aperture_deg, 0.0, 120.0),
-                            ("start offset", &mut c.start_offset, 0.0, 16.0),
-                            ("AO range", &mut c.ao_range, 0.1, 1e6),
-                            ("indirect strength", &mut c.indirect_strength, 0.0, 100.0),
-                        ] {
-                            changed |= drag_row(
-                                ui,
-                                name,
-                                egui::DragValue::new(v).speed(0.01).range(lo..=hi),
-                            );
+                        for c in crate::technique::cones::CONE_SETTINGS {
+                            let mut v = (c.get)(&s.cones);
+                            if setting_row(ui, &c.setting, &mut v) {
+                                (c.set)(&mut s.cones, v);
+                                changed = true;
+                            }
                         }
-                        changed |= drag_row(
-                            ui,
-                            "AO cones",
-                            egui::DragValue::new(&mut c.ao_cones).range(1..=64),
-                        );
                     });
                 });
         }

@@ -109,40 +109,49 @@ impl SideSettings {
     }
 
     /// Parses a comma-separated feature list (`--left`, `--right`): a shadow model's
-    /// name (`hard`, `area`, `cone` or a plug-in's), `min-kt`, `beer-lambert`, `ao`,
-    /// `indirect`, `samples=N`.
+    /// name (`hard`, `area`, `cone` or a plug-in's), a transmittance model's
+    /// (`min-kt`, `beer-lambert`), a lighting term's (`ambient_occlusion` or `ao`,
+    /// `indirect`), `samples=N`.
     pub fn parse_list(&mut self, list: &str) -> Result<()> {
+        use crate::technique::{lighting_terms, transmittance};
         for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             if self.features.set_shadow_model(item) {
                 continue;
             }
-            match item {
-                "min-kt" => self.features.transmittance = Transmittance::MinKt,
-                "beer-lambert" => self.features.transmittance = Transmittance::BeerLambert,
-                "ao" => self.features.ambient_occlusion = true,
-                "indirect" => self.features.indirect = true,
-                _ => {
-                    if let Some(n) = item.strip_prefix("samples=") {
-                        self.light_samples = n
-                            .parse::<u32>()
-                            .ok()
-                            .filter(|n| (1..=crate::render::MAX_SAMPLES).contains(n))
-                            .ok_or_else(|| {
-                                anyhow!(
-                                    "feature list item `{item}`: samples must be an integer in \
-                                     1..={}",
-                                    crate::render::MAX_SAMPLES
-                                )
-                            })?;
-                    } else {
-                        return Err(anyhow!(
-                            "feature list item `{item}`: allowed are {}, min-kt, \
-                             beer-lambert, ao, indirect, samples=N",
-                            crate::technique::shadow_model_names().join(", ")
-                        ));
-                    }
-                }
+            if let Some(t) = transmittance(item) {
+                self.features.transmittance = t;
+                continue;
             }
+            let term = if item == "ao" {
+                "ambient_occlusion"
+            } else {
+                item
+            };
+            if let Some((_, flag)) = lighting_terms().find(|(name, _)| *name == term) {
+                (flag.set)(&mut self.features, true);
+                continue;
+            }
+            let Some(n) = item.strip_prefix("samples=") else {
+                return Err(anyhow!(
+                    "feature list item `{item}`: allowed are {}, {}, ao, {}, samples=N",
+                    crate::technique::shadow_model_names().join(", "),
+                    crate::technique::transmittance_names().join(", "),
+                    lighting_terms()
+                        .map(|(name, _)| name)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+            };
+            self.light_samples = n
+                .parse::<u32>()
+                .ok()
+                .filter(|n| (1..=crate::render::MAX_SAMPLES).contains(n))
+                .ok_or_else(|| {
+                    anyhow!(
+                        "feature list item `{item}`: samples must be an integer in 1..={}",
+                        crate::render::MAX_SAMPLES
+                    )
+                })?;
         }
         Ok(())
     }

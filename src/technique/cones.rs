@@ -1,0 +1,134 @@
+//! The settings of voxel cone tracing (`[cones]`), declared once: cone shadows, ambient
+//! occlusion and indirect light share the pyramid and the march (C. Crassin et al.,
+//! "Interactive Indirect Illumination Using Voxel Cone Tracing", CGF 30(7), 2011).
+//! The parser, the writer, the viewer's cone knobs, `ConeSettings::default` and the
+//! listing take the type, default and range from here.
+
+use super::{Kind, Setting};
+use crate::render::ConeSettings;
+
+/// A `[cones]` setting and the field of `ConeSettings` it is.
+pub struct ConeSetting {
+    pub setting: Setting,
+    pub get: fn(&ConeSettings) -> f64,
+    pub set: fn(&mut ConeSettings, f64),
+}
+
+const fn float(
+    key: &'static str,
+    min: f64,
+    max: f64,
+    min_open: bool,
+    default: f64,
+    doc: &'static str,
+) -> Setting {
+    Setting {
+        key,
+        kind: Kind::Float { min, max, min_open },
+        default,
+        doc,
+        sweep: &[],
+    }
+}
+
+/// Every `[cones]` key, in the order the file lists them.
+pub const CONE_SETTINGS: &[ConeSetting] = &[
+    ConeSetting {
+        setting: Setting {
+            key: "levels",
+            kind: Kind::Int {
+                min: 0,
+                max: crate::cpu::pyramid::MAX_LEVELS as i64,
+            },
+            default: 0.0,
+            doc: "pyramid levels; 0 chooses automatically",
+            sweep: &[],
+        },
+        get: |c| c.levels as f64,
+        set: |c, v| c.levels = v as u32,
+    },
+    ConeSetting {
+        setting: float(
+            "step_factor",
+            0.0,
+            4.0,
+            true,
+            0.5,
+            "step length in footprints, dt = step_factor d",
+        ),
+        get: |c| c.step_factor,
+        set: |c, v| c.step_factor = v,
+    },
+    ConeSetting {
+        setting: float(
+            "aperture_deg",
+            0.0,
+            120.0,
+            false,
+            5.0,
+            "shadow-cone aperture for point lights, degrees",
+        ),
+        get: |c| c.aperture_deg,
+        set: |c, v| c.aperture_deg = v,
+    },
+    ConeSetting {
+        setting: float(
+            "start_offset",
+            0.0,
+            16.0,
+            false,
+            1.0,
+            "cone apex offset along the normal, voxels",
+        ),
+        get: |c| c.start_offset,
+        set: |c, v| c.start_offset = v,
+    },
+    ConeSetting {
+        setting: Setting {
+            key: "ao_cones",
+            kind: Kind::Int { min: 1, max: 64 },
+            default: 8.0,
+            doc: "hemisphere cones for ambient occlusion and indirect light",
+            sweep: &[],
+        },
+        get: |c| c.ao_cones as f64,
+        set: |c, v| c.ao_cones = v as u32,
+    },
+    ConeSetting {
+        setting: float(
+            "ao_range",
+            0.0,
+            1e6,
+            true,
+            6.0,
+            "range of the AO cones, voxels",
+        ),
+        get: |c| c.ao_range,
+        set: |c, v| c.ao_range = v,
+    },
+    ConeSetting {
+        setting: float(
+            "indirect_strength",
+            0.0,
+            100.0,
+            false,
+            1.0,
+            "scale of the one-bounce indirect term",
+        ),
+        get: |c| c.indirect_strength,
+        set: |c, v| c.indirect_strength = v,
+    },
+];
+
+/// The declaration of `[cones] key`.
+pub fn cone_setting(key: &str) -> Option<&'static ConeSetting> {
+    CONE_SETTINGS.iter().find(|c| c.setting.key == key)
+}
+
+/// The declared default of `[cones] key` (`ConeSettings::default` is made of these).
+pub fn declared_default(key: &str) -> f64 {
+    cone_setting(key)
+        .unwrap_or_else(|| panic!("[cones] has no key {key}"))
+        .setting
+        .default
+}
