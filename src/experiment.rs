@@ -336,6 +336,212 @@ impl Experiment {
     }
 }
 
+/// One `--set KEY=VALUE`: a dotted key of the experiment file (`render.width`,
+/// `features.shadow_model`, `techniques.sdf.softness`, `lights[0].intensity`) and a TOML
+/// value (`64`, `0.5`, `true`, `[1, 2, 3]`, `"sdf"`; a bare word that is not TOML is
+/// taken as a string, so `features.shadow_model=sdf` needs no quotes).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Override {
+    pub key: String,
+    pub value: String,
+}
+
+impl std::str::FromStr for Override {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (key, value) = s
+            .split_once('=')
+            .ok_or_else(|| format!("`{s}`: expected KEY=VALUE, e.g. render.width=64"))?;
+        let key = key.trim();
+        let ok = !key.is_empty()
+            && key.split('.').all(|seg| {
+                let name = seg.split_once('[').map_or(seg, |(n, rest)| {
+                    if rest
+                        .strip_suffix(']')
+                        .is_some_and(|i| i.parse::<usize>().is_ok())
+                    {
+                        n
+                    } else {
+                        ""
+                    }
+                });
+                !name.is_empty()
+                    && name
+                        .chars()
+                        .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+            });
+        if !ok {
+            return Err(format!(
+                "`{key}`: a key is dotted names, with [N] after an array of tables's name \
+                 (e.g. render.width, lights[0].intensity)"
+            ));
+        }
+        Ok(Self {
+            key: key.to_string(),
+            value: value.trim().to_string(),
+        })
+    }
+}
+
+impl fmt::Display for Override {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}={}", self.key, self.value)
+    }
+}
+
+/// `text` with each override written in: existing keys are replaced, missing tables and
+/// keys are added. The error is the override that cannot be written and why.
+pub fn apply_overrides(text: &str, overrides: &[Override]) -> Result<String, (Override, String)> {
+    let Some(first) = overrides.first() else {
+        return Ok(text.to_string());
+    };
+    let mut doc: toml_edit::DocumentMut = text
+        .parse()
+        .map_err(|e| (first.clone(), format!("the experiment is not TOML: {e}")))?;
+    for o in overrides {
+        let fail = |message: String| (o.clone(), message);
+        let value = o
+            .value
+            .parse::<toml_edit::Value>()
+            .unwrap_or_else(|_| toml_edit::Value::from(o.value.as_str()));
+        let mut parts: Vec<&str> = o.key.split('.').collect();
+        let last = parts.pop().expect("a key has a name");
+        let mut table = doc.as_table_mut();
+        for seg in parts {
+            let (name, index) = match seg.split_once('[') {
+                Some((n, rest)) => (n, rest.trim_end_matches(']').parse::<usize>().ok()),
+                None => (seg, None),
+            };
+            let item = table.entry(name).or_insert_with(|| {
+                let mut t = toml_edit::Table::new();
+                t.set_implicit(true);
+                toml_edit::Item::Table(t)
+            });
+            table = match (index, item) {
+                (None, toml_edit::Item::Table(t)) => t,
+                (Some(i), toml_edit::Item::ArrayOfTables(a)) => {
+                    let n = a.len();
+                    a.get_mut(i).ok_or_else(|| {
+                        fail(format!("`{name}` has {n} entries, so [{i}] does not exist"))
+                    })?
+                }
+                (Some(_), _) => {
+                    return Err(fail(format!(
+                        "`{name}` is not an array of tables in this experiment (write its \
+                         [[{name}]] entries in the file to override one)"
+                    )));
+                }
+                (None, _) => return Err(fail(format!("`{name}` is not a table"))),
+            };
+        }
+        if last.contains('[') {
+            return Err(fail(
+                "the last part of the key must be a plain name".to_string(),
+            ));
+        }
+        table.insert(last, toml_edit::Item::Value(value));
+    }
+    Ok(doc.to_string())
+}
+
+impl Experiment {
+    /// [`Experiment::load`] with `--set` overrides written into the text first: parsed
+    /// and checked exactly like the file. An error about an overridden key names the
+    /// override; any other names the file (its line may have moved where an override
+    /// added a key).
+    pub fn load_with(
+        path: impl AsRef<Path>,
+        overrides: &[Override],
+    ) -> Result<Self, ExperimentError> {
+        let path = path.as_ref();
+        let text = read_text(path)?;
+        let mut e = Self::from_str_with(&text, path, overrides)?;
+        e.source_path = Some(path.to_path_buf());
+        Ok(e)
+    }
+
+    /// [`Experiment::from_str`] with `--set` overrides (see [`Experiment::load_with`]).
+    pub fn from_str_with(
+        text: &str,
+        path: impl AsRef<Path>,
+        overrides: &[Override],
+    ) -> Result<Self, ExperimentError> {
+        let path = path.as_ref();
+        if overrides.is_empty() {
+            return Self::from_str(text, path);
+        }
+        // The file alone first, so its own errors keep their lines; the cache keeps a
+        // .vox or mesh from being loaded twice when no override touches [scene].
+        let mut cache = SceneCache::new();
+        Self::from_str_cached(text, path, &mut cache)?;
+        let edited =
+            apply_overrides(text, overrides).map_err(|(o, message)| ExperimentError::Invalid {
+                file: format!("--set {o}"),
+                line: None,
+                key: o.key.clone(),
+                message: format!(": {message}"),
+            })?;
+        Self::from_str_cached(&edited, path, &mut cache).map_err(|e| blame_override(e, overrides))
+    }
+}
+
+/// An error of an overridden experiment, located at the override when it is about one.
+fn blame_override(e: ExperimentError, overrides: &[Override]) -> ExperimentError {
+    let key = match &e {
+        ExperimentError::Invalid { key, .. } | ExperimentError::UnknownKey { key, .. } => key,
+        _ => return e,
+    };
+    let Some(o) = overrides
+        .iter()
+        .rev()
+        .find(|o| key == &o.key || key.starts_with(&format!("{}.", o.key)))
+    else {
+        let keys: Vec<String> = overrides.iter().map(|o| o.key.clone()).collect();
+        return match e {
+            ExperimentError::Invalid {
+                file,
+                line,
+                key,
+                message,
+            } => ExperimentError::Invalid {
+                file: format!("{file} (with --set {})", keys.join(", ")),
+                line,
+                key,
+                message,
+            },
+            ExperimentError::UnknownKey {
+                file,
+                line,
+                key,
+                allowed,
+            } => ExperimentError::UnknownKey {
+                file: format!("{file} (with --set {})", keys.join(", ")),
+                line,
+                key,
+                allowed,
+            },
+            other => other,
+        };
+    };
+    let file = format!("--set {o}");
+    match e {
+        ExperimentError::Invalid { key, message, .. } => ExperimentError::Invalid {
+            file,
+            line: None,
+            key,
+            message,
+        },
+        ExperimentError::UnknownKey { key, allowed, .. } => ExperimentError::UnknownKey {
+            file,
+            line: None,
+            key,
+            allowed,
+        },
+        other => other,
+    }
+}
+
 /// The voxels of one `[scene]` source, for [`Experiment::from_str_cached`]: the grid and
 /// the file palette as the generator or the `.vox`/mesh loader made them, before boxes
 /// and a mesh material are applied. Holds the last source only (a viewer edits one
@@ -495,6 +701,11 @@ impl<'a> Ctx<'a> {
             .trim()
             .replace("expected i64", "expected an integer")
             .replace("expected f64", "expected a number");
+        // Serde names our structs ("expected struct RawRender"): to the file, a table.
+        let msg = match msg.find("expected struct Raw") {
+            Some(at) => format!("{}expected a table", &msg[..at]),
+            None => msg,
+        };
         let mut msg = crate::input::excerpt(&msg, 400);
         // toml says "duplicate key" without the key: its span covers the key's text (the
         // header's for a table defined twice).

@@ -71,8 +71,9 @@ struct TechniquesArgs {
 struct ViewArgs {
     /// The experiment file (TOML). Default: the seed scene.
     experiment: Option<PathBuf>,
-    /// Features of the left side, comma-separated: hard, area, cone, min-kt,
-    /// beer-lambert, ao, indirect, samples=N (default: the experiment's own).
+    /// Features of the left side, comma-separated: a shadow model (hard, area, cone or a
+    /// plug-in: `voxlab techniques`), min-kt, beer-lambert, ao, indirect, samples=N
+    /// (default: the experiment's own).
     #[arg(long, value_name = "LIST")]
     left: Option<String>,
     /// Features of the right side (default: area lights sampled with beer-lambert, or
@@ -275,6 +276,11 @@ struct RenderOpts {
     #[arg(long, value_name = "SIDE", num_args = 0..=1, default_missing_value = "32",
           value_parser = clap::value_parser!(u32).range(1..=4096))]
     check: Option<u32>,
+    /// Override any key of the experiment file, e.g. `--set render.light_samples=8`,
+    /// `--set features.shadow_model=sdf`, `--set techniques.sdf.softness=0.5`,
+    /// `--set lights[0].intensity=200` (repeatable; checked exactly like the file).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<voxlab::experiment::Override>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -318,8 +324,11 @@ fn main() -> ExitCode {
         );
     }
     let result = match cli.command {
-        None => cmd_render(Experiment::seed_default(), &cli.render),
-        Some(Command::Render(args)) => Experiment::load(&args.experiment)
+        None if cli.render.set.is_empty() => cmd_render(Experiment::seed_default(), &cli.render),
+        None => Experiment::from_str_with("", "seed", &cli.render.set)
+            .map_err(anyhow::Error::from)
+            .and_then(|e| cmd_render(e, &cli.render)),
+        Some(Command::Render(args)) => Experiment::load_with(&args.experiment, &args.opts.set)
             .map_err(anyhow::Error::from)
             .and_then(|e| cmd_render(e, &args.opts)),
         Some(Command::Voxelize(args)) => cmd_voxelize(&args),

@@ -1,0 +1,149 @@
+//! `--set KEY=VALUE`: any key of an experiment file overridden from the command line,
+//! parsed and checked exactly like the file, errors located at the override.
+
+use std::process::Command;
+
+use voxlab::experiment::{Experiment, Override};
+
+fn root() -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn set(list: &[&str]) -> Vec<Override> {
+    list.iter().map(|s| s.parse().unwrap()).collect()
+}
+
+/// Each kind of key (render, features by a bare word, a plug-in's table, [cones], an
+/// entry of [[lights]], camera) gives what editing the file would give.
+#[test]
+fn overrides_equal_editing_the_file() {
+    let path = root().join("experiments/area_lights.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let e = Experiment::from_str_with(
+        &text,
+        &path,
+        &set(&[
+            "render.width=40",
+            "features.area_lights=false",
+            "features.shadow_model=sdf",
+            "techniques.sdf.softness=0.5",
+            "cones.step_factor=1.5",
+            "lights[0].intensity=200",
+            "camera.distance=50",
+        ]),
+    )
+    .unwrap();
+    let mut expected = Experiment::from_str(&text, &path).unwrap();
+    expected.settings.width = 40;
+    expected.settings.features.set_shadow_model("sdf");
+    expected
+        .settings
+        .technique_params
+        .set("sdf", "softness", 0.5);
+    expected.settings.cones.step_factor = 1.5;
+    let voxlab::scene::Light::Area(a) = &mut expected.scene.lights[0] else {
+        panic!("area_lights.toml's first light is a rectangle")
+    };
+    a.intensity = 200.0;
+    expected.scene.camera.distance = 50.0;
+    assert_eq!(e, expected);
+    // The last override of a key wins.
+    let e =
+        Experiment::from_str_with(&text, &path, &set(&["render.spp=3", "render.spp=5"])).unwrap();
+    assert_eq!(e.settings.spp, 5);
+}
+
+#[test]
+fn errors_name_the_override() {
+    let path = root().join("experiments/baseline.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let err = |list: &[&str]| {
+        Experiment::from_str_with(&text, &path, &set(list))
+            .unwrap_err()
+            .to_string()
+    };
+    let e = err(&["render.width=0"]);
+    assert!(
+        e.starts_with("--set render.width=0: render.width") && e.contains("1..=16384"),
+        "{e}"
+    );
+    let e = err(&["techniques.sdf.soft=1"]);
+    assert!(
+        e.starts_with("--set techniques.sdf.soft=1:") && e.contains("softness"),
+        "{e}"
+    );
+    let e = err(&["features.shadow_model=soft"]);
+    assert!(
+        e.contains("--set features.shadow_model=soft") && e.contains("hard, area, cone"),
+        "{e}"
+    );
+    let e = err(&["lights[3].intensity=1"]);
+    assert!(e.starts_with("--set lights[3].intensity=1:"), "{e}");
+    let e = err(&["render=1"]);
+    assert!(e.contains("expected a table"), "{e}");
+    for bad in [
+        "render.width",
+        "=3",
+        "render..width=1",
+        "lights[x].intensity=1",
+    ] {
+        assert!(bad.parse::<Override>().is_err(), "{bad}");
+    }
+    // The file's own errors keep its line.
+    let e = Experiment::from_str_with("[render]\nwidth = -1\n", "f.toml", &set(&["render.spp=2"]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("f.toml:2:"), "{e}");
+}
+
+#[test]
+fn the_command_line_takes_overrides() {
+    let out = std::env::temp_dir().join(format!("voxlab-set-{}.png", std::process::id()));
+    let run = Command::new(env!("CARGO_BIN_EXE_voxlab"))
+        .args([
+            "render",
+            "experiments/baseline.toml",
+            "--backend",
+            "cpu",
+            "--set",
+        ])
+        .args([
+            "render.width=12",
+            "--set",
+            "render.height=8",
+            "--set",
+            "features.shadow_model=ratio",
+        ])
+        .arg("--out")
+        .arg(&out)
+        .current_dir(root())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(stdout.contains("image:      12x8"), "{stdout}");
+    // The seed's point lights leave the ratio estimator out, and the plan says why.
+    assert!(
+        stdout.contains("shadow model ratio: no area light"),
+        "{stdout}"
+    );
+    let img = image::open(&out).unwrap();
+    assert_eq!((img.width(), img.height()), (12, 8));
+    let _ = std::fs::remove_file(&out);
+    let bad = Command::new(env!("CARGO_BIN_EXE_voxlab"))
+        .args([
+            "render",
+            "experiments/baseline.toml",
+            "--set",
+            "render.width=0",
+        ])
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--set render.width=0"));
+}
