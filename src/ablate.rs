@@ -99,6 +99,17 @@ pub struct AblateConfig {
     /// the cone model shades anyway) over these apertures in degrees, ascending, at the
     /// experiment's `[cones] step_factor`; empty leaves the curve out.
     pub cone_aperture_deg: Vec<f64>,
+    /// `[ablate] sweep`: a curve over the values of any experiment key, each point the
+    /// experiment with `--set key=value` (its settings, parsed and checked as the file).
+    pub sweeps: Vec<KeySweep>,
+}
+
+/// One curve of `[ablate] sweep`: a key of the experiment file and, per value, the
+/// value as written and the render settings it gives.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KeySweep {
+    pub key: String,
+    pub points: Vec<(String, RenderSettings)>,
 }
 
 impl Default for AblateConfig {
@@ -113,6 +124,7 @@ impl Default for AblateConfig {
             reference_backend: BackendChoice::Cpu,
             cone_step_factor: vec![0.25, 0.5, 1.0, 2.0],
             cone_aperture_deg: vec![4.0, 8.0, 16.0, 32.0, 64.0],
+            sweeps: Vec::new(),
         }
     }
 }
@@ -129,6 +141,7 @@ struct RawAblate {
     reference_backend: Option<String>,
     cone_step_factor: Option<Vec<f64>>,
     cone_aperture_deg: Option<Vec<f64>>,
+    sweep: Option<toml::Table>,
 }
 
 /// The rest of the file is the experiment's, read by `Experiment::load`.
@@ -374,22 +387,79 @@ impl AblateConfig {
             }
             Ok(out)
         };
+        // The ranges of the [cones] keys, as declared (crate::technique::cones).
+        let declared = |key: &str| {
+            let s = crate::technique::cones::cone_setting(key)
+                .expect("a [cones] key")
+                .setting;
+            (
+                move |x: f64| s.check(x).is_ok(),
+                s.range_text()
+                    .trim_start_matches("must be a finite number in ")
+                    .to_string(),
+            )
+        };
         if let Some(list) = &raw.cone_step_factor {
-            // The range of `[cones] step_factor`.
-            c.cone_step_factor =
-                floats("cone_step_factor", list, &|x| x > 0.0 && x <= 4.0, "(0, 4]")?;
+            let (ok, range) = declared("step_factor");
+            c.cone_step_factor = floats("cone_step_factor", list, &ok, &range)?;
         }
         if let Some(list) = &raw.cone_aperture_deg {
-            // The range of `[cones] aperture_deg`.
-            c.cone_aperture_deg = floats(
-                "cone_aperture_deg",
-                list,
-                &|x| (0.0..=120.0).contains(&x),
-                "[0, 120] (degrees)",
-            )?;
+            let (ok, range) = declared("aperture_deg");
+            c.cone_aperture_deg = floats("cone_aperture_deg", list, &ok, &range)?;
+        }
+        if let Some(table) = &raw.sweep {
+            c.sweeps = key_sweeps(table, text, path.as_ref(), &loc)?;
         }
         Ok(c)
     }
+}
+
+/// `[ablate] sweep = { "key" = [values] }`: each value written into the experiment as
+/// `--set key=value` and parsed; a value the file would refuse is refused here with the
+/// parser's message, and a key that changes the scene or the image size (whose error
+/// against the reference would measure the change, not the quality) is refused.
+fn key_sweeps(
+    table: &toml::Table,
+    text: &str,
+    path: &Path,
+    loc: &Locator,
+) -> Result<Vec<KeySweep>, ExperimentError> {
+    use crate::experiment::{Override, SceneCache};
+    let mut cache = SceneCache::new();
+    let base = Experiment::from_str_cached(text, path, &mut cache)?;
+    let mut out = Vec::new();
+    for (key, values) in table {
+        let what = |m: String| loc.invalid("sweep", format!("\"{key}\": {m}"));
+        let Some(values) = values.as_array().filter(|v| !v.is_empty()) else {
+            return Err(what("must be a non-empty list of values".to_string()));
+        };
+        let mut points = Vec::new();
+        for v in values {
+            let written = match v {
+                toml::Value::String(s) => s.clone(),
+                other => other.to_string(),
+            };
+            let o: Override = format!("{key}={written}").parse().map_err(what)?;
+            let e =
+                Experiment::from_str_with_cache(text, path, std::slice::from_ref(&o), &mut cache)
+                    .map_err(|e| what(e.to_string()))?;
+            if e.scene != base.scene
+                || (e.settings.width, e.settings.height)
+                    != (base.settings.width, base.settings.height)
+            {
+                return Err(what(format!(
+                    "{written} changes the scene or the image size; a sweep compares quality \
+                     knobs against one reference"
+                )));
+            }
+            points.push((written, e.settings));
+        }
+        out.push(KeySweep {
+            key: key.clone(),
+            points,
+        });
+    }
+    Ok(out)
 }
 
 /// Reads an experiment file and its `[ablate]` table; also returns the text (copied
@@ -683,12 +753,29 @@ fn plug_in_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
     out
 }
 
-/// All points of all sweeps, the plug-in shadow models' last.
+/// The curves of `[ablate] sweep`: the experiment with one key set to each value.
+fn key_sweep_points(_: &Experiment, c: &AblateConfig) -> Vec<Point> {
+    c.sweeps
+        .iter()
+        .flat_map(|k| {
+            k.points.iter().map(|(value, settings)| Point {
+                model: format!("sweep {}", k.key),
+                knob: k.key.clone(),
+                value: value.clone(),
+                settings: settings.clone(),
+                lights_as_points: false,
+            })
+        })
+        .collect()
+}
+
+/// All points of all sweeps, the plug-in shadow models' and `[ablate] sweep`'s last.
 pub fn points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
     SWEEPS
         .iter()
         .flat_map(|s| (s.points)(e, c))
         .chain(plug_in_points(e, c))
+        .chain(key_sweep_points(e, c))
         .collect()
 }
 
@@ -1186,10 +1273,12 @@ pub fn run(
     source: Option<&str>,
     opts: &AblateOptions,
 ) -> Result<AblateReport> {
-    if !e.scene.lights.iter().any(|l| l.is_area()) {
+    let has_area = e.scene.lights.iter().any(|l| l.is_area());
+    if !has_area && c.sweeps.is_empty() {
         bail!(
-            "{}: voxlab ablate needs an area light (type rect, disk or sphere): the \
-             reference is stochastic area lighting",
+            "{}: the shadow models' curves need an area light (type rect, disk or sphere): \
+             the reference is stochastic area lighting. Without one, give [ablate] sweep = \
+             {{ \"key\" = [values] }} to measure other knobs against the converged image",
             e.name
         );
     }
@@ -1199,7 +1288,16 @@ pub fn run(
     std::fs::create_dir_all(&cache_dir)
         .with_context(|| format!("creating {}", cache_dir.display()))?;
 
-    let points = points(e, c);
+    // Without an area light every shadow model gives the hard image: only the baseline
+    // and the key sweeps are measured.
+    let points = if has_area {
+        points(e, c)
+    } else {
+        baseline_points(e, c)
+            .into_iter()
+            .chain(key_sweep_points(e, c))
+            .collect()
+    };
     let mut tracers = Tracers::new(c)?;
     let adapter = tracers.adapter();
 

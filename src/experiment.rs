@@ -467,14 +467,23 @@ impl Experiment {
         path: impl AsRef<Path>,
         overrides: &[Override],
     ) -> Result<Self, ExperimentError> {
+        Self::from_str_with_cache(text, path, overrides, &mut SceneCache::new())
+    }
+
+    /// [`Experiment::from_str_with`] with a scene cache: the file alone is parsed first,
+    /// so its own errors keep their lines, and the cache keeps a .vox or mesh from being
+    /// loaded twice when no override touches `[scene]`.
+    pub fn from_str_with_cache(
+        text: &str,
+        path: impl AsRef<Path>,
+        overrides: &[Override],
+        cache: &mut SceneCache,
+    ) -> Result<Self, ExperimentError> {
         let path = path.as_ref();
         if overrides.is_empty() {
-            return Self::from_str(text, path);
+            return Self::from_str_cached(text, path, cache);
         }
-        // The file alone first, so its own errors keep their lines; the cache keeps a
-        // .vox or mesh from being loaded twice when no override touches [scene].
-        let mut cache = SceneCache::new();
-        Self::from_str_cached(text, path, &mut cache)?;
+        Self::from_str_cached(text, path, cache)?;
         let edited =
             apply_overrides(text, overrides).map_err(|(o, message)| ExperimentError::Invalid {
                 file: format!("--set {o}"),
@@ -482,7 +491,7 @@ impl Experiment {
                 key: o.key.clone(),
                 message: format!(": {message}"),
             })?;
-        Self::from_str_cached(&edited, path, &mut cache).map_err(|e| blame_override(e, overrides))
+        Self::from_str_cached(&edited, path, cache).map_err(|e| blame_override(e, overrides))
     }
 }
 

@@ -157,8 +157,24 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         assert!(header.iter().any(|h| h == required), "no column {required}");
     }
     // Baseline, hard shadows with each transmittance model, five stochastic points, two
-    // cone step factors and two cone apertures.
-    assert_eq!(rows.len(), 1 + 2 + 5 + 2 + 2);
+    // cone step factors and two cone apertures; then each plug-in shadow model over its
+    // knob (the spp list, or its setting's declared sweep).
+    let plug_ins: usize = voxlab::technique::SHADOW_MODELS
+        .iter()
+        .map(|m| match m.setting(m.ablate_knob) {
+            Some(s) => s.sweep.len(),
+            None => c.spp.len(),
+        })
+        .sum();
+    assert_eq!(rows.len(), 1 + 2 + 5 + 2 + 2 + plug_ins);
+    for m in voxlab::technique::SHADOW_MODELS {
+        assert!(
+            rows.iter()
+                .any(|r| col(&header, r, "shadow_model") == m.name),
+            "no point of {}",
+            m.name
+        );
+    }
     let models: Vec<&str> = rows.iter().map(|r| col(&header, r, "model")).collect();
     assert_eq!(models[0], "baseline (all off)");
     assert!(models.contains(&"hard (min-kt)"));
@@ -256,7 +272,11 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
 
     // Error against the reference falls with every doubling of the samples, and 16x the
     // samples cut the RMSE by more than half (1/4 in theory, plus the reference's noise).
-    let stochastic: Vec<&ablate::Row> = report.rows.iter().filter(|r| r.knob == "spp").collect();
+    let stochastic: Vec<&ablate::Row> = report
+        .rows
+        .iter()
+        .filter(|r| r.knob == "spp" && r.shadow_model == "area")
+        .collect();
     assert_eq!(stochastic.len(), 5);
     for w in stochastic.windows(2) {
         assert!(w[1].spp > w[0].spp);
@@ -280,12 +300,12 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         "legend text in the SVG"
     );
     let grid = image::open(out.join("grid.png")).unwrap();
-    // Thirteen tiles (reference + 12 points), each at least 128 wide with its label band.
+    // The reference and every point, each tile at least 128 wide with its label band.
     assert!(grid.width() >= 4 * 128 && grid.height() >= 4 * 128);
     let table = std::fs::read_to_string(out.join("table.md")).unwrap();
     assert_eq!(
         table.lines().filter(|l| l.starts_with("| ")).count(),
-        1 + 12
+        1 + rows.len()
     );
     assert!(table.contains("trace + setup"));
     let run_txt = std::fs::read_to_string(out.join("run.txt")).unwrap();
@@ -293,7 +313,7 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     assert!(run_txt.contains("plan: ["));
     let resolved: toml::Table =
         toml::from_str(&std::fs::read_to_string(out.join("resolved.toml")).unwrap()).unwrap();
-    assert_eq!(resolved["points"].as_array().unwrap().len(), 12);
+    assert_eq!(resolved["points"].as_array().unwrap().len(), rows.len());
     assert_eq!(
         resolved["ablate"]["cone_step_factor"]
             .as_array()
@@ -458,4 +478,71 @@ fn ablate_table_errors_name_file_line_and_key() {
     assert!(stderr.contains("ablate.runs = 0"), "{stderr}");
     assert!(!dir.join("cli").exists());
     assert!(Experiment::load(&path).is_ok());
+}
+
+/// `[ablate] sweep`: a curve over any key's values, each point the experiment with that
+/// key set; it needs no area light (the reference is then the converged image of the
+/// experiment itself), and a value the file would refuse, or a key that changes the
+/// scene or the image size, is refused with the file, line and key.
+#[test]
+fn key_sweeps_measure_any_knob() {
+    let dir = scratch("keys");
+    let text = "name = \"keys\"\n[scene]\nsize = 8\n[render]\nwidth = 24\nheight = 24\n\
+                [ablate]\nreference_spp = 2\nspp = [1]\nruns = 1\nwarmup = 0\n\
+                sweep = { \"render.max_reflection_depth\" = [0, 1, 4] }\n";
+    let (e, c) = load(&dir, text);
+    assert_eq!(c.sweeps.len(), 1);
+    assert_eq!(c.sweeps[0].points.len(), 3);
+    let out = dir.join("out");
+    run(&e, &c, &out, &dir.join("cache"));
+    let (h, rows) = read_csv(&out.join("ablation.csv"));
+    let swept: Vec<(String, f64)> = rows
+        .iter()
+        .filter(|r| col(&h, r, "model") == "sweep render.max_reflection_depth")
+        .map(|r| {
+            (
+                col(&h, r, "value").to_string(),
+                col(&h, r, "rmse").parse().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(swept.len(), 3, "{rows:?}");
+    // Seed lights are points: no shadow curve runs.
+    assert!(
+        rows.iter()
+            .all(|r| !col(&h, r, "model").starts_with("stochastic"))
+    );
+    assert_eq!(swept[2].0, "4");
+    assert!(
+        swept[2].1 < 1e-6,
+        "depth 4 is the reference's own setting: {swept:?}"
+    );
+    assert!(
+        swept[0].1 > swept[1].1 && swept[1].1 > swept[2].1,
+        "{swept:?}"
+    );
+
+    let bad = |sweep: &str| {
+        let text = format!(
+            "[scene]\nsize = 8\n[render]\nwidth = 8\nheight = 8\n[ablate]\nreference_spp = 2\n\
+             spp = [1]\nsweep = {sweep}\n"
+        );
+        let path = dir.join("bad.toml");
+        std::fs::write(&path, &text).unwrap();
+        ablate::load(&path).expect_err("refused").to_string()
+    };
+    let e = bad("{ \"render.light_samples\" = [0] }");
+    assert!(
+        e.contains("bad.toml:9:")
+            && e.contains("ablate.sweep")
+            && e.contains("render.light_samples")
+            && e.contains("1..=65536"),
+        "{e}"
+    );
+    let e = bad("{ \"scene.size\" = [4] }");
+    assert!(e.contains("changes the scene"), "{e}");
+    let e = bad("{ \"render.width\" = [16] }");
+    assert!(e.contains("image size"), "{e}");
+    let e = bad("{ \"render.spp\" = 3 }");
+    assert!(e.contains("non-empty list"), "{e}");
 }
