@@ -465,9 +465,26 @@ fn key_sweeps(
 /// Reads an experiment file and its `[ablate]` table; also returns the text (copied
 /// into the outputs as it was).
 pub fn load(path: impl AsRef<Path>) -> Result<(Experiment, AblateConfig, String), ExperimentError> {
+    load_with(path, &[])
+}
+
+/// [`load`] with `--set` overrides written into the text first (the `[ablate]` table's
+/// keys included); the text returned is the overridden one, as it was measured.
+pub fn load_with(
+    path: impl AsRef<Path>,
+    overrides: &[crate::experiment::Override],
+) -> Result<(Experiment, AblateConfig, String), ExperimentError> {
     let path = path.as_ref();
-    let experiment = Experiment::load(path)?;
+    let experiment = Experiment::load_with(path, overrides)?;
     let text = crate::experiment::read_text(path)?;
+    let text = crate::experiment::apply_overrides(&text, overrides).map_err(|(o, message)| {
+        ExperimentError::Invalid {
+            file: format!("--set {o}"),
+            line: None,
+            key: o.key.clone(),
+            message: format!(": {message}"),
+        }
+    })?;
     let config = AblateConfig::from_str(&text, path)?;
     Ok((experiment, config, text))
 }

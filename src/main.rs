@@ -156,8 +156,10 @@ fn cmd_view(args: ViewArgs) -> Result<()> {
 
 #[derive(Args, Debug)]
 struct RenderArgs {
-    /// The experiment file (TOML); see experiments/baseline.toml for every key.
-    experiment: PathBuf,
+    /// The experiment files (TOML; see experiments/baseline.toml for every key),
+    /// rendered in turn on one device, each to out/<name>.png.
+    #[arg(required = true, num_args = 1..)]
+    experiments: Vec<PathBuf>,
     #[command(flatten)]
     opts: RenderOpts,
 }
@@ -187,6 +189,10 @@ struct AblateArgs {
     /// Default: <out>/cache.
     #[arg(long, value_name = "DIR")]
     cache: Option<PathBuf>,
+    /// Override any key of the file, [ablate] included (e.g. `--set ablate.runs=1`,
+    /// `--set render.width=64`); repeatable, checked exactly like the file.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<voxlab::experiment::Override>,
 }
 
 #[derive(Args, Debug)]
@@ -328,9 +334,13 @@ fn main() -> ExitCode {
         None => Experiment::from_str_with("", "seed", &cli.render.set)
             .map_err(anyhow::Error::from)
             .and_then(|e| cmd_render(e, &cli.render)),
-        Some(Command::Render(args)) => Experiment::load_with(&args.experiment, &args.opts.set)
+        Some(Command::Render(args)) => args
+            .experiments
+            .iter()
+            .map(|p| Experiment::load_with(p, &args.opts.set))
+            .collect::<Result<Vec<_>, _>>()
             .map_err(anyhow::Error::from)
-            .and_then(|e| cmd_render(e, &args.opts)),
+            .and_then(|es| cmd_render_all(es, &args.opts)),
         Some(Command::Voxelize(args)) => cmd_voxelize(&args),
         Some(Command::Bench(args)) => cmd_bench(&args),
         Some(Command::Ablate(args)) => cmd_ablate(&args),
@@ -417,7 +427,7 @@ impl Renderer {
 
 fn cmd_ablate(a: &AblateArgs) -> Result<()> {
     use voxlab::ablate;
-    let (e, config, text) = ablate::load(&a.experiment)?;
+    let (e, config, text) = ablate::load_with(&a.experiment, &a.set)?;
     let out = a
         .out
         .clone()
@@ -630,22 +640,56 @@ fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
     Ok(())
 }
 
-fn cmd_render(mut e: Experiment, opts: &RenderOpts) -> Result<()> {
-    if let (Some(w), Some(h)) = (opts.width, opts.height) {
-        e.settings.width = w;
-        e.settings.height = h;
-    }
-    if let Some(n) = opts.spp {
-        e.settings.spp = n;
-    }
-    let out = opts
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("out").join(format!("{}.png", e.name)));
-    // Fail on a bad output name before spending the render on it.
-    OutputFormat::from_path(&out)?;
+fn cmd_render(e: Experiment, opts: &RenderOpts) -> Result<()> {
+    cmd_render_all(vec![e], opts)
+}
 
+/// Renders each experiment in turn on one tracer (one device, its pipelines and uploads
+/// reused), each to `out/<name>.png` unless `--out` names the one output.
+fn cmd_render_all(mut experiments: Vec<Experiment>, opts: &RenderOpts) -> Result<()> {
+    if experiments.len() > 1 && opts.out.is_some() {
+        bail!("--out names one output; with several experiments each goes to out/<name>.png");
+    }
+    let mut outs = Vec::new();
+    for e in &mut experiments {
+        if let (Some(w), Some(h)) = (opts.width, opts.height) {
+            e.settings.width = w;
+            e.settings.height = h;
+        }
+        if let Some(n) = opts.spp {
+            e.settings.spp = n;
+        }
+        let out = opts
+            .out
+            .clone()
+            .unwrap_or_else(|| Path::new("out").join(format!("{}.png", e.name)));
+        // Fail on a bad or repeated output name before spending any render on it.
+        OutputFormat::from_path(&out)?;
+        if outs.contains(&out) {
+            bail!(
+                "two experiments are named {:?}: both would write {} (give one a `name`)",
+                e.name,
+                out.display()
+            );
+        }
+        outs.push(out);
+    }
     let mut renderer = Renderer::new(opts.backend);
+    for (i, (e, out)) in experiments.iter().zip(&outs).enumerate() {
+        if i > 0 {
+            println!();
+        }
+        render_one(&mut renderer, e, out, opts)?;
+    }
+    Ok(())
+}
+
+fn render_one(
+    renderer: &mut Renderer,
+    e: &Experiment,
+    out: &Path,
+    opts: &RenderOpts,
+) -> Result<()> {
     let source = match &e.source_path {
         Some(p) => p.display().to_string(),
         None => "built-in".to_string(),
@@ -653,7 +697,7 @@ fn cmd_render(mut e: Experiment, opts: &RenderOpts) -> Result<()> {
     println!("experiment: {} ({source})", e.name);
     println!("backend:    {}", renderer.label());
     let wall = Instant::now();
-    let (result, plan) = renderer.render(&e)?;
+    let (result, plan) = renderer.render(e)?;
     let wall = wall.elapsed();
     // Plan's Display starts with "plan:" and lists what was left out on further lines.
     println!("{plan}");
@@ -708,10 +752,10 @@ fn cmd_render(mut e: Experiment, opts: &RenderOpts) -> Result<()> {
     if !result.frame.all_finite() {
         eprintln!("warning: the image holds non-finite values (NaN or inf)");
     }
-    write_frame(&result.frame, &out)?;
+    write_frame(&result.frame, out)?;
     println!("output:     {}", out.display());
     if let Some(side) = opts.check {
-        check_against_cpu(&e, &result.frame, side, &renderer)?;
+        check_against_cpu(e, &result.frame, side, renderer)?;
     }
     Ok(())
 }

@@ -546,3 +546,28 @@ fn key_sweeps_measure_any_knob() {
     let e = bad("{ \"render.spp\" = 3 }");
     assert!(e.contains("non-empty list"), "{e}");
 }
+
+/// `voxlab ablate --set`: overrides reach the experiment and the [ablate] table alike.
+#[test]
+fn overrides_reach_the_ablate_table() {
+    let dir = scratch("set");
+    let path = dir.join("tiny.toml");
+    std::fs::write(&path, experiment_text(110.0, SWEEP)).unwrap();
+    let set: Vec<voxlab::experiment::Override> =
+        ["ablate.runs=4", "ablate.spp=[1, 2]", "render.width=16"]
+            .iter()
+            .map(|s| s.parse().unwrap())
+            .collect();
+    let (e, c, text) = ablate::load_with(&path, &set).unwrap();
+    assert_eq!(
+        (c.runs, c.spp.clone(), e.settings.width),
+        (4, vec![1, 2], 16)
+    );
+    assert!(text.contains("runs = 4"));
+    let bad: Vec<voxlab::experiment::Override> = vec!["ablate.runs=0".parse().unwrap()];
+    let err = ablate::load_with(&path, &bad).unwrap_err().to_string();
+    assert!(
+        err.contains("ablate.runs") && err.contains("1..=1000"),
+        "{err}"
+    );
+}

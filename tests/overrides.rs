@@ -147,3 +147,54 @@ fn the_command_line_takes_overrides() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--set render.width=0"));
 }
+
+/// Several experiment files in one invocation, on one tracer, each to out/<name>.png,
+/// the overrides applied to each; --out with several, or two outputs of one name, are
+/// refused before anything renders.
+#[test]
+fn one_invocation_renders_several_experiments() {
+    let dir = std::env::temp_dir().join(format!("voxlab-many-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let exp = |f: &str| root().join("experiments").join(f);
+    let run = Command::new(env!("CARGO_BIN_EXE_voxlab"))
+        .arg("render")
+        .args([exp("baseline.toml"), exp("sdf.toml")])
+        .args(["--backend", "cpu", "--width", "8", "--height", "6"])
+        .args(["--set", "render.spp=1"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert_eq!(stdout.matches("experiment: ").count(), 2, "{stdout}");
+    for name in ["baseline", "sdf"] {
+        let img = image::open(dir.join("out").join(format!("{name}.png"))).unwrap();
+        assert_eq!((img.width(), img.height()), (8, 6));
+    }
+    for args in [
+        vec!["--out".to_string(), dir.join("x.png").display().to_string()],
+        vec![exp("baseline.toml").display().to_string()],
+    ] {
+        let bad = Command::new(env!("CARGO_BIN_EXE_voxlab"))
+            .arg("render")
+            .args([exp("baseline.toml"), exp("sdf.toml")])
+            .args(&args)
+            .args(["--backend", "cpu"])
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert!(!bad.status.success());
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(
+            err.contains("--out names one output") || err.contains("two experiments"),
+            "{err}"
+        );
+        assert!(!String::from_utf8_lossy(&bad.stdout).contains("experiment: "));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
