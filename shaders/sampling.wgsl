@@ -45,3 +45,16 @@ fn light_sample(seed: u32, key: SampleKey, light: u32, k: u32, n: u32) -> vec2<f
     let dv = unit_float(hash(seed, key.pixel, key.frame, light, 1u));
     return fract(vec2<f32>(f32(k) / f32(n) + du, radical_inverse2(k) + dv));
 }
+
+// crate::sampling::PIXEL_STREAM and R2_STEPS.
+const PIXEL_STREAM: u32 = 0xffffffffu;
+const R2_STEP_X: u32 = 3242174889u;
+const R2_STEP_Y: u32 = 2447445414u;
+
+// crate::sampling::pixel_sample: frame `frame`'s point of the R2 sequence, rotated per
+// pixel, bit for bit (u32 arithmetic wraps).
+fn pixel_sample(seed: u32, pixel: u32, frame: u32) -> vec2<f32> {
+    let x = hash(seed, pixel, 0u, PIXEL_STREAM, 0u) + frame * R2_STEP_X;
+    let y = hash(seed, pixel, 0u, PIXEL_STREAM, 1u) + frame * R2_STEP_Y;
+    return vec2<f32>(unit_float(x), unit_float(y));
+}

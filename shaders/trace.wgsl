@@ -9,11 +9,11 @@
 // is on). The shadow and light models live in their own files (shading.wgsl composes
 // them); this file only walks the ray tree of one frame of one pixel.
 
-#import voxlab::types::{BIG, Material, RULES_SEED}
+#import voxlab::types::{BIG, Material, RULES_SEED, PIXEL_FILTER_BOX, PIXEL_FILTER_GAUSSIAN}
 #import voxlab::bindings::{params, materials, output}
 #import voxlab::traversal::cast_ray
 #import voxlab::counters::{count_primary, count_secondary, flush_counts, loop_cut}
-#import voxlab::sampling::SampleKey
+#import voxlab::sampling::{SampleKey, pixel_sample}
 #ifdef CONES
 #import voxlab::cone::cone_loop_cut
 #endif
@@ -183,11 +183,23 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= params.width || gid.y >= params.height || gid.z >= params.frame_count {
         return;
     }
-    // Pixel centre, rows from the top (CameraFrame::primary_dir).
-    let sx = 2.0 * (f32(gid.x) + 0.5) / f32(params.width) - 1.0;
-    let sy = 1.0 - 2.0 * (f32(gid.y) + 0.5) / f32(params.height);
-    let dir = normalize(params.forward + sx * params.right_scaled + sy * params.up_scaled);
     let i = gid.y * params.width + gid.x;
+    // Pixel centre, rows from the top (CameraFrame::primary_dir), moved per frame by the
+    // pixel filter (PixelFilter::offset).
+    var offset = vec2<f32>(0.5);
+#ifdef PIXEL_FILTER
+    let uv = pixel_sample(params.seed, i, params.frame_begin + gid.z);
+    if params.pixel_filter == PIXEL_FILTER_BOX {
+        offset += (2.0 * uv - 1.0) * params.filter_width;
+    } else if params.pixel_filter == PIXEL_FILTER_GAUSSIAN {
+        let r = params.filter_width * sqrt(-2.0 * log(1.0 - uv.x));
+        let phi = 6.283185307179586 * uv.y;
+        offset += r * vec2<f32>(cos(phi), sin(phi));
+    }
+#endif
+    let sx = 2.0 * (f32(gid.x) + offset.x) / f32(params.width) - 1.0;
+    let sy = 1.0 - 2.0 * (f32(gid.y) + offset.y) / f32(params.height);
+    let dir = normalize(params.forward + sx * params.right_scaled + sy * params.up_scaled);
     var key: SampleKey;
     key.pixel = i;
     key.frame = params.frame_begin + gid.z;

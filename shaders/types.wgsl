@@ -40,9 +40,14 @@ struct Params {
     max_total_depth: u32,
     // RULES_CONSISTENT or RULES_SEED (crate::render::Rules).
     rules: u32,
-    pad_e: u32,
-    pad_f: u32,
+    // PIXEL_FILTER_* (crate::render::PixelFilter) and its width in pixels (PIXEL_FILTER).
+    pixel_filter: u32,
+    filter_width: f32,
 }
+
+// crate::render::PixelFilter::code.
+const PIXEL_FILTER_BOX: u32 = 1u;
+const PIXEL_FILTER_GAUSSIAN: u32 = 2u;
 
 // crate::render::Rules: voxlab's model, or the seed's (one recursion depth, leaving the
 // grid is a miss, the refracted share lost under total internal reflection).

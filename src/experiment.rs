@@ -283,6 +283,8 @@ struct RawRender {
     light_samples: Option<i64>,
     spp: Option<i64>,
     seed: Option<i64>,
+    pixel_filter: Option<String>,
+    filter_width: Option<f64>,
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1078,6 +1080,27 @@ fn build(
         })?,
         seed: r.seed.map_or(Ok(d.seed), |v| {
             int_in(ctx, "render.seed", v, 0..=u32::MAX as i64)
+        })?,
+        pixel_filter: match r.pixel_filter.as_deref() {
+            None => d.pixel_filter,
+            Some(name) => crate::render::PixelFilter::ALL
+                .into_iter()
+                .find(|f| f.name() == name)
+                .ok_or_else(|| {
+                    ctx.invalid(
+                        "render.pixel_filter",
+                        "must be \"none\", \"box\" or \"gaussian\"",
+                    )
+                })?,
+        },
+        filter_width: r.filter_width.map_or(Ok(d.filter_width), |v| {
+            float_where(
+                ctx,
+                "render.filter_width",
+                v,
+                |x| x > 0.0 && x <= crate::render::MAX_FILTER_WIDTH,
+                "in (0, 4] (pixels)",
+            )
         })?,
     };
     let ambient = match r.ambient {

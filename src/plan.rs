@@ -66,6 +66,9 @@ pub struct Plan {
     /// One-bounce indirect diffuse light (`INDIRECT`): the feature is on, some material
     /// is diffuse and there is a light to inject (else the radiance pyramid is 0).
     pub indirect: bool,
+    /// Primary rays spread over the pixel by the pixel filter (`PIXEL_FILTER`), a new
+    /// position each frame: `render.pixel_filter` is not "none".
+    pub pixel_filter: bool,
     /// A plug-in shadow model (`SHADOW_MODEL`, its module composed in as
     /// `voxlab::shadow_model`): `features.shadow_model` names it, there are shadow rays,
     /// and its own plan rule keeps it for this scene.
@@ -259,7 +262,8 @@ impl Plan {
         };
         // A plug-in model shades every light itself: the built-in models' code is dead.
         let area_lights = area_lights && shadow_model.is_none();
-        let sampled = area_lights || shadow_model.is_some_and(|m| m.stochastic);
+        let pixel_filter = settings.pixel_filter != crate::render::PixelFilter::None;
+        let sampled = area_lights || shadow_model.is_some_and(|m| m.stochastic) || pixel_filter;
         let accumulate = sampled && settings.spp > 1;
         if !sampled && settings.spp > 1 {
             reasons.push(format!(
@@ -304,7 +308,8 @@ impl Plan {
             );
             area_lights = false;
             beer_lambert = false;
-            accumulate = false;
+            // Frames still differ where the pixel filter moves the primary rays.
+            accumulate = pixel_filter && settings.spp > 1;
         }
         let diffuse = mats.iter().any(|(_, m)| m.kd > 0.0);
         let ambient_occlusion = f.ambient_occlusion && diffuse;
@@ -332,6 +337,7 @@ impl Plan {
             cone_shadows,
             ambient_occlusion,
             indirect,
+            pixel_filter,
             shadow_model,
             pyramid,
             count_rays: false,
@@ -411,6 +417,7 @@ impl Plan {
                     cone_shadows: false,
                     ambient_occlusion: false,
                     indirect: false,
+                    pixel_filter: false,
                     shadow_model: None,
                     pyramid: None,
                     count_rays: false,
@@ -434,6 +441,9 @@ impl Plan {
             if self.flag(f) {
                 defs.insert(f.to_string(), ShaderDefValue::Bool(true));
             }
+        }
+        if self.pixel_filter {
+            defs.insert("PIXEL_FILTER".to_string(), ShaderDefValue::Bool(true));
         }
         // The plug-in shadow model: its module is composed in; its index keys the cache.
         if let Some(m) = self.shadow_model {
@@ -464,11 +474,13 @@ impl fmt::Display for Plan {
         let shadow_model = self
             .shadow_model
             .map(|m| format!("SHADOW_MODEL({})", m.name));
+        let pixel_filter = self.pixel_filter.then_some("PIXEL_FILTER");
         let on: Vec<&str> = Self::FLAGS
             .iter()
             .chain(&Self::CONE_FLAGS)
             .copied()
             .filter(|n| self.flag(n))
+            .chain(pixel_filter)
             .chain(shadow_model.as_deref())
             .collect();
         write!(

@@ -48,6 +48,59 @@ impl Rules {
     }
 }
 
+/// How each frame's primary ray samples its pixel: the reconstruction filter, realised
+/// by distributing the rays' positions like it (filter importance sampling, A. Ernst et
+/// al., "Filter Importance Sampling", IEEE RT 2006), so frames average with equal
+/// weights and the accumulated image converges to the filtered one.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum PixelFilter {
+    /// Every ray through the pixel centre (the seed's image, aliased).
+    #[default]
+    None,
+    /// Uniform over a square of half-width `filter_width` pixels (0.5: the pixel).
+    Box,
+    /// Gaussian of standard deviation `filter_width` pixels (Box-Muller, untruncated).
+    Gaussian,
+}
+
+impl PixelFilter {
+    pub const ALL: [PixelFilter; 3] = [PixelFilter::None, PixelFilter::Box, PixelFilter::Gaussian];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PixelFilter::None => "none",
+            PixelFilter::Box => "box",
+            PixelFilter::Gaussian => "gaussian",
+        }
+    }
+
+    /// `PIXEL_FILTER_*` of shaders/types.wgsl.
+    pub fn code(self) -> u32 {
+        match self {
+            PixelFilter::None => 0,
+            PixelFilter::Box => 1,
+            PixelFilter::Gaussian => 2,
+        }
+    }
+
+    /// The offset (pixels) from the pixel centre of frame `frame`'s primary ray.
+    pub fn offset(self, width: f64, seed: u32, pixel: u32, frame: u32) -> (f64, f64) {
+        let (u, v) = crate::sampling::pixel_sample(seed, pixel, frame);
+        match self {
+            PixelFilter::None => (0.0, 0.0),
+            PixelFilter::Box => ((2.0 * u - 1.0) * width, (2.0 * v - 1.0) * width),
+            PixelFilter::Gaussian => {
+                let r = width * (-2.0 * (1.0 - u).ln()).sqrt();
+                let (s, c) = (std::f64::consts::TAU * v).sin_cos();
+                (r * c, r * s)
+            }
+        }
+    }
+}
+
+/// Largest `filter_width` accepted, pixels.
+pub const MAX_FILTER_WIDTH: f64 = 4.0;
+
 /// Extensions beyond the seed. `Features::default()` is the baseline: every one off.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Features {
@@ -180,6 +233,10 @@ pub struct RenderSettings {
     pub cones: ConeSettings,
     /// Settings of plug-in techniques (`[techniques.<name>]`).
     pub technique_params: crate::technique::TechniqueParams,
+    /// How primary rays sample their pixels (anti-aliasing); `None` is the baseline.
+    pub pixel_filter: PixelFilter,
+    /// The filter's half-width (box) or standard deviation (Gaussian), pixels.
+    pub filter_width: f64,
 }
 
 /// Largest `light_samples` and `spp` accepted.
@@ -214,6 +271,8 @@ impl Default for RenderSettings {
             seed: 0,
             cones: ConeSettings::default(),
             technique_params: Default::default(),
+            pixel_filter: PixelFilter::None,
+            filter_width: 0.5,
         }
     }
 }

@@ -59,13 +59,19 @@ pub fn render_region(
             let row = columns
                 .clone()
                 .map(|i| {
-                    let dir = frame_cam.primary_dir(i, j, w, h);
                     let mut sum = DVec3::ZERO;
                     for frame in 0..frames {
                         let key = SampleKey {
                             pixel: j * w + i,
                             frame,
                         };
+                        let offset = settings.pixel_filter.offset(
+                            settings.filter_width,
+                            settings.seed,
+                            key.pixel,
+                            frame,
+                        );
+                        let dir = frame_cam.primary_dir_offset(i, j, w, h, offset);
                         sum += trace_ray_with(
                             scene,
                             settings,

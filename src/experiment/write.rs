@@ -250,6 +250,8 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
         seed: _,
         cones: _,
         technique_params: _,
+        pixel_filter: _,
+        filter_width: _,
     } = s;
     let mut t = Table::new();
     let int = |v: u32| Value::Integer(i64::from(v));
@@ -268,6 +270,8 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
     t.insert("light_samples".into(), int(s.light_samples));
     t.insert("spp".into(), int(s.spp));
     t.insert("seed".into(), int(s.seed));
+    t.insert("pixel_filter".into(), s.pixel_filter.name().into());
+    t.insert("filter_width".into(), s.filter_width.into());
     t
 }
 
@@ -482,6 +486,8 @@ const RENDER_KEYS: &[&str] = &[
     "light_samples",
     "spp",
     "seed",
+    "pixel_filter",
+    "filter_width",
 ];
 
 /// `key = value` lines of a table of plain values, the keys in `order` first, then any

@@ -56,7 +56,8 @@ struct GpuParams {
     frame_count: u32,
     max_total_depth: u32,
     rules: u32,
-    _pad: [u32; 2],
+    pixel_filter: u32,
+    filter_width: f32,
 }
 
 /// `ReduceParams` of `shaders/accumulate.wgsl`.
@@ -886,7 +887,8 @@ impl GpuTracer {
                 Rules::Consistent => RULES_CONSISTENT,
                 Rules::Seed => RULES_SEED,
             },
-            _pad: [0; 2],
+            pixel_filter: settings.pixel_filter.code(),
+            filter_width: settings.filter_width as f32,
         }
     }
 

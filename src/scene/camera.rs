@@ -58,10 +58,23 @@ impl OrbitCamera {
 }
 
 impl CameraFrame {
+    /// The ray through the centre of pixel (i, j), rows from the top.
     pub fn primary_dir(&self, i: u32, j: u32, width: u32, height: u32) -> DVec3 {
+        self.primary_dir_offset(i, j, width, height, (0.0, 0.0))
+    }
+
+    /// The ray through pixel (i, j)'s centre moved by `offset` pixels (x right, y down).
+    pub fn primary_dir_offset(
+        &self,
+        i: u32,
+        j: u32,
+        width: u32,
+        height: u32,
+        offset: (f64, f64),
+    ) -> DVec3 {
         let aspect = width as f64 / height as f64;
-        let sx = 2.0 * (i as f64 + 0.5) / width as f64 - 1.0;
-        let sy = 1.0 - 2.0 * (j as f64 + 0.5) / height as f64;
+        let sx = 2.0 * (i as f64 + (0.5 + offset.0)) / width as f64 - 1.0;
+        let sy = 1.0 - 2.0 * (j as f64 + (0.5 + offset.1)) / height as f64;
         (self.forward
             + (sx * self.tan_half_vfov * aspect) * self.right
             + (sy * self.tan_half_vfov) * self.up)
