@@ -13,7 +13,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use voxlab::experiment::Experiment;
 use voxlab::gpu::GpuTracer;
-use voxlab::output::{OutputFormat, write_frame};
+use voxlab::output::{OutputFormat, write_frame_with_provenance};
 use voxlab::plan::Plan;
 use voxlab::render::{Frame, MAX_IMAGE_SIDE, RenderOutput};
 
@@ -282,6 +282,10 @@ struct RenderOpts {
     #[arg(long, value_name = "SIDE", num_args = 0..=1, default_missing_value = "32",
           value_parser = clap::value_parser!(u32).range(1..=4096))]
     check: Option<u32>,
+    /// Print, for each image, its provenance record (the JSON stored with it) as one
+    /// line instead of the report.
+    #[arg(long)]
+    json: bool,
     /// Override any key of the experiment file, e.g. `--set render.light_samples=8`,
     /// `--set features.shadow_model=sdf`, `--set techniques.sdf.softness=0.5`,
     /// `--set lights[0].intensity=200` (repeatable; checked exactly like the file).
@@ -676,12 +680,82 @@ fn cmd_render_all(mut experiments: Vec<Experiment>, opts: &RenderOpts) -> Result
     }
     let mut renderer = Renderer::new(opts.backend);
     for (i, (e, out)) in experiments.iter().zip(&outs).enumerate() {
-        if i > 0 {
+        if i > 0 && !opts.json {
             println!();
         }
         render_one(&mut renderer, e, out, opts)?;
     }
     Ok(())
+}
+
+/// Prints a line of the human-readable report, unless `--json` asked for the record alone.
+macro_rules! say {
+    ($opts:expr, $($arg:tt)*) => {
+        if !$opts.json {
+            println!($($arg)*);
+        }
+    };
+}
+
+/// What made an image, as JSON: the resolved experiment (`--set` applied), the
+/// overrides, the revision, the backend and adapter, size, frames, samples, seed, plan,
+/// timings and rays. Stored with the image (`output::write_frame_with_provenance`) and
+/// printed, one line per image, by `render --json`.
+#[allow(clippy::too_many_arguments)]
+fn provenance(
+    e: &Experiment,
+    renderer: &Renderer,
+    plan: &Plan,
+    result: &RenderOutput,
+    frames: u32,
+    trace: std::time::Duration,
+    wall: std::time::Duration,
+    out: &Path,
+    opts: &RenderOpts,
+) -> Result<serde_json::Value> {
+    let overrides: Vec<String> = opts.set.iter().map(|o| o.to_string()).collect();
+    // The [scene] table as the file (with the overrides) gives it, so the resolved
+    // experiment renders again from its own text.
+    let scene_source = match &e.source_path {
+        Some(p) => {
+            let text = voxlab::experiment::read_text(p)?;
+            let text = voxlab::experiment::apply_overrides(&text, &opts.set)
+                .map_err(|(o, m)| anyhow::anyhow!("--set {o}: {m}"))?;
+            voxlab::experiment::write::scene_source(&text, p)?
+        }
+        None => toml::Table::new(),
+    };
+    let resolved = voxlab::experiment::to_toml(e, &scene_source)?;
+    let s = &result.stats;
+    let record = serde_json::json!({
+        "voxlab": env!("CARGO_PKG_VERSION"),
+        "revision": voxlab::ablate::git_revision(),
+        "experiment": e.name,
+        "source": e.source_path.as_ref().map(|p| p.display().to_string()),
+        "overrides": overrides,
+        "backend": renderer.label(),
+        "width": e.settings.width,
+        "height": e.settings.height,
+        "spp": e.settings.spp,
+        "frames": frames,
+        "light_samples": e.settings.light_samples,
+        "seed": e.settings.seed,
+        "pixel_filter": e.settings.pixel_filter.name(),
+        "plan": plan.to_string(),
+        "trace_ms": trace.as_secs_f64() * 1e3,
+        "wall_ms": wall.as_secs_f64() * 1e3,
+        "rays": {
+            "primary": s.primary,
+            "secondary": s.secondary,
+            "shadow": s.shadow,
+            "voxel_steps": s.voxel_steps,
+            "counted": s.total_rays() > 0,
+        },
+        "finite": result.frame.all_finite(),
+        "output": out.display().to_string(),
+        "resolved_experiment": resolved,
+    });
+    Ok(record)
 }
 
 fn render_one(
@@ -694,14 +768,19 @@ fn render_one(
         Some(p) => p.display().to_string(),
         None => "built-in".to_string(),
     };
-    println!("experiment: {} ({source})", e.name);
-    println!("backend:    {}", renderer.label());
+    say!(opts, "experiment: {} ({source})", e.name);
+    say!(opts, "backend:    {}", renderer.label());
     let wall = Instant::now();
     let (result, plan) = renderer.render(e)?;
     let wall = wall.elapsed();
     // Plan's Display starts with "plan:" and lists what was left out on further lines.
-    println!("{plan}");
-    println!("image:      {}x{}", e.settings.width, e.settings.height);
+    say!(opts, "{plan}");
+    say!(
+        opts,
+        "image:      {}x{}",
+        e.settings.width,
+        e.settings.height
+    );
     // Only a plan that samples something accumulates frames; otherwise one is traced.
     let frames = if plan.accumulate {
         e.settings.spp.max(1)
@@ -709,7 +788,7 @@ fn render_one(
         1
     };
     // On the GPU, device time from timestamp queries where the adapter has them.
-    let (trace, timer) = match &renderer {
+    let (trace, timer) = match &*renderer {
         Renderer::Gpu(t) => (
             t.last_gpu_time().unwrap_or(result.trace_time),
             t.timer_name(),
@@ -717,7 +796,8 @@ fn render_one(
         Renderer::Cpu { .. } => (result.trace_time, "wall"),
     };
     let trace_ms = trace.as_secs_f64() * 1e3;
-    println!(
+    say!(
+        opts,
         "time:       {:.3} ms per frame (trace, {timer}), {} frame{} in {:.3} ms, {:.3} ms wall",
         trace_ms / frames as f64,
         frames,
@@ -725,22 +805,24 @@ fn render_one(
         trace_ms,
         wall.as_secs_f64() * 1e3
     );
-    if let Renderer::Gpu(t) = &renderer {
+    if let Renderer::Gpu(t) = &*renderer {
         // The pyramids are built before the trace, so the trace time leaves them out.
         let setup = t.last_setup_time();
         if !setup.is_zero() {
-            println!(
+            say!(
+                opts,
                 "setup:      {:.3} ms (cone pyramids, not in the trace time)",
                 setup.as_secs_f64() * 1e3
             );
         }
         if let Some(m) = t.last_memory() {
-            println!("memory:     {m} on the device");
+            say!(opts, "memory:     {m} on the device");
         }
     }
     let s = result.stats;
     if s.total_rays() > 0 {
-        println!(
+        say!(
+            opts,
             "rays:       {} ({} primary, {} secondary, {} shadow), {} voxel steps",
             s.total_rays(),
             s.primary,
@@ -752,8 +834,17 @@ fn render_one(
     if !result.frame.all_finite() {
         eprintln!("warning: the image holds non-finite values (NaN or inf)");
     }
-    write_frame(&result.frame, out)?;
-    println!("output:     {}", out.display());
+    let record = provenance(e, renderer, &plan, &result, frames, trace, wall, out, opts)?;
+    write_frame_with_provenance(&result.frame, out, &serde_json::to_string_pretty(&record)?)?;
+    say!(
+        opts,
+        "output:     {} (provenance: its iTXt chunk `voxlab` and {}.json)",
+        out.display(),
+        out.display()
+    );
+    if opts.json {
+        println!("{record}");
+    }
     if let Some(side) = opts.check {
         check_against_cpu(e, &result.frame, side, renderer)?;
     }

@@ -130,6 +130,73 @@ pub fn write_frame(frame: &Frame, path: impl AsRef<Path>) -> Result<(), OutputEr
     })
 }
 
+/// The PNG text chunk (iTXt) that holds a render's provenance record.
+pub const PROVENANCE_KEYWORD: &str = "voxlab";
+
+/// [`write_frame`], and the provenance record `json` (what made the image: the resolved
+/// experiment, revision, adapter, settings, timings, plan) stored with it: in a PNG as
+/// the iTXt chunk [`PROVENANCE_KEYWORD`], and for either format in the sidecar
+/// `<path>.json`, written the same way (complete or not at all).
+pub fn write_frame_with_provenance(
+    frame: &Frame,
+    path: impl AsRef<Path>,
+    json: &str,
+) -> Result<(), OutputError> {
+    let path = path.as_ref();
+    let format = OutputFormat::from_path(path)?;
+    match format {
+        OutputFormat::Exr => write_frame(frame, path)?,
+        OutputFormat::Png => write_atomically(path, |tmp| {
+            let io = |error| OutputError::WriteFile {
+                path: path.to_path_buf(),
+                error,
+            };
+            let file = File::create(tmp).map_err(io)?;
+            let encoding = |e: png::EncodingError| {
+                io(std::io::Error::other(format!(
+                    "the PNG encoder failed: {e}"
+                )))
+            };
+            let mut encoder =
+                png::Encoder::new(std::io::BufWriter::new(file), frame.width, frame.height);
+            encoder.set_color(png::ColorType::Rgb);
+            encoder.set_depth(png::BitDepth::Eight);
+            encoder
+                .add_itxt_chunk(PROVENANCE_KEYWORD.to_string(), json.to_string())
+                .map_err(encoding)?;
+            let mut writer = encoder.write_header().map_err(encoding)?;
+            writer
+                .write_image_data(&frame.to_rgb8())
+                .map_err(encoding)?;
+            writer.finish().map_err(encoding)
+        })?,
+    }
+    let mut sidecar = path.as_os_str().to_os_string();
+    sidecar.push(".json");
+    write_file(PathBuf::from(sidecar), json.as_bytes())
+}
+
+/// The provenance record stored in a PNG written by [`write_frame_with_provenance`].
+pub fn read_png_provenance(path: impl AsRef<Path>) -> Result<Option<String>, OutputError> {
+    let path = path.as_ref();
+    let file = File::open(path).map_err(|error| OutputError::Open {
+        path: path.to_path_buf(),
+        error,
+    })?;
+    let decoder = png::Decoder::new(BufReader::new(file));
+    let reader = decoder.read_info().map_err(|e| OutputError::Open {
+        path: path.to_path_buf(),
+        error: std::io::Error::other(e.to_string()),
+    })?;
+    let text = reader
+        .info()
+        .utf8_text
+        .iter()
+        .find(|c| c.keyword == PROVENANCE_KEYWORD)
+        .and_then(|c| c.get_text().ok());
+    Ok(text)
+}
+
 /// Writes `bytes` to `path` the way `write_frame` writes images: parent directories
 /// created, a temporary file renamed into place, so a failed write leaves nothing under
 /// `path` (the viewer's exported experiment files and window captures).

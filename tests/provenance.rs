@@ -1,0 +1,89 @@
+//! Provenance: every image `voxlab render` writes carries what made it (the resolved
+//! experiment with its overrides, revision, backend, settings, plan, timings), in the
+//! PNG's iTXt chunk and a JSON sidecar; `render --json` prints the same record; the
+//! resolved experiment renders the same image again.
+
+use std::process::Command;
+
+use voxlab::experiment::{Experiment, Override};
+
+#[test]
+fn images_carry_what_made_them() {
+    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let dir = std::env::temp_dir().join(format!("voxlab-provenance-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = dir.join("sdf.png");
+    let set = [
+        "techniques.sdf.softness=2",
+        "render.pixel_filter=box",
+        "render.spp=3",
+    ];
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_voxlab"));
+    cmd.args([
+        "render",
+        "experiments/sdf.toml",
+        "--backend",
+        "cpu",
+        "--width",
+        "10",
+        "--height",
+        "7",
+    ]);
+    for s in set {
+        cmd.args(["--set", s]);
+    }
+    let run = cmd
+        .arg("--json")
+        .arg("--out")
+        .arg(&out)
+        .current_dir(&root)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    // --json: the record alone, one line.
+    assert_eq!(stdout.lines().count(), 1, "{stdout}");
+    let printed: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
+    let chunk = voxlab::output::read_png_provenance(&out)
+        .unwrap()
+        .expect("the iTXt chunk");
+    let sidecar = std::fs::read_to_string(dir.join("sdf.png.json")).unwrap();
+    let stored: serde_json::Value = serde_json::from_str(&chunk).unwrap();
+    assert_eq!(
+        stored,
+        serde_json::from_str::<serde_json::Value>(&sidecar).unwrap()
+    );
+    assert_eq!(stored, printed);
+    assert_eq!(stored["experiment"], "sdf");
+    assert_eq!(stored["frames"], 3);
+    assert_eq!(stored["pixel_filter"], "box");
+    assert_eq!(stored["overrides"].as_array().unwrap().len(), 3);
+    assert!(
+        stored["plan"]
+            .as_str()
+            .unwrap()
+            .contains("SHADOW_MODEL(sdf)")
+    );
+    assert!(
+        stored["backend"]
+            .as_str()
+            .unwrap()
+            .contains("CPU reference")
+    );
+    assert!(stored["revision"].as_str().is_some_and(|r| !r.is_empty()));
+    // The resolved experiment is the one rendered: the file with its overrides and the
+    // command line's size.
+    let resolved = stored["resolved_experiment"].as_str().unwrap();
+    let again = Experiment::from_str(resolved, "sdf.toml").unwrap();
+    let overrides: Vec<Override> = set.iter().map(|s| s.parse().unwrap()).collect();
+    let mut expected =
+        Experiment::load_with(root.join("experiments/sdf.toml"), &overrides).unwrap();
+    (expected.settings.width, expected.settings.height) = (10, 7);
+    assert_eq!(again.settings, expected.settings);
+    assert_eq!(again.scene, expected.scene);
+    let _ = std::fs::remove_dir_all(&dir);
+}
