@@ -162,7 +162,7 @@ fn experiment_files_take_every_model_and_setting() {
     );
 }
 
-/// The viewer's list, the stress suite and `voxlab ablate`'s points name every model.
+/// The stress suite and `voxlab ablate`'s points name every model.
 #[test]
 fn every_model_is_offered_everywhere() {
     let e = Experiment {
@@ -186,6 +186,15 @@ fn every_model_is_offered_everywhere() {
             "the stress suite has no case of {}",
             m.name
         );
+    }
+}
+
+/// The viewer's shadow list and its `--left`/`--right` lists offer every model.
+#[cfg(feature = "viewer")]
+#[test]
+fn the_viewer_offers_every_model() {
+    let e = Experiment::seed_default();
+    for m in SHADOW_MODELS {
         let mut side = voxlab::viewer::state::SideSettings::from_settings(&e.settings, 4);
         side.parse_list(m.name).unwrap();
         assert_eq!(side.features.shadow_model, Some(m.name));
