@@ -9,6 +9,7 @@ pub mod bench;
 pub mod cpu;
 pub mod experiment;
 pub mod gpu;
+pub mod info;
 pub mod input;
 pub mod metrics;
 pub mod output;

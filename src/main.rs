@@ -55,8 +55,17 @@ enum Command {
     /// the `[features]` switch, its settings with type, default and range, and the paper
     /// it follows.
     Techniques(TechniquesArgs),
+    /// What a scene file holds: a .vox's or an experiment's grid and every palette entry
+    /// with its voxel count and colour; a mesh's triangles, bounds and materials.
+    Info(InfoArgs),
     // Further subcommands go here, one variant each, with their own Args struct and
     // `cmd_*` function.
+}
+
+#[derive(Args, Debug)]
+struct InfoArgs {
+    /// A .vox, .toml (experiment), .obj, .gltf or .glb file.
+    file: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -351,6 +360,7 @@ fn main() -> ExitCode {
         Some(Command::Stress(args)) => cmd_stress(&args),
         #[cfg(feature = "viewer")]
         Some(Command::View(args)) => cmd_view(args),
+        Some(Command::Info(args)) => voxlab::info::describe(&args.file).map(|t| print!("{t}")),
         Some(Command::Techniques(args)) => {
             print!(
                 "{}",
