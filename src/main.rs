@@ -291,6 +291,14 @@ struct RenderOpts {
     #[arg(long, value_name = "SIDE", num_args = 0..=1, default_missing_value = "32",
           value_parser = clap::value_parser!(u32).range(1..=4096))]
     check: Option<u32>,
+    /// How a PNG stores radiance: `linear` (the seed's framebuffer, clamped, no gamma) or
+    /// `srgb` (the sRGB transfer function, for viewing). An EXR is linear radiance always.
+    #[arg(long, value_enum, default_value_t = DisplayArg::Linear)]
+    display: DisplayArg,
+    /// Multiply radiance by 2^EV before a PNG clamps it.
+    #[arg(long, value_name = "EV", default_value_t = 0.0, allow_hyphen_values = true,
+          value_parser = parse_exposure)]
+    exposure: f64,
     /// Print, for each image, its provenance record (the JSON stored with it) as one
     /// line instead of the report.
     #[arg(long)]
@@ -300,6 +308,31 @@ struct RenderOpts {
     /// `--set lights[0].intensity=200` (repeatable; checked exactly like the file).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<voxlab::experiment::Override>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum DisplayArg {
+    Linear,
+    Srgb,
+}
+
+fn parse_exposure(s: &str) -> Result<f64, String> {
+    s.parse::<f64>()
+        .ok()
+        .filter(|x| x.is_finite() && (-32.0..=32.0).contains(x))
+        .ok_or_else(|| format!("`{s}`: exposure must be a number of stops in [-32, 32]"))
+}
+
+impl RenderOpts {
+    fn display(&self) -> voxlab::render::DisplayTransform {
+        voxlab::render::DisplayTransform {
+            encoding: match self.display {
+                DisplayArg::Linear => voxlab::render::DisplayEncoding::Linear,
+                DisplayArg::Srgb => voxlab::render::DisplayEncoding::Srgb,
+            },
+            exposure: self.exposure,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -334,6 +367,14 @@ fn quiet_wayland_probe() {
 }
 
 fn main() -> ExitCode {
+    // Rust ignores SIGPIPE, so printing to a pipe whose reader has gone (`voxlab ... |
+    // head`) panicked in println!; with the default action the process ends quietly, as
+    // command-line tools do.
+    #[cfg(unix)]
+    // SAFETY: called first, before any thread exists; SIG_DFL is a valid handler.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     quiet_wayland_probe();
     let cli = Cli::parse();
     // Ctrl-C during a write removes the temporary file instead of leaving it behind.
@@ -751,6 +792,8 @@ fn provenance(
         "light_samples": e.settings.light_samples,
         "seed": e.settings.seed,
         "pixel_filter": e.settings.pixel_filter.name(),
+        "display": opts.display().encoding.name(),
+        "exposure": opts.exposure,
         "plan": plan.to_string(),
         "trace_ms": trace.as_secs_f64() * 1e3,
         "wall_ms": wall.as_secs_f64() * 1e3,
@@ -845,7 +888,12 @@ fn render_one(
         eprintln!("warning: the image holds non-finite values (NaN or inf)");
     }
     let record = provenance(e, renderer, &plan, &result, frames, trace, wall, out, opts)?;
-    write_frame_with_provenance(&result.frame, out, &serde_json::to_string_pretty(&record)?)?;
+    write_frame_with_provenance(
+        &result.frame,
+        out,
+        &serde_json::to_string_pretty(&record)?,
+        opts.display(),
+    )?;
     say!(
         opts,
         "output:     {} (provenance: its iTXt chunk `voxlab` and {}.json)",

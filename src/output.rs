@@ -133,7 +133,8 @@ pub fn write_frame(frame: &Frame, path: impl AsRef<Path>) -> Result<(), OutputEr
 /// The PNG text chunk (iTXt) that holds a render's provenance record.
 pub const PROVENANCE_KEYWORD: &str = "voxlab";
 
-/// [`write_frame`], and the provenance record `json` (what made the image: the resolved
+/// [`write_frame`] with the PNG's values under `display` (an EXR stays linear radiance),
+/// and the provenance record `json` (what made the image: the resolved
 /// experiment, revision, adapter, settings, timings, plan) stored with it: in a PNG as
 /// the iTXt chunk [`PROVENANCE_KEYWORD`], and for either format in the sidecar
 /// `<path>.json`, written the same way (complete or not at all).
@@ -141,6 +142,7 @@ pub fn write_frame_with_provenance(
     frame: &Frame,
     path: impl AsRef<Path>,
     json: &str,
+    display: crate::render::DisplayTransform,
 ) -> Result<(), OutputError> {
     let path = path.as_ref();
     let format = OutputFormat::from_path(path)?;
@@ -166,7 +168,7 @@ pub fn write_frame_with_provenance(
                 .map_err(encoding)?;
             let mut writer = encoder.write_header().map_err(encoding)?;
             writer
-                .write_image_data(&frame.to_rgb8())
+                .write_image_data(&frame.to_display_rgb8(display))
                 .map_err(encoding)?;
             writer.finish().map_err(encoding)
         })?,

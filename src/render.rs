@@ -332,14 +332,66 @@ impl Frame {
 
     /// The displayed value: radiance clamped to [0, 1] (the seed's framebuffer; no tone mapping).
     pub fn to_rgb8(&self) -> Vec<u8> {
+        self.to_display_rgb8(DisplayTransform::default())
+    }
+
+    /// The displayed value under `t`: radiance times 2^exposure, clamped to [0, 1],
+    /// stored linearly or sRGB-encoded.
+    pub fn to_display_rgb8(&self, t: DisplayTransform) -> Vec<u8> {
+        let scale = 2f32.powf(t.exposure as f32);
         self.pixels
             .iter()
-            .flat_map(|p| p.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8))
+            .flat_map(|p| {
+                p.map(|c| {
+                    let v = (c * scale).clamp(0.0, 1.0);
+                    let v = match t.encoding {
+                        DisplayEncoding::Linear => v,
+                        DisplayEncoding::Srgb => srgb_encode(v),
+                    };
+                    (v * 255.0).round() as u8
+                })
+            })
             .collect()
     }
 
     pub fn all_finite(&self) -> bool {
         self.pixels.iter().all(|p| p.iter().all(|c| c.is_finite()))
+    }
+}
+
+/// How a PNG stores radiance in 8 bits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DisplayEncoding {
+    /// The value itself (the seed's framebuffer: no gamma).
+    #[default]
+    Linear,
+    /// The sRGB transfer function (IEC 61966-2-1), what a display expects.
+    Srgb,
+}
+
+impl DisplayEncoding {
+    pub fn name(self) -> &'static str {
+        match self {
+            DisplayEncoding::Linear => "linear",
+            DisplayEncoding::Srgb => "srgb",
+        }
+    }
+}
+
+/// Radiance to a displayed 8-bit value: exposure (stops), clamp, encoding.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DisplayTransform {
+    pub encoding: DisplayEncoding,
+    /// Radiance is multiplied by 2^exposure first.
+    pub exposure: f64,
+}
+
+/// The sRGB transfer function of a linear value in [0, 1] (IEC 61966-2-1).
+pub fn srgb_encode(v: f32) -> f32 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
     }
 }
 

@@ -222,3 +222,40 @@ fn gpu_backend_without_adapter_falls_back_to_the_cpu_labelled() {
     }
     assert!(dir.join("f.png").exists());
 }
+
+/// A reader that goes away (`voxlab ... | head`) ends the process quietly: no panic
+/// from printing to a closed pipe.
+#[test]
+fn a_closed_stdout_is_no_panic() {
+    use std::process::Stdio;
+    for args in [
+        vec!["techniques"],
+        vec![
+            "render",
+            "experiments/baseline.toml",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--backend",
+            "cpu",
+            "--out",
+        ],
+    ] {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_voxlab"));
+        cmd.args(&args);
+        if args.len() > 1 {
+            cmd.arg(std::env::temp_dir().join(format!("voxlab-pipe-{}.png", std::process::id())));
+        }
+        let mut child = cmd
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}

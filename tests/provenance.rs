@@ -87,3 +87,64 @@ fn images_carry_what_made_them() {
     assert_eq!(again.scene, expected.scene);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--display srgb` and `--exposure`: the PNG holds the sRGB encoding of 2^EV times the
+/// radiance the EXR holds, and the record says so.
+#[test]
+fn display_and_exposure_shape_the_png_only() {
+    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let dir = std::env::temp_dir().join(format!("voxlab-display-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let render = |out: &str, extra: &[&str]| {
+        let run = Command::new(env!("CARGO_BIN_EXE_voxlab"))
+            .args([
+                "render",
+                "experiments/baseline.toml",
+                "--backend",
+                "cpu",
+                "--width",
+                "12",
+                "--height",
+                "9",
+            ])
+            .args(extra)
+            .arg("--out")
+            .arg(dir.join(out))
+            .current_dir(&root)
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    };
+    render("r.exr", &[]);
+    render("s.png", &["--display", "srgb", "--exposure", "1.5"]);
+    let radiance = voxlab::output::read_exr(dir.join("r.exr")).unwrap();
+    let png = voxlab::output::read_png(dir.join("s.png")).unwrap();
+    let scale = 2f32.powf(1.5);
+    for (r, p) in radiance.pixels.iter().zip(&png.pixels) {
+        for c in 0..3 {
+            let want = voxlab::render::srgb_encode((r[c] * scale).clamp(0.0, 1.0));
+            assert!(
+                (p[c] - want).abs() <= 0.5 / 255.0 + 1e-6,
+                "{} against {want}",
+                p[c]
+            );
+        }
+    }
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("s.png.json")).unwrap()).unwrap();
+    assert_eq!(
+        (record["display"].as_str(), record["exposure"].as_f64()),
+        (Some("srgb"), Some(1.5))
+    );
+    let bad = Command::new(env!("CARGO_BIN_EXE_voxlab"))
+        .args(["render", "experiments/baseline.toml", "--exposure", "nan"])
+        .current_dir(&root)
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let _ = std::fs::remove_dir_all(&dir);
+}
