@@ -103,6 +103,9 @@ struct ViewArgs {
     /// Directory for the scripted run's files.
     #[arg(long, value_name = "DIR", requires = "frames")]
     save_dir: Option<PathBuf>,
+    /// Override any key of the experiment file (repeatable; as `render --set`).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<voxlab::experiment::Override>,
 }
 
 #[cfg(feature = "viewer")]
@@ -154,6 +157,7 @@ fn cmd_view(args: ViewArgs) -> Result<()> {
         orbit: args.orbit,
         window: args.window,
         automation,
+        overrides: args.set,
     })?;
     if scripted {
         for p in &outcome.saved {

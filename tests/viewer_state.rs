@@ -240,3 +240,29 @@ fn lights_are_added_converted_and_removed_through_the_file_format() {
             .is_empty()
     );
 }
+
+/// `voxlab view --set`: the overrides reach the experiment both sides render and its
+/// exports.
+#[test]
+fn view_takes_overrides() {
+    let mut opts = experiment("sdf.toml");
+    opts.overrides = ["techniques.sdf.softness=0.25", "render.width=40"]
+        .iter()
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let s = load_state(&opts).unwrap();
+    assert_eq!(s.base.settings.width, 40);
+    assert_eq!(
+        s.base.settings.technique_params.get(
+            "sdf",
+            voxlab::technique::sdf::MODEL.setting("softness").unwrap()
+        ),
+        0.25
+    );
+    opts.overrides = vec!["render.width=0".parse().unwrap()];
+    let Err(err) = load_state(&opts) else {
+        panic!("render.width = 0 accepted")
+    };
+    let err = format!("{err:#}");
+    assert!(err.contains("--set render.width=0"), "{err}");
+}

@@ -35,6 +35,8 @@ pub struct ViewOptions {
     /// Window inner size in points.
     pub window: (f32, f32),
     pub automation: Option<Automation>,
+    /// `--set KEY=VALUE` overrides of the experiment (`crate::experiment::Override`).
+    pub overrides: Vec<crate::experiment::Override>,
 }
 
 /// Loads the experiment and builds the viewer's state (no window: testable).
@@ -43,10 +45,21 @@ pub fn load_state(opts: &ViewOptions) -> Result<ViewerState> {
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read experiment file {}", p.display()))?;
-            let e = Experiment::load(p).map_err(|e| anyhow!("{e}"))?;
+            let e = Experiment::load_with(p, &opts.overrides).map_err(|e| anyhow!("{e}"))?;
+            // The text the experiment was parsed from, so the scene source (and every
+            // export) holds the overrides too.
+            let text = crate::experiment::apply_overrides(&text, &opts.overrides)
+                .map_err(|(o, m)| anyhow!("--set {o}: {m}"))?;
             ViewerState::new(e, Some(&text), Some(p.clone()))?
         }
-        None => ViewerState::new(Experiment::seed_default(), None, None)?,
+        None if opts.overrides.is_empty() => {
+            ViewerState::new(Experiment::seed_default(), None, None)?
+        }
+        None => {
+            let e = Experiment::from_str_with("", "seed", &opts.overrides)
+                .map_err(|e| anyhow!("{e}"))?;
+            ViewerState::new(e, None, None)?
+        }
     };
     for (side, list) in [(Side::Left, &opts.left), (Side::Right, &opts.right)] {
         if let Some(l) = list {
