@@ -477,14 +477,7 @@ pub fn load_with(
     let path = path.as_ref();
     let experiment = Experiment::load_with(path, overrides)?;
     let text = crate::experiment::read_text(path)?;
-    let text = crate::experiment::apply_overrides(&text, overrides).map_err(|(o, message)| {
-        ExperimentError::Invalid {
-            file: format!("--set {o}"),
-            line: None,
-            key: o.key.clone(),
-            message: format!(": {message}"),
-        }
-    })?;
+    let text = crate::experiment::apply_overrides(&text, overrides)?;
     let config = AblateConfig::from_str(&text, path)?;
     Ok((experiment, config, text))
 }

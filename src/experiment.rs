@@ -393,16 +393,22 @@ impl fmt::Display for Override {
 }
 
 /// `text` with each override written in: existing keys are replaced, missing tables and
-/// keys are added. The error is the override that cannot be written and why.
-pub fn apply_overrides(text: &str, overrides: &[Override]) -> Result<String, (Override, String)> {
+/// keys are added. The error is located at the override that cannot be written.
+pub fn apply_overrides(text: &str, overrides: &[Override]) -> Result<String, ExperimentError> {
     let Some(first) = overrides.first() else {
         return Ok(text.to_string());
     };
+    let at = |o: &Override, message: String| ExperimentError::Invalid {
+        file: format!("--set {o}"),
+        line: None,
+        key: o.key.clone(),
+        message: format!(": {message}"),
+    };
     let mut doc: toml_edit::DocumentMut = text
         .parse()
-        .map_err(|e| (first.clone(), format!("the experiment is not TOML: {e}")))?;
+        .map_err(|e| at(first, format!("the experiment is not TOML: {e}")))?;
     for o in overrides {
-        let fail = |message: String| (o.clone(), message);
+        let fail = |message: String| at(o, message);
         let value = o
             .value
             .parse::<toml_edit::Value>()
@@ -486,13 +492,7 @@ impl Experiment {
             return Self::from_str_cached(text, path, cache);
         }
         Self::from_str_cached(text, path, cache)?;
-        let edited =
-            apply_overrides(text, overrides).map_err(|(o, message)| ExperimentError::Invalid {
-                file: format!("--set {o}"),
-                line: None,
-                key: o.key.clone(),
-                message: format!(": {message}"),
-            })?;
+        let edited = apply_overrides(text, overrides)?;
         Self::from_str_cached(&edited, path, cache).map_err(|e| blame_override(e, overrides))
     }
 }

@@ -774,8 +774,7 @@ fn provenance(
     let scene_source = match &e.source_path {
         Some(p) => {
             let text = voxlab::experiment::read_text(p)?;
-            let text = voxlab::experiment::apply_overrides(&text, &opts.set)
-                .map_err(|(o, m)| anyhow::anyhow!("--set {o}: {m}"))?;
+            let text = voxlab::experiment::apply_overrides(&text, &opts.set)?;
             voxlab::experiment::write::scene_source(&text, p)?
         }
         None => toml::Table::new(),

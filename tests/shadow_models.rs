@@ -22,7 +22,12 @@ use voxlab::{RenderSettings, cpu};
 /// The seed scene at 16^3 with its point lights as rectangle lights of side `size`
 /// facing the grid's centre.
 fn scene(size: f64) -> Scene {
-    let mut s = seed_scene(16).unwrap();
+    scene_at(16, size)
+}
+
+/// [`scene`] on the seed scene at `n`^3.
+fn scene_at(n: u32, size: f64) -> Scene {
+    let mut s = seed_scene(n).unwrap();
     let c = s.grid.centre();
     for l in &mut s.lights {
         let Light::Point(p) = l.clone() else { continue };
@@ -256,16 +261,19 @@ fn a_vanishing_light_gives_the_hard_shadow() {
 fn gpu_agrees_with_cpu_over_the_space() {
     let mut gpu = tracer();
     for m in SHADOW_MODELS {
-        for (side, spp, samples, depth, size) in [
-            (24, 1, 1, 4, 2.0),
-            (33, 3, 4, 2, 4.0),
-            (16, 64, 1, 1, 3.0),
-            (40, 2, 9, 3, 1.0),
+        for (side, spp, samples, depth, size, grid) in [
+            (24, 1, 1, 4, 2.0, 16),
+            (33, 3, 4, 2, 4.0, 16),
+            (16, 64, 1, 1, 3.0, 16),
+            (40, 2, 9, 3, 1.0, 16),
             // Deep trees with few samples: lavapipe's loop limit (shaders/counters.wgsl)
             // refuses 6/6 with 9 samples on each of 3 lights.
-            (20, 2, 2, 6, 2.0),
+            (20, 2, 2, 6, 2.0, 16),
+            // Grid sizes: odd and small, and larger (the sdf field's lines, longer walks).
+            (24, 2, 2, 3, 1.5, 7),
+            (24, 2, 2, 3, 6.0, 48),
         ] {
-            let s = scene(size);
+            let s = scene_at(grid, size);
             let mut st = settings(m, side);
             st.spp = spp;
             st.light_samples = samples;
@@ -277,7 +285,7 @@ fn gpu_agrees_with_cpu_over_the_space() {
             let c = cpu::render(&s, &st).frame;
             assert_agree(
                 &format!(
-                    "{} {side}px spp {spp} samples {samples} depth {depth} size {size}",
+                    "{} {side}px spp {spp} samples {samples} depth {depth} size {size} grid {grid}",
                     m.name
                 ),
                 &g,

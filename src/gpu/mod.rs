@@ -3,7 +3,7 @@
 
 mod compose;
 pub mod pyramid;
-mod util;
+pub(crate) mod util;
 
 pub use compose::{ENTRY_POINT, ShaderError, compose_shader, validate};
 

@@ -2,7 +2,7 @@
 //! cone probe all spell out: every binding is used by compute shaders only, and every
 //! buffer is bound whole.
 
-pub(super) fn buffer(
+pub(crate) fn buffer(
     device: &wgpu::Device,
     label: &str,
     size: u64,
@@ -16,7 +16,7 @@ pub(super) fn buffer(
     })
 }
 
-pub(super) fn buffer_init(
+pub(crate) fn buffer_init(
     device: &wgpu::Device,
     label: &str,
     contents: &[u8],
@@ -33,7 +33,7 @@ pub(super) fn buffer_init(
 }
 
 /// A buffer mapped for reading after a copy into it.
-pub(super) fn readback(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
+pub(crate) fn readback(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
     buffer(
         device,
         label,
@@ -51,7 +51,7 @@ fn layout_entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEnt
     }
 }
 
-pub(super) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+pub(crate) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     layout_entry(
         binding,
         wgpu::BindingType::Buffer {
@@ -62,7 +62,7 @@ pub(super) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     )
 }
 
-pub(super) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     layout_entry(
         binding,
         wgpu::BindingType::Buffer {
@@ -73,7 +73,7 @@ pub(super) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLay
     )
 }
 
-pub(super) fn texture_3d_entry(
+pub(crate) fn texture_3d_entry(
     binding: u32,
     sample_type: wgpu::TextureSampleType,
 ) -> wgpu::BindGroupLayoutEntry {
@@ -87,28 +87,28 @@ pub(super) fn texture_3d_entry(
     )
 }
 
-pub(super) fn sampler_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+pub(crate) fn sampler_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     layout_entry(
         binding,
         wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
     )
 }
 
-pub(super) fn buffer_entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+pub(crate) fn buffer_entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
         resource: buffer.as_entire_binding(),
     }
 }
 
-pub(super) fn view_entry(binding: u32, view: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {
+pub(crate) fn view_entry(binding: u32, view: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
         resource: wgpu::BindingResource::TextureView(view),
     }
 }
 
-pub(super) fn extent(d: glam::UVec3) -> wgpu::Extent3d {
+pub(crate) fn extent(d: glam::UVec3) -> wgpu::Extent3d {
     wgpu::Extent3d {
         width: d.x,
         height: d.y,

@@ -280,45 +280,20 @@ fn build_on_device(b: &GpuBuild) -> anyhow::Result<wgpu::Buffer> {
         .enumerate()
         .map(|(i, m)| u32::from(i != VOID as usize && m.kt <= 0.0))
         .collect();
-    let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
+    use crate::gpu::util::{
+        buffer_entry, storage_entry, texture_3d_entry, uniform_entry, view_entry,
     };
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("sdf field"),
         entries: &[
-            wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            },
-            wgpu::BindGroupLayoutEntry {
-                binding: 1,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Uint,
-                    view_dimension: wgpu::TextureViewDimension::D3,
-                    multisampled: false,
-                },
-                count: None,
-            },
-            storage(2, true),
-            storage(3, true),
-            storage(4, false),
-            storage(5, false),
-            storage(6, false),
-            storage(7, false),
+            uniform_entry(0),
+            texture_3d_entry(1, wgpu::TextureSampleType::Uint),
+            storage_entry(2, true),
+            storage_entry(3, true),
+            storage_entry(4, false),
+            storage_entry(5, false),
+            storage_entry(6, false),
+            storage_entry(7, false),
         ],
     });
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -341,14 +316,8 @@ fn build_on_device(b: &GpuBuild) -> anyhow::Result<wgpu::Buffer> {
         })
     };
     let (envelope, finish) = (pipeline("envelope"), pipeline("finish"));
-    let buffer = |label, size: u64, usage| {
-        device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: size.max(4),
-            usage,
-            mapped_at_creation: false,
-        })
-    };
+    let buffer =
+        |label, size: u64, usage| crate::gpu::util::buffer(device, label, size.max(4), usage);
     let storage_usage = wgpu::BufferUsages::STORAGE;
     let field = buffer(
         "sdf field",
@@ -369,11 +338,7 @@ fn build_on_device(b: &GpuBuild) -> anyhow::Result<wgpu::Buffer> {
         4,
         storage_usage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
     );
-    let cut_read = buffer(
-        "sdf loop cut readback",
-        4,
-        wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-    );
+    let cut_read = crate::gpu::util::readback(device, "sdf loop cut readback", 4);
     let opaque = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("sdf opaque materials"),
         contents: bytemuck::cast_slice(&opaque),
@@ -397,38 +362,14 @@ fn build_on_device(b: &GpuBuild) -> anyhow::Result<wgpu::Buffer> {
             label: Some("sdf field"),
             layout: &layout,
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: params.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(b.grid),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: opaque.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: src.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: dst.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: roots.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 6,
-                    resource: bounds.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 7,
-                    resource: cut.as_entire_binding(),
-                },
+                buffer_entry(0, &params),
+                view_entry(1, b.grid),
+                buffer_entry(2, &opaque),
+                buffer_entry(3, src),
+                buffer_entry(4, dst),
+                buffer_entry(5, &roots),
+                buffer_entry(6, &bounds),
+                buffer_entry(7, &cut),
             ],
         });
         let items = if axis < 3 {

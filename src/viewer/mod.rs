@@ -48,8 +48,7 @@ pub fn load_state(opts: &ViewOptions) -> Result<ViewerState> {
             let e = Experiment::load_with(p, &opts.overrides).map_err(|e| anyhow!("{e}"))?;
             // The text the experiment was parsed from, so the scene source (and every
             // export) holds the overrides too.
-            let text = crate::experiment::apply_overrides(&text, &opts.overrides)
-                .map_err(|(o, m)| anyhow!("--set {o}: {m}"))?;
+            let text = crate::experiment::apply_overrides(&text, &opts.overrides)?;
             ViewerState::new(e, Some(&text), Some(p.clone()))?
         }
         None if opts.overrides.is_empty() => {
