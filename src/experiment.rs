@@ -10,6 +10,7 @@
 //! The file format is documented by example in `experiments/baseline.toml`. The way
 //! back, an [`Experiment`] written as a file that parses to it again, is [`write`].
 
+mod models;
 pub mod write;
 
 pub use write::{WriteError, relocate_scene_source, scene_source, to_toml};
@@ -198,6 +199,9 @@ struct RawScene {
     resolution: Option<i64>,
     /// With `mesh`: one material (name or index) for all its voxels.
     material: Option<MaterialRef>,
+    /// `.vox` models and meshes placed into the grid (`models.rs`).
+    #[serde(default)]
+    models: Vec<models::RawModel>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -571,6 +575,7 @@ struct CachedScene {
     key: String,
     grid: Grid,
     palette: Option<Vec<Material>>,
+    models: Vec<models::LoadedModel>,
 }
 
 impl SceneCache {
@@ -968,12 +973,14 @@ fn scene_voxels(
     s: &RawScene,
     ctx: &Ctx,
     cache: Option<&mut SceneCache>,
-) -> Result<(Grid, Option<Vec<Material>>), ExperimentError> {
-    let load = || -> Result<_, ExperimentError> {
-        Ok(match load_scene_file(s, ctx)? {
+) -> Result<SceneVoxels, ExperimentError> {
+    let load = || -> Result<SceneVoxels, ExperimentError> {
+        let (grid, palette) = match load_scene_file(s, ctx)? {
             Some((g, p)) => (g, Some(p)),
             None => (build_grid(s, ctx)?, None),
-        })
+        };
+        let models = models::load_models(&s.models, ctx)?;
+        Ok((grid, palette, models))
     };
     let Some(cache) = cache else {
         return load();
@@ -982,17 +989,21 @@ fn scene_voxels(
     let key = format!("{s:?}\n{}", dir.display());
     if let Some(c) = cache.entry.as_ref().filter(|c| c.key == key) {
         cache.hits += 1;
-        return Ok((c.grid.clone(), c.palette.clone()));
+        return Ok((c.grid.clone(), c.palette.clone(), c.models.clone()));
     }
-    let (grid, palette) = load()?;
+    let (grid, palette, models) = load()?;
     cache.misses += 1;
     cache.entry = Some(CachedScene {
         key,
         grid: grid.clone(),
         palette: palette.clone(),
+        models: models.clone(),
     });
-    Ok((grid, palette))
+    Ok((grid, palette, models))
 }
+
+/// The grid, the file palette (if a file gave the grid) and the loaded models.
+type SceneVoxels = (Grid, Option<Vec<Material>>, Vec<models::LoadedModel>);
 
 fn build(
     raw: RawExperiment,
@@ -1108,7 +1119,7 @@ fn build(
         None => SEED_AMBIENT,
     };
 
-    let (grid, file_palette) = scene_voxels(&raw.scene, ctx, cache)?;
+    let (grid, file_palette, loaded_models) = scene_voxels(&raw.scene, ctx, cache)?;
     let c = grid.centre();
     let w = grid.width();
 
@@ -1158,6 +1169,13 @@ fn build(
             .collect::<Result<_, ExperimentError>>()?,
     };
 
+    let (file_palette, model_maps) = if raw.scene.models.is_empty() {
+        (file_palette, Vec::new())
+    } else {
+        let mut palette = file_palette.unwrap_or_else(crate::scene::seed_palette);
+        let maps = models::extend_palette(&raw.scene.models, &loaded_models, &mut palette, ctx)?;
+        (Some(palette), maps)
+    };
     let materials = build_materials(file_palette, &raw.materials, ctx)?;
     let mut scene = Scene {
         grid,
@@ -1167,6 +1185,13 @@ fn build(
         ambient,
     };
     apply_mesh_material(&mut scene, &raw.scene, ctx)?;
+    models::place_models(
+        &mut scene,
+        &raw.scene.models,
+        &loaded_models,
+        model_maps,
+        ctx,
+    )?;
     fill_boxes(&mut scene, &raw.scene.boxes, ctx)?;
     // Everything above checks its own key; this catches what only the whole can tell
     // (a future generator using more materials than are defined).
@@ -1532,6 +1557,15 @@ fn load_scene_file(
         (Some(_), None) => "scene.vox",
         (None, Some(_)) => "scene.mesh",
     };
+    if !s.models.is_empty() {
+        return Err(ctx.invalid(
+            "scene.models",
+            format!(
+                "not used with {key}, which is the whole grid: give the grid with scene.size \
+                 or scene.dims and place the file as a model"
+            ),
+        ));
+    }
     for (present, k) in [
         (s.generator.is_some(), "scene.generator"),
         (s.size.is_some(), "scene.size"),

@@ -380,6 +380,12 @@ fn scene_source_resolves_paths_like_the_loader() {
     let rel = Path::new("experiments/deer_area_light.toml");
     let text = std::fs::read_to_string(manifest().join(rel)).unwrap();
     let src = scene_source(&text, rel).unwrap();
+    let model = src["models"].as_array().unwrap()[0].as_table().unwrap();
+    assert_eq!(model["vox"].as_str(), Some(deer.to_str().unwrap()));
+    assert_eq!(src["dims"].as_array().unwrap().len(), 3, "{src:?}");
+    // A scene's own vox path too.
+    let text = "[scene]\nvox = \"../../shared/data/deer.vox\"\n";
+    let src = scene_source(text, rel).unwrap();
     assert_eq!(src["vox"].as_str(), Some(deer.to_str().unwrap()));
     assert_eq!(src.len(), 1, "{src:?}");
     // Absolute paths are kept as given; other keys verbatim; no [scene]: empty.
@@ -398,6 +404,8 @@ fn scene_source_resolves_paths_like_the_loader() {
     assert!(err.to_string().starts_with("dir/bad.toml:1"), "{err}");
     let err = scene_source("[scene]\nvox = 3\n", Path::new("dir/bad.toml")).unwrap_err();
     assert!(err.to_string().contains("scene.vox"), "{err}");
+    let err = scene_source("[[scene.models]]\nmesh = 3\n", Path::new("dir/bad.toml")).unwrap_err();
+    assert!(err.to_string().contains("scene.models[0].mesh"), "{err}");
 }
 
 #[test]
@@ -452,12 +460,17 @@ fn export_and_load(f: &Path, dest: &Path) -> String {
     std::fs::write(&out, write(&e, &relocated)).unwrap();
     let loaded = Experiment::load(&out).unwrap_or_else(|err| panic!("{err}"));
     assert_same(&loaded, &e, &out.display().to_string());
-    let key = if relocated.contains_key("vox") {
+    // The scene's own file, else its first model's (`[[scene.models]]`).
+    let table = match relocated.get("models") {
+        Some(toml::Value::Array(models)) => models[0].as_table().unwrap(),
+        _ => &relocated,
+    };
+    let key = if table.contains_key("vox") {
         "vox"
     } else {
         "mesh"
     };
-    relocated[key].as_str().unwrap().to_string()
+    table[key].as_str().unwrap().to_string()
 }
 
 #[test]

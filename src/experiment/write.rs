@@ -52,21 +52,23 @@ pub fn scene_source(text: &str, path: &Path) -> Result<Table, ExperimentError> {
         Some(_) => return Err(ctx.invalid("scene", "must be a table")),
     };
     let dir = path.parent().unwrap_or(Path::new(""));
-    for key in ["vox", "mesh"] {
-        let Some(v) = scene.get_mut(key) else {
-            continue;
-        };
+    let mut bad_path = None;
+    for_each_source_path(&mut scene, |key, v| {
         let Value::String(p) = v else {
-            return Err(ctx.invalid(&format!("scene.{key}"), "must be a path (a string)"));
+            bad_path.get_or_insert(key);
+            return;
         };
         if Path::new(p.as_str()).is_absolute() {
-            continue;
+            return;
         }
         let joined = dir.join(p.as_str());
         let resolved = std::fs::canonicalize(&joined)
             .or_else(|_| std::path::absolute(&joined))
             .unwrap_or(joined);
         *v = Value::String(resolved.to_string_lossy().into_owned());
+    });
+    if let Some(key) = bad_path {
+        return Err(ctx.invalid(&key, "must be a path (a string)"));
     }
     Ok(scene)
 }
@@ -82,14 +84,36 @@ pub fn relocate_scene_source(source: &Table, dest_dir: &Path) -> Table {
     let dest = std::fs::canonicalize(dest_dir)
         .or_else(|_| std::path::absolute(dest_dir))
         .unwrap_or_else(|_| dest_dir.to_path_buf());
-    for key in ["vox", "mesh"] {
-        if let Some(Value::String(p)) = out.get_mut(key)
+    for_each_source_path(&mut out, |_, v| {
+        if let Value::String(p) = v
             && let Some(rel) = relative_path(Path::new(p.as_str()), &dest)
         {
             *p = rel.to_string_lossy().into_owned();
         }
-    }
+    });
     out
+}
+
+/// Calls `f` with the key and value of every file path of a `[scene]` table: its own
+/// `vox`/`mesh`, and each `[[scene.models]]` entry's.
+fn for_each_source_path(scene: &mut Table, mut f: impl FnMut(String, &mut Value)) {
+    const KEYS: [&str; 2] = ["vox", "mesh"];
+    for key in KEYS {
+        if let Some(v) = scene.get_mut(key) {
+            f(format!("scene.{key}"), v);
+        }
+    }
+    if let Some(Value::Array(models)) = scene.get_mut("models") {
+        for (i, m) in models.iter_mut().enumerate() {
+            if let Value::Table(t) = m {
+                for key in KEYS {
+                    if let Some(v) = t.get_mut(key) {
+                        f(format!("scene.models[{i}].{key}"), v);
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// `target` relative to the directory `dir`, both absolute; `None` where they share no
