@@ -14,6 +14,7 @@ pub mod input;
 pub mod metrics;
 pub mod output;
 pub mod plan;
+pub mod progress;
 pub mod render;
 pub mod sampling;
 pub mod scene;

@@ -307,6 +307,11 @@ struct RenderOpts {
     /// line instead of the report.
     #[arg(long)]
     json: bool,
+    /// Report progress (frames on the GPU, rows on the CPU) on standard error as lines,
+    /// also when it is not a terminal (on a terminal a render of over a second shows
+    /// one line, updated, without asking).
+    #[arg(long)]
+    progress: bool,
     /// Override any key of the experiment file, e.g. `--set render.light_samples=8`,
     /// `--set features.shadow_model=sdf`, `--set techniques.sdf.softness=0.5`,
     /// `--set lights[0].intensity=200` (repeatable; checked exactly like the file).
@@ -440,7 +445,21 @@ impl Renderer {
                 label: voxlab::cpu::backend_summary(),
             },
             Backend::Gpu => match GpuTracer::new() {
-                Ok(t) => Renderer::Gpu(Box::new(t)),
+                Ok(t) => {
+                    if t.adapter_info().backend == wgpu::Backend::Gl
+                        && std::env::var_os("WGPU_BACKEND").is_none()
+                    {
+                        // A fresh machine without a Vulkan driver: the README's first
+                        // command would otherwise be slow without saying why.
+                        eprintln!(
+                            "note: no Vulkan driver found, so the GPU kernel runs through \
+                             OpenGL, which is slower; install Mesa's Vulkan driver \
+                             (`apt-get install mesa-vulkan-drivers`, which `bash \
+                             tests/run.sh` does) or a GPU's own"
+                        );
+                    }
+                    Renderer::Gpu(Box::new(t))
+                }
                 Err(e) => {
                     eprintln!("warning: GPU backend unavailable: {e:#}");
                     eprintln!("warning: rendering with the CPU reference instead");
@@ -464,12 +483,14 @@ impl Renderer {
 
     /// Renders and returns the plan the tracer used (the CPU's is derived the same way,
     /// for the printout: it needs no shader variant, but the scene's needs are the same).
-    fn render(&mut self, e: &Experiment) -> Result<(RenderOutput, Plan)> {
+    fn render(&mut self, e: &Experiment, forced: bool) -> Result<(RenderOutput, Plan)> {
         match self {
             Renderer::Gpu(t) => {
-                let out = t
-                    .render(&e.scene, &e.settings)
-                    .context("GPU render failed")?;
+                let progress = voxlab::progress::Progress::new(&e.name, "frames", forced);
+                t.set_progress(progress.map(std::sync::Arc::new));
+                let out = t.render(&e.scene, &e.settings);
+                t.set_progress(None);
+                let out = out.context("GPU render failed")?;
                 let plan = t
                     .last_plan()
                     .cloned()
@@ -478,7 +499,10 @@ impl Renderer {
             }
             Renderer::Cpu { .. } => {
                 let plan = Plan::new(&e.scene, &e.settings);
-                Ok((voxlab::cpu::render(&e.scene, &e.settings), plan))
+                let progress = voxlab::progress::Progress::new(&e.name, "rows", forced);
+                let out =
+                    voxlab::cpu::render_with_progress(&e.scene, &e.settings, progress.as_ref());
+                Ok((out, plan))
             }
         }
     }
@@ -673,6 +697,7 @@ fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
             a.mesh.display()
         );
     }
+    output_dir_exists(&a.out)?;
     let start = Instant::now();
     let v = voxelize_mesh(&a.mesh, &VoxelizeOptions::count(a.resolution))?;
     for w in &v.warnings {
@@ -699,6 +724,20 @@ fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
     Ok(())
 }
 
+/// An explicit output path's directory must exist: a mistyped directory is an error,
+/// not a new tree. Only the default `out/` is created.
+fn output_dir_exists(out: &Path) -> Result<()> {
+    match out.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => bail!(
+            "--out {}: the directory {} does not exist (voxlab creates only its default \
+             out/; create it first)",
+            out.display(),
+            dir.display()
+        ),
+        _ => Ok(()),
+    }
+}
+
 fn cmd_render(e: Experiment, opts: &RenderOpts) -> Result<()> {
     cmd_render_all(vec![e], opts)
 }
@@ -708,6 +747,9 @@ fn cmd_render(e: Experiment, opts: &RenderOpts) -> Result<()> {
 fn cmd_render_all(mut experiments: Vec<Experiment>, opts: &RenderOpts) -> Result<()> {
     if experiments.len() > 1 && opts.out.is_some() {
         bail!("--out names one output; with several experiments each goes to out/<name>.png");
+    }
+    if let Some(out) = &opts.out {
+        output_dir_exists(out)?;
     }
     let mut outs = Vec::new();
     for e in &mut experiments {
@@ -827,7 +869,7 @@ fn render_one(
     say!(opts, "experiment: {} ({source})", e.name);
     say!(opts, "backend:    {}", renderer.label());
     let wall = Instant::now();
-    let (result, plan) = renderer.render(e)?;
+    let (result, plan) = renderer.render(e, opts.progress)?;
     let wall = wall.elapsed();
     // Plan's Display starts with "plan:" and lists what was left out on further lines.
     say!(opts, "{plan}");

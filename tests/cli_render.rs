@@ -80,6 +80,7 @@ fn render_baseline_on_the_cpu_writes_the_image_and_reports() {
 #[test]
 fn no_subcommand_renders_the_seed_and_exr_keeps_radiance() {
     let dir = scratch("seed");
+    std::fs::create_dir(dir.join("images")).unwrap();
     let o = voxlab(
         &dir,
         &[
@@ -257,5 +258,73 @@ fn a_closed_stdout_is_no_panic() {
         let out = child.wait_with_output().unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
+
+#[test]
+fn an_output_into_a_missing_directory_is_an_error_and_the_default_out_is_created() {
+    let dir = scratch("missing-dir");
+    let args = ["--backend", "cpu", "--width", "8", "--height", "8"];
+    let o = voxlab(&dir, &[&args[..], &["--out", "typo/seed.png"]].concat());
+    let (out, err) = text(&o);
+    assert!(!o.status.success(), "stdout:\n{out}");
+    assert!(
+        err.contains("--out typo/seed.png") && err.contains("typo does not exist"),
+        "{err}"
+    );
+    assert!(!dir.join("typo").exists(), "no directory made");
+    let o = voxlab(&dir, &args);
+    assert!(o.status.success(), "{}", text(&o).1);
+    assert!(
+        dir.join("out/seed.png").is_file(),
+        "the default out/ is created"
+    );
+}
+
+#[test]
+fn progress_goes_to_stderr_as_lines_when_asked() {
+    let dir = scratch("progress");
+    for backend in ["cpu", "gpu"] {
+        let o = voxlab(
+            &dir,
+            &[
+                "render",
+                &format!(
+                    "{}/experiments/area_lights.toml",
+                    env!("CARGO_MANIFEST_DIR")
+                ),
+                "--backend",
+                backend,
+                "--width",
+                "16",
+                "--height",
+                "16",
+                "--spp",
+                "4",
+                "--progress",
+                "--json",
+            ],
+        );
+        let (out, err) = text(&o);
+        assert!(o.status.success(), "{err}");
+        // The CPU counts rows, the GPU frames.
+        let done = if backend == "cpu" {
+            "(16/16 rows"
+        } else {
+            "(4/4 frames"
+        };
+        let last = err
+            .lines()
+            .rfind(|l| l.starts_with("progress:"))
+            .unwrap_or_else(|| panic!("{err}"));
+        assert!(
+            last.contains("area_lights: 100.0 % ") && last.contains(done),
+            "{last}"
+        );
+        assert!(
+            !out.contains("progress"),
+            "stdout holds the record alone: {out}"
+        );
+        assert_eq!(out.lines().count(), 1, "{out}");
     }
 }

@@ -44,6 +44,33 @@ pub fn render_region(
     columns: std::ops::Range<u32>,
     rows: std::ops::Range<u32>,
 ) -> RenderOutput {
+    render_region_with_progress(scene, settings, columns, rows, None)
+}
+
+/// [`render`], telling `progress` of each finished row.
+pub fn render_with_progress(
+    scene: &Scene,
+    settings: &RenderSettings,
+    progress: Option<&crate::progress::Progress>,
+) -> RenderOutput {
+    render_region_with_progress(
+        scene,
+        settings,
+        0..settings.width,
+        0..settings.height,
+        progress,
+    )
+}
+
+fn render_region_with_progress(
+    scene: &Scene,
+    settings: &RenderSettings,
+    columns: std::ops::Range<u32>,
+    rows: std::ops::Range<u32>,
+    progress: Option<&crate::progress::Progress>,
+) -> RenderOutput {
+    let rows_done = std::sync::atomic::AtomicU64::new(0);
+    let row_count = rows.len() as u64;
     let start = Instant::now();
     let frame_cam = scene.camera.frame();
     let (w, h) = (settings.width, settings.height);
@@ -86,6 +113,10 @@ pub fn render_region(
                     [c.x as f32, c.y as f32, c.z as f32]
                 })
                 .collect();
+            if let Some(p) = progress {
+                let done = rows_done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                p.update(done, row_count);
+            }
             (row, stats)
         })
         .collect();

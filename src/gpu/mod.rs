@@ -256,6 +256,8 @@ pub struct GpuTracer {
     pyramid_builds: u64,
     /// Time the latest render spent on its pyramids, outside the trace time.
     last_setup_time: Duration,
+    /// Told of each finished dispatch (frames) of a render, when set.
+    progress: Option<std::sync::Arc<crate::progress::Progress>>,
     /// The plan of the latest render, for printing and reports.
     last_plan: Option<Plan>,
     /// Device memory the latest render bound, by resource.
@@ -533,6 +535,7 @@ impl GpuTracer {
             pyramid: None,
             pyramid_builds: 0,
             last_setup_time: Duration::ZERO,
+            progress: None,
             timestamps,
             last_gpu_time: None,
             last_plan: None,
@@ -618,6 +621,12 @@ impl GpuTracer {
 
     fn grid_generation(&self) -> u64 {
         self.grid.as_ref().map_or(0, |g| g.generation)
+    }
+
+    /// Reports the frames of each later render to `progress` (`None`: no reports, and
+    /// no waits between dispatches).
+    pub fn set_progress(&mut self, progress: Option<std::sync::Arc<crate::progress::Progress>>) {
+        self.progress = progress;
     }
 
     /// Renders without ray counting; `stats` are zero.
@@ -1376,6 +1385,11 @@ impl GpuTracer {
             }
             self.queue.submit([encoder.finish()]);
             begin += count;
+            // Waiting between dispatches only when someone watches: the frames done.
+            if let Some(p) = &self.progress {
+                self.wait()?;
+                p.update(u64::from(begin - frames.start), u64::from(todo));
+            }
         }
         self.wait()?;
         let trace_time = start.elapsed();
