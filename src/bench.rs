@@ -60,6 +60,25 @@ impl BenchRow {
     pub fn msteps_per_s(&self) -> f64 {
         self.stats.voxel_steps as f64 / self.median.as_secs_f64() / 1e6
     }
+
+    /// The row as one JSON object (`voxlab bench --json`): the measured figures and the
+    /// counts they come from.
+    pub fn json(&self) -> serde_json::Value {
+        let s = &self.stats;
+        let rays = s.total_rays().max(1) as f64;
+        serde_json::json!({
+            "grid": self.grid,
+            "backend": self.backend,
+            "ms_per_frame": self.ms(),
+            "mrays_per_s": self.mrays_per_s(),
+            "msteps_per_s": self.msteps_per_s(),
+            "rays": {"primary": s.primary, "secondary": s.secondary, "shadow": s.shadow},
+            "voxel_steps": s.voxel_steps,
+            "steps_per_ray": s.voxel_steps as f64 / rays,
+            "bytes_per_voxel": self.bytes_per_voxel,
+            "timer": self.timer,
+        })
+    }
 }
 
 fn median(mut times: Vec<Duration>) -> Duration {
@@ -181,6 +200,19 @@ pub struct VoxelizeRow {
     pub median: Duration,
 }
 
+impl VoxelizeRow {
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "mesh": self.mesh,
+            "triangles": self.triangles,
+            "resolution": self.resolution,
+            "dims": self.dims.to_array(),
+            "solid_voxels": self.solid_voxels,
+            "ms": self.median.as_secs_f64() * 1e3,
+        })
+    }
+}
+
 /// A closed torus of `rings x segments x 2` triangles (major radius 1, minor 0.35): a
 /// synthetic mesh of a chosen size for the voxelization benchmark.
 pub fn torus_mesh(rings: u32, segments: u32) -> crate::scene::mesh::TriangleMesh {
@@ -279,6 +311,20 @@ pub struct PlanRow {
     /// Largest per-channel difference between the two images: 0 shows the comparison
     /// is fair (the reduced kernel renders the same image).
     pub max_diff: f32,
+}
+
+impl PlanRow {
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "scene": self.scene,
+            "plan": self.reduced.to_string(),
+            "reduced_ms": self.reduced_ms,
+            "full_ms": self.full_ms,
+            "reduced_bytes": self.reduced_bytes,
+            "full_bytes": self.full_bytes,
+            "max_diff": self.max_diff,
+        })
+    }
 }
 
 /// The full kernel for `scene`: `plan` with every image-neutral flag on.

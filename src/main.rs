@@ -246,6 +246,10 @@ struct BenchArgs {
     #[cfg(feature = "viewer")]
     #[arg(long, value_name = "EXPERIMENT", num_args = 0.., conflicts_with_all = ["voxelize", "plan"])]
     adaptive: Option<Vec<PathBuf>>,
+    /// Print one JSON object per measured row (with the benchmark, revision, adapter
+    /// and settings in each) instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args, Debug)]
@@ -556,6 +560,10 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
             .collect::<Result<Vec<_>>>()?;
         let rows =
             voxlab::viewer::bench::bench_adaptive(&mut gpu, &experiments, a.gpu_runs as usize)?;
+        if a.json {
+            let head = bench_head("adaptive", Some(&gpu.adapter_summary()), a);
+            return print_json_rows(&head, rows.iter().map(|r| r.json()));
+        }
         println!(
             "viewer adaptive resolution: one frame per side at full size, and at the scale \
              the viewer settles on while both sides move (its controller fed each frame's \
@@ -578,6 +586,10 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         eprintln!("GPU: {}", gpu.adapter_summary());
         let scenes = voxlab::bench::plan_scenes(n)?;
         let rows = voxlab::bench::bench_plans(&mut gpu, &scenes, &settings, a.gpu_runs as usize)?;
+        if a.json {
+            let head = bench_head("plan", Some(&gpu.adapter_summary()), a);
+            return print_json_rows(&head, rows.iter().map(|r| r.json()));
+        }
         println!(
             "render plan: reduced kernel against the full one, {}x{}, depth {}/{}, median of {} runs; GPU: {}\n",
             a.size,
@@ -603,6 +615,10 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
             let row = voxlab::bench::bench_voxelize(&name, mesh, n, 3)?;
             eprintln!("  {name} at {n}: {:.1} ms", row.median.as_secs_f64() * 1e3);
             rows.push(row);
+        }
+        if a.json {
+            let head = bench_head("voxelize", None, a);
+            return print_json_rows(&head, rows.iter().map(|r| r.json()));
         }
         println!("voxelization (conservative surface + interior fill), median of 3 runs\n");
         println!("{}", voxlab::bench::voxelize_table(&rows));
@@ -631,7 +647,41 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
             r.msteps_per_s()
         )
     })?;
+    if a.json {
+        let mut head = bench_head("seed", Some(&adapter), a);
+        head["cpu"] = voxlab::cpu::backend_summary().into();
+        return print_json_rows(&head, rows.iter().map(|r| r.json()));
+    }
     println!("{}", voxlab::bench::table(&rows, &adapter, &opts.settings));
+    Ok(())
+}
+
+/// What every `bench --json` row carries: which benchmark, the revision, the adapter and
+/// the options that shape the figures.
+fn bench_head(bench: &str, adapter: Option<&str>, a: &BenchArgs) -> serde_json::Value {
+    serde_json::json!({
+        "bench": bench,
+        "voxlab": env!("CARGO_PKG_VERSION"),
+        "revision": voxlab::ablate::git_revision(),
+        "adapter": adapter,
+        "image_side": a.size,
+        "gpu_runs": a.gpu_runs,
+        "cpu_runs": a.cpu_runs,
+    })
+}
+
+/// Each row merged into `head`, one JSON object per line.
+fn print_json_rows(
+    head: &serde_json::Value,
+    rows: impl Iterator<Item = serde_json::Value>,
+) -> Result<()> {
+    for row in rows {
+        let mut line = head.clone();
+        if let (Some(l), serde_json::Value::Object(r)) = (line.as_object_mut(), row) {
+            l.extend(r);
+        }
+        println!("{line}");
+    }
     Ok(())
 }
 

@@ -328,3 +328,43 @@ fn progress_goes_to_stderr_as_lines_when_asked() {
         assert_eq!(out.lines().count(), 1, "{out}");
     }
 }
+
+#[test]
+fn bench_json_prints_one_object_per_row() {
+    let dir = scratch("bench-json");
+    let o = voxlab(
+        &dir,
+        &[
+            "bench",
+            "--sizes",
+            "4,8",
+            "--size",
+            "16",
+            "--gpu-runs",
+            "1",
+            "--cpu-runs",
+            "1",
+            "--json",
+        ],
+    );
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let rows: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    assert_eq!(rows.len(), 4, "two sizes, two backends: {out}");
+    for r in &rows {
+        assert_eq!(r["bench"], "seed");
+        assert_eq!(r["image_side"], 16);
+        assert!(r["ms_per_frame"].as_f64().unwrap() > 0.0, "{r}");
+        assert!(r["adapter"].as_str().is_some_and(|a| !a.is_empty()), "{r}");
+        assert!(r["steps_per_ray"].as_f64().unwrap() > 0.0, "{r}");
+    }
+    // The two tracers count the same rays.
+    for pair in rows.chunks(2) {
+        assert_eq!(pair[0]["backend"], "gpu");
+        assert_eq!(pair[1]["backend"], "cpu");
+        assert_eq!(pair[0]["rays"], pair[1]["rays"], "{pair:?}");
+    }
+}

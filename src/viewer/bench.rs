@@ -27,6 +27,20 @@ pub struct AdaptiveRow {
     pub budget_ms: f64,
 }
 
+impl AdaptiveRow {
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "experiment": self.name,
+            "full": [self.full.0, self.full.1],
+            "full_ms": self.full_ms,
+            "scale": self.scale,
+            "scaled": [self.scaled.0, self.scaled.1],
+            "scaled_ms": self.scaled_ms,
+            "budget_ms": self.budget_ms,
+        })
+    }
+}
+
 /// Median device time (wall where there is no device timer) of `runs` one-frame renders.
 fn frame_ms(gpu: &mut GpuTracer, e: &Experiment, size: (u32, u32), runs: usize) -> Result<f64> {
     let settings = crate::render::RenderSettings {
