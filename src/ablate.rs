@@ -21,7 +21,7 @@
 //! after the warm-up would charge almost nothing.) The CPU's trace time already holds
 //! its pyramid build (setup 0). Its error is
 //! RMSE and PSNR on linear radiance and the FLIP mean (NVIDIA's implementation,
-//! `nv-flip`) on the displayed 8-bit image. Everything is deterministic but the times.
+//! `nv-flip`) on the displayed sRGB-encoded 8-bit image (`metrics::flip`). Everything is deterministic but the times.
 
 use std::fmt::Write as _;
 use std::io::IsTerminal;
@@ -1138,18 +1138,7 @@ pub struct Row {
     pub frame: Frame,
 }
 
-/// FLIP mean of `test` against `reference`, both as displayed (clamped, 8-bit), and
-/// the error map coloured with FLIP's magma LUT.
-pub fn flip(reference: &Frame, test: &Frame) -> (f64, image::RgbImage) {
-    let (w, h) = (reference.width, reference.height);
-    let r = nv_flip::FlipImageRgb8::with_data(w, h, &reference.to_rgb8());
-    let t = nv_flip::FlipImageRgb8::with_data(w, h, &test.to_rgb8());
-    let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
-    let mean = nv_flip::FlipPool::from_image(&map).mean() as f64;
-    let vis = map.apply_color_lut(&nv_flip::magma_lut());
-    let img = image::RgbImage::from_raw(w, h, vis.to_vec()).expect("FLIP map has w*h pixels");
-    (mean, img)
-}
+pub use crate::metrics::flip;
 
 fn median_ms(times: &[Duration]) -> f64 {
     let mut v: Vec<f64> = times.iter().map(|t| t.as_secs_f64() * 1e3).collect();

@@ -99,6 +99,32 @@ pub fn difference_image(a: &Frame, b: &Frame, gain: f32) -> Frame {
     out
 }
 
+/// FLIP (Andersson et al. 2020, LDR-FLIP; NVIDIA's implementation, `nv-flip`) of `test`
+/// against `reference` at FLIP's default viewing (67 pixels per degree): its mean, and
+/// the error map coloured with FLIP's magma LUT. LDR-FLIP compares sRGB images, so both
+/// are compared as a display shows them: radiance clamped to [0, 1] and sRGB-encoded
+/// (`--display srgb`), in 8 bits. (The PNGs voxlab writes by default are the seed's
+/// linear framebuffer; fed to FLIP as if sRGB they would weigh dark errors wrongly.)
+pub fn flip(reference: &Frame, test: &Frame) -> (f64, image::RgbImage) {
+    let (w, h) = (reference.width, reference.height);
+    let srgb = crate::render::DisplayTransform {
+        encoding: crate::render::DisplayEncoding::Srgb,
+        exposure: 0.0,
+    };
+    let r = nv_flip::FlipImageRgb8::with_data(w, h, &reference.to_display_rgb8(srgb));
+    let t = nv_flip::FlipImageRgb8::with_data(w, h, &test.to_display_rgb8(srgb));
+    let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
+    let mean = nv_flip::FlipPool::from_image(&map).mean() as f64;
+    let vis = map.apply_color_lut(&nv_flip::magma_lut());
+    let img = image::RgbImage::from_raw(w, h, vis.to_vec()).expect("FLIP map has w*h pixels");
+    (mean, img)
+}
+
+/// The mean of [`flip`].
+pub fn flip_mean(reference: &Frame, test: &Frame) -> f64 {
+    flip(reference, test).0
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

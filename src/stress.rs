@@ -785,15 +785,7 @@ pub fn run_case(gpu: Option<&mut GpuTracer>, case: &StressCase) -> StressRow {
     }
 }
 
-/// Mean FLIP error (NVIDIA's implementation) of `test` against `reference`, on the
-/// displayed 8-bit images, at FLIP's default viewing (67 pixels per degree).
-pub fn flip_mean(reference: &Frame, test: &Frame) -> f64 {
-    let (w, h) = (reference.width, reference.height);
-    let r = nv_flip::FlipImageRgb8::with_data(w, h, &reference.to_rgb8());
-    let t = nv_flip::FlipImageRgb8::with_data(w, h, &test.to_rgb8());
-    let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
-    nv_flip::FlipPool::from_image(&map).mean() as f64
-}
+pub use crate::metrics::flip_mean;
 
 /// Largest displayed-channel difference of two pixels (NaN counts as infinite).
 fn pixel_diff(a: &[f32; 3], b: &[f32; 3]) -> f64 {

@@ -571,3 +571,25 @@ fn overrides_reach_the_ablate_table() {
         "{err}"
     );
 }
+
+/// FLIP is computed on the displayed sRGB image (LDR-FLIP's input), so an equal linear
+/// step weighs more in the darks than in the brights, as it looks; fed the linear
+/// values as if they were sRGB, both steps would look alike.
+#[test]
+fn flip_compares_the_srgb_display() {
+    use voxlab::Frame;
+    let flat = |v: f32| {
+        let mut f = Frame::new(32, 32);
+        f.pixels.iter_mut().for_each(|p| *p = [v; 3]);
+        f
+    };
+    let (same, map) = voxlab::metrics::flip(&flat(0.3), &flat(0.3));
+    assert_eq!(same, 0.0);
+    assert_eq!(map.dimensions(), (32, 32));
+    let dark = voxlab::metrics::flip_mean(&flat(0.02), &flat(0.04));
+    let bright = voxlab::metrics::flip_mean(&flat(0.80), &flat(0.82));
+    assert!(
+        dark > 2.0 * bright && bright > 0.0,
+        "dark {dark}, bright {bright}"
+    );
+}
