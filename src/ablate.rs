@@ -33,6 +33,10 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Deserialize;
 
 use crate::experiment::{Experiment, ExperimentError, write};
+
+mod grid;
+pub mod plot;
+mod text;
 use crate::gpu::GpuTracer;
 use crate::metrics::{Domain, compare};
 use crate::output::{read_exr, write_frame};
@@ -500,14 +504,15 @@ pub struct Point {
 }
 
 impl Point {
-    /// A file-name-safe name, unique within a sweep: the model, then the knob and value
-    /// unless the model's name already says them.
+    /// A file-name-safe name, unique within a sweep: the model, then `knob-value` unless
+    /// the model's name already says them (`stochastic_beer-lambert_spp-00016`,
+    /// `cone_at_light_s_aperture_beer-lambert_step_factor-0.5`).
     pub fn slug(&self) -> String {
         let mut raw = self.model.clone();
         if self.knob != "-" && !self.model.contains(&self.value) {
             match self.value.parse::<u32>() {
                 // Zero-padded so a directory listing sorts like the curve.
-                Ok(n) => raw += &format!(" {}{n:05}", self.knob),
+                Ok(n) => raw += &format!(" {}-{n:05}", self.knob),
                 Err(_) => raw += &format!(" {}-{}", self.knob, self.value),
             }
         }
@@ -1508,8 +1513,9 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
          one full cone pyramid build per image, timed apart from the GPU's trace (what a \
          scene that changes every frame pays; 0 without cones, and on the CPU, whose \
          trace time holds it).\n\n\
-         | model | knob | value | backend | ms (trace + setup) | trace ms | setup ms | RMSE | PSNR dB | FLIP mean |\n\
-         |---|---|---:|---|---:|---:|---:|---:|---:|---:|\n",
+         Pareto: the points no other point beats in both time and error (RMSE, FLIP).\n\n\
+         | model | knob | value | backend | ms (trace + setup) | runs min..max | trace ms | setup ms | RMSE | PSNR dB | FLIP mean | Pareto |\n\
+         |---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|\n",
         e.name,
         e.settings.width,
         e.settings.height,
@@ -1520,14 +1526,23 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
         r.backend,
         r.noise_rmse,
     );
-    for row in rows {
+    let rmse_front = pareto_front(rows, |r| r.rmse);
+    let flip_front = pareto_front(rows, |r| r.flip_mean);
+    for (i, row) in rows.iter().enumerate() {
         let backend = match row.fallback {
             Some(_) => "cpu (fallback)",
             None => row.backend,
         };
+        let (lo, hi) = ms_spread(row);
+        let front = match (rmse_front[i], flip_front[i]) {
+            (true, true) => "RMSE, FLIP",
+            (true, false) => "RMSE",
+            (false, true) => "FLIP",
+            (false, false) => "",
+        };
         let _ = writeln!(
             t,
-            "| {} | {} | {} | {backend} | {:.2} | {:.2} | {:.2} | {:.3e} | {:.2} | {:.4} |",
+            "| {} | {} | {} | {backend} | {:.2} | {lo:.1}..{hi:.1} | {:.2} | {:.2} | {:.3e} | {:.2} | {:.4} | {front} |",
             row.model,
             row.knob,
             row.value,
@@ -1571,6 +1586,99 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
             f.lines().next().unwrap_or("")
         );
     }
+    t
+}
+
+/// Which rows lie on the Pareto front of `metric` against time: no other row is at
+/// least as fast and at least as accurate, and better in one. In row order.
+pub fn pareto_front(rows: &[Row], metric: fn(&Row) -> f64) -> Vec<bool> {
+    rows.iter()
+        .map(|a| {
+            let (ta, ea) = (a.ms_median, metric(a));
+            ta.is_finite()
+                && ea.is_finite()
+                && !rows.iter().any(|b| {
+                    let (tb, eb) = (b.ms_median, metric(b));
+                    tb <= ta && eb <= ea && (tb < ta || eb < ea)
+                })
+        })
+        .collect()
+}
+
+/// The spread of a row's timed runs: (min, max) of trace + setup, ms.
+pub fn ms_spread(row: &Row) -> (f64, f64) {
+    row.ms_runs
+        .iter()
+        .fold((row.ms_median, row.ms_median), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        })
+}
+
+/// Text for LaTeX: its special characters escaped.
+fn latex_escape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '\\' => out += r"\textbackslash{}",
+            '&' | '%' | '$' | '#' | '_' | '{' | '}' => {
+                out.push('\\');
+                out.push(c);
+            }
+            '~' => out += r"\textasciitilde{}",
+            '^' => out += r"\textasciicircum{}",
+            _ => out.push(c),
+        }
+    }
+    out
+}
+
+/// The table as LaTeX (booktabs; `\usepackage{booktabs}`): one row per point, the time
+/// with the spread of its runs, the points on the RMSE Pareto front in bold.
+fn latex_table(e: &Experiment, rows: &[Row], r: &Reference) -> String {
+    let front = pareto_front(rows, |r| r.rmse);
+    let mut t = format!(
+        "% voxlab ablate: {name}. Needs \\usepackage{{booktabs}}.\n\
+         \\begin{{table}}\n\\centering\n\\small\n\
+         \\caption{{Error against time, {name}: {w}$\\times${h}, reference {spp} spp (its own \
+         noise: RMSE {noise:.2e}). Time: median of trace + setup over the runs, with their \
+         range. Bold: on the Pareto front of RMSE against time.}}\n\
+         \\label{{tab:ablate-{label}}}\n\
+         \\begin{{tabular}}{{lllrrrr}}\n\\toprule\n\
+         Model & Knob & Value & Time (ms) & RMSE & PSNR (dB) & FLIP \\\\\n\\midrule\n",
+        name = latex_escape(&e.name),
+        w = e.settings.width,
+        h = e.settings.height,
+        spp = r.spp,
+        noise = r.noise_rmse,
+        label = e.name.replace(|c: char| !c.is_ascii_alphanumeric(), "-"),
+    );
+    let mut previous: Option<&str> = None;
+    for (row, on_front) in rows.iter().zip(front) {
+        if previous.is_some_and(|m| m != row.model) {
+            t += "\\addlinespace\n";
+        }
+        previous = Some(&row.model);
+        let (lo, hi) = ms_spread(row);
+        let bold = |s: String| {
+            if on_front {
+                format!("\\textbf{{{s}}}")
+            } else {
+                s
+            }
+        };
+        let _ = writeln!(
+            t,
+            "{} & {} & {} & {} {{\\scriptsize [{lo:.0}, {hi:.0}]}} & {} & {:.2} & {:.4} \\\\",
+            latex_escape(&row.model),
+            latex_escape(&row.knob),
+            latex_escape(&row.value),
+            bold(format!("{:.1}", row.ms_median)),
+            bold(format!("{:.3e}", row.rmse)),
+            row.psnr,
+            row.flip_mean,
+        );
+    }
+    t += "\\bottomrule\n\\end{tabular}\n\\end{table}\n";
     t
 }
 
@@ -1738,7 +1846,7 @@ fn write_outputs(
         record(&exr);
         record(&flip_png);
     }
-    write_png(&out.join("grid.png"), &grid_image(r, rows))?;
+    write_png(&out.join("grid.png"), &grid::grid_image(r, rows))?;
     record("grid.png");
     write_text(&out.join("ablation.csv"), &csv(rows, r))?;
     record("ablation.csv");
@@ -1746,13 +1854,15 @@ fn write_outputs(
         "{}: error against time ({}x{}, reference {} spp)",
         e.name, e.settings.width, e.settings.height, r.spp
     );
-    let (png, svg) = crate::ablate::plot::plot(rows, &title)?;
+    let (png, svg) = plot::plot(rows, &title, Some(r.noise_rmse))?;
     write_png(&out.join("plot.png"), &png)?;
     write_text(&out.join("plot.svg"), &svg)?;
     record("plot.png");
     record("plot.svg");
     write_text(&out.join("table.md"), &table(e, rows, r, adapter, rev))?;
     record("table.md");
+    write_text(&out.join("table.tex"), &latex_table(e, rows, r))?;
+    record("table.tex");
     if let Some(text) = source {
         write_text(&out.join("experiment.toml"), text)?;
         record("experiment.toml");
@@ -1797,269 +1907,4 @@ fn write_outputs(
     write_text(&out.join("run.txt"), &run)?;
     record("run.txt");
     Ok(())
-}
-
-/// Every image in a grid, the reference first, each over a label band: model and
-/// value, RMSE, FLIP, time and backend.
-fn grid_image(r: &Reference, rows: &[Row]) -> image::RgbImage {
-    // Small images are magnified (nearest neighbour) so a tile is at least 128 pixels
-    // wide: glyphs are 8x8, and a label line needs about 16 characters.
-    let zoom = 128u32.div_ceil(r.frame.width).max(1);
-    let (w, h) = (r.frame.width * zoom, r.frame.height * zoom);
-    let scale = (w / 128).max(1);
-    let line_h = 10 * scale;
-    let band = 4 * line_h + 2 * scale;
-    let mut tiles: Vec<(&Frame, [String; 4])> = vec![(
-        &r.frame,
-        [
-            "reference".into(),
-            format!("spp {}", r.spp),
-            format!("noise {:.1e}", r.noise_rmse),
-            r.backend.split(' ').take(2).collect::<Vec<_>>().join(" "),
-        ],
-    )];
-    for row in rows {
-        let short = row
-            .model
-            .replace("stochastic", "stoch")
-            .replace("baseline (all off)", "baseline")
-            .replace("beer-lambert", "beer")
-            .replace(" (min-kt)", "")
-            .replace(" (beer)", "");
-        let label = match row.knob.as_str() {
-            "spp" => format!("{short} {}", row.value),
-            "-" => short,
-            "step_factor" => format!("cone step {}", row.value),
-            "aperture_deg" => format!("cone pt {}deg", row.value),
-            "transmittance" => format!("hard {}", row.value.replace("beer-lambert", "beer")),
-            _ => format!("{} {}", short.split(' ').next().unwrap_or(""), row.value),
-        };
-        tiles.push((
-            &row.frame,
-            [
-                label,
-                format!("rmse {:.2e}", row.rmse),
-                format!("flip {:.4}", row.flip_mean),
-                format!("{:.1}ms {}", row.ms_median, row.backend),
-            ],
-        ));
-    }
-    let cols = (tiles.len() as f64).sqrt().ceil() as u32;
-    let rows_n = (tiles.len() as u32).div_ceil(cols);
-    let gap = 2 * scale;
-    let tw = w + gap;
-    let th = h + band + gap;
-    let mut img = image::RgbImage::from_pixel(cols * tw, rows_n * th, image::Rgb([24, 24, 24]));
-    for (i, (frame, label)) in tiles.iter().enumerate() {
-        let (x0, y0) = ((i as u32 % cols) * tw, (i as u32 / cols) * th);
-        let rgb = frame.to_rgb8();
-        for y in 0..h {
-            for x in 0..w {
-                let k = 3 * ((y / zoom) * frame.width + x / zoom) as usize;
-                img.put_pixel(x0 + x, y0 + y, image::Rgb([rgb[k], rgb[k + 1], rgb[k + 2]]));
-            }
-        }
-        for (l, text) in label.iter().enumerate() {
-            draw_text(
-                &mut img,
-                x0 + scale,
-                y0 + h + scale + l as u32 * line_h,
-                text,
-                scale,
-                w,
-            );
-        }
-    }
-    img
-}
-
-/// Draws `text` in the 8x8 font8x8 glyphs, clipped to `max_w` pixels.
-fn draw_text(img: &mut image::RgbImage, x: u32, y: u32, text: &str, scale: u32, max_w: u32) {
-    use font8x8::UnicodeFonts;
-    for (i, ch) in text.chars().enumerate() {
-        let cx = x + i as u32 * 8 * scale;
-        if cx + 8 * scale > x + max_w {
-            break;
-        }
-        let Some(glyph) = font8x8::BASIC_FONTS.get(ch) else {
-            continue;
-        };
-        for (gy, bits) in glyph.iter().enumerate() {
-            for gx in 0..8 {
-                if bits & (1 << gx) == 0 {
-                    continue;
-                }
-                for sy in 0..scale {
-                    for sx in 0..scale {
-                        let (px, py) = (cx + gx * scale + sx, y + gy as u32 * scale + sy);
-                        if px < img.width() && py < img.height() {
-                            img.put_pixel(px, py, image::Rgb([235, 235, 235]));
-                        }
-                    }
-                }
-            }
-        }
-    }
-}
-
-pub mod plot {
-    //! The log-log plot of error against time: RMSE and FLIP panels, one curve per
-    //! model. Text is drawn with a TTF bundled in a crate (Ubuntu Light, from
-    //! `epaint_default_fonts`), so no system font is needed.
-
-    use std::collections::BTreeMap;
-    use std::sync::Once;
-
-    use anyhow::{Result, anyhow};
-    use plotters::coord::Shift;
-    use plotters::prelude::*;
-
-    use super::Row;
-
-    const SIZE: (u32, u32) = (1400, 620);
-    const FONT: &str = "sans-serif";
-
-    /// An error column of a row.
-    type Metric = fn(&Row) -> f64;
-
-    fn register_font() {
-        static ONCE: Once = Once::new();
-        ONCE.call_once(|| {
-            // The bytes are a valid TTF shipped by the crate; a failure leaves text out.
-            let _ = plotters::style::register_font(
-                FONT,
-                FontStyle::Normal,
-                epaint_default_fonts::UBUNTU_LIGHT,
-            );
-        });
-    }
-
-    /// The plot as a PNG image and as SVG text.
-    pub fn plot(rows: &[Row], title: &str) -> Result<(image::RgbImage, String)> {
-        register_font();
-        let mut buf = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
-        {
-            let root = BitMapBackend::with_buffer(&mut buf, SIZE).into_drawing_area();
-            draw(&root, rows, title).map_err(|e| anyhow!("drawing the plot: {e}"))?;
-            root.present()
-                .map_err(|e| anyhow!("drawing the plot: {e}"))?;
-        }
-        let png = image::RgbImage::from_raw(SIZE.0, SIZE.1, buf).expect("buffer is w*h*3");
-        let mut svg = String::new();
-        {
-            let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-            draw(&root, rows, title).map_err(|e| anyhow!("drawing the plot: {e}"))?;
-            root.present()
-                .map_err(|e| anyhow!("drawing the plot: {e}"))?;
-        }
-        Ok((png, svg))
-    }
-
-    /// Log axes need a positive range around the values, with some air.
-    fn range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
-        let (lo, hi) = values
-            .filter(|v| v.is_finite() && *v > 0.0)
-            .fold((f64::MAX, f64::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
-        if lo > hi {
-            return 1e-3..1.0;
-        }
-        lo / 1.6..hi * 1.6
-    }
-
-    fn draw<DB: DrawingBackend>(
-        root: &DrawingArea<DB, Shift>,
-        rows: &[Row],
-        title: &str,
-    ) -> Result<(), Box<dyn std::error::Error>>
-    where
-        DB::ErrorType: 'static,
-    {
-        root.fill(&WHITE)?;
-        let root = root.titled(title, (FONT, 22))?;
-        let panels = root.split_evenly((1, 2));
-        // One curve per model, in the order the sweep gave them.
-        let mut order: Vec<&str> = Vec::new();
-        let mut curves: BTreeMap<&str, Vec<&Row>> = BTreeMap::new();
-        for r in rows {
-            if !order.contains(&r.model.as_str()) {
-                order.push(&r.model);
-            }
-            curves.entry(&r.model).or_default().push(r);
-        }
-        let mixed = rows.iter().any(|r| r.backend != rows[0].backend);
-        let x_range = range(rows.iter().map(|r| r.ms_median));
-        let metrics: [(&str, Metric); 2] = [
-            ("RMSE (linear radiance)", |r| r.rmse),
-            ("FLIP mean (displayed image)", |r| r.flip_mean),
-        ];
-        for (panel, (name, metric)) in panels.iter().zip(metrics) {
-            let y_range = range(rows.iter().map(metric));
-            let mut chart = ChartBuilder::on(panel)
-                .margin(16)
-                .x_label_area_size(44)
-                .y_label_area_size(70)
-                .caption(format!("{name} against time"), (FONT, 18))
-                .build_cartesian_2d(x_range.clone().log_scale(), y_range.log_scale())?;
-            chart
-                .configure_mesh()
-                .x_desc("ms per image (median of trace + cone pyramid build)")
-                .y_desc(name)
-                .x_labels(12)
-                .y_labels(12)
-                .x_label_formatter(&|v| format!("{v}"))
-                .y_label_formatter(&|v| format!("{v:.1e}"))
-                .label_style((FONT, 13))
-                .axis_desc_style((FONT, 15))
-                .draw()?;
-            for (i, model) in order.iter().enumerate() {
-                let color = Palette99::pick(i).to_rgba();
-                let pts: Vec<(f64, f64)> = curves[model]
-                    .iter()
-                    .map(|r| (r.ms_median.max(1e-9), metric(r).max(1e-12)))
-                    .collect();
-                let backend = curves[model][0].backend;
-                let label = if mixed {
-                    format!("{model} [{backend}]")
-                } else {
-                    model.to_string()
-                };
-                let legend = move |(x, y): (i32, i32)| {
-                    EmptyElement::at((x, y))
-                        + PathElement::new(vec![(0, 0), (18, 0)], color.stroke_width(2))
-                        + Circle::new((9, 0), 4, color.filled())
-                };
-                if pts.len() > 1 {
-                    chart
-                        .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))?
-                        .label(label)
-                        .legend(legend);
-                    chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, color.filled())))?;
-                } else {
-                    chart
-                        .draw_series(
-                            pts.iter()
-                                .map(|&p| TriangleMarker::new(p, 7, color.filled())),
-                        )?
-                        .label(label)
-                        .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 6, color.filled()));
-                }
-                // The knob's value beside each point of a curve: above for even curves,
-                // below for odd ones, so neighbouring curves' labels do not collide.
-                if pts.len() > 1 {
-                    let dy = if i % 2 == 0 { -14 } else { 4 };
-                    chart.draw_series(pts.iter().zip(&curves[model]).map(|(&p, r)| {
-                        EmptyElement::at(p) + Text::new(r.value.clone(), (6, dy), (FONT, 12))
-                    }))?;
-                }
-            }
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::LowerLeft)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font((FONT, 13))
-                .draw()?;
-        }
-        Ok(())
-    }
 }

@@ -123,6 +123,7 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         "plot.png",
         "plot.svg",
         "table.md",
+        "table.tex",
         "experiment.toml",
         "resolved.toml",
         "run.txt",
@@ -308,6 +309,42 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         1 + rows.len()
     );
     assert!(table.contains("trace + setup"));
+    // The Pareto column: the fastest point and the most accurate are on both fronts.
+    let measured = &report.rows;
+    let fastest = (0..measured.len())
+        .min_by(|&a, &b| measured[a].ms_median.total_cmp(&measured[b].ms_median))
+        .unwrap();
+    let front = ablate::pareto_front(measured, |r| r.rmse);
+    assert!(front[fastest], "the fastest point is on the front");
+    for (a, on) in measured.iter().zip(&front) {
+        let beaten = measured.iter().any(|b| {
+            b.ms_median <= a.ms_median
+                && b.rmse <= a.rmse
+                && (b.ms_median < a.ms_median || b.rmse < a.rmse)
+        });
+        assert_eq!(*on, !beaten, "{} {}", a.model, a.value);
+    }
+    assert!(
+        table
+            .lines()
+            .any(|l| l.ends_with("| RMSE, FLIP |") || l.ends_with("| RMSE |"))
+    );
+    // The LaTeX table: booktabs, one line per point, LaTeX's specials escaped.
+    let tex = std::fs::read_to_string(out.join("table.tex")).unwrap();
+    assert!(
+        tex.contains("\\toprule") && tex.contains("\\bottomrule"),
+        "{tex}"
+    );
+    assert_eq!(
+        tex.lines().filter(|l| l.ends_with("\\\\")).count(),
+        1 + rows.len(),
+        "{tex}"
+    );
+    assert!(
+        tex.contains("step\\_factor") && !tex.contains(" step_factor "),
+        "{tex}"
+    );
+    assert!(tex.contains("\\textbf{"), "{tex}");
     let run_txt = std::fs::read_to_string(out.join("run.txt")).unwrap();
     assert!(run_txt.contains("git revision: ") && run_txt.contains("adapter: "));
     assert!(run_txt.contains("plan: ["));

@@ -155,7 +155,7 @@ fn ablation_point_names_stay_short_and_unique() {
     let b = point(2e-300).slug();
     assert!(a.len() <= 80, "{a}");
     assert_ne!(a, b);
-    assert_eq!(point(4.0).slug(), "cone_at_set_aperture_aperture_deg00004");
+    assert_eq!(point(4.0).slug(), "cone_at_set_aperture_aperture_deg-00004");
 }
 
 /// Ctrl-C while an image is being written leaves neither the image nor its hidden
