@@ -175,11 +175,11 @@ fn scripted_viewer_saves_what_render_reproduces() {
         "voxlab view failed\nstdout:\n{stdout}\nstderr:\n{stderr}"
     );
     for f in [
-        "e2e-left.png",
-        "e2e-left.toml",
-        "e2e-right.png",
-        "e2e-right.toml",
-        "e2e-window.png",
+        "e2e-001-left.png",
+        "e2e-001-left.toml",
+        "e2e-001-right.png",
+        "e2e-001-right.toml",
+        "e2e-001-window.png",
     ] {
         assert!(
             stdout.contains(&format!("saved {}", save.join(f).display())),
@@ -190,7 +190,7 @@ fn scripted_viewer_saves_what_render_reproduces() {
     let original = Experiment::load(&exp).unwrap();
     // The right side sampled its area light over 5 frames; the left has nothing to
     // sample (hard shadows) and is one frame. The orbit is in both.
-    let right = Experiment::load(save.join("e2e-right.toml")).unwrap();
+    let right = Experiment::load(save.join("e2e-001-right.toml")).unwrap();
     assert_eq!(right.settings.spp, 5);
     assert_eq!(right.settings.light_samples, 2);
     assert!(right.settings.features.area_lights);
@@ -198,7 +198,7 @@ fn scripted_viewer_saves_what_render_reproduces() {
         right.settings.features.transmittance,
         voxlab::Transmittance::BeerLambert
     );
-    let left = Experiment::load(save.join("e2e-left.toml")).unwrap();
+    let left = Experiment::load(save.join("e2e-001-left.toml")).unwrap();
     assert!(!left.settings.features.area_lights && !left.settings.features.cone_shadows);
     assert_eq!((left.settings.width, left.settings.height), (96, 72));
     for e in [&left, &right] {
@@ -219,7 +219,7 @@ fn scripted_viewer_saves_what_render_reproduces() {
     // What the viewer saved is what `voxlab render` makes of the exported file.
     for side in ["left", "right"] {
         let rendered = dir.join(format!("render-{side}.png"));
-        let toml = save.join(format!("e2e-{side}.toml"));
+        let toml = save.join(format!("e2e-001-{side}.toml"));
         let (ok, out, err) = run_voxlab(
             &[
                 "render",
@@ -231,7 +231,7 @@ fn scripted_viewer_saves_what_render_reproduces() {
             Duration::from_secs(120),
         );
         assert!(ok, "voxlab render {side} failed\n{out}\n{err}");
-        let saved = read_png(save.join(format!("e2e-{side}.png"))).unwrap();
+        let saved = read_png(save.join(format!("e2e-001-{side}.png"))).unwrap();
         let again = read_png(&rendered).unwrap();
         assert_eq!((saved.width, saved.height), (96, 72));
         let differing = saved
@@ -247,15 +247,15 @@ fn scripted_viewer_saves_what_render_reproduces() {
         );
     }
     // The two sides really differ (soft against hard shadows).
-    let l = read_png(save.join("e2e-left.png")).unwrap();
-    let r = read_png(save.join("e2e-right.png")).unwrap();
+    let l = read_png(save.join("e2e-001-left.png")).unwrap();
+    let r = read_png(save.join("e2e-001-right.png")).unwrap();
     assert!(
         l.pixels != r.pixels,
         "the two sides rendered the same image"
     );
 
     // The window capture is the window: larger than the image, and not blank.
-    let capture = read_png(save.join("e2e-window.png")).unwrap();
+    let capture = read_png(save.join("e2e-001-window.png")).unwrap();
     assert!(
         capture.width >= 600 && capture.height >= 400,
         "window capture is {}x{}",

@@ -266,3 +266,27 @@ fn view_takes_overrides() {
     let err = format!("{err:#}");
     assert!(err.contains("--set render.width=0"), "{err}");
 }
+
+#[test]
+fn the_experiments_spp_caps_the_accumulation_of_both_sides() {
+    // area_lights.toml asks for more than one frame: that is the cap.
+    let e = Experiment::load(format!(
+        "{}/experiments/area_lights.toml",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    assert!(e.settings.spp > 1);
+    let s = load_state(&experiment("area_lights.toml")).unwrap();
+    for side in Side::BOTH {
+        assert_eq!(s.sides[side.index()].max_spp, e.settings.spp);
+    }
+    // An override too.
+    let mut opts = experiment("area_lights.toml");
+    opts.overrides = vec!["render.spp=37".parse().unwrap()];
+    let s = load_state(&opts).unwrap();
+    assert_eq!(s.sides[0].max_spp, 37);
+    assert_eq!(s.rendered(Side::Right).settings.spp, 37);
+    // The default spp of 1 leaves the viewer's own cap.
+    let s = seed_state();
+    assert_eq!(s.sides[0].max_spp, voxlab::viewer::state::DEFAULT_VIEW_SPP);
+}

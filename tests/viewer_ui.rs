@@ -173,8 +173,8 @@ impl Rig {
             .get_by_role_and_label(Role::Splitter, "divider")
             .rect();
         assert!(
-            (handle.width() - 12.0).abs() < 0.5,
-            "the divider's handle is 12 wide"
+            (handle.width() - 20.0).abs() < 0.5,
+            "the divider's handle is 20 wide: {handle:?}"
         );
         assert!(
             (handle.top() - image.top()).abs() < 0.5
@@ -855,13 +855,42 @@ fn save_button_writes_each_sides_image_and_the_experiment_that_reproduces_it() {
     let name = rig.state().base.name.clone();
     assert_eq!(name, "area_lights");
     for (side, frame, frames) in [(Side::Left, &left, 7), (Side::Right, &right, 12)] {
-        let png = dir.join(format!("{name}-{}.png", side.name()));
-        let toml = dir.join(format!("{name}-{}.toml", side.name()));
+        let png = dir.join(format!("{name}-001-{}.png", side.name()));
+        let toml = dir.join(format!("{name}-001-{}.toml", side.name()));
         assert_png_is(&png, frame);
         assert_export_matches(&rig, side, &toml, frames, (W, H));
+        // The EXR holds the radiance itself.
+        let exr =
+            voxlab::output::read_exr(dir.join(format!("{name}-001-{}.exr", side.name()))).unwrap();
+        assert_eq!(exr.pixels, frame.pixels);
+    }
+    // The difference of the sides, in linear radiance.
+    let diff = voxlab::output::read_exr(dir.join(format!("{name}-001-difference.exr"))).unwrap();
+    for ((d, l), r) in diff.pixels.iter().zip(&left.pixels).zip(&right.pixels) {
+        for c in 0..3 {
+            assert!((d[c] - (l[c] - r[c]).abs()).abs() < 1e-6);
+        }
     }
     let saved = rig.outcome.lock().unwrap().saved.clone();
-    assert_eq!(saved.len(), 4, "{saved:?}");
+    assert_eq!(
+        saved.len(),
+        7,
+        "png, exr, toml per side and the difference: {saved:?}"
+    );
+    // A second save never overwrites the first: the next prefix.
+    let first = std::fs::read(dir.join(format!("{name}-001-left.png"))).unwrap();
+    rig.send_current(Side::Left, constant(W, H, 0.1), 8);
+    rig.harness.run_steps(2);
+    rig.harness.get_by_label("Save images + TOML").click();
+    rig.harness.run_steps(2);
+    assert_eq!(
+        std::fs::read(dir.join(format!("{name}-001-left.png"))).unwrap(),
+        first
+    );
+    assert_png_is(
+        &dir.join(format!("{name}-002-left.png")),
+        &constant(W, H, 0.1),
+    );
     assert!(
         rig.app().status.starts_with("saved "),
         "{}",
@@ -891,8 +920,8 @@ fn save_side_exports_the_traced_size_of_an_adaptive_image() {
         .state_mut()
         .save_side(Side::Right, &dir)
         .expect("saved");
-    assert_eq!(png, dir.join("area_lights-right.png"));
-    assert_eq!(toml, dir.join("area_lights-right.toml"));
+    assert_eq!(png, dir.join("area_lights-001-right.png"));
+    assert_eq!(toml, dir.join("area_lights-001-right.toml"));
     assert_png_is(&png, &frame);
     assert_export_matches(&rig, Side::Right, &toml, 5, size);
     assert!(
@@ -909,7 +938,8 @@ fn save_side_exports_the_traced_size_of_an_adaptive_image() {
         .save_side(Side::Left, &dir)
         .unwrap_err();
     assert!(format!("{err}").contains("no image yet"), "{err}");
-    assert!(!dir.join("area_lights-left.png").exists());
+    assert!(!dir.join("area_lights-002-left.png").exists());
+    assert!(!dir.join("area_lights-001-left.png").exists());
 }
 
 #[test]
@@ -1010,5 +1040,337 @@ fn an_edit_drops_the_comparison_with_the_old_reference() {
         rig.take_jobs(2).len(),
         1,
         "a new reference for the new scene"
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Comparison views, probe, zoom, stale images, controls that apply, saves, reload.
+
+use voxlab::viewer::display::{ViewMode, Zoom};
+
+#[test]
+fn view_modes_compare_the_same_pixels_and_b_flips_the_sides() {
+    let mut rig = Rig::new(small_area_lights(), false);
+    rig.harness.run_steps(2);
+    let (left, right) = (gradient(W, H), constant(W, H, 0.5));
+    rig.send_current(Side::Left, left.clone(), 3);
+    rig.send_current(Side::Right, right.clone(), 3);
+    rig.harness.run_steps(2);
+    assert_eq!(
+        rig.app().comparison(),
+        None,
+        "the split view compares nothing"
+    );
+    // The view combo box: difference.
+    rig.harness
+        .get_by_role_and_label(Role::ComboBox, "view (B flips sides)")
+        .click();
+    rig.harness.run_steps(2);
+    rig.harness.get_by_label("difference |L - R|").click();
+    rig.harness.run_steps(2);
+    assert_eq!(rig.app().display.mode, ViewMode::Difference);
+    assert_eq!(rig.app().comparison(), Some(None));
+    assert!(rig.has_label("difference gain"));
+    // FLIP: the mean of the map, the one metrics::flip gives.
+    rig.harness.state_mut().display.mode = ViewMode::Flip;
+    rig.harness.run_steps(2);
+    let want = voxlab::metrics::flip_mean(&left, &right);
+    assert_eq!(rig.app().comparison(), Some(Some(want)));
+    assert!(rig.has_label(&format!("FLIP mean (R vs L) {want:.4}")));
+    // A new frame of one side makes a new map.
+    rig.send_current(Side::Right, constant(W, H, 0.4), 4);
+    rig.harness.run_steps(2);
+    let again = voxlab::metrics::flip_mean(&left, &constant(W, H, 0.4));
+    assert_eq!(rig.app().comparison(), Some(Some(again)));
+    // B: one side alone, then the other, over the same pixels.
+    rig.harness.key_press(egui::Key::B);
+    rig.harness.run_steps(1);
+    assert_eq!(rig.app().display.mode, ViewMode::Left);
+    assert_eq!(rig.app().comparison(), None);
+    rig.harness.key_press(egui::Key::B);
+    rig.harness.run_steps(1);
+    assert_eq!(rig.app().display.mode, ViewMode::Right);
+    // The divider exists only in the split view.
+    assert!(
+        rig.harness
+            .query_by_role_and_label(Role::Splitter, "divider")
+            .is_none()
+    );
+}
+
+#[test]
+fn the_probe_reads_each_sides_radiance_and_a_click_pins_it() {
+    let mut rig = Rig::new(small_area_lights(), false);
+    rig.harness.run_steps(2);
+    let left = gradient(W, H);
+    rig.send_current(Side::Left, left.clone(), 5);
+    rig.send_current(Side::Right, constant(W, H, 0.75), 9);
+    rig.harness.run_steps(2);
+    let g = rig.image_geometry();
+    // The pixel at a quarter of the width, half the height.
+    let at = pos2(
+        g.drawn.left() + 0.25 * g.drawn.width(),
+        g.drawn.top() + 0.5 * g.drawn.height(),
+    );
+    rig.harness.hover_at(at);
+    rig.harness.run_steps(2);
+    let (x, y) = (W / 4, H / 2);
+    let p = left.pixels[(y * W + x) as usize];
+    let text = rig.app().probe_text().expect("a probe under the pointer");
+    assert!(text.starts_with(&format!("pixel ({x}, {y})")), "{text}");
+    assert!(
+        text.contains(&format!(
+            "left: {:.4} {:.4} {:.4} (5 frames)",
+            p[0], p[1], p[2]
+        )),
+        "{text}"
+    );
+    assert!(
+        text.contains("right: 0.7500 0.7500 0.7500 (9 frames)"),
+        "{text}"
+    );
+    assert!(rig.has_label(&text), "shown in the probe bar");
+    // A click pins it; the pointer leaving keeps it; Escape lets go.
+    rig.harness.drag_at(at);
+    rig.harness.drop_at(at);
+    rig.harness.run_steps(2);
+    assert_eq!(rig.app().probe_pinned, Some((x, y)));
+    rig.harness.hover_at(pos2(1.0, 1.0));
+    rig.harness.run_steps(2);
+    assert!(rig.app().probe_text().unwrap().contains("pinned"));
+    rig.harness.key_press(egui::Key::Escape);
+    rig.harness.run_steps(2);
+    assert_eq!(rig.app().probe_pinned, None);
+    assert_eq!(rig.app().probe_text(), None);
+    // Clicking did not orbit.
+    assert_eq!(
+        rig.state().base.scene.camera,
+        small_area_lights().base.scene.camera
+    );
+}
+
+#[test]
+fn one_to_one_zoom_shows_an_image_pixel_per_screen_pixel() {
+    let mut rig = Rig::new(small_area_lights(), false);
+    rig.harness.run_steps(2);
+    let fit = rig.image_geometry().drawn;
+    assert!(fit.width() > 4.0 * W as f32, "fitted to the panel: {fit:?}");
+    rig.harness.state_mut().display.zoom = Zoom::Pixels(1);
+    rig.harness.run_steps(2);
+    let ppp = rig.harness.ctx.pixels_per_point();
+    let one = rig.image_geometry().drawn;
+    assert!(
+        (one.width() * ppp - W as f32).abs() < 0.5,
+        "{one:?} at {ppp}"
+    );
+    assert!((one.height() * ppp - H as f32).abs() < 0.5);
+    rig.harness.state_mut().display.zoom = Zoom::Pixels(4);
+    rig.harness.run_steps(2);
+    let four = rig.image_geometry().drawn;
+    assert!(
+        (four.width() * ppp - 4.0 * W as f32).abs() < 0.5,
+        "{four:?}"
+    );
+}
+
+#[test]
+fn after_a_camera_reset_the_old_image_is_marked_stale_until_the_new_one_arrives() {
+    let mut state = small_area_lights();
+    state.orbit_degrees(30.0, 0.0).unwrap();
+    let mut rig = Rig::new(state, false);
+    rig.harness.run_steps(2);
+    rig.send_current(Side::Left, constant(W, H, 0.3), 2);
+    rig.send_current(Side::Right, constant(W, H, 0.6), 2);
+    rig.harness.run_steps(2);
+    assert!(!rig.app().stale(Side::Left) && !rig.app().stale(Side::Right));
+    rig.harness.key_press(egui::Key::R);
+    rig.harness.run_steps(2);
+    // Both images are of the old camera now.
+    assert!(rig.app().stale(Side::Left) && rig.app().stale(Side::Right));
+    assert!(rig.app().latest(Side::Left).is_none());
+    // An update of the old generation does not make it current.
+    let old = rig.state().generation[0] - 1;
+    rig.send(Channel::Side(Side::Left), old, constant(W, H, 0.9), 3, 256);
+    rig.harness.run_steps(2);
+    assert!(rig.app().stale(Side::Left));
+    rig.send_current(Side::Left, constant(W, H, 0.3), 1);
+    rig.harness.run_steps(2);
+    assert!(!rig.app().stale(Side::Left));
+    assert!(rig.app().stale(Side::Right), "the right side still renders");
+}
+
+#[test]
+fn a_drag_that_starts_just_beside_the_divider_moves_it_and_never_orbits() {
+    let mut rig = Rig::new(small_area_lights(), false);
+    rig.harness.run_steps(2);
+    rig.clear_jobs();
+    let camera = rig.state().base.scene.camera.clone();
+    let before = rig.state().generation;
+    let g = rig.image_geometry();
+    // 15 points right of the line: outside the 20-point handle, inside the grab zone.
+    let from = pos2(g.split_x + 15.0, g.point(0.5).y);
+    rig.drag(from, vec2(-0.1 * g.drawn.width(), 0.0), 4);
+    let divider = rig.state().divider;
+    assert!((divider - 0.4).abs() < 0.02, "divider {divider}");
+    assert_eq!(rig.state().base.scene.camera, camera, "no orbit");
+    assert_eq!(rig.state().generation, before, "no accumulation discarded");
+    assert!(rig.take_side_jobs(Side::Left).is_empty());
+}
+
+#[test]
+fn controls_that_do_not_apply_are_not_shown() {
+    let mut rig = Rig::new(small_area_lights(), false);
+    rig.harness.run_steps(2);
+    // Both sides sample the area light: both have light samples and frames.
+    let rows = |rig: &Rig, label: &str| rig.harness.query_all_by_label(label).count();
+    assert_eq!(rows(&rig, "light samples / frame"), 2);
+    assert_eq!(rows(&rig, "max frames"), 2);
+    // Cones draw no samples: the left side's rows go.
+    {
+        let state = &mut rig.harness.state_mut().state;
+        ShadowModel::CONE.apply(&mut state.sides[0].features);
+        state.commit(&[Side::Left]).unwrap();
+    }
+    rig.harness.run_steps(2);
+    assert_eq!(rows(&rig, "light samples / frame"), 1);
+    assert_eq!(rows(&rig, "max frames"), 1);
+    // A rect light turns about its normal; a disk looks the same turned.
+    assert_eq!(rows(&rig, "rotation deg"), 1);
+    {
+        let state = &mut rig.harness.state_mut().state;
+        if let Light::Area(a) = &mut state.base.scene.lights[0] {
+            a.shape = voxlab::scene::AreaShape::Disk { radius: 2.0 };
+        }
+        state.commit_shared().unwrap();
+    }
+    rig.harness.run_steps(2);
+    assert_eq!(rows(&rig, "rotation deg"), 0);
+    assert!(rig.has_label("radius"));
+}
+
+#[test]
+fn the_pixel_filter_is_chosen_in_the_render_panel() {
+    let mut rig = Rig::new(small_area_lights(), false);
+    rig.harness.run_steps(2);
+    rig.clear_jobs();
+    assert!(!rig.has_label("filter width px"));
+    rig.harness
+        .get_by_role_and_label(Role::ComboBox, "pixel filter")
+        .click();
+    rig.harness.run_steps(2);
+    rig.harness.get_by_label("gaussian").click();
+    rig.harness.run_steps(2);
+    assert_eq!(
+        rig.state().base.settings.pixel_filter,
+        voxlab::render::PixelFilter::Gaussian
+    );
+    for side in Side::BOTH {
+        let jobs = rig.take_side_jobs(side);
+        let job = jobs.last().expect("both sides restart");
+        assert_eq!(
+            job.experiment.settings.pixel_filter,
+            voxlab::render::PixelFilter::Gaussian
+        );
+    }
+    assert!(rig.has_label("filter width px"));
+}
+
+#[test]
+fn kept_on_error_readouts_ask_for_new_references_after_every_change() {
+    let mut rig = Rig::new(small_area_lights(), false);
+    rig.harness.state_mut().adaptive.settle_s = 0.0;
+    rig.harness.run_steps(2);
+    rig.checkbox("keep error on").click();
+    rig.harness.run_steps(2);
+    assert!(
+        rig.take_jobs(2).is_empty(),
+        "nothing to compare before an image"
+    );
+    rig.send_current(Side::Left, constant(W, H, 0.3), 1);
+    rig.harness.run_steps(2);
+    let first = rig.take_jobs(2);
+    assert_eq!(first.len(), 1, "a reference, without the button");
+    // A change: the references of the new state are asked for once it has an image.
+    rig.checkbox("ambient occlusion (left)").click();
+    rig.harness.run_steps(2);
+    rig.send_current(Side::Left, constant(W, H, 0.3), 1);
+    rig.harness.run_steps(2);
+    // The old left reference is dropped; the right one (queued, still wanted) comes
+    // first, then the new left one.
+    let mut jobs = rig.take_jobs(2);
+    assert_eq!(jobs.len(), 1, "one reference at a time");
+    let right = jobs.remove(0);
+    assert!(right.generation > first[0].generation);
+    assert!(!right.experiment.settings.features.ambient_occlusion);
+    rig.send(
+        Channel::Reference,
+        right.generation,
+        constant(W, H, 0.5),
+        right.frames,
+        right.frames,
+    );
+    rig.harness.run_steps(2);
+    let left = rig.take_jobs(2);
+    assert_eq!(left.len(), 1, "{}", left.len());
+    assert!(left[0].experiment.settings.features.ambient_occlusion);
+}
+
+#[test]
+fn the_experiment_file_is_reloaded_when_it_changes_on_disk() {
+    let dir = temp_dir("reload");
+    let file = dir.join("live.toml");
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/area_lights.toml"),
+    )
+    .unwrap()
+    .replace("width = 512", &format!("width = {W}"))
+    .replace("height = 512", &format!("height = {H}"));
+    std::fs::write(&file, &text).unwrap();
+    let opts = ViewOptions {
+        experiment: Some(file.clone()),
+        ..Default::default()
+    };
+    let state = voxlab::viewer::load_state(&opts).unwrap();
+    let mut rig = Rig::new(state, false);
+    rig.harness.state_mut().watch(opts);
+    rig.harness.run_steps(2);
+    rig.clear_jobs();
+    let before = rig.state().generation;
+    assert_eq!(intensity(&rig.state().base.scene.lights[0]), 384.0);
+    // The file is edited: a light's intensity.
+    std::fs::write(
+        &file,
+        text.replacen("intensity = 384.0", "intensity = 99.0", 1),
+    )
+    .unwrap();
+    std::thread::sleep(voxlab::viewer::reload::INTERVAL + Duration::from_millis(50));
+    rig.harness.run_steps(2);
+    assert_eq!(intensity(&rig.state().base.scene.lights[0]), 99.0);
+    let now = rig.state().generation;
+    assert!(
+        now[0] > before[0] && now[1] > before[1],
+        "{before:?} -> {now:?}"
+    );
+    for side in Side::BOTH {
+        let jobs = rig.take_side_jobs(side);
+        assert_eq!(
+            intensity(&jobs.last().unwrap().experiment.scene.lights[0]),
+            99.0
+        );
+    }
+    assert!(
+        rig.app().status.starts_with("reloaded "),
+        "{}",
+        rig.app().status
+    );
+    // A broken file keeps the last good state and says why.
+    std::fs::write(&file, "[render]\nwidth = 0\n").unwrap();
+    std::thread::sleep(voxlab::viewer::reload::INTERVAL + Duration::from_millis(50));
+    rig.harness.run_steps(2);
+    assert_eq!(intensity(&rig.state().base.scene.lights[0]), 99.0);
+    let status = rig.app().status.clone();
+    assert!(
+        status.contains("reload failed") && status.contains("render.width"),
+        "{status}"
     );
 }

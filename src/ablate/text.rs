@@ -110,7 +110,9 @@ mod tests {
                 sums[k].1 += a;
             });
             let centres: Vec<f32> = sums.iter().map(|(ay, a)| ay / a).collect();
-            let spread = centres.iter().fold(0.0f32, |m, c| m.max((c - centres[0]).abs()));
+            let spread = centres
+                .iter()
+                .fold(0.0f32, |m, c| m.max((c - centres[0]).abs()));
             assert!(spread < 0.2, "size {size}: {centres:?}");
         }
     }

@@ -11,6 +11,7 @@ use eframe::egui;
 use egui::{Color32, ColorImage, Rect, Sense, TextureHandle, TextureOptions, Vec2, pos2};
 use glam::DVec3;
 
+use super::display::{self, Display, ViewMode, Zoom};
 use super::state::{
     AdaptiveScale, LightKind, MAX_VIEW_SPP, ShadowModel, Side, SideSettings, ViewerState,
     scaled_size,
@@ -109,6 +110,9 @@ pub struct SideError {
 #[derive(Default)]
 struct SideView {
     texture: Option<TextureHandle>,
+    /// The frame the texture shows (kept to redraw it under another display transform);
+    /// when `latest` is `None` it is of an earlier state: stale, shown dimmed.
+    shown: Option<Arc<Frame>>,
     /// The latest image of the current generation and size.
     latest: Option<Update>,
     /// What the worker was last asked for: generation and traced size.
@@ -158,7 +162,35 @@ pub struct ViewerApp {
     /// Set by the screenshot callback once the window capture is written.
     capture_done: Arc<Mutex<Option<Result<PathBuf, String>>>>,
     automation_stage: u8,
+    /// View mode, exposure, encoding, zoom.
+    pub display: Display,
+    /// The display the textures were made under.
+    shown_display: Display,
+    /// The comparison view's texture (difference or FLIP map), the state it was made
+    /// from, and the FLIP mean of a FLIP map.
+    compare: Option<(TextureHandle, CompareKey, Option<f64>)>,
+    /// A pixel whose values stay shown (clicked); else the one under the pointer.
+    pub probe_pinned: Option<(u32, u32)>,
+    probe_hover: Option<(u32, u32)>,
+    /// A drag that began on (or beside) the divider moves it and never orbits.
+    dragging_divider: bool,
+    /// Error readouts kept on: references are asked for again after every change.
+    pub error_live: bool,
+    /// Reloads the experiment when its file changes on disk.
+    watch: Option<super::reload::Watch>,
 }
+
+/// What a comparison image was computed from: the view mode and display, and each
+/// side's generation and frames.
+#[derive(Clone, Debug, PartialEq)]
+struct CompareKey {
+    mode: ViewMode,
+    display: Display,
+    sides: [(u64, u32, u32, u32); 2],
+}
+
+/// Pixels either side of the divider that grab it.
+const DIVIDER_GRAB: f32 = 10.0;
 
 impl ViewerApp {
     pub fn new(
@@ -200,6 +232,54 @@ impl ViewerApp {
             outcome,
             capture_done: Arc::new(Mutex::new(None)),
             automation_stage: 0,
+            display: Display::default(),
+            shown_display: Display::default(),
+            compare: None,
+            probe_pinned: None,
+            probe_hover: None,
+            dragging_divider: false,
+            error_live: false,
+            watch: None,
+        }
+    }
+
+    /// Reloads the experiment whenever its file changes on disk (`voxlab view` with a
+    /// file does this), rebuilding the state as `opts` built it at the start.
+    pub fn watch(&mut self, opts: super::ViewOptions) {
+        self.watch = super::reload::Watch::new(opts);
+    }
+
+    /// Checks the watched file; on a change, the new state replaces the old one (the
+    /// divider stays, and the camera where the user moved it unless the file's camera
+    /// changed); a file that no longer loads leaves everything as it was and says why.
+    fn poll_reload(&mut self) {
+        let Some(w) = &mut self.watch else {
+            return;
+        };
+        let path = w.path().display().to_string();
+        match w.poll() {
+            None => {}
+            Some(Err(e)) => {
+                self.status = format!("reload failed, still showing the last good state: {e:#}")
+            }
+            Some(Ok(mut fresh)) => {
+                fresh.divider = self.state.divider;
+                if fresh.home_camera == self.state.home_camera {
+                    let camera = self.state.base.scene.camera.clone();
+                    fresh.base.scene.camera = camera;
+                    if let Err(e) = fresh.commit(&Side::BOTH) {
+                        self.status = format!("reload failed: {e:#}");
+                        return;
+                    }
+                }
+                // Generations continue, so reports of the old state are stale.
+                for side in Side::BOTH {
+                    fresh.generation[side.index()] += self.state.generation[side.index()];
+                }
+                self.state = fresh;
+                self.changed(&Side::BOTH);
+                self.status = format!("reloaded {path}");
+            }
         }
     }
 
@@ -214,6 +294,19 @@ impl ViewerApp {
     /// The latest image of `side` for the current state.
     pub fn latest(&self, side: Side) -> Option<&Update> {
         self.views[side.index()].latest.as_ref()
+    }
+
+    /// Whether `side` shows an image of an earlier state (dimmed, labelled) while the
+    /// current one renders.
+    pub fn stale(&self, side: Side) -> bool {
+        let v = &self.views[side.index()];
+        v.latest.is_none() && v.texture.is_some()
+    }
+
+    /// The comparison view's image, when made: `Some(flip mean)` for a FLIP map,
+    /// `Some(None)` for a difference.
+    pub fn comparison(&self) -> Option<Option<f64>> {
+        self.compare.as_ref().map(|(_, _, f)| *f)
     }
 
     pub fn side_error(&self, side: Side) -> Option<&SideError> {
@@ -241,6 +334,7 @@ impl ViewerApp {
             v.error = None;
             v.reference_key = None;
         }
+        self.compare = None;
     }
 
     /// Applies an edit of the shared state (`f`), then restarts both sides; an edit the
@@ -323,21 +417,9 @@ impl ViewerApp {
                     let pixels = u.frame.width as u64 * u.frame.height as u64;
                     self.adaptive
                         .observe(pixels, u.frame_time.as_secs_f64() * 1e3);
-                    let image = ColorImage::from_rgb(
-                        [u.frame.width as usize, u.frame.height as usize],
-                        &u.frame.to_rgb8(),
-                    );
-                    let options = TextureOptions::LINEAR;
-                    match &mut v.texture {
-                        Some(t) => t.set(image, options),
-                        None => {
-                            v.texture = Some(ctx.load_texture(
-                                format!("side-{}", side.name()),
-                                image,
-                                options,
-                            ))
-                        }
-                    }
+                    let image = self.display.image(&u.frame);
+                    set_texture(ctx, &mut v.texture, &format!("side-{}", side.name()), image);
+                    v.shown = Some(u.frame.clone());
                     v.error = None;
                     let finished = u.frames == u.total;
                     v.latest = Some(u);
@@ -512,9 +594,34 @@ impl ViewerApp {
         }
     }
 
-    /// Saves `side`'s current image as PNG beside the experiment file that reproduces
-    /// it; returns the two paths.
+    /// The prefix of the next save into `dir`: `NAME-001`, `NAME-002`, ..., the first
+    /// that no file in `dir` starts with, so a save never overwrites an earlier one.
+    pub fn save_stem(&self, dir: &Path) -> String {
+        let taken: Vec<String> = std::fs::read_dir(dir)
+            .map(|d| {
+                d.filter_map(|e| e.ok())
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .collect()
+            })
+            .unwrap_or_default();
+        (1u32..)
+            .map(|n| format!("{}-{n:03}", self.state.base.name))
+            .find(|stem| !taken.iter().any(|f| f.starts_with(&format!("{stem}-"))))
+            .expect("some number is free")
+    }
+
+    /// Saves `side`'s current image under a new prefix (`save_stem`): PNG (as `voxlab
+    /// render` writes it), EXR (linear radiance), the experiment file that reproduces it,
+    /// and its error map against its reference when there is one; returns the PNG's and
+    /// the TOML's paths.
     pub fn save_side(&mut self, side: Side, dir: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
+        let stem = self.save_stem(dir);
+        let files = self.save_side_as(side, dir, &stem)?;
+        Ok((files[0].clone(), files[2].clone()))
+    }
+
+    /// Writes `STEM-SIDE.png`, `.exr`, `.toml` and, with a reference, `-error.exr`.
+    fn save_side_as(&mut self, side: Side, dir: &Path, stem: &str) -> anyhow::Result<Vec<PathBuf>> {
         let u = self.views[side.index()]
             .latest
             .clone()
@@ -522,31 +629,54 @@ impl ViewerApp {
         let (text, _) =
             self.state
                 .export(side, u.frames, u.frame.width, u.frame.height, Some(dir))?;
-        let stem = format!("{}-{}", self.state.base.name, side.name());
-        let png = dir.join(format!("{stem}.png"));
-        let toml = dir.join(format!("{stem}.toml"));
+        let base = dir.join(format!("{stem}-{}", side.name()));
+        let with = |ext: &str| PathBuf::from(format!("{}.{ext}", base.display()));
+        let (png, exr, toml) = (with("png"), with("exr"), with("toml"));
         crate::output::write_frame(&u.frame, &png)?;
+        crate::output::write_frame(&u.frame, &exr)?;
         crate::output::write_file(&toml, text.as_bytes())?;
-        Ok((png, toml))
+        let mut files = vec![png, exr, toml];
+        if let Some((reference, frame, _)) = self.pair(side)
+            && let Some(error) = display::difference(&frame, &reference)
+        {
+            let path = PathBuf::from(format!("{}-error.exr", base.display()));
+            crate::output::write_frame(&error, &path)?;
+            files.push(path);
+        }
+        Ok(files)
     }
 
-    /// Saves both sides and asks for a capture of the window.
+    /// Saves both sides, their difference (`STEM-difference.exr`, |L - R| in linear
+    /// radiance, when they have one size) and a capture of the window, under one new
+    /// prefix.
     pub fn save_all(&mut self, ctx: &egui::Context) {
         let dir = PathBuf::from(self.save_dir.trim());
+        if let Err(e) = std::fs::create_dir_all(&dir) {
+            self.status = format!("save failed: cannot create {}: {e}", dir.display());
+            return;
+        }
+        let stem = self.save_stem(&dir);
         let mut saved = Vec::new();
         for side in Side::BOTH {
-            match self.save_side(side, &dir) {
-                Ok((png, toml)) => {
-                    saved.push(png);
-                    saved.push(toml);
-                }
+            match self.save_side_as(side, &dir, &stem) {
+                Ok(files) => saved.extend(files),
                 Err(e) => {
                     self.status = format!("save failed: {e:#}");
                     return;
                 }
             }
         }
-        let capture = dir.join(format!("{}-window.png", self.state.base.name));
+        if let (Some(l), Some(r)) = (self.latest(Side::Left), self.latest(Side::Right))
+            && let Some(d) = display::difference(&l.frame, &r.frame)
+        {
+            let path = dir.join(format!("{stem}-difference.exr"));
+            if let Err(e) = crate::output::write_frame(&d, &path) {
+                self.status = format!("save failed: {e:#}");
+                return;
+            }
+            saved.push(path);
+        }
+        let capture = dir.join(format!("{stem}-window.png"));
         let done = self.capture_done.clone();
         *done.lock().expect("capture lock") = None;
         let repaint = ctx.clone();
@@ -626,12 +756,32 @@ impl ViewerApp {
     /// One pass of the whole window.
     pub fn show(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
+        self.poll_reload();
         self.receive(&ctx);
-        if ui.input(|i| i.key_pressed(egui::Key::R)) && !ctx.egui_wants_keyboard_input() {
+        let keys = !ctx.egui_wants_keyboard_input();
+        if keys && ui.input(|i| i.key_pressed(egui::Key::R)) {
             self.edit_shared(|s| s.reset_camera());
         }
+        if keys && ui.input(|i| i.key_pressed(egui::Key::B)) {
+            self.display.mode = self.display.mode.flipped();
+        }
+        if keys && ui.input(|i| i.key_pressed(egui::Key::Escape)) {
+            self.probe_pinned = None;
+        }
+        if self.error_live
+            && !self.any_interacting()
+            && self
+                .views
+                .iter()
+                .any(|v| v.reference_key.is_none() && v.latest.is_some())
+        {
+            self.request_error();
+        }
         egui::Panel::top("voxlab-top").show(ui, |ui| self.top_bar(ui));
+        egui::Panel::top("voxlab-view").show(ui, |ui| self.view_bar(ui));
+        self.refresh_textures(&ctx);
         egui::Panel::bottom("voxlab-status").show(ui, |ui| self.status_bar(ui));
+        egui::Panel::bottom("voxlab-probe").show(ui, |ui| self.probe_bar(ui));
         egui::Panel::left("voxlab-scene")
             .default_size(280.0)
             .show(ui, |ui| {
@@ -679,6 +829,164 @@ impl ViewerApp {
                 self.save_all(&ctx);
             }
         });
+    }
+
+    /// The view controls: mode, display transform, zoom.
+    fn view_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            let d = &mut self.display;
+            egui::ComboBox::from_label("view (B flips sides)")
+                .selected_text(d.mode.name())
+                .show_ui(ui, |ui| {
+                    for m in ViewMode::ALL {
+                        ui.selectable_value(&mut d.mode, m, m.name());
+                    }
+                });
+            let row = ui.label("exposure EV").id;
+            ui.add(
+                egui::DragValue::new(&mut d.exposure)
+                    .speed(0.05)
+                    .range(-16.0..=16.0),
+            )
+            .labelled_by(row);
+            ui.checkbox(&mut d.srgb, "sRGB display");
+            egui::ComboBox::from_label("zoom")
+                .selected_text(d.zoom.name())
+                .show_ui(ui, |ui| {
+                    for z in Zoom::ALL {
+                        if ui.selectable_value(&mut d.zoom, z, z.name()).changed() {
+                            d.centre = None;
+                        }
+                    }
+                });
+            if d.mode == ViewMode::Difference {
+                let row = ui.label("difference gain").id;
+                ui.add(
+                    egui::DragValue::new(&mut d.difference_gain)
+                        .speed(0.1)
+                        .range(0.1..=1000.0),
+                )
+                .labelled_by(row);
+            }
+            if let Some((_, _, Some(f))) = &self.compare {
+                ui.label(format!("FLIP mean (R vs L) {f:.4}"));
+            }
+        });
+    }
+
+    /// Redraws the side textures when the display transform changed, and makes the
+    /// comparison view's image when its inputs changed.
+    fn refresh_textures(&mut self, ctx: &egui::Context) {
+        let redraw = self.display.transform() != self.shown_display.transform();
+        if redraw {
+            for side in Side::BOTH {
+                let v = &mut self.views[side.index()];
+                if let Some(f) = v.shown.clone() {
+                    let image = self.display.image(&f);
+                    set_texture(ctx, &mut v.texture, &format!("side-{}", side.name()), image);
+                }
+            }
+            self.shown_display = self.display.clone();
+        }
+        if !self.display.mode.compares() {
+            self.compare = None;
+            return;
+        }
+        let key = |side: Side| {
+            let v = &self.views[side.index()];
+            v.latest.as_ref().map_or((0, 0, 0, 0), |u| {
+                (u.generation, u.frames, u.frame.width, u.frame.height)
+            })
+        };
+        let want = CompareKey {
+            mode: self.display.mode,
+            display: Display {
+                zoom: Zoom::Fit,
+                centre: None,
+                ..self.display.clone()
+            },
+            sides: [key(Side::Left), key(Side::Right)],
+        };
+        if self.compare.as_ref().is_some_and(|(_, k, _)| *k == want) {
+            return;
+        }
+        let (Some(l), Some(r)) = (self.latest(Side::Left), self.latest(Side::Right)) else {
+            return;
+        };
+        let (l, r) = (l.frame.clone(), r.frame.clone());
+        let made = match self.display.mode {
+            ViewMode::Difference => {
+                display::difference_image(&self.display, &l, &r).map(|i| (i, None))
+            }
+            _ => display::flip_image(&l, &r).map(|(mean, i)| (i, Some(mean))),
+        };
+        let Some((image, mean)) = made else {
+            return;
+        };
+        let mut texture = self.compare.take().map(|(t, ..)| t);
+        set_texture(ctx, &mut texture, "compare", image);
+        self.compare = texture.map(|t| (t, want, mean));
+    }
+
+    /// The probed pixel's radiance on each side (the pinned one, else the one under the
+    /// pointer).
+    fn probe_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| match self.probe_text() {
+            Some(t) => {
+                ui.label(t);
+                if self.probe_pinned.is_some() && ui.small_button("unpin (Esc)").clicked() {
+                    self.probe_pinned = None;
+                }
+            }
+            None => {
+                ui.label("pixel probe: point at the image (click pins a pixel)");
+            }
+        });
+    }
+
+    /// The probe's readout: pixel, each side's linear radiance and frames, and their
+    /// difference.
+    pub fn probe_text(&self) -> Option<String> {
+        let (x, y) = self.probe_pinned.or(self.probe_hover)?;
+        let mut parts = vec![format!(
+            "pixel ({x}, {y}){}",
+            if self.probe_pinned.is_some() {
+                " pinned"
+            } else {
+                ""
+            }
+        )];
+        let mut values = Vec::new();
+        for side in Side::BOTH {
+            let Some(u) = self.latest(side) else {
+                parts.push(format!("{}: rendering", side.name()));
+                continue;
+            };
+            // The probe is in full-size pixels; a reduced image is sampled where it is.
+            let (full, _) = self.sizes(side);
+            let sx = (x as u64 * u.frame.width as u64 / full.0.max(1) as u64) as u32;
+            let sy = (y as u64 * u.frame.height as u64 / full.1.max(1) as u64) as u32;
+            let p = u.frame.pixels
+                [(sy.min(u.frame.height - 1) * u.frame.width + sx.min(u.frame.width - 1)) as usize];
+            values.push(p);
+            parts.push(format!(
+                "{}: {:.4} {:.4} {:.4} ({} frames)",
+                side.name(),
+                p[0],
+                p[1],
+                p[2],
+                u.frames
+            ));
+        }
+        if let [a, b] = values[..] {
+            parts.push(format!(
+                "|L - R|: {:.4} {:.4} {:.4}",
+                (a[0] - b[0]).abs(),
+                (a[1] - b[1]).abs(),
+                (a[2] - b[2]).abs()
+            ));
+        }
+        Some(parts.join("   "))
     }
 
     fn status_bar(&mut self, ui: &mut egui::Ui) {
@@ -779,6 +1087,28 @@ impl ViewerApp {
                         .changed();
                     ui.end_row();
                     changed |= drag_row(ui, "seed", egui::DragValue::new(&mut settings.seed));
+                    let row = ui.label("pixel filter").id;
+                    egui::ComboBox::from_id_salt("pixel-filter")
+                        .selected_text(settings.pixel_filter.name())
+                        .show_ui(ui, |ui| {
+                            for f in crate::render::PixelFilter::ALL {
+                                changed |= ui
+                                    .selectable_value(&mut settings.pixel_filter, f, f.name())
+                                    .changed();
+                            }
+                        })
+                        .response
+                        .labelled_by(row);
+                    ui.end_row();
+                    if settings.pixel_filter != crate::render::PixelFilter::None {
+                        changed |= drag_row(
+                            ui,
+                            "filter width px",
+                            egui::DragValue::new(&mut settings.filter_width)
+                                .speed(0.01)
+                                .range(0.01..=crate::render::MAX_FILTER_WIDTH),
+                        );
+                    }
                     changed |= vec3_row(ui, "ambient", &mut ambient, 0.005, Some(0.0));
                 });
                 ui.checkbox(
@@ -951,17 +1281,35 @@ impl ViewerApp {
                 changed = true;
             }
         }
+        // Only controls that change this side's image: light samples where its plan
+        // samples area lights (not for hard or cone shadows, or a scene of point
+        // lights), frames where it accumulates anything.
+        let plan = {
+            // As if it accumulated: whether more than one frame would differ at all.
+            let e = self.state.rendered(side);
+            let many = crate::RenderSettings {
+                spp: 2,
+                ..e.settings.clone()
+            };
+            crate::plan::Plan::new(&e.scene, &many)
+        };
+        let samples_lights = (plan.area_lights && !plan.cone_shadows)
+            || plan.shadow_model.is_some_and(|m| m.stochastic);
         egui::Grid::new(("side-grid", i)).show(ui, |ui| {
-            changed |= drag_row(
-                ui,
-                "light samples / frame",
-                egui::DragValue::new(&mut s.light_samples).range(1..=MAX_SAMPLES),
-            );
-            changed |= drag_row(
-                ui,
-                "max frames",
-                egui::DragValue::new(&mut s.max_spp).range(1..=MAX_VIEW_SPP),
-            );
+            if samples_lights {
+                changed |= drag_row(
+                    ui,
+                    "light samples / frame",
+                    egui::DragValue::new(&mut s.light_samples).range(1..=MAX_SAMPLES),
+                );
+            }
+            if plan.accumulate {
+                changed |= drag_row(
+                    ui,
+                    "max frames",
+                    egui::DragValue::new(&mut s.max_spp).range(1..=MAX_VIEW_SPP),
+                );
+            }
         });
         if s.features.cones() {
             egui::CollapsingHeader::new("cone knobs")
@@ -1053,6 +1401,11 @@ impl ViewerApp {
             ui.add(egui::DragValue::new(&mut self.references.spp).range(1..=MAX_VIEW_SPP))
                 .labelled_by(row);
         });
+        ui.checkbox(&mut self.error_live, "keep error on")
+            .on_hover_text(
+                "After every change, once the view settles, render the new references and \
+                 keep RMSE, PSNR and FLIP shown",
+            );
         if ui
             .button("Error vs reference")
             .on_hover_text(
@@ -1071,76 +1424,155 @@ impl ViewerApp {
         }
     }
 
-    /// The two images, each clipped to its side of the divider, over the same rect.
+    /// The image area: the two images split by the divider, one side alone, or their
+    /// comparison; fitted or zoomed; a stale image dimmed and labelled; the probe.
     fn split_view(&mut self, ui: &mut egui::Ui) {
         let (full, _) = self.sizes(Side::Left);
-        let avail = ui.available_size();
-        let aspect = full.0 as f32 / full.1 as f32;
-        let size = if avail.x / avail.y.max(1.0) > aspect {
-            Vec2::new(avail.y * aspect, avail.y)
-        } else {
-            Vec2::new(avail.x, avail.x / aspect)
-        };
-        // Centred in the panel; the drag and scroll area is exactly the drawn image.
-        let rect = Rect::from_center_size(ui.max_rect().center(), size).intersect(ui.max_rect());
+        let area = ui.max_rect();
+        let rect = self
+            .display
+            .image_rect(area, full, ui.ctx().pixels_per_point());
+        let visible = rect.intersect(area);
         let response = ui
-            .allocate_rect(rect, Sense::click_and_drag())
-            .on_hover_text("drag to orbit, scroll to zoom, R to reset");
+            .allocate_rect(visible, Sense::click_and_drag())
+            .on_hover_text("drag to orbit, shift-drag to pan a zoomed view, scroll to zoom the camera, click to pin the probe, R to reset, B to flip sides");
         response
             .widget_info(|| egui::WidgetInfo::labeled(egui::Role::Image, true, "split view image"));
+        let mode = self.display.mode;
+        let split = mode == ViewMode::Split;
         let split_x = rect.left() + self.state.divider.clamp(0.0, 1.0) * rect.width();
-        let painter = ui.painter();
-        painter.rect_filled(rect, 0.0, Color32::BLACK);
+        let painter = ui.painter().with_clip_rect(area);
+        painter.rect_filled(visible, 0.0, Color32::BLACK);
         let uv = Rect::from_min_max(pos2(0.0, 0.0), pos2(1.0, 1.0));
-        for side in Side::BOTH {
-            let clip = match side {
-                Side::Left => Rect::from_min_max(rect.min, pos2(split_x, rect.max.y)),
-                Side::Right => Rect::from_min_max(pos2(split_x, rect.min.y), rect.max),
-            };
-            if let Some(t) = &self.views[side.index()].texture {
-                painter
-                    .with_clip_rect(clip)
-                    .image(t.id(), rect, uv, Color32::WHITE);
+        let font = egui::FontId::proportional(13.0);
+        if mode.compares() {
+            match &self.compare {
+                Some((t, ..)) => {
+                    painter.image(t.id(), rect, uv, Color32::WHITE);
+                }
+                None => {
+                    painter.text(
+                        visible.center(),
+                        egui::Align2::CENTER_CENTER,
+                        "waiting for both sides at one size",
+                        font.clone(),
+                        Color32::WHITE,
+                    );
+                }
+            }
+        } else {
+            for side in Side::BOTH {
+                let clip = match (mode, side) {
+                    (ViewMode::Split, Side::Left) => {
+                        Rect::from_min_max(rect.min, pos2(split_x, rect.max.y))
+                    }
+                    (ViewMode::Split, Side::Right) => {
+                        Rect::from_min_max(pos2(split_x, rect.min.y), rect.max)
+                    }
+                    (ViewMode::Left, Side::Left) | (ViewMode::Right, Side::Right) => rect,
+                    _ => continue,
+                }
+                .intersect(area);
+                let v = &self.views[side.index()];
+                let Some(t) = &v.texture else {
+                    continue;
+                };
+                // An image of an earlier state (the camera was reset, a setting
+                // changed) while the new one renders: dimmed and labelled, never shown
+                // as current.
+                let stale = v.latest.is_none();
+                let tint = if stale {
+                    display::STALE_TINT
+                } else {
+                    Color32::WHITE
+                };
+                painter.with_clip_rect(clip).image(t.id(), rect, uv, tint);
+                if stale {
+                    painter.with_clip_rect(clip).text(
+                        clip.center(),
+                        egui::Align2::CENTER_CENTER,
+                        format!("{}: rendering the new state (stale image)", side.name()),
+                        font.clone(),
+                        Color32::YELLOW,
+                    );
+                }
             }
         }
 
-        // The divider: a line with a handle to drag.
-        let handle = Rect::from_min_max(
-            pos2(split_x - 6.0, rect.top()),
-            pos2(split_x + 6.0, rect.bottom()),
-        );
-        let divider = ui.interact(handle, egui::Id::unique("voxlab-divider"), Sense::drag());
-        divider.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Splitter, true, "divider"));
-        if divider.hovered() || divider.dragged() {
-            ui.ctx().set_cursor_icon(egui::CursorIcon::ResizeHorizontal);
-        }
-        if divider.dragged() && rect.width() > 0.0 {
-            self.state.divider =
-                (self.state.divider + divider.drag_delta().x / rect.width()).clamp(0.0, 1.0);
-        }
-        let painter = ui.painter();
-        painter.line_segment(
-            [pos2(split_x, rect.top()), pos2(split_x, rect.bottom())],
-            egui::Stroke::new(2.0, Color32::WHITE),
-        );
-        let label = |x: f32, text: &str, align: egui::Align2| {
+        // The divider, in the split view: a line with a handle to drag. A drag that
+        // starts beside the handle moves the divider too, and never orbits.
+        let mut divider_dragged = false;
+        if split {
+            let handle = Rect::from_min_max(
+                pos2(split_x - DIVIDER_GRAB, rect.top()),
+                pos2(split_x + DIVIDER_GRAB, rect.bottom()),
+            )
+            .intersect(area);
+            let divider = ui.interact(handle, egui::Id::unique("voxlab-divider"), Sense::drag());
+            divider
+                .widget_info(|| egui::WidgetInfo::labeled(egui::Role::Splitter, true, "divider"));
+            if divider.hovered() || divider.dragged() {
+                ui.ctx().set_cursor_icon(egui::CursorIcon::ResizeHorizontal);
+            }
+            if divider.dragged() && rect.width() > 0.0 {
+                self.state.divider =
+                    (self.state.divider + divider.drag_delta().x / rect.width()).clamp(0.0, 1.0);
+                divider_dragged = true;
+            }
+            painter.line_segment(
+                [pos2(split_x, rect.top()), pos2(split_x, rect.bottom())],
+                egui::Stroke::new(2.0, Color32::WHITE),
+            );
+            let label = |x: f32, text: &str, align: egui::Align2| {
+                painter.text(
+                    pos2(x, visible.top() + 4.0),
+                    align,
+                    text,
+                    font.clone(),
+                    Color32::WHITE,
+                );
+            };
+            label(split_x - 8.0, "left", egui::Align2::RIGHT_TOP);
+            label(split_x + 8.0, "right", egui::Align2::LEFT_TOP);
+        } else {
             painter.text(
-                pos2(x, rect.top() + 4.0),
-                align,
-                text,
-                egui::FontId::proportional(13.0),
+                pos2(visible.left() + 6.0, visible.top() + 4.0),
+                egui::Align2::LEFT_TOP,
+                mode.name(),
+                font.clone(),
                 Color32::WHITE,
             );
-        };
-        label(split_x - 8.0, "left", egui::Align2::RIGHT_TOP);
-        label(split_x + 8.0, "right", egui::Align2::LEFT_TOP);
+        }
 
-        // Orbit and zoom on the image itself.
-        if response.dragged() && !divider.dragged() {
+        if response.drag_started() {
+            let origin = ui.input(|i| i.pointer.press_origin());
+            self.dragging_divider =
+                split && origin.is_some_and(|p| (p.x - split_x).abs() <= 2.0 * DIVIDER_GRAB);
+        }
+        if response.dragged() && !divider_dragged {
             let d = response.drag_delta();
-            if d != Vec2::ZERO {
+            let shift = ui.input(|i| i.modifiers.shift);
+            if self.dragging_divider {
+                if rect.width() > 0.0 {
+                    self.state.divider = (self.state.divider + d.x / rect.width()).clamp(0.0, 1.0);
+                }
+            } else if shift && matches!(self.display.zoom, Zoom::Pixels(_)) {
+                // Pan the zoomed image: the centre pixel moves against the drag.
+                let per_pixel = rect.width() / full.0.max(1) as f32;
+                let (cx, cy) = self
+                    .display
+                    .centre
+                    .unwrap_or((full.0 as f32 / 2.0, full.1 as f32 / 2.0));
+                self.display.centre = Some((
+                    (cx - d.x / per_pixel).clamp(0.0, full.0 as f32),
+                    (cy - d.y / per_pixel).clamp(0.0, full.1 as f32),
+                ));
+            } else if d != Vec2::ZERO {
                 self.edit_shared(|s| s.orbit_pixels(d.x, d.y));
             }
+        }
+        if response.drag_stopped() {
+            self.dragging_divider = false;
         }
         if response.hovered() {
             let scroll = ui.input(|i| i.smooth_scroll_delta.y);
@@ -1148,6 +1580,45 @@ impl ViewerApp {
                 self.edit_shared(|s| s.zoom(scroll / 50.0));
             }
         }
+
+        // The probe: the pixel under the pointer, or the one clicked (pinned).
+        self.probe_hover = response
+            .hover_pos()
+            .and_then(|p| display::pixel_at(rect, full, p));
+        if response.clicked()
+            && let Some(p) = response.interact_pointer_pos()
+        {
+            self.probe_pinned = display::pixel_at(rect, full, p);
+        }
+        if let Some(px) = self.probe_pinned {
+            let c = display::pixel_centre(rect, full, px);
+            let r = (rect.width() / full.0.max(1) as f32).max(6.0) / 2.0;
+            painter.rect_stroke(
+                Rect::from_center_size(c, Vec2::splat(2.0 * r)),
+                0.0,
+                egui::Stroke::new(1.5, Color32::YELLOW),
+                egui::StrokeKind::Outside,
+            );
+        }
+    }
+}
+
+/// Puts `image` into `texture` (made on first use): magnified nearest, so an image
+/// pixel stays a sharp square at any zoom; minified linearly.
+fn set_texture(
+    ctx: &egui::Context,
+    texture: &mut Option<TextureHandle>,
+    name: &str,
+    image: ColorImage,
+) {
+    let options = TextureOptions {
+        magnification: egui::TextureFilter::Nearest,
+        minification: egui::TextureFilter::Linear,
+        ..TextureOptions::LINEAR
+    };
+    match texture {
+        Some(t) => t.set(image, options),
+        None => *texture = Some(ctx.load_texture(name, image, options)),
     }
 }
 
@@ -1273,6 +1744,10 @@ fn light_edit(
                             changed = true;
                         }
                         ui.end_row();
+                    }
+                    // A disk looks the same turned about its normal: only a rect has a
+                    // rotation that changes the image.
+                    if matches!(a.shape, AreaShape::Rect { .. }) {
                         let row = ui.label("rotation deg").id;
                         let mut deg = a.rotation.to_degrees();
                         if ui

@@ -5,10 +5,14 @@
 //!   kept exact by a TOML round trip after every edit;
 //! - `worker`: one render thread per side and one for references, each with its own
 //!   `GpuTracer`, accumulating progressively;
-//! - `app`: the window.
+//! - `app`: the window;
+//! - `display`: how the images are shown (view modes, exposure, zoom, probe geometry);
+//! - `reload`: the experiment file watched and reloaded on change.
 
 pub mod app;
 pub mod bench;
+pub mod display;
+pub mod reload;
 pub mod state;
 pub mod worker;
 
@@ -88,6 +92,7 @@ pub fn run(opts: ViewOptions) -> Result<Outcome> {
     };
     let automation = opts.automation.clone();
     let app_outcome = outcome.clone();
+    let watch_opts = opts.clone();
     eframe::run_native(
         "voxlab view",
         native,
@@ -118,7 +123,8 @@ pub fn run(opts: ViewOptions) -> Result<Outcome> {
                 jobs.push(tx);
             }
             let jobs: [_; 3] = jobs.try_into().expect("three job queues");
-            let app = ViewerApp::new(state, jobs, reports, automation, app_outcome);
+            let mut app = ViewerApp::new(state, jobs, reports, automation, app_outcome);
+            app.watch(watch_opts);
             Ok(Box::new(WindowApp {
                 app,
                 _workers: workers,

@@ -160,7 +160,7 @@ impl SideSettings {
 /// Largest accumulation cap the viewer offers.
 pub const MAX_VIEW_SPP: u32 = 4096;
 
-/// Default accumulation cap per side.
+/// Default accumulation cap per side, when the experiment's spp is 1 (its default).
 pub const DEFAULT_VIEW_SPP: u32 = 256;
 
 /// Pitch stays short of the poles, where the orbit's "right" axis turns over.
@@ -201,7 +201,13 @@ impl ViewerState {
             (Some(t), Some(p)) => crate::experiment::write::scene_source(t, p)?,
             _ => toml::Table::new(),
         };
-        let left = SideSettings::from_settings(&base.settings, DEFAULT_VIEW_SPP);
+        // The file's spp caps the accumulation where it asks for more than one frame;
+        // 1 is also the default, so it leaves the viewer's own cap.
+        let cap = match base.settings.spp {
+            0 | 1 => DEFAULT_VIEW_SPP,
+            n => n.min(MAX_VIEW_SPP),
+        };
+        let left = SideSettings::from_settings(&base.settings, cap);
         let mut right = left.clone();
         // A useful first comparison: what the file asks for against soft shadows, from
         // sampled area lights with distance-weighted transmittance where the scene has
