@@ -108,12 +108,21 @@ pub struct AblateConfig {
     pub sweeps: Vec<KeySweep>,
 }
 
-/// One curve of `[ablate] sweep`: a key of the experiment file and, per value, the
-/// value as written and the render settings it gives.
+/// One curve of `[ablate] sweep`: a key of the experiment file and its values.
 #[derive(Clone, Debug, PartialEq)]
 pub struct KeySweep {
     pub key: String,
-    pub points: Vec<(String, RenderSettings)>,
+    pub points: Vec<SweepValue>,
+}
+
+/// One value of a key sweep: as written, the render settings it gives, and the scene
+/// when it changes the scene (a camera, a light, a material): such a point is measured
+/// against a converged reference of its own scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepValue {
+    pub value: String,
+    pub settings: RenderSettings,
+    pub scene: Option<std::sync::Arc<Scene>>,
 }
 
 impl Default for AblateConfig {
@@ -447,16 +456,19 @@ fn key_sweeps(
             let e =
                 Experiment::from_str_with_cache(text, path, std::slice::from_ref(&o), &mut cache)
                     .map_err(|e| what(e.to_string()))?;
-            if e.scene != base.scene
-                || (e.settings.width, e.settings.height)
-                    != (base.settings.width, base.settings.height)
+            if (e.settings.width, e.settings.height) != (base.settings.width, base.settings.height)
             {
                 return Err(what(format!(
-                    "{written} changes the scene or the image size; a sweep compares quality \
-                     knobs against one reference"
+                    "{written} changes the image size; the points of a sweep are images of \
+                     one size (give render.width and render.height in the file)"
                 )));
             }
-            points.push((written, e.settings));
+            let scene = (e.scene != base.scene).then(|| std::sync::Arc::new(e.scene));
+            points.push(SweepValue {
+                value: written,
+                settings: e.settings,
+                scene,
+            });
         }
         out.push(KeySweep {
             key: key.clone(),
@@ -501,6 +513,9 @@ pub struct Point {
     /// Render the scene with every area light replaced by a point light at its centre
     /// (same colour and intensity), so a point light's cone aperture can be swept.
     pub lights_as_points: bool,
+    /// A scene of its own (a key sweep over the camera, a light, ...), measured against
+    /// its own converged reference; `None`: the experiment's.
+    pub scene: Option<std::sync::Arc<Scene>>,
 }
 
 impl Point {
@@ -578,6 +593,7 @@ fn baseline_points(e: &Experiment, _: &AblateConfig) -> Vec<Point> {
         value: "-".into(),
         settings,
         lights_as_points: false,
+        scene: None,
     }]
 }
 
@@ -605,6 +621,7 @@ fn hard_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
                 ..e.settings.clone()
             },
             lights_as_points: false,
+            scene: None,
         })
         .collect()
 }
@@ -625,6 +642,7 @@ fn stochastic_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
                 ..e.settings.clone()
             },
             lights_as_points: false,
+            scene: None,
         })
         .collect()
 }
@@ -653,6 +671,7 @@ fn cone_step_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
                 ..e.settings.clone()
             },
             lights_as_points: false,
+            scene: None,
         })
         .collect()
 }
@@ -683,6 +702,7 @@ fn cone_aperture_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
                 ..e.settings.clone()
             },
             lights_as_points: true,
+            scene: None,
         })
         .collect()
 }
@@ -750,6 +770,7 @@ fn plug_in_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
                     ..base.clone()
                 },
                 lights_as_points: false,
+                scene: None,
             }));
         } else if let Some(knob) = m.setting(m.ablate_knob) {
             out.extend(knob.sweep.iter().map(|&v| {
@@ -761,6 +782,7 @@ fn plug_in_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
                     value: format!("{v}"),
                     settings,
                     lights_as_points: false,
+                    scene: None,
                 }
             }));
         }
@@ -773,12 +795,13 @@ fn key_sweep_points(_: &Experiment, c: &AblateConfig) -> Vec<Point> {
     c.sweeps
         .iter()
         .flat_map(|k| {
-            k.points.iter().map(|(value, settings)| Point {
+            k.points.iter().map(|v| Point {
                 model: format!("sweep {}", k.key),
                 knob: k.key.clone(),
-                value: value.clone(),
-                settings: settings.clone(),
+                value: v.value.clone(),
+                settings: v.settings.clone(),
                 lights_as_points: false,
+                scene: v.scene.clone(),
             })
         })
         .collect()
@@ -1136,6 +1159,9 @@ pub struct Row {
     pub rmse: f64,
     pub psnr: f64,
     pub flip_mean: f64,
+    /// Measured against a reference of its own scene (a key sweep that changes the
+    /// scene): that reference's noise RMSE. `None`: the experiment's reference.
+    pub own_reference: Option<f64>,
     pub plan: String,
     /// The PNG, relative to the output directory.
     pub image: String,
@@ -1167,11 +1193,12 @@ fn measure(
     progress.set_message(format!("{} {} {}", point.model, point.knob, point.value));
     let s = &point.settings;
     let converted;
+    let own = point.scene.as_deref().unwrap_or(&e.scene);
     let scene = if point.lights_as_points {
-        converted = lights_as_points(&e.scene);
+        converted = lights_as_points(own);
         &converted
     } else {
-        &e.scene
+        own
     };
     let mut choice = c.backend;
     let mut times = Vec::new();
@@ -1240,6 +1267,7 @@ fn measure(
         rmse: d.rmse,
         psnr: d.psnr,
         flip_mean,
+        own_reference: None,
         plan: r.plan.to_string(),
         image: format!("images/{}.png", point.slug()),
         frame: r.frame,
@@ -1344,8 +1372,32 @@ pub fn run(
         );
     }
     let mut rows = Vec::new();
+    // References of the points with a scene of their own, by scene.
+    let mut own_references: Vec<(std::sync::Arc<Scene>, Reference)> = Vec::new();
     for p in &points {
-        let row = measure(e, c, &mut tracers, p, &reference.frame, &progress)?;
+        let own = match &p.scene {
+            None => None,
+            Some(scene) => {
+                let known = own_references.iter().position(|(s, _)| **s == **scene);
+                let i = match known {
+                    Some(i) => i,
+                    None => {
+                        progress.inc_length(u64::from(c.reference_spp));
+                        let pe = Experiment {
+                            scene: scene.as_ref().clone(),
+                            ..e.clone()
+                        };
+                        let r = self::reference(&pe, c, &mut tracers, &cache_dir, &progress)?;
+                        own_references.push((scene.clone(), r));
+                        own_references.len() - 1
+                    }
+                };
+                Some(&own_references[i].1)
+            }
+        };
+        let against = own.unwrap_or(&reference);
+        let mut row = measure(e, c, &mut tracers, p, &against.frame, &progress)?;
+        row.own_reference = own.map(|r| r.noise_rmse);
         if lines {
             eprintln!(
                 "{} {}={}: {:.2} ms ({}), rmse {:.3e}, flip {:.4}",
@@ -1422,7 +1474,7 @@ fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
     write_bytes(path, bytes.get_ref())
 }
 
-pub const CSV_COLUMNS: [&str; 26] = [
+pub const CSV_COLUMNS: [&str; 27] = [
     "model",
     "knob",
     "value",
@@ -1447,6 +1499,7 @@ pub const CSV_COLUMNS: [&str; 26] = [
     "flip_mean",
     "reference_spp",
     "reference_noise_rmse",
+    "own_reference",
     "image",
     "fallback",
 ];
@@ -1489,7 +1542,8 @@ fn csv(rows: &[Row], r: &Reference) -> String {
             format!("{:.6}", row.psnr),
             format!("{:.9e}", row.flip_mean),
             r.spp.to_string(),
-            format!("{:.9e}", r.noise_rmse),
+            format!("{:.9e}", row.own_reference.unwrap_or(r.noise_rmse)),
+            row.own_reference.is_some().to_string(),
             row.image.clone(),
             row.fallback
                 .as_deref()
@@ -1577,6 +1631,15 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
     }
     if rows.iter().any(|r| r.cone_shadows) {
         t.push('\n');
+    }
+    if rows.iter().any(|r| r.own_reference.is_some()) {
+        let _ = write!(
+            t,
+            "\nPoints of a key sweep whose value changes the scene (a camera, a light, a \
+             material) are measured against a converged reference of their own scene, \
+             rendered and cached like the experiment's (CSV: own_reference, and its noise in \
+             reference_noise_rmse).\n"
+        );
     }
     if let Some(f) = rows.iter().find_map(|r| r.fallback.as_deref()) {
         let _ = write!(

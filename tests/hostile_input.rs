@@ -150,6 +150,7 @@ fn ablation_point_names_stay_short_and_unique() {
         value: format!("{value}"),
         settings: RenderSettings::default(),
         lights_as_points: true,
+        scene: None,
     };
     let a = point(1e-300).slug();
     let b = point(2e-300).slug();
