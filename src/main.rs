@@ -106,6 +106,26 @@ struct ViewArgs {
     /// Override any key of the experiment file (repeatable; as `render --set`).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<voxlab::experiment::Override>,
+    /// What the image area shows at the start (B flips the sides in the window).
+    #[arg(long, value_enum, default_value_t = ViewModeArg::Split)]
+    view: ViewModeArg,
+    /// Display exposure: radiance times 2^EV before the clamp.
+    #[arg(long, value_name = "EV", default_value_t = 0.0, allow_hyphen_values = true,
+          value_parser = parse_exposure)]
+    exposure: f64,
+    /// Show the sRGB-encoded display (default: the seed's linear framebuffer).
+    #[arg(long)]
+    srgb: bool,
+}
+
+#[cfg(feature = "viewer")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum ViewModeArg {
+    Split,
+    Left,
+    Right,
+    Difference,
+    Flip,
 }
 
 #[cfg(feature = "viewer")]
@@ -150,6 +170,14 @@ fn cmd_view(args: ViewArgs) -> Result<()> {
         _ => None,
     };
     let scripted = automation.is_some();
+    use voxlab::viewer::display::{Display, ViewMode};
+    let mode = match args.view {
+        ViewModeArg::Split => ViewMode::Split,
+        ViewModeArg::Left => ViewMode::Left,
+        ViewModeArg::Right => ViewMode::Right,
+        ViewModeArg::Difference => ViewMode::Difference,
+        ViewModeArg::Flip => ViewMode::Flip,
+    };
     let outcome = voxlab::viewer::run(ViewOptions {
         experiment: args.experiment,
         left: args.left,
@@ -158,6 +186,12 @@ fn cmd_view(args: ViewArgs) -> Result<()> {
         window: args.window,
         automation,
         overrides: args.set,
+        display: Display {
+            mode,
+            exposure: args.exposure,
+            srgb: args.srgb,
+            ..Display::default()
+        },
     })?;
     if scripted {
         for p in &outcome.saved {

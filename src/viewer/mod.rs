@@ -41,6 +41,8 @@ pub struct ViewOptions {
     pub automation: Option<Automation>,
     /// `--set KEY=VALUE` overrides of the experiment (`crate::experiment::Override`).
     pub overrides: Vec<crate::experiment::Override>,
+    /// The image area's first view mode, exposure and encoding.
+    pub display: display::Display,
 }
 
 /// Loads the experiment and builds the viewer's state (no window: testable).
@@ -124,6 +126,7 @@ pub fn run(opts: ViewOptions) -> Result<Outcome> {
             }
             let jobs: [_; 3] = jobs.try_into().expect("three job queues");
             let mut app = ViewerApp::new(state, jobs, reports, automation, app_outcome);
+            app.display = watch_opts.display.clone();
             app.watch(watch_opts);
             Ok(Box::new(WindowApp {
                 app,
