@@ -12,6 +12,7 @@ fn images_carry_what_made_them() {
     let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let dir = std::env::temp_dir().join(format!("voxlab-provenance-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("sdf.png");
     let set = [
         "techniques.sdf.softness=2",
@@ -95,6 +96,7 @@ fn display_and_exposure_shape_the_png_only() {
     let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let dir = std::env::temp_dir().join(format!("voxlab-display-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
     let render = |out: &str, extra: &[&str]| {
         let run = Command::new(env!("CARGO_BIN_EXE_voxlab"))
             .args([
