@@ -1659,23 +1659,7 @@ fn apply_mesh_material(scene: &mut Scene, s: &RawScene, ctx: &Ctx) -> Result<(),
     let (Some(_), Some(r)) = (&s.mesh, &s.material) else {
         return Ok(());
     };
-    let n = scene.materials.len();
-    let k = match r {
-        MaterialRef::Index(i) => int_in(ctx, "scene.material", *i, 1..=(n as i64 - 1))? as u8,
-        MaterialRef::Name(name) => match scene.materials.iter().position(|m| &m.name == name) {
-            Some(0) => {
-                return Err(ctx.invalid("scene.material", "void cannot be a mesh's material"));
-            }
-            Some(i) => i as u8,
-            None => {
-                let names: Vec<&str> = scene.materials.iter().map(|m| m.name.as_str()).collect();
-                return Err(ctx.invalid(
-                    "scene.material",
-                    format!("no such material; defined: {}", names.join(", ")),
-                ));
-            }
-        },
-    };
+    let k = models::resolve_material(scene, r, "scene.material", ctx)?;
     for m in scene.grid.data_mut() {
         if *m != 0 {
             *m = k;

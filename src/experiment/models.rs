@@ -274,7 +274,9 @@ fn write_scaled(dst: &mut Grid, src: &Grid, base: IVec3, scale: u32, map: &[u8])
     }
 }
 
-fn resolve_material(
+/// A material reference (name or index) in the final palette, for a whole mesh or
+/// model: void refused, an unknown name answered with the names defined.
+pub(super) fn resolve_material(
     scene: &Scene,
     r: &MaterialRef,
     k: &str,
@@ -284,7 +286,7 @@ fn resolve_material(
     match r {
         MaterialRef::Index(i) => Ok(int_in(ctx, k, *i, 1..=(n as i64 - 1))? as u8),
         MaterialRef::Name(name) => match scene.materials.iter().position(|m| &m.name == name) {
-            Some(0) => Err(ctx.invalid(k, "void cannot be a model's material")),
+            Some(0) => Err(ctx.invalid(k, "void cannot be a mesh's or model's material")),
             Some(i) => Ok(i as u8),
             None => {
                 let names: Vec<&str> = scene.materials.iter().map(|m| m.name.as_str()).collect();
