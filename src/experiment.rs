@@ -979,7 +979,7 @@ fn scene_voxels(
             Some((g, p)) => (g, Some(p)),
             None => (build_grid(s, ctx)?, None),
         };
-        let models = models::load_models(&s.models, ctx)?;
+        let models = models::load_models(&s.models, ctx, grid.dims())?;
         Ok((grid, palette, models))
     };
     let Some(cache) = cache else {

@@ -306,6 +306,15 @@ fn bad_models_get_an_error_naming_the_key_and_the_range() {
         e.contains("scene.models[0].mesh") && e.contains("resolution"),
         "{e}"
     );
+    // A mesh model longer than the grid is refused before it is voxelized.
+    let e = error_of(&format!(
+        "[scene]\ngenerator = \"empty\"\ndims = [30, 20, 10]\n[[scene.models]]\nmesh = \"{}\"\nresolution = 60000\n",
+        common::shared_data("bunny.obj").display()
+    ));
+    assert!(
+        e.contains("scene.models[0].resolution") && e.contains("1..=30"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -59,6 +59,7 @@ fn key(i: usize, k: &str) -> String {
 pub(super) fn load_models(
     models: &[RawModel],
     ctx: &Ctx,
+    grid: UVec3,
 ) -> Result<Vec<LoadedModel>, ExperimentError> {
     use crate::scene::mesh::MAX_RESOLUTION;
     use crate::scene::{Resolution, VoxelizeOptions, load_vox, voxelize_mesh};
@@ -110,7 +111,10 @@ pub(super) fn load_models(
                         "needs resolution (voxels along the mesh's longest axis)",
                     ));
                 };
-                let n = int_in(ctx, &key(i, "resolution"), n, 1..=i64::from(MAX_RESOLUTION))?;
+                // A model must fit the grid: a longer axis than the grid's longest side
+                // is refused before the (bounded, but possibly large) voxelization.
+                let side = grid.max_element().min(MAX_RESOLUTION);
+                let n = int_in(ctx, &key(i, "resolution"), n, 1..=i64::from(side))?;
                 let options = VoxelizeOptions {
                     resolution: Resolution::Count(n),
                     material: None,
