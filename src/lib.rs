@@ -19,6 +19,7 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod stress;
+pub mod surface;
 pub mod technique;
 #[cfg(feature = "viewer")]
 pub mod viewer;

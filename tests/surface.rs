@@ -1,0 +1,212 @@
+//! Smooth surfaces of the voxels (`voxlab mesh`, src/surface.rs): closed, near the shape
+//! the voxels came from, outward, and written in files other readers load.
+
+mod common;
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use glam::{DVec3, IVec3, UVec3};
+use voxlab::scene::{Grid, load_vox};
+use voxlab::surface::{DEFAULT_RELAX, extract};
+
+/// A sphere of radius `r` voxelized at `n`^3 (a voxel is in when its centre is).
+fn sphere(n: u32, r: f64) -> (Grid, DVec3) {
+    let mut g = Grid::new(UVec3::splat(n), 1.0, DVec3::ZERO).unwrap();
+    let c = DVec3::splat(n as f64 / 2.0);
+    for z in 0..n as i32 {
+        for y in 0..n as i32 {
+            for x in 0..n as i32 {
+                let p = DVec3::new(x as f64, y as f64, z as f64) + 0.5;
+                if (p - c).length() <= r {
+                    g.set(IVec3::new(x, y, z), 1);
+                }
+            }
+        }
+    }
+    (g, c)
+}
+
+/// Mean and largest distance of the mesh's vertices from the sphere.
+fn sphere_error(mesh: &voxlab::surface::SurfaceMesh, c: DVec3, r: f64) -> (f64, f64) {
+    let d: Vec<f64> = mesh
+        .positions
+        .iter()
+        .map(|p| ((*p - c).length() - r).abs())
+        .collect();
+    (
+        d.iter().sum::<f64>() / d.len() as f64,
+        d.iter().copied().fold(0.0, f64::max),
+    )
+}
+
+#[test]
+fn a_voxelized_sphere_gives_a_closed_outward_surface_within_a_voxel_of_the_sphere() {
+    let r = 28.0;
+    let (g, c) = sphere(64, r);
+    let staircase = extract(&g, 0).unwrap();
+    let smooth = extract(&g, DEFAULT_RELAX).unwrap();
+    for mesh in [&staircase, &smooth] {
+        assert_eq!(mesh.materials(), vec![1]);
+        assert_eq!(mesh.open_edges(1), 0, "closed");
+        assert_eq!(
+            mesh.non_manifold_edges(1),
+            0,
+            "a sphere's voxels touch by faces"
+        );
+        // Euler characteristic of a sphere: V - E + F = 2.
+        let (v, f) = (mesh.positions.len() as i64, mesh.triangles.len() as i64);
+        assert_eq!(v - 3 * f / 2 + f, 2, "one sphere-like surface");
+        // Every normal points out of the sphere.
+        for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+            assert!(n.dot(*p - c) > 0.0, "normal {n} at {p}");
+        }
+        // Counter-clockwise seen from outside: the enclosed volume is positive and
+        // close to the ball's.
+        let volume: f64 = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, cc] = t.map(|i| mesh.positions[i as usize] - c);
+                a.dot(b.cross(cc)) / 6.0
+            })
+            .sum();
+        let ball = 4.0 / 3.0 * std::f64::consts::PI * r * r * r;
+        assert!(
+            (volume / ball - 1.0).abs() < 0.02,
+            "volume {volume} against {ball}"
+        );
+    }
+    let (mean0, max0) = sphere_error(&staircase, c, r);
+    let (mean, max) = sphere_error(&smooth, c, r);
+    // Smoothness: the angle between each vertex normal and the sphere's.
+    let angle = |m: &voxlab::surface::SurfaceMesh| {
+        m.positions
+            .iter()
+            .zip(&m.normals)
+            .map(|(p, n)| {
+                n.dot((*p - c).normalize())
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees()
+            })
+            .sum::<f64>()
+            / m.positions.len() as f64
+    };
+    let (a0, a) = (angle(&staircase), angle(&smooth));
+    println!(
+        "distance from the sphere (voxels): staircase mean {mean0:.3} max {max0:.3}, \
+         relaxed mean {mean:.3} max {max:.3}; normal error: {a0:.2} -> {a:.2} degrees"
+    );
+    assert!(max0 <= 1.0 && max <= 1.0, "within one voxel: {max0} {max}");
+    // Measured: 0.118 -> 0.057 voxels, 7.73 -> 2.86 degrees.
+    assert!(
+        mean < 0.6 * mean0,
+        "relaxing moves it towards the sphere: {mean} against {mean0}"
+    );
+    assert!(
+        a < 0.5 * a0,
+        "relaxing smooths the normals: {a} against {a0} degrees"
+    );
+}
+
+#[test]
+fn every_material_of_a_vox_model_is_closed() {
+    let v = load_vox(common::shared_data("deer.vox"), None).unwrap();
+    let mesh = extract(&v.grid, DEFAULT_RELAX).unwrap();
+    let used = v.grid.materials_used();
+    let expected: Vec<u8> = (1..=255u8).filter(|&m| used[m as usize]).collect();
+    assert_eq!(mesh.materials(), expected, "a surface per material used");
+    for m in expected {
+        assert_eq!(mesh.open_edges(m), 0, "material {m}");
+    }
+    // Vertices stay within a voxel of the voxels: inside the grid's box widened by one.
+    let lo = v.grid.world_min() - DVec3::splat(v.grid.voxel_size());
+    let hi = v.grid.world_max() + DVec3::splat(v.grid.voxel_size());
+    assert!(
+        mesh.positions
+            .iter()
+            .all(|p| p.cmpge(lo).all() && p.cmple(hi).all())
+    );
+}
+
+#[test]
+fn a_grid_too_large_is_refused_before_any_work() {
+    // Not allocated: only the dims are read.
+    let g = Grid::new(UVec3::new(1024, 1024, 128), 1.0, DVec3::ZERO).unwrap();
+    let e = extract(&g, 1).unwrap_err().to_string();
+    assert!(
+        e.contains("134217728 voxels") && e.contains("MAX_SURFACE_VOXELS"),
+        "{e}"
+    );
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("surface-{name}"));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn voxlab(args: &[&str]) -> (bool, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_voxlab"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn voxlab_mesh_writes_obj_and_ply_that_load_again() {
+    let dir = scratch("cli");
+    let exp = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/deer_area_light.toml"
+    );
+    let obj = dir.join("deer.obj");
+    let (ok, out, err) = voxlab(&["mesh", exp, "--out", obj.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    assert!(!out.contains("open edges"), "{out}");
+    let e = voxlab::experiment::Experiment::load(exp).unwrap();
+    let mesh = extract(&e.scene.grid, DEFAULT_RELAX).unwrap();
+    assert!(
+        out.contains(&format!("{} triangles", mesh.triangles.len())),
+        "{out}"
+    );
+    // voxlab's own mesh loader (tobj) reads it back, with its materials (the MTL).
+    let loaded = voxlab::scene::load_mesh(&obj).unwrap();
+    assert_eq!(loaded.triangles.len(), mesh.triangles.len());
+    assert!(dir.join("deer.mtl").is_file());
+    // PLY: the header's counts, then exactly the binary body they imply.
+    let ply = dir.join("deer.ply");
+    let (ok, _, err) = voxlab(&["mesh", exp, "--out", ply.to_str().unwrap(), "--relax", "3"]);
+    assert!(ok, "{err}");
+    let bytes = std::fs::read(&ply).unwrap();
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let header = String::from_utf8_lossy(&bytes[..end]);
+    let count = |what: &str| -> usize {
+        header
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("element {what} ")))
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let (v, f) = (count("vertex"), count("face"));
+    assert_eq!((v, f), (mesh.positions.len(), mesh.triangles.len()));
+    assert_eq!(bytes.len() - end, v * 24 + f * 14, "{header}");
+    // Bad outputs are refused before any work, with nothing written.
+    let (ok, _, err) = voxlab(&["mesh", exp, "--out", dir.join("x.stl").to_str().unwrap()]);
+    assert!(!ok && err.contains(".obj or .ply"), "{err}");
+    let (ok, _, err) = voxlab(&["mesh", exp, "--out", dir.join("no/x.obj").to_str().unwrap()]);
+    assert!(!ok && err.contains("does not exist"), "{err}");
+    assert!(!dir.join("x.stl").exists() && !dir.join("no").exists());
+}
