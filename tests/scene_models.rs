@@ -306,6 +306,21 @@ fn bad_models_get_an_error_naming_the_key_and_the_range() {
         e.contains("scene.models[0].mesh") && e.contains("resolution"),
         "{e}"
     );
+    // Hostile: too many models (each a file load) are refused before any is loaded; a
+    // device or a directory as the model is refused by the loader, the key named.
+    let many = format!(
+        "[scene]\ngenerator = \"empty\"\ndims = [40, 32, 20]\n{}",
+        format!("[[scene.models]]\nvox = \"{}\"\n", deer_path()).repeat(65)
+    );
+    let e = error_of(&many);
+    assert!(
+        e.contains("scene.models") && e.contains("at most 64"),
+        "{e}"
+    );
+    for path in ["/dev/zero", "/tmp"] {
+        let e = error_of(&composed("").replace(&deer_path(), path));
+        assert!(e.contains("scene.models[0].vox") && e.contains(path), "{e}");
+    }
     // A mesh model longer than the grid is refused before it is voxelized.
     let e = error_of(&format!(
         "[scene]\ngenerator = \"empty\"\ndims = [30, 20, 10]\n[[scene.models]]\nmesh = \"{}\"\nresolution = 60000\n",
