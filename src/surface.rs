@@ -67,33 +67,34 @@ impl SurfaceMesh {
     /// surface. Where two voxels of a material touch along an edge only, four triangles
     /// share a mesh edge (a non-manifold but watertight place): two each way.
     pub fn open_edges(&self, material: u8) -> usize {
-        let mut edges: std::collections::HashMap<(u32, u32), i64> = Default::default();
-        for (t, &m) in self.triangles.iter().zip(&self.triangle_material) {
-            if m != material {
-                continue;
-            }
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                *edges.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
-            }
-        }
-        edges.values().filter(|&&n| n != 0).count()
+        self.edges(material)
+            .values()
+            .filter(|(_, signed)| *signed != 0)
+            .count()
     }
 
     /// Edges of `material`'s surface shared by more than two of its triangles (where
     /// voxels touch along an edge only).
     pub fn non_manifold_edges(&self, material: u8) -> usize {
-        let mut edges: std::collections::HashMap<(u32, u32), u32> = Default::default();
+        self.edges(material).values().filter(|(n, _)| *n > 2).count()
+    }
+
+    /// Per undirected edge of `material`'s triangles: how many use it, and how many
+    /// more use it from the lower vertex index to the higher than the other way.
+    fn edges(&self, material: u8) -> std::collections::HashMap<(u32, u32), (u32, i64)> {
+        let mut edges: std::collections::HashMap<(u32, u32), (u32, i64)> = Default::default();
         for (t, &m) in self.triangles.iter().zip(&self.triangle_material) {
             if m != material {
                 continue;
             }
             for k in 0..3 {
                 let (a, b) = (t[k], t[(k + 1) % 3]);
-                *edges.entry((a.min(b), a.max(b))).or_default() += 1;
+                let e = edges.entry((a.min(b), a.max(b))).or_default();
+                e.0 += 1;
+                e.1 += if a < b { 1 } else { -1 };
             }
         }
-        edges.values().filter(|&&n| n > 2).count()
+        edges
     }
 
     /// The materials that have triangles, ascending.
