@@ -76,7 +76,10 @@ impl SurfaceMesh {
     /// Edges of `material`'s surface shared by more than two of its triangles (where
     /// voxels touch along an edge only).
     pub fn non_manifold_edges(&self, material: u8) -> usize {
-        self.edges(material).values().filter(|(n, _)| *n > 2).count()
+        self.edges(material)
+            .values()
+            .filter(|(n, _)| *n > 2)
+            .count()
     }
 
     /// Per undirected edge of `material`'s triangles: how many use it, and how many
