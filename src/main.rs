@@ -882,9 +882,13 @@ fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
 }
 
 /// An explicit output path's directory must exist: a mistyped directory is an error,
-/// not a new tree. Only the default `out/` is created.
+/// not a new tree. Only voxlab's own `out/` (the default outputs' directory, which the
+/// README's commands name) is created.
 fn output_dir_exists(out: &Path) -> Result<()> {
     match out.parent() {
+        Some(dir) if dir == Path::new("out") => {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))
+        }
         Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => bail!(
             "--out {}: the directory {} does not exist (voxlab creates only its default \
              out/; create it first)",
