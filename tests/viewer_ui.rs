@@ -1077,8 +1077,13 @@ fn view_modes_compare_the_same_pixels_and_b_flips_the_sides() {
     let want = voxlab::metrics::flip_mean(&left, &right);
     assert_eq!(rig.app().comparison(), Some(Some(want)));
     assert!(rig.has_label(&format!("FLIP mean (R vs L) {want:.4}")));
-    // A new frame of one side makes a new map.
+    // A new frame of one side makes a new map: while the sides accumulate, once the
+    // last map is half a second old (a FLIP map costs tens of ms on the window's thread).
     rig.send_current(Side::Right, constant(W, H, 0.4), 4);
+    rig.harness.run_steps(2);
+    let still = rig.app().comparison();
+    assert_eq!(still, Some(Some(want)), "not remade within the interval");
+    std::thread::sleep(Duration::from_millis(550));
     rig.harness.run_steps(2);
     let again = voxlab::metrics::flip_mean(&left, &constant(W, H, 0.4));
     assert_eq!(rig.app().comparison(), Some(Some(again)));

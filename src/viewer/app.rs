@@ -113,6 +113,9 @@ struct SideView {
     /// The frame the texture shows (kept to redraw it under another display transform);
     /// when `latest` is `None` it is of an earlier state: stale, shown dimmed.
     shown: Option<Arc<Frame>>,
+    /// Which of the side's controls apply (light samples, frames), for the generation
+    /// they were worked out for: the plan scans the grid, so not once per window frame.
+    controls: Option<(u64, bool, bool)>,
     /// The latest image of the current generation and size.
     latest: Option<Update>,
     /// What the worker was last asked for: generation and traced size.
@@ -169,6 +172,10 @@ pub struct ViewerApp {
     /// The comparison view's texture (difference or FLIP map), the state it was made
     /// from, and the FLIP mean of a FLIP map.
     compare: Option<(TextureHandle, CompareKey, Option<f64>)>,
+    /// When the comparison image was last made: a FLIP map costs tens of milliseconds
+    /// on the window's thread, so while the sides accumulate it is remade at most every
+    /// `FLIP_INTERVAL`, and at once when both are done.
+    compare_made: Option<Instant>,
     /// A pixel whose values stay shown (clicked); else the one under the pointer.
     pub probe_pinned: Option<(u32, u32)>,
     probe_hover: Option<(u32, u32)>,
@@ -188,6 +195,9 @@ struct CompareKey {
     display: Display,
     sides: [(u64, u32, u32, u32); 2],
 }
+
+/// Least time between two FLIP maps of one state while its sides accumulate.
+const FLIP_INTERVAL: Duration = Duration::from_millis(500);
 
 /// Pixels either side of the divider that grab it.
 const DIVIDER_GRAB: f32 = 10.0;
@@ -235,6 +245,7 @@ impl ViewerApp {
             display: Display::default(),
             shown_display: Display::default(),
             compare: None,
+            compare_made: None,
             probe_pinned: None,
             probe_hover: None,
             dragging_divider: false,
@@ -910,6 +921,24 @@ impl ViewerApp {
         if self.compare.as_ref().is_some_and(|(_, k, _)| *k == want) {
             return;
         }
+        let settled = Side::BOTH
+            .iter()
+            .all(|&s| self.latest(s).is_some_and(|u| u.frames == u.total));
+        let same_state = self.compare.as_ref().is_some_and(|(_, k, _)| {
+            k.mode == want.mode
+                && k.display == want.display
+                && (0..2).all(|i| k.sides[i].0 == want.sides[i].0)
+        });
+        if self.display.mode == ViewMode::Flip
+            && same_state
+            && !settled
+            && self
+                .compare_made
+                .is_some_and(|t| t.elapsed() < FLIP_INTERVAL)
+        {
+            ctx.request_repaint_after(FLIP_INTERVAL);
+            return;
+        }
         let (Some(l), Some(r)) = (self.latest(Side::Left), self.latest(Side::Right)) else {
             return;
         };
@@ -926,6 +955,7 @@ impl ViewerApp {
         let mut texture = self.compare.take().map(|(t, ..)| t);
         set_texture(ctx, &mut texture, "compare", image);
         self.compare = texture.map(|t| (t, want, mean));
+        self.compare_made = Some(Instant::now());
     }
 
     /// The probed pixel's radiance on each side (the pinned one, else the one under the
@@ -1284,17 +1314,23 @@ impl ViewerApp {
         // Only controls that change this side's image: light samples where its plan
         // samples area lights (not for hard or cone shadows, or a scene of point
         // lights), frames where it accumulates anything.
-        let plan = {
-            // As if it accumulated: whether more than one frame would differ at all.
-            let e = self.state.rendered(side);
-            let many = crate::RenderSettings {
-                spp: 2,
-                ..e.settings.clone()
-            };
-            crate::plan::Plan::new(&e.scene, &many)
+        let generation = self.state.generation[i];
+        let (samples_lights, accumulates) = match self.views[i].controls {
+            Some((g, samples, frames)) if g == generation => (samples, frames),
+            _ => {
+                // As if it accumulated: whether more than one frame would differ at all.
+                let e = self.state.rendered(side);
+                let many = crate::RenderSettings {
+                    spp: 2,
+                    ..e.settings.clone()
+                };
+                let plan = crate::plan::Plan::new(&e.scene, &many);
+                let samples = (plan.area_lights && !plan.cone_shadows)
+                    || plan.shadow_model.is_some_and(|m| m.stochastic);
+                self.views[i].controls = Some((generation, samples, plan.accumulate));
+                (samples, plan.accumulate)
+            }
         };
-        let samples_lights = (plan.area_lights && !plan.cone_shadows)
-            || plan.shadow_model.is_some_and(|m| m.stochastic);
         egui::Grid::new(("side-grid", i)).show(ui, |ui| {
             if samples_lights {
                 changed |= drag_row(
@@ -1303,7 +1339,7 @@ impl ViewerApp {
                     egui::DragValue::new(&mut s.light_samples).range(1..=MAX_SAMPLES),
                 );
             }
-            if plan.accumulate {
+            if accumulates {
                 changed |= drag_row(
                     ui,
                     "max frames",
