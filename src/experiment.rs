@@ -289,6 +289,7 @@ struct RawRender {
     seed: Option<i64>,
     pixel_filter: Option<String>,
     filter_width: Option<f64>,
+    traversal: Option<String>,
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1101,6 +1102,18 @@ fn build(
                     ctx.invalid(
                         "render.pixel_filter",
                         "must be \"none\", \"box\" or \"gaussian\"",
+                    )
+                })?,
+        },
+        traversal: match r.traversal.as_deref() {
+            None => d.traversal,
+            Some(name) => crate::render::Traversal::ALL
+                .into_iter()
+                .find(|t| t.name() == name)
+                .ok_or_else(|| {
+                    ctx.invalid(
+                        "render.traversal",
+                        "must be \"auto\", \"dense\" or \"sparse\"",
                     )
                 })?,
         },

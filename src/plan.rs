@@ -21,6 +21,7 @@ use std::fmt;
 use naga_oil::compose::ShaderDefValue;
 
 use crate::cpu::pyramid::{PyramidLayout, memory_line};
+pub use crate::render::Traversal;
 use crate::render::{RenderSettings, Transmittance};
 use crate::scene::{Material, Scene, VOID};
 use crate::technique::ShadowModel;
@@ -85,8 +86,39 @@ pub struct Plan {
     /// only how often a loop takes its back edge, which Mesa's software driver limits
     /// (shaders/counters.wgsl).
     pub dda_unroll: u32,
+    /// How rays walk the grid: [`Traversal::Dense`] or [`Traversal::Sparse`], never
+    /// `Auto` (`SPARSE`, with `SPARSE_LEVELS` the tree's depth). Only the sparse walk's
+    /// tree is built and uploaded, only the dense walk reads the grid texture.
+    pub traversal: Traversal,
+    /// Levels of the sparse tree's nodes (0 with the dense walk).
+    pub tree_levels: u32,
+    /// Why this traversal, in plain words.
+    pub traversal_reason: String,
     /// What was left out and why, in plain words.
     pub reasons: Vec<String>,
+}
+
+/// The grid side from which `render.traversal = "auto"` walks the sparse tree. Below it
+/// the tree has at most two levels and a ray crosses a few voxels, where the dense
+/// walk's one texture fetch per step costs less than a descent per step (`voxlab bench
+/// --traversal`, README "Sparse traversal").
+pub const SPARSE_FROM_SIDE: u32 = 32;
+
+/// The traversal of `scene` under `settings`, and why.
+fn choose_traversal(scene: &Scene, settings: &RenderSettings) -> (Traversal, String) {
+    let side = scene.grid.dims().max_element();
+    match settings.traversal {
+        Traversal::Dense => (Traversal::Dense, "render.traversal = \"dense\"".into()),
+        Traversal::Sparse => (Traversal::Sparse, "render.traversal = \"sparse\"".into()),
+        Traversal::Auto if side >= SPARSE_FROM_SIDE => (
+            Traversal::Sparse,
+            format!("auto: the grid's largest side {side} is {SPARSE_FROM_SIDE} or more"),
+        ),
+        Traversal::Auto => (
+            Traversal::Dense,
+            format!("auto: the grid's largest side {side} is below {SPARSE_FROM_SIDE}"),
+        ),
+    }
 }
 
 /// Materials a ray can shade with: every non-void index the grid holds. Void never
@@ -326,7 +358,17 @@ impl Plan {
         let pyramid = (cone_shadows || ambient_occlusion || indirect)
             .then(|| PyramidLayout::new(scene.grid.dims(), settings.cones.levels));
 
+        let (traversal, traversal_reason) = choose_traversal(scene, settings);
+        let tree_levels = if traversal == Traversal::Sparse {
+            crate::sparse::levels_for(scene.grid.dims(), crate::sparse::GPU_LOG_BRANCH)
+        } else {
+            0
+        };
+
         Self {
+            traversal,
+            tree_levels,
+            traversal_reason,
             reflection,
             refraction,
             shadows,
@@ -423,6 +465,9 @@ impl Plan {
                     count_rays: false,
                     ray_stack_size,
                     dda_unroll: 1,
+                    traversal: Traversal::Dense,
+                    tree_levels: 0,
+                    traversal_reason: String::new(),
                     reasons: Vec::new(),
                 };
                 for (i, f) in Self::FLAGS.iter().enumerate() {
@@ -456,6 +501,13 @@ impl Plan {
         // Any cone feature: the pyramids' bindings and the cone module are in.
         if self.pyramid.is_some() {
             defs.insert("CONES".to_string(), ShaderDefValue::Bool(true));
+        }
+        if self.traversal == Traversal::Sparse {
+            defs.insert("SPARSE".to_string(), ShaderDefValue::Bool(true));
+            defs.insert(
+                "SPARSE_LEVELS".to_string(),
+                ShaderDefValue::UInt(self.tree_levels),
+            );
         }
         defs.insert(
             "DDA_UNROLL".to_string(),
@@ -493,6 +545,14 @@ impl fmt::Display for Plan {
             },
             self.ray_stack_size
         )?;
+        match self.traversal {
+            Traversal::Sparse => write!(
+                f,
+                "\n  traversal: sparse 64-tree, {} levels ({})",
+                self.tree_levels, self.traversal_reason
+            )?,
+            _ => write!(f, "\n  traversal: dense DDA ({})", self.traversal_reason)?,
+        }
         if let Some(layout) = &self.pyramid {
             write!(f, "\n  {}", memory_line(layout, self.indirect))?;
         }

@@ -63,6 +63,30 @@ pub enum PixelFilter {
     Gaussian,
 }
 
+/// How rays walk the grid (`render.traversal`): the dense DDA voxel by voxel, or the
+/// sparse tree that skips uniform regions whole (`crate::sparse`), or the plan's choice.
+/// Both give the same hits; only the time differs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Traversal {
+    /// The plan chooses by the grid (`crate::plan::Plan::traversal`).
+    #[default]
+    Auto,
+    Dense,
+    Sparse,
+}
+
+impl Traversal {
+    pub const ALL: [Traversal; 3] = [Traversal::Auto, Traversal::Dense, Traversal::Sparse];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Traversal::Auto => "auto",
+            Traversal::Dense => "dense",
+            Traversal::Sparse => "sparse",
+        }
+    }
+}
+
 impl PixelFilter {
     pub const ALL: [PixelFilter; 3] = [PixelFilter::None, PixelFilter::Box, PixelFilter::Gaussian];
 
@@ -237,6 +261,8 @@ pub struct RenderSettings {
     pub pixel_filter: PixelFilter,
     /// The filter's half-width (box) or standard deviation (Gaussian), pixels.
     pub filter_width: f64,
+    /// Dense DDA, sparse tree, or the plan's choice.
+    pub traversal: Traversal,
 }
 
 /// Largest `light_samples` and `spp` accepted.
@@ -273,6 +299,7 @@ impl Default for RenderSettings {
             technique_params: Default::default(),
             pixel_filter: PixelFilter::None,
             filter_width: 0.5,
+            traversal: Traversal::Auto,
         }
     }
 }

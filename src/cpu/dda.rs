@@ -7,6 +7,7 @@
 use glam::{DVec3, IVec3};
 
 use crate::scene::Grid;
+use crate::sparse::{Region, SparseTree};
 
 /// One voxel on a ray's path.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -17,20 +18,29 @@ pub struct Visit {
     pub t_enter: f64,
     /// Outward normal of the face the ray entered through; zero for a start voxel.
     pub normal: DVec3,
+    /// The voxel's material.
+    pub material: u8,
 }
 
 /// The voxels a ray visits, in order, until it leaves the grid or reaches `t_limit`.
 /// `steps` counts moves from one voxel to the next (the "voxel steps" of the benchmarks).
 pub struct Dda<'a> {
     grid: &'a Grid,
+    /// With a tree, [`Dda::skip_region`] leaves a uniform region at once.
+    tree: Option<&'a SparseTree>,
+    /// The uniform region of the voxel last visited (that voxel alone without a tree).
+    region: Region,
+    origin: DVec3,
+    dir: DVec3,
     voxel: IVec3,
     step: IVec3,
     t_max: DVec3,
-    t_delta: DVec3,
     t_limit: f64,
     pending: Option<Visit>,
     done: bool,
     pub steps: u64,
+    /// Uniform regions left at once by [`Dda::skip_region`].
+    pub skips: u64,
     /// A ray visits at most nx + ny + nz voxels: the bound ends any walk that float
     /// error (or a non-finite input) could stall, as the kernel's max_steps does.
     max_steps: u64,
@@ -75,16 +85,36 @@ impl<'a> Dda<'a> {
     /// Starts a traversal of `grid` by the ray `origin + t dir` (`dir` need not be unit;
     /// distances are in units of `|dir|`), visiting voxels entered at `t < t_limit`.
     pub fn new(grid: &'a Grid, origin: DVec3, dir: DVec3, t_limit: f64) -> Self {
+        Self::over(grid, None, origin, dir, t_limit)
+    }
+
+    /// [`Dda::new`] over `grid` as `tree` holds it (the same voxels), so that
+    /// [`Dda::skip_region`] can leave a uniform region at once. Without a tree it is `new`.
+    pub fn over(
+        grid: &'a Grid,
+        tree: Option<&'a SparseTree>,
+        origin: DVec3,
+        dir: DVec3,
+        t_limit: f64,
+    ) -> Self {
         let mut dda = Self {
             grid,
+            tree,
+            region: Region {
+                material: crate::scene::VOID,
+                lo: IVec3::ZERO,
+                hi: IVec3::ONE,
+            },
+            origin,
+            dir,
             voxel: IVec3::ZERO,
             step: IVec3::ZERO,
             t_max: DVec3::INFINITY,
-            t_delta: DVec3::INFINITY,
             t_limit,
             pending: None,
             done: true,
             steps: 0,
+            skips: 0,
             max_steps: {
                 let d = grid.dims();
                 d.x as u64 + d.y as u64 + d.z as u64 + 3
@@ -131,28 +161,102 @@ impl<'a> Dda<'a> {
             return dda;
         }
 
-        let h = grid.voxel_size();
         for a in 0..3 {
             if dir[a] > 0.0 {
                 dda.step[a] = 1;
-                let boundary = lo[a] + h * (voxel[a] + 1) as f64;
-                dda.t_max[a] = (boundary - origin[a]) / dir[a];
-                dda.t_delta[a] = h / dir[a];
             } else if dir[a] < 0.0 {
                 dda.step[a] = -1;
-                let boundary = lo[a] + h * voxel[a] as f64;
-                dda.t_max[a] = (boundary - origin[a]) / dir[a];
-                dda.t_delta[a] = -h / dir[a];
+            }
+            if dda.step[a] != 0 {
+                dda.t_max[a] = dda.plane_t(a, dda.next_plane(a, voxel[a]));
             }
         }
         dda.voxel = voxel;
+        let material = dda.look_up(voxel);
         dda.pending = Some(Visit {
             voxel,
             t_enter: t_start,
             normal,
+            material,
         });
         dda.done = false;
         dda
+    }
+}
+
+impl Dda<'_> {
+    /// The ray parameter at which it crosses boundary plane `b` (voxel units) of axis
+    /// `a`: `(plane - o) / d`, the one formula every `t_max` comes from, so a region's
+    /// exit compares exactly as the dense walk's steps do (trace contract, "cast", 3).
+    fn plane_t(&self, a: usize, b: i32) -> f64 {
+        let plane = self.grid.world_min()[a] + self.grid.voxel_size() * b as f64;
+        (plane - self.origin[a]) / self.dir[a]
+    }
+
+    /// The boundary plane a walk crosses when it leaves voxel index `c` along axis `a`.
+    fn next_plane(&self, a: usize, c: i32) -> i32 {
+        if self.step[a] > 0 { c + 1 } else { c }
+    }
+
+    /// The material of `v` (inside the grid), and its region for [`Dda::skip_region`].
+    fn look_up(&mut self, v: IVec3) -> u8 {
+        self.region = match self.tree {
+            Some(tree) => tree.region(v),
+            None => Region {
+                material: self.grid.get(v),
+                lo: v,
+                hi: v + IVec3::ONE,
+            },
+        };
+        self.region.material
+    }
+
+    /// Moves the walk to the last voxel of the uniform region of the voxel last visited
+    /// through which the ray leaves it, as if it had visited every voxel between: the
+    /// next visit is the first voxel past the region, with the distance and face the
+    /// dense walk gives it. The dense walk leaves a box at its earliest exit plane `(t*,
+    /// a*)`, ties to the lowest axis; every plane of another axis that comes before it
+    /// in that order has been crossed by then. A no-op without a tree or in a region of
+    /// one voxel.
+    pub fn skip_region(&mut self) {
+        if self.done || self.region.is_voxel() {
+            return;
+        }
+        let (lo, hi) = (self.region.lo, self.region.hi);
+        let mut exit = (f64::INFINITY, 3);
+        for a in 0..3 {
+            if self.step[a] != 0 {
+                let edge = if self.step[a] > 0 { hi[a] } else { lo[a] };
+                let t = self.plane_t(a, edge);
+                if t < exit.0 {
+                    exit = (t, a);
+                }
+            }
+        }
+        let (t_star, a_star) = exit;
+        if a_star == 3 || !t_star.is_finite() {
+            return;
+        }
+        let before = |t: f64, b: usize| t < t_star || (t == t_star && b < a_star);
+        let local = self.grid.to_local(self.origin + t_star * self.dir);
+        for b in 0..3 {
+            let s = self.step[b];
+            if s == 0 {
+                continue;
+            }
+            let last = if s > 0 { hi[b] - 1 } else { lo[b] };
+            let (near, far) = (self.voxel[b].min(last), self.voxel[b].max(last));
+            let mut c = (local[b].floor() as i32).clamp(near, far);
+            while c != last && before(self.plane_t(b, self.next_plane(b, c)), b) {
+                c += s;
+            }
+            while c != self.voxel[b] && !before(self.plane_t(b, self.next_plane(b, c - s)), b) {
+                c -= s;
+            }
+            self.voxel[b] = c;
+            self.t_max[b] = self.plane_t(b, self.next_plane(b, c));
+        }
+        self.skips += 1;
     }
 }
 
@@ -174,7 +278,7 @@ impl Iterator for Dda<'_> {
             return None;
         }
         self.voxel[a] += self.step[a];
-        self.t_max[a] += self.t_delta[a];
+        self.t_max[a] = self.plane_t(a, self.next_plane(a, self.voxel[a]));
         self.steps += 1;
         if !self.grid.contains(self.voxel) {
             self.done = true;
@@ -182,10 +286,12 @@ impl Iterator for Dda<'_> {
             self.exit = Some((self.voxel, -(self.step[a] as f64) * axis(a)));
             return None;
         }
+        let material = self.look_up(self.voxel);
         Some(Visit {
             voxel: self.voxel,
             t_enter: t,
             normal: -(self.step[a] as f64) * axis(a),
+            material,
         })
     }
 }
@@ -217,21 +323,34 @@ pub fn cast_with(
     medium: u8,
     exit_hits: bool,
 ) -> (Option<Hit>, u64) {
-    let mut dda = Dda::new(grid, origin, dir, f64::INFINITY);
+    cast_over(grid, None, origin, dir, medium, exit_hits)
+}
+
+/// [`cast_with`] over `grid` as `tree` holds it: regions of the ray's medium are left
+/// whole (the same hit; the steps count the moves made).
+pub fn cast_over(
+    grid: &Grid,
+    tree: Option<&SparseTree>,
+    origin: DVec3,
+    dir: DVec3,
+    medium: u8,
+    exit_hits: bool,
+) -> (Option<Hit>, u64) {
+    let mut dda = Dda::over(grid, tree, origin, dir, f64::INFINITY);
     let mut hit = None;
-    for v in dda.by_ref() {
-        if v.normal == DVec3::ZERO {
-            continue; // start voxel: the ray is in its medium by definition
-        }
-        let m = grid.get(v.voxel);
-        if m != medium {
+    while let Some(v) = dda.next() {
+        // The start voxel is never a hit: the ray is in its medium by definition.
+        if v.material != medium && v.normal != DVec3::ZERO {
             hit = Some(Hit {
                 voxel: v.voxel,
                 t: v.t_enter,
                 normal: v.normal,
-                material: m,
+                material: v.material,
             });
             break;
+        }
+        if v.material == medium {
+            dda.skip_region();
         }
     }
     if hit.is_none()

@@ -12,12 +12,13 @@ use std::time::Instant;
 use glam::DVec3;
 use rayon::prelude::*;
 
-pub use dda::{Dda, Hit, Visit, cast, cast_with};
+pub use dda::{Dda, Hit, Visit, cast, cast_over, cast_with};
 
-use crate::plan::Plan;
+use crate::plan::{Plan, Traversal};
 use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Rules, Transmittance};
 use crate::sampling::light_sample;
 use crate::scene::{Light, Material, Scene};
+use crate::sparse::SparseTree;
 
 /// What the CPU backend is, for printing next to a GPU adapter's name.
 pub fn backend_summary() -> String {
@@ -159,6 +160,8 @@ struct StackRay {
 pub struct Prepared {
     pub cones: Option<cone::ConeScene>,
     pub shadow_model: Option<Box<dyn crate::technique::CpuShadow>>,
+    /// The sparse tree of the grid, when the plan traverses it.
+    pub tree: Option<SparseTree>,
 }
 
 impl Prepared {
@@ -166,6 +169,8 @@ impl Prepared {
         Self {
             cones: cone::ConeScene::new(scene, settings, plan),
             shadow_model: plan.shadow_model.map(|m| (m.cpu)(scene, settings)),
+            tree: (plan.traversal == Traversal::Sparse)
+                .then(|| SparseTree::build(&scene.grid, crate::sparse::GPU_LOG_BRANCH)),
         }
     }
 }
@@ -212,7 +217,14 @@ pub fn trace_ray_with(
 
     while let Some(ray) = stack.pop() {
         let exit_hits = settings.rules == Rules::Consistent;
-        let (hit, steps) = cast_with(grid, ray.origin, ray.dir, ray.medium, exit_hits);
+        let (hit, steps) = cast_over(
+            grid,
+            prepared.tree.as_ref(),
+            ray.origin,
+            ray.dir,
+            ray.medium,
+            exit_hits,
+        );
         stats.voxel_steps += steps;
         let Some(hit) = hit else { continue };
 
@@ -318,6 +330,7 @@ fn direct_light(
     let m = &scene.materials[shade_id as usize];
     let eps = settings.ray_offset * scene.grid.voxel_size();
     let q = p + eps * n;
+    let tree = prepared.tree.as_ref();
     let mut sum = DVec3::ZERO;
     for (j, light) in scene.lights.iter().enumerate() {
         if let Some(model) = &prepared.shadow_model {
@@ -333,6 +346,7 @@ fn direct_light(
                 key,
                 index: j as u32,
                 light,
+                tree,
             };
             sum += model.light_term(&at, stats);
             continue;
@@ -360,8 +374,9 @@ fn direct_light(
                     let (s, t) =
                         light_sample(settings.seed, key.pixel, key.frame, j as u32, k, count);
                     let x = a.sample_point(s, t);
-                    light_sum +=
-                        point_contribution(scene, settings, m, q, p, n, d, x, radiance, stats);
+                    light_sum += point_contribution(
+                        scene, tree, settings, m, q, p, n, d, x, radiance, stats,
+                    );
                 }
                 sum += light_sum / count as f64;
             }
@@ -369,6 +384,7 @@ fn direct_light(
             _ => {
                 sum += point_contribution(
                     scene,
+                    tree,
                     settings,
                     m,
                     q,
@@ -390,6 +406,7 @@ fn direct_light(
 #[allow(clippy::too_many_arguments)]
 pub fn point_contribution(
     scene: &Scene,
+    tree: Option<&SparseTree>,
     settings: &RenderSettings,
     m: &Material,
     q: DVec3,
@@ -401,7 +418,7 @@ pub fn point_contribution(
     stats: &mut RayStats,
 ) -> DVec3 {
     stats.shadow += 1;
-    let v = shadow_transmittance(scene, settings.features.transmittance, q, x, stats);
+    let v = shadow_transmittance(scene, tree, settings.features.transmittance, q, x, stats);
     if v == DVec3::ZERO {
         return DVec3::ZERO;
     }
@@ -442,35 +459,49 @@ pub fn unshadowed(
     e * (m.kd * diffuse + m.ks * spec)
 }
 
-/// Transmittance (RGB) of the shadow segment from `q` to `light` under `model`.
+/// Transmittance (RGB) of the shadow segment from `q` to `light` under `model`, over
+/// the scene's grid as `tree` holds it when there is one (the same value).
 pub fn shadow_transmittance(
     scene: &Scene,
+    tree: Option<&SparseTree>,
     model: Transmittance,
     q: DVec3,
     light: DVec3,
     stats: &mut RayStats,
 ) -> DVec3 {
     match model {
-        Transmittance::MinKt => DVec3::splat(shadow_min_kt(scene, q, light, stats)),
-        Transmittance::BeerLambert => shadow_beer_lambert(scene, q, light, stats),
+        Transmittance::MinKt => DVec3::splat(shadow_min_kt_over(scene, tree, q, light, stats)),
+        Transmittance::BeerLambert => shadow_beer_lambert_over(scene, tree, q, light, stats),
     }
 }
 
 /// `min-kt` transmittance of the segment from `q` to `light` (the seed's O1 as its code
 /// does it): the smallest kt of the voxels visited, the start voxel included.
 pub fn shadow_min_kt(scene: &Scene, q: DVec3, light: DVec3, stats: &mut RayStats) -> f64 {
+    shadow_min_kt_over(scene, None, q, light, stats)
+}
+
+/// [`shadow_min_kt`] over the grid as `tree` holds it: a uniform region counts once.
+pub fn shadow_min_kt_over(
+    scene: &Scene,
+    tree: Option<&SparseTree>,
+    q: DVec3,
+    light: DVec3,
+    stats: &mut RayStats,
+) -> f64 {
     let to_light = light - q;
     let len = to_light.length();
     if len == 0.0 {
         return 1.0;
     }
-    let mut dda = Dda::new(&scene.grid, q, to_light / len, len);
+    let mut dda = Dda::over(&scene.grid, tree, q, to_light / len, len);
     let mut t = 1.0f64;
-    for v in dda.by_ref() {
-        t = t.min(scene.materials[scene.grid.get(v.voxel) as usize].kt);
+    while let Some(v) = dda.next() {
+        t = t.min(scene.materials[v.material as usize].kt);
         if t <= 0.0 {
             break;
         }
+        dda.skip_region();
     }
     stats.voxel_steps += dda.steps;
     t
@@ -482,19 +513,31 @@ pub fn shadow_min_kt(scene: &Scene, q: DVec3, light: DVec3, stats: &mut RayStats
 /// once: an optical depth of 1e4 gives exactly 0, never a negative or NaN value. A
 /// material with kt = 0 is opaque under every model.
 pub fn shadow_beer_lambert(scene: &Scene, q: DVec3, light: DVec3, stats: &mut RayStats) -> DVec3 {
+    shadow_beer_lambert_over(scene, None, q, light, stats)
+}
+
+/// [`shadow_beer_lambert`] over the grid as `tree` holds it: a uniform region's length
+/// counts at once (the per-voxel lengths telescope to it).
+pub fn shadow_beer_lambert_over(
+    scene: &Scene,
+    tree: Option<&SparseTree>,
+    q: DVec3,
+    light: DVec3,
+    stats: &mut RayStats,
+) -> DVec3 {
     let to_light = light - q;
     let len = to_light.length();
     if len == 0.0 {
         return DVec3::ONE;
     }
     let grid = &scene.grid;
-    let mut dda = Dda::new(grid, q, to_light / len, len);
+    let mut dda = Dda::over(grid, tree, q, to_light / len, len);
     let mut depth = DVec3::ZERO;
     // The voxel being crossed and where the segment entered it.
     let mut inside: Option<(DVec3, f64)> = None;
     let mut opaque = false;
-    for v in dda.by_ref() {
-        let m = &scene.materials[grid.get(v.voxel) as usize];
+    while let Some(v) = dda.next() {
+        let m = &scene.materials[v.material as usize];
         if m.kt <= 0.0 {
             opaque = true;
             break;
@@ -503,6 +546,7 @@ pub fn shadow_beer_lambert(scene: &Scene, q: DVec3, light: DVec3, stats: &mut Ra
             depth += sigma * (v.t_enter - t0);
         }
         inside = Some((m.absorption(grid.voxel_size()), v.t_enter));
+        dda.skip_region();
     }
     stats.voxel_steps += dda.steps;
     if opaque {

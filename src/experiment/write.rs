@@ -276,6 +276,7 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
         technique_params: _,
         pixel_filter: _,
         filter_width: _,
+        traversal: _,
     } = s;
     let mut t = Table::new();
     let int = |v: u32| Value::Integer(i64::from(v));
@@ -296,6 +297,7 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
     t.insert("seed".into(), int(s.seed));
     t.insert("pixel_filter".into(), s.pixel_filter.name().into());
     t.insert("filter_width".into(), s.filter_width.into());
+    t.insert("traversal".into(), s.traversal.name().into());
     t
 }
 
@@ -512,6 +514,7 @@ const RENDER_KEYS: &[&str] = &[
     "seed",
     "pixel_filter",
     "filter_width",
+    "traversal",
 ];
 
 /// `key = value` lines of a table of plain values, the keys in `order` first, then any

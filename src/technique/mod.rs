@@ -166,6 +166,9 @@ pub struct LightQuery<'a> {
     /// The light's index and the light.
     pub index: u32,
     pub light: &'a Light,
+    /// The grid's sparse tree when the plan traverses it (for shadow rays:
+    /// `crate::cpu::shadow_transmittance`).
+    pub tree: Option<&'a crate::sparse::SparseTree>,
 }
 
 /// A shadow model's f64 reference, made once per render (its per-scene data built).

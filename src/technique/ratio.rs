@@ -72,7 +72,9 @@ impl CpuShadow for Ratio {
         let (scene, s, m) = (at.scene, at.settings, at.material);
         let radiance = at.light.color() * at.light.intensity();
         let contribution = |x: DVec3, stats: &mut RayStats| {
-            point_contribution(scene, s, m, at.q, at.p, at.n, at.d, x, radiance, stats)
+            point_contribution(
+                scene, at.tree, s, m, at.q, at.p, at.n, at.d, x, radiance, stats,
+            )
         };
         let Light::Area(a) = at.light else {
             return contribution(at.light.position(), stats);
@@ -101,7 +103,8 @@ impl CpuShadow for Ratio {
         for k in 0..count {
             let x = sample(k);
             stats.shadow += 1;
-            let vis = shadow_transmittance(scene, s.features.transmittance, at.q, x, stats);
+            let vis =
+                shadow_transmittance(scene, at.tree, s.features.transmittance, at.q, x, stats);
             let to = x - at.p;
             let dl = to.length();
             let l = if dl > 0.0 { to / dl } else { at.n };

@@ -1,0 +1,335 @@
+//! The sparse hierarchical grid (the seed's O2): a tree of uniform regions that the DDA
+//! skips whole.
+//!
+//! Every node splits its cube into `B^3` children (`B = 2^log_branch`: 2 is an octree,
+//! 4 the 64-tree of the GPU kernel). A child is either uniform (one material over its
+//! whole cube, any material, not only void) or a node of its own. voxlab's hit rule is
+//! "the first voxel whose material differs from the ray's medium", so a uniform region of
+//! the ray's medium holds no hit, whatever that medium is: a ray inside a glass block
+//! skips the block as a ray in air skips the air.
+//!
+//! The walk over it ([`crate::cpu::Dda::skip`], `dda_skip` in shaders/traversal.wgsl)
+//! leaves a region at exactly the voxel, distance and face where the dense DDA leaves it,
+//! so the hits, normals and images are the dense grid's (`tests/sparse.rs`).
+//!
+//! Layout (`words`, also what the GPU reads): a header of [`HEADER_WORDS`] words
+//! (`levels`, `log_branch`, node count, 0), then the nodes, root first, each
+//! [`SparseTree::node_words`] words: the children's materials, four bytes to a word, child
+//! `i = x + B y + B^2 z` in byte `i % 4` of word `i / 4`; a bit mask of the children that
+//! are nodes (bit `i % 32` of mask word `i / 32`); the index of its first child node. The
+//! child nodes of one node are stored one after another, in child order, so child `i`'s
+//! node is `first + (number of node bits below i)`.
+
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
+use glam::{IVec3, UVec3};
+
+use crate::scene::{Grid, VOID};
+
+/// Words before the first node.
+pub const HEADER_WORDS: usize = 4;
+
+/// The branching of the GPU kernel's tree: 4x4x4 children (a 64-tree).
+pub const GPU_LOG_BRANCH: u32 = 2;
+
+/// Deepest tree the GPU kernel descends (shaders/sparse.wgsl unrolls its levels):
+/// 4^8 = 65536 voxels a side, beyond any grid voxlab accepts.
+pub const MAX_GPU_LEVELS: u32 = 8;
+
+/// Levels of nodes a tree of a grid of `dims` has: its root's cube is
+/// `2^(log_branch levels)` voxels a side, at least the grid's largest side.
+pub fn levels_for(dims: UVec3, log_branch: u32) -> u32 {
+    let side = dims.max_element().max(1) as u64;
+    let mut levels = 1;
+    while (1u64 << (log_branch * levels)) < side {
+        levels += 1;
+    }
+    levels
+}
+
+/// A voxel source the tree can be built from without a dense copy of it.
+pub trait VoxelSource {
+    fn dims(&self) -> UVec3;
+    /// The material at `v`, inside `dims`.
+    fn material(&self, v: IVec3) -> u8;
+    /// `Some(m)` when the source knows the whole cube `lo + [0, size)^3` (clipped to
+    /// `dims`) is material `m`, so the builder need not read its voxels. `None`: not
+    /// known, read them.
+    fn uniform(&self, _lo: IVec3, _size: i32) -> Option<u8> {
+        None
+    }
+}
+
+impl VoxelSource for Grid {
+    fn dims(&self) -> UVec3 {
+        Grid::dims(self)
+    }
+    fn material(&self, v: IVec3) -> u8 {
+        self.get(v)
+    }
+}
+
+/// The uniform region around a voxel: its material and its cube, clipped to the grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Region {
+    pub material: u8,
+    /// First voxel of the region.
+    pub lo: IVec3,
+    /// One past the last voxel, per axis.
+    pub hi: IVec3,
+}
+
+impl Region {
+    /// Whether the region is the one voxel `lo`.
+    pub fn is_voxel(&self) -> bool {
+        self.hi - self.lo == IVec3::ONE
+    }
+}
+
+/// A sparse hierarchical grid: see the module documentation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SparseTree {
+    dims: UVec3,
+    log_branch: u32,
+    levels: u32,
+    words: Vec<u32>,
+}
+
+/// A node while the tree is built, before it is laid out.
+struct Pending {
+    materials: Vec<u8>,
+    nodes: Vec<Option<Box<Pending>>>,
+}
+
+enum Child {
+    Uniform(u8),
+    Node(Box<Pending>),
+}
+
+/// What building cost.
+#[derive(Clone, Copy, Debug)]
+pub struct BuildStats {
+    pub time: Duration,
+}
+
+impl SparseTree {
+    /// The tree of `source` with `2^log_branch` children a side per node (1..=3).
+    pub fn build(source: &dyn VoxelSource, log_branch: u32) -> Self {
+        assert!((1..=3).contains(&log_branch), "log_branch {log_branch}");
+        let dims = source.dims();
+        let levels = levels_for(dims, log_branch);
+        let root_shift = log_branch * levels;
+        let builder = Builder {
+            source,
+            dims: dims.as_ivec3(),
+            log_branch,
+        };
+        let root = match builder.child(IVec3::ZERO, root_shift) {
+            Child::Node(n) => n,
+            // A uniform grid still has a root node: every child uniform.
+            Child::Uniform(m) => {
+                let n = 1usize << (3 * log_branch);
+                Box::new(Pending {
+                    materials: vec![m; n],
+                    nodes: (0..n).map(|_| None).collect(),
+                })
+            }
+        };
+        let mut tree = Self {
+            dims,
+            log_branch,
+            levels,
+            words: vec![levels, log_branch, 0, 0],
+        };
+        tree.lay_out(root);
+        tree
+    }
+
+    /// [`Self::build`] timed.
+    pub fn build_timed(source: &dyn VoxelSource, log_branch: u32) -> (Self, BuildStats) {
+        let start = Instant::now();
+        let tree = Self::build(source, log_branch);
+        (
+            tree,
+            BuildStats {
+                time: start.elapsed(),
+            },
+        )
+    }
+
+    fn children(&self) -> usize {
+        1 << (3 * self.log_branch)
+    }
+
+    /// Words of one node.
+    pub fn node_words(&self) -> usize {
+        let n = self.children();
+        n.div_ceil(4) + n.div_ceil(32) + 1
+    }
+
+    /// Breadth first, so the child nodes of each node lie one after another.
+    fn lay_out(&mut self, root: Box<Pending>) {
+        let n = self.children();
+        let (mat_words, mask_words) = (n.div_ceil(4), n.div_ceil(32));
+        let mut queue = VecDeque::from([root]);
+        let mut next_index = 1u32; // the root is node 0
+        let mut count = 0u32;
+        while let Some(node) = queue.pop_front() {
+            count += 1;
+            let mut words = vec![0u32; self.node_words()];
+            for (i, &m) in node.materials.iter().enumerate() {
+                words[i / 4] |= u32::from(m) << (8 * (i % 4));
+            }
+            words[mat_words + mask_words] = next_index;
+            for (i, child) in node.nodes.into_iter().enumerate() {
+                if let Some(c) = child {
+                    words[mat_words + i / 32] |= 1 << (i % 32);
+                    queue.push_back(c);
+                    next_index += 1;
+                }
+            }
+            self.words.extend_from_slice(&words);
+        }
+        self.words[2] = count;
+    }
+
+    pub fn dims(&self) -> UVec3 {
+        self.dims
+    }
+    pub fn levels(&self) -> u32 {
+        self.levels
+    }
+    pub fn log_branch(&self) -> u32 {
+        self.log_branch
+    }
+    pub fn node_count(&self) -> usize {
+        self.words[2] as usize
+    }
+    /// The tree as the GPU reads it.
+    pub fn words(&self) -> &[u32] {
+        &self.words
+    }
+    /// Bytes of the tree.
+    pub fn bytes(&self) -> usize {
+        self.words.len() * 4
+    }
+    /// Bytes per voxel of the grid's box (the dense grid's is 1).
+    pub fn bytes_per_voxel(&self) -> f64 {
+        let d = self.dims.as_dvec3();
+        self.bytes() as f64 / (d.x * d.y * d.z)
+    }
+
+    /// The uniform region holding voxel `v` (inside the grid).
+    pub fn region(&self, v: IVec3) -> Region {
+        debug_assert!(v.cmpge(IVec3::ZERO).all() && v.as_uvec3().cmplt(self.dims).all());
+        let n = self.children();
+        let (mat_words, mask_words) = (n.div_ceil(4), n.div_ceil(32));
+        let b = self.log_branch;
+        let mask = (1 << b) - 1;
+        let mut node = 0usize;
+        let mut shift = b * (self.levels - 1);
+        loop {
+            let c = (v >> shift as i32) & mask;
+            let i = (c.x | (c.y << b) | (c.z << (2 * b))) as usize;
+            let base = HEADER_WORDS + node * self.node_words();
+            let bits = &self.words[base + mat_words..base + mat_words + mask_words];
+            if bits[i / 32] & (1 << (i % 32)) != 0 {
+                let below: u32 = bits[..i / 32].iter().map(|w| w.count_ones()).sum::<u32>()
+                    + (bits[i / 32] & ((1u32 << (i % 32)) - 1)).count_ones();
+                node = (self.words[base + mat_words + mask_words] + below) as usize;
+                shift -= b;
+                continue;
+            }
+            let material = (self.words[base + i / 4] >> (8 * (i % 4))) as u8;
+            let lo = (v >> shift as i32) << shift as i32;
+            let hi = (lo + IVec3::splat(1 << shift)).min(self.dims.as_ivec3());
+            return Region { material, lo, hi };
+        }
+    }
+
+    /// The material at `v` (void outside the grid).
+    pub fn get(&self, v: IVec3) -> u8 {
+        if v.cmplt(IVec3::ZERO).any() || v.as_uvec3().cmpge(self.dims).any() {
+            return VOID;
+        }
+        self.region(v).material
+    }
+}
+
+struct Builder<'a> {
+    source: &'a dyn VoxelSource,
+    dims: IVec3,
+    log_branch: u32,
+}
+
+impl Builder<'_> {
+    /// The child covering the cube `lo + [0, 2^shift)^3`; voxels outside the grid are
+    /// void, so a region reaching past the grid's side merges with the void inside it.
+    fn child(&self, lo: IVec3, shift: u32) -> Child {
+        if lo.cmpge(self.dims).any() {
+            return Child::Uniform(VOID);
+        }
+        if shift == 0 {
+            return Child::Uniform(self.source.material(lo));
+        }
+        let size = 1i32 << shift;
+        if let Some(m) = self.source.uniform(lo, size) {
+            return Child::Uniform(m);
+        }
+        let b = self.log_branch;
+        let side = 1i32 << b;
+        let sub = shift - b;
+        let n = 1usize << (3 * b);
+        let mut materials = Vec::with_capacity(n);
+        let mut nodes = Vec::with_capacity(n);
+        for z in 0..side {
+            for y in 0..side {
+                for x in 0..side {
+                    let c = lo + (IVec3::new(x, y, z) << sub as i32);
+                    match self.child(c, sub) {
+                        Child::Uniform(m) => {
+                            materials.push(m);
+                            nodes.push(None);
+                        }
+                        Child::Node(node) => {
+                            materials.push(VOID);
+                            nodes.push(Some(node));
+                        }
+                    }
+                }
+            }
+        }
+        if nodes.iter().all(Option::is_none) && materials.iter().all(|&m| m == materials[0]) {
+            return Child::Uniform(materials[0]);
+        }
+        Child::Node(Box::new(Pending { materials, nodes }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    #[test]
+    fn regions_cover_the_grid_exactly() {
+        let mut g = Grid::new(UVec3::new(13, 7, 21), 1.0, DVec3::ZERO).unwrap();
+        for (i, v) in g.data_mut().iter_mut().enumerate() {
+            *v = if i % 97 < 3 { (i % 5) as u8 } else { 0 };
+        }
+        for b in 1..=3 {
+            let t = SparseTree::build(&g, b);
+            for z in 0..21 {
+                for y in 0..7 {
+                    for x in 0..13 {
+                        let v = IVec3::new(x, y, z);
+                        let r = t.region(v);
+                        assert_eq!(r.material, g.get(v), "{v} b {b}");
+                        assert!(v.cmpge(r.lo).all() && v.cmplt(r.hi).all());
+                    }
+                }
+            }
+        }
+    }
+}

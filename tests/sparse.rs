@@ -1,0 +1,339 @@
+//! The sparse tree (the seed's O2) against the dense grid it is built from: every voxel's
+//! material, and along many thousands of random rays in random sparse grids the same
+//! hit sequence (voxel, distance, face, material, bit for bit) as the dense DDA, for
+//! octrees, 64-trees and 512-trees; the same shadow transmittances; the same CPU
+//! images. Rays start on node boundaries, run along axes, and start inside uniform
+//! regions of any material (a ray inside a glass block skips the block too).
+
+use glam::{DVec3, IVec3, UVec3};
+use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
+use voxlab::RayStats;
+use voxlab::cpu::{Dda, cast_over, shadow_beer_lambert_over, shadow_min_kt_over};
+use voxlab::render::{RenderSettings, Traversal};
+use voxlab::scene::{Grid, Material, Scene, seed_scene};
+use voxlab::sparse::SparseTree;
+
+/// A grid of `dims` that is mostly uniform: a few boxes of random materials (some
+/// large, some one voxel), over a background that is void or, half the time, one
+/// material, so regions of every material and size occur.
+fn random_sparse_grid(rng: &mut StdRng, dims: UVec3, materials: u8) -> Grid {
+    // Half the grids sit at the origin with voxels of 1 or 1/2, where node corners are
+    // exact in world units and diagonal rays through them meet exact ties of the exit
+    // planes (the tie rule: lowest axis first).
+    let (origin, voxel_size) = if rng.random_bool(0.5) {
+        (DVec3::ZERO, if rng.random_bool(0.5) { 1.0 } else { 0.5 })
+    } else {
+        (
+            DVec3::new(
+                rng.random_range(-5.0..5.0),
+                rng.random_range(-5.0..5.0),
+                rng.random_range(-5.0..5.0),
+            ),
+            rng.random_range(0.3..2.0),
+        )
+    };
+    let mut g = Grid::new(dims, voxel_size, origin).unwrap();
+    let background = if rng.random_bool(0.5) {
+        0
+    } else {
+        rng.random_range(1..materials)
+    };
+    g.data_mut().fill(background);
+    let d = dims.as_ivec3();
+    for _ in 0..rng.random_range(1..12) {
+        let size = IVec3::new(
+            rng.random_range(1..=d.x),
+            rng.random_range(1..=d.y),
+            rng.random_range(1..=d.z),
+        ) / if rng.random_bool(0.5) { 1 } else { 4 };
+        let size = size.max(IVec3::ONE);
+        let lo = IVec3::new(
+            rng.random_range(0..=d.x - size.x),
+            rng.random_range(0..=d.y - size.y),
+            rng.random_range(0..=d.z - size.z),
+        );
+        let m = rng.random_range(0..materials);
+        for z in lo.z..lo.z + size.z {
+            for y in lo.y..lo.y + size.y {
+                for x in lo.x..lo.x + size.x {
+                    g.set(IVec3::new(x, y, z), m);
+                }
+            }
+        }
+    }
+    // Scattered single voxels.
+    for _ in 0..rng.random_range(0..40) {
+        let v = IVec3::new(
+            rng.random_range(0..d.x),
+            rng.random_range(0..d.y),
+            rng.random_range(0..d.z),
+        );
+        g.set(v, rng.random_range(0..materials));
+    }
+    g
+}
+
+/// Every change of material along the ray, from its start until it leaves the grid:
+/// (voxel, entry distance, face, material). Over a tree, each region of the current
+/// material is left whole.
+fn transitions(
+    g: &Grid,
+    tree: Option<&SparseTree>,
+    o: DVec3,
+    d: DVec3,
+) -> (Vec<(IVec3, f64, DVec3, u8)>, u64) {
+    let mut dda = Dda::over(g, tree, o, d, f64::INFINITY);
+    let mut out = Vec::new();
+    let mut medium = None;
+    while let Some(v) = dda.next() {
+        if medium != Some(v.material) {
+            out.push((v.voxel, v.t_enter, v.normal, v.material));
+            medium = Some(v.material);
+        }
+        dda.skip_region();
+    }
+    if let Some((voxel, normal)) = dda.exit {
+        out.push((voxel, dda.t_end, normal, 0));
+    }
+    (out, dda.steps)
+}
+
+/// A random ray for grid `g`: from inside or outside, on node boundaries (multiples of
+/// 4 and 16 voxels) or anywhere, along an axis, a diagonal or any direction.
+fn random_ray(rng: &mut StdRng, g: &Grid) -> (DVec3, DVec3) {
+    let dims = g.dims().as_dvec3();
+    let mut local = DVec3::new(
+        rng.random_range(-0.3..1.3) * dims.x,
+        rng.random_range(-0.3..1.3) * dims.y,
+        rng.random_range(-0.3..1.3) * dims.z,
+    );
+    match rng.random_range(0..4) {
+        // On a node boundary plane of one axis, or on a corner of nodes.
+        0 => {
+            let a = rng.random_range(0..3);
+            let unit = if rng.random_bool(0.5) { 4.0 } else { 16.0 };
+            local[a] = (local[a] / unit).round() * unit;
+        }
+        1 => local = (local / 4.0).round() * 4.0,
+        _ => {}
+    }
+    let mut d = match rng.random_range(0..5) {
+        0 => {
+            let mut d = DVec3::ZERO;
+            d[rng.random_range(0..3)] = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            d
+        }
+        1 => DVec3::new(
+            if rng.random_bool(0.5) { 1.0 } else { -1.0 },
+            if rng.random_bool(0.5) { 1.0 } else { -1.0 },
+            if rng.random_bool(0.5) { 1.0 } else { -1.0 },
+        ),
+        2 => {
+            // In an axis plane.
+            let mut d = DVec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            d[rng.random_range(0..3)] = 0.0;
+            d
+        }
+        _ => DVec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        ),
+    };
+    if d.length() < 1e-3 {
+        d = DVec3::X;
+    }
+    // Rays from outside aim at the grid half the time.
+    let inside = (0..3).all(|a| (0.0..dims[a]).contains(&local[a]));
+    if !inside && rng.random_bool(0.5) {
+        let target = DVec3::new(
+            rng.random_range(0.0..dims.x),
+            rng.random_range(0.0..dims.y),
+            rng.random_range(0.0..dims.z),
+        );
+        d = target - local;
+    }
+    // Diagonals stay exact (unnormalised: distances are in units of |d|), so their
+    // plane distances tie exactly.
+    let d = if d.abs().x == d.abs().y && d.abs().y == d.abs().z {
+        d
+    } else {
+        d.normalize()
+    };
+    (g.to_world(local), d)
+}
+
+const SIZES: [[u32; 3]; 6] = [
+    [16, 16, 16],
+    [13, 7, 21],
+    [64, 64, 64],
+    [5, 70, 3],
+    [33, 17, 64],
+    [1, 1, 1],
+];
+
+#[test]
+fn the_tree_holds_every_voxel_of_the_grid() {
+    let mut rng = StdRng::seed_from_u64(1);
+    for dims in SIZES {
+        let g = random_sparse_grid(&mut rng, UVec3::from_array(dims), 5);
+        for b in 1..=3 {
+            let t = SparseTree::build(&g, b);
+            for z in 0..dims[2] as i32 {
+                for y in 0..dims[1] as i32 {
+                    for x in 0..dims[0] as i32 {
+                        let v = IVec3::new(x, y, z);
+                        let r = t.region(v);
+                        assert_eq!(r.material, g.get(v), "{dims:?} branch 2^{b} at {v}");
+                        assert!(v.cmpge(r.lo).all() && v.cmplt(r.hi).all());
+                        // A region is uniform and inside the grid.
+                        assert!(r.hi.as_uvec3().cmple(g.dims()).all());
+                        for p in [r.lo, r.hi - IVec3::ONE] {
+                            assert_eq!(g.get(p), r.material);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn random_rays_meet_the_same_transitions_as_the_dense_dda() {
+    let mut rng = StdRng::seed_from_u64(2);
+    let mut rays = 0;
+    let (mut dense_steps, mut sparse_steps) = (0u64, 0u64);
+    for round in 0..60 {
+        let dims = SIZES[round % SIZES.len()];
+        let g = random_sparse_grid(&mut rng, UVec3::from_array(dims), 4);
+        let trees: Vec<SparseTree> = (1..=3).map(|b| SparseTree::build(&g, b)).collect();
+        for _ in 0..200 {
+            let (o, d) = random_ray(&mut rng, &g);
+            let (want, steps) = transitions(&g, None, o, d);
+            dense_steps += steps;
+            for t in &trees {
+                let (got, steps) = transitions(&g, Some(t), o, d);
+                assert_eq!(
+                    got,
+                    want,
+                    "grid {dims:?}, branch 2^{}, ray {o} + t {d}",
+                    t.log_branch()
+                );
+                if t.log_branch() == 2 {
+                    sparse_steps += steps;
+                }
+            }
+            rays += 1;
+        }
+    }
+    assert_eq!(rays, 12000);
+    // The sparse walk's moves (steps after skips) are fewer.
+    assert!(
+        sparse_steps < dense_steps,
+        "{sparse_steps} vs {dense_steps}"
+    );
+}
+
+#[test]
+fn casts_in_every_medium_hit_what_the_dense_cast_hits() {
+    let mut rng = StdRng::seed_from_u64(3);
+    for round in 0..40 {
+        let dims = SIZES[round % SIZES.len()];
+        let g = random_sparse_grid(&mut rng, UVec3::from_array(dims), 4);
+        let t = SparseTree::build(&g, 2);
+        for _ in 0..200 {
+            let (o, d) = random_ray(&mut rng, &g);
+            for medium in 0..4 {
+                for exit_hits in [true, false] {
+                    let (want, _) = cast_over(&g, None, o, d, medium, exit_hits);
+                    let (got, _) = cast_over(&g, Some(&t), o, d, medium, exit_hits);
+                    assert_eq!(got, want, "medium {medium}, ray {o} + t {d}");
+                }
+            }
+        }
+    }
+}
+
+/// A scene over `g` with four materials of every kind a shadow ray meets: opaque,
+/// partly transmitting, and absorbing by distance.
+fn scene_over(g: Grid) -> Scene {
+    let mut s = seed_scene(1).unwrap();
+    let base = s.materials[1].clone();
+    s.materials = vec![
+        s.materials[0].clone(),
+        Material {
+            kt: 0.0,
+            ..base.clone()
+        },
+        Material {
+            kt: 0.7,
+            ..base.clone()
+        },
+        Material {
+            kt: 0.9,
+            sigma: Some(DVec3::new(0.3, 0.05, 1.2)),
+            ..base
+        },
+    ];
+    s.grid = g;
+    s
+}
+
+#[test]
+fn shadow_transmittances_equal_the_dense_walks() {
+    let mut rng = StdRng::seed_from_u64(4);
+    for round in 0..30 {
+        let dims = SIZES[round % SIZES.len()];
+        let scene = scene_over(random_sparse_grid(&mut rng, UVec3::from_array(dims), 4));
+        let t = SparseTree::build(&scene.grid, 2);
+        for _ in 0..200 {
+            let (q, d) = random_ray(&mut rng, &scene.grid);
+            let len = rng.random_range(0.0..2.0) * scene.grid.width();
+            let light = q + len * d;
+            let mut stats = RayStats::default();
+            let want = shadow_min_kt_over(&scene, None, q, light, &mut stats);
+            let got = shadow_min_kt_over(&scene, Some(&t), q, light, &mut stats);
+            assert_eq!(got, want, "min-kt, {q} to {light}");
+            let want = shadow_beer_lambert_over(&scene, None, q, light, &mut stats);
+            let got = shadow_beer_lambert_over(&scene, Some(&t), q, light, &mut stats);
+            // The per-voxel lengths telescope to the region's: equal up to rounding.
+            assert!(
+                (got - want).abs().max_element() <= 1e-12 * want.max_element().max(1e-300),
+                "beer-lambert {got} vs {want}, {q} to {light}"
+            );
+        }
+    }
+}
+
+#[test]
+fn cpu_images_over_the_tree_are_the_dense_images() {
+    for size in [16, 40] {
+        let scene = seed_scene(size).unwrap();
+        let render = |traversal| {
+            let settings = RenderSettings {
+                width: 48,
+                height: 40,
+                traversal,
+                ..Default::default()
+            };
+            voxlab::cpu::render(&scene, &settings)
+        };
+        let dense = render(Traversal::Dense);
+        let sparse = render(Traversal::Sparse);
+        assert_eq!(
+            dense.frame.pixels, sparse.frame.pixels,
+            "seed scene at {size}^3"
+        );
+        assert!(
+            sparse.stats.voxel_steps < dense.stats.voxel_steps,
+            "{} vs {}",
+            sparse.stats.voxel_steps,
+            dense.stats.voxel_steps
+        );
+    }
+}
