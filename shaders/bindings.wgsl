@@ -19,6 +19,8 @@
 // What a plug-in technique reads (src/technique/, `ShadowModel::gpu_data`): made on the
 // host when the plan uses the technique, a placeholder otherwise.
 @group(0) @binding(6) var<storage, read> technique_data: array<f32>;
+// The sparse tree of the grid (SPARSE; src/sparse.rs), a placeholder otherwise.
+@group(0) @binding(7) var<storage, read> tree: array<vec4<u32>>;
 fn voxel_material(v: vec3<i32>) -> u32 {
     return textureLoad(grid, v, 0).r;
 }

@@ -4,7 +4,7 @@
 #define_import_path voxlab::shadow
 
 #import voxlab::bindings::{materials, voxel_material, voxel_inside}
-#import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, max_steps}
+#import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, dda_skip, dda_region, max_steps}
 #import voxlab::counters::loop_cut
 
 fn kt_of(m: u32) -> f32 {
@@ -25,8 +25,19 @@ fn min_kt_step(s: ptr<function, Dda>, v: ptr<function, f32>, len: f32) -> bool {
     if !voxel_inside((*s).voxel) {
         return true;
     }
+#ifdef SPARSE
+    // A uniform region's kt counts once; the walk leaves it whole.
+    let r = dda_region(s);
+    *v = min(*v, kt_of(r.material));
+    if *v <= 0.0 {
+        return true;
+    }
+    dda_skip(s, r);
+    return false;
+#else
     *v = min(*v, kt_of(voxel_material((*s).voxel)));
     return *v <= 0.0;
+#endif
 }
 
 // Transmittance of the segment from q along d (unit) of length len > 0: every voxel
@@ -36,11 +47,19 @@ fn transmittance(q: vec3<f32>, d: vec3<f32>, len: f32) -> f32 {
     if !e.valid || !(e.t < len) {
         return 1.0;
     }
+    var s = dda_init(q, d, e.voxel);
+#ifdef SPARSE
+    let r = dda_region(&s);
+    var v = kt_of(r.material);
+#else
     var v = kt_of(voxel_material(e.voxel));
+#endif
     if v <= 0.0 {
         return 0.0;
     }
-    var s = dda_init(q, d, e.voxel);
+#ifdef SPARSE
+    dda_skip(&s, r);
+#endif
     let n = max_steps();
     // DDA_UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
     var done = false;

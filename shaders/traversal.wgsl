@@ -7,6 +7,7 @@
 #import voxlab::types::{BIG, RULES_CONSISTENT}
 #import voxlab::bindings::{params, voxel_material, voxel_inside}
 #import voxlab::counters::{count_step, loop_cut}
+#import voxlab::sparse::{Region, ROOT_SHIFT, region_below}
 
 struct Hit {
     hit: bool,
@@ -34,6 +35,12 @@ struct Dda {
     // The ray, so tMax can be taken from the next boundary plane at every step.
     origin: vec3<f32>,
     dir: vec3<f32>,
+    // SPARSE: the tree node the last region was found under, its children's shift and
+    // its cube (voxel >> (shift + 2)); the next look-up starts there when the voxel is in
+    // that cube, as most steps near surfaces are, instead of at the root.
+    tree_node: u32,
+    tree_shift: u32,
+    tree_key: vec3<u32>,
 }
 
 fn origin_inside(o: vec3<f32>) -> bool {
@@ -98,6 +105,10 @@ fn dda_init(o: vec3<f32>, d: vec3<f32>, v: vec3<i32>) -> Dda {
     s.voxel = v;
     s.origin = o;
     s.dir = d;
+    // The root's cube holds every voxel of the grid.
+    s.tree_node = 0u;
+    s.tree_shift = ROOT_SHIFT;
+    s.tree_key = vec3<u32>(0u);
     // Per axis as the contract says, on whole vectors (no loop: see enter).
     let parallel = d == vec3<f32>(0.0);
     let positive = d > vec3<f32>(0.0);
@@ -134,6 +145,59 @@ fn dda_advance(s: ptr<function, Dda>, a: i32) {
     count_step();
 }
 
+// The uniform region of the walk's current voxel (SPARSE; without it the voxel), looked
+// up from the node of the previous look-up when the voxel lies in its cube.
+fn dda_region(s: ptr<function, Dda>) -> Region {
+    let u = vec3<u32>((*s).voxel);
+    var node = 0u;
+    var shift = ROOT_SHIFT;
+    if all((u >> vec3<u32>((*s).tree_shift + 2u)) == (*s).tree_key) {
+        node = (*s).tree_node;
+        shift = (*s).tree_shift;
+    }
+    let f = region_below((*s).voxel, node, shift);
+    (*s).tree_node = f.node;
+    (*s).tree_shift = f.shift;
+    (*s).tree_key = u >> vec3<u32>(f.shift + 2u);
+    return f.region;
+}
+
+// Moves the walk to the last voxel of region r (which holds the current voxel) through
+// which the ray leaves it, as if it had stepped through every voxel between, so that
+// the next dda_advance leaves the region where the dense walk leaves it: at the earliest
+// exit plane (t*, a*), ties to the lowest axis, every other axis past the planes that
+// come before it in that order. As crate::cpu::Dda::skip_region. The estimate from the
+// exit point, moved half a voxel ahead, is the right voxel or the one after it (the
+// point's error is far below half a voxel), so one check of the plane behind it, on
+// whole vectors and without branches, settles every axis.
+fn dda_skip(s: ptr<function, Dda>, r: Region) {
+    if all(r.hi - r.lo == vec3<i32>(1)) {
+        return;
+    }
+    let step = (*s).step;
+    let positive = step > vec3<i32>(0);
+    let parallel = step == vec3<i32>(0);
+    let safe = select((*s).dir, vec3<f32>(1.0), parallel);
+    let o = (*s).origin;
+    let edge = select(r.lo, r.hi, positive);
+    let t_exit = select(min((vec3<f32>(edge) - o) / safe, vec3<f32>(BIG)), vec3<f32>(BIG), parallel);
+    let a_star = dda_axis(t_exit);
+    let t_star = t_exit[a_star];
+    let p = o + t_star * (*s).dir + 0.5 * vec3<f32>(step);
+    let last = select(r.lo, r.hi - 1, positive);
+    let v = (*s).voxel;
+    let ahead = select(vec3<i32>(0), vec3<i32>(1), positive);
+    var c = clamp(vec3<i32>(floor(p)), min(v, last), max(v, last));
+    // The plane into c: crossed before (t*, a*) in the walk's order, or c is one too far.
+    let t_in = min((vec3<f32>(c - step + ahead) - o) / safe, vec3<f32>(BIG));
+    let axis = vec3<i32>(0, 1, 2);
+    let crossed = (t_in < vec3<f32>(t_star)) | ((t_in == vec3<f32>(t_star)) & (axis < vec3<i32>(a_star)));
+    c = select(c, c - step, (c != v) & !crossed);
+    (*s).voxel = select(c, v, parallel);
+    let t_next = min((vec3<f32>((*s).voxel + ahead) - o) / safe, vec3<f32>(BIG));
+    (*s).t_max = select(t_next, vec3<f32>(BIG), parallel);
+}
+
 // A ray visits at most nx + ny + nz voxels; the bound only guards against a hang
 // should float error ever stall the walk, it never ends a correct one.
 fn max_steps() -> u32 {
@@ -160,7 +224,12 @@ fn cast_step(s: ptr<function, Dda>, h: ptr<function, Hit>, medium: u32, t_limit:
         }
         return true;
     }
+#ifdef SPARSE
+    let r = dda_region(s);
+    let m = r.material;
+#else
     let m = voxel_material((*s).voxel);
+#endif
     if m != medium {
         (*h).hit = true;
         (*h).t = t;
@@ -168,6 +237,10 @@ fn cast_step(s: ptr<function, Dda>, h: ptr<function, Hit>, medium: u32, t_limit:
         (*h).material = m;
         return true;
     }
+#ifdef SPARSE
+    // A region of the ray's medium holds no hit: leave it whole.
+    dda_skip(s, r);
+#endif
     return false;
 }
 
@@ -180,8 +253,15 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
     if !e.valid {
         return h;
     }
+    var s = dda_init(o, d, e.voxel);
+#ifdef SPARSE
+    let r = dda_region(&s);
+    let m0 = r.material;
+#else
+    let m0 = voxel_material(e.voxel);
+#endif
     if e.axis >= 0 {
-        let m = voxel_material(e.voxel);
+        let m = m0;
         if m != medium {
             h.hit = true;
             h.t = e.t;
@@ -190,7 +270,11 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
             return h;
         }
     }
-    var s = dda_init(o, d, e.voxel);
+#ifdef SPARSE
+    if m0 == medium {
+        dda_skip(&s, r);
+    }
+#endif
     let n = max_steps();
     // DDA_UNROLL steps (1, 2, 4 or 8; the host's choice per device, src/gpu/mod.rs) per
     // loop iteration: the software driver's loop limit counts back edges, not work

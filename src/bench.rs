@@ -10,7 +10,7 @@ use std::time::Duration;
 use anyhow::Result;
 
 use crate::gpu::GpuTracer;
-use crate::render::{RayStats, RenderSettings};
+use crate::render::{RayStats, RenderSettings, Traversal};
 use crate::scene::{Scene, seed_scene};
 
 #[derive(Clone, Debug)]
@@ -22,6 +22,8 @@ pub struct BenchOptions {
     pub cpu_runs: usize,
     /// Skip the CPU reference (e.g. on a fast GPU where only GPU figures are wanted).
     pub cpu: bool,
+    /// The walks compared at each size (`render.traversal`).
+    pub traversals: Vec<Traversal>,
 }
 
 impl Default for BenchOptions {
@@ -33,6 +35,7 @@ impl Default for BenchOptions {
             gpu_runs: 5,
             cpu_runs: 3,
             cpu: true,
+            traversals: vec![Traversal::Dense, Traversal::Sparse],
         }
     }
 }
@@ -42,10 +45,16 @@ impl Default for BenchOptions {
 pub struct BenchRow {
     pub grid: u32,
     pub backend: &'static str,
+    /// The walk: "dense" or "sparse" (the plan's choice under "auto").
+    pub traversal: &'static str,
     pub median: Duration,
     pub stats: RayStats,
-    /// Bytes the grid occupies on the device per voxel (R8Uint texture: 1).
+    /// Bytes the geometry occupies per voxel of the grid's box: the R8Uint texture's 1,
+    /// or the sparse tree's bytes over the voxels.
     pub bytes_per_voxel: f64,
+    /// Time to build the walk's structure from the grid (the sparse tree; 0 for the
+    /// dense grid, which is uploaded as it is).
+    pub build: Duration,
     /// What measured `median`.
     pub timer: &'static str,
 }
@@ -69,6 +78,8 @@ impl BenchRow {
         serde_json::json!({
             "grid": self.grid,
             "backend": self.backend,
+            "traversal": self.traversal,
+            "build_ms": self.build.as_secs_f64() * 1e3,
             "ms_per_frame": self.ms(),
             "mrays_per_s": self.mrays_per_s(),
             "msteps_per_s": self.msteps_per_s(),
@@ -86,11 +97,30 @@ fn median(mut times: Vec<Duration>) -> Duration {
     times[times.len() / 2]
 }
 
-fn bench_gpu(gpu: &mut GpuTracer, scene: &Scene, opts: &BenchOptions) -> Result<BenchRow> {
-    let s = &opts.settings;
+fn bench_gpu(
+    gpu: &mut GpuTracer,
+    scene: &Scene,
+    opts: &BenchOptions,
+    traversal: Traversal,
+) -> Result<BenchRow> {
+    let s = &RenderSettings {
+        traversal,
+        ..opts.settings.clone()
+    };
     // The counted frame doubles as warm-up: it uploads the grid and builds the counting
     // pipeline; the first plain frame builds the timed pipeline and is discarded.
     let counted = gpu.render_counted(scene, s)?;
+    let memory = gpu.last_memory().unwrap_or_default();
+    let plan = gpu.last_plan().expect("a render was made").traversal;
+    // The tree is built with the counted frame's upload; building it again times it.
+    let build = match plan {
+        Traversal::Sparse => {
+            crate::sparse::SparseTree::build_timed(&scene.grid, crate::sparse::GPU_LOG_BRANCH)
+                .1
+                .time
+        }
+        _ => Duration::ZERO,
+    };
     gpu.render(scene, s)?;
     let mut times = Vec::with_capacity(opts.gpu_runs);
     for _ in 0..opts.gpu_runs.max(1) {
@@ -100,15 +130,36 @@ fn bench_gpu(gpu: &mut GpuTracer, scene: &Scene, opts: &BenchOptions) -> Result<
     Ok(BenchRow {
         grid: scene.grid.dims().x,
         backend: "gpu",
+        traversal: traversal_name(plan),
         median: median(times),
         stats: counted.stats,
-        bytes_per_voxel: 1.0,
+        bytes_per_voxel: (memory.grid + memory.tree) as f64 / scene.grid.voxel_count() as f64,
+        build,
         timer: gpu.timer_name(),
     })
 }
 
-fn bench_cpu(scene: &Scene, opts: &BenchOptions) -> BenchRow {
-    let s = &opts.settings;
+fn traversal_name(t: Traversal) -> &'static str {
+    match t {
+        Traversal::Sparse => "sparse",
+        _ => "dense",
+    }
+}
+
+fn bench_cpu(scene: &Scene, opts: &BenchOptions, traversal: Traversal) -> BenchRow {
+    let s = &RenderSettings {
+        traversal,
+        ..opts.settings.clone()
+    };
+    let plan = crate::plan::Plan::new(scene, s).traversal;
+    let (bytes_per_voxel, build) = match plan {
+        Traversal::Sparse => {
+            let (tree, stats) =
+                crate::sparse::SparseTree::build_timed(&scene.grid, crate::sparse::GPU_LOG_BRANCH);
+            (tree.bytes_per_voxel(), stats.time)
+        }
+        _ => (1.0, Duration::ZERO),
+    };
     let warm = crate::cpu::render(scene, s);
     let mut times = Vec::with_capacity(opts.cpu_runs);
     for _ in 0..opts.cpu_runs.max(1) {
@@ -117,9 +168,11 @@ fn bench_cpu(scene: &Scene, opts: &BenchOptions) -> BenchRow {
     BenchRow {
         grid: scene.grid.dims().x,
         backend: "cpu",
+        traversal: traversal_name(plan),
         median: median(times),
         stats: warm.stats,
-        bytes_per_voxel: 1.0,
+        bytes_per_voxel,
+        build,
         timer: "wall (cpu::render)",
     }
 }
@@ -131,13 +184,17 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
     let mut rows = Vec::new();
     for &n in &opts.sizes {
         let scene = seed_scene(n)?;
-        let row = bench_gpu(&mut gpu, &scene, opts)?;
-        progress(&row);
-        rows.push(row);
-        if opts.cpu {
-            let row = bench_cpu(&scene, opts);
+        for &t in &opts.traversals {
+            let row = bench_gpu(&mut gpu, &scene, opts, t)?;
             progress(&row);
             rows.push(row);
+        }
+        if opts.cpu {
+            for &t in &opts.traversals {
+                let row = bench_cpu(&scene, opts, t);
+                progress(&row);
+                rows.push(row);
+            }
         }
     }
     Ok(rows)
@@ -147,8 +204,8 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
 pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> String {
     let mut out = format!(
         "seed scene, {}x{}, depth {}/{}; GPU: {adapter}; CPU: {}\n\n\
-         | grid | backend | median ms/frame | timer | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | grid bytes/voxel |\n\
-         |---:|---|---:|---|---:|---:|---:|---:|---:|\n",
+         | grid | backend | walk | median ms/frame | timer | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | steps/ray | bytes/voxel | build ms |\n\
+         |---:|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|\n",
         settings.width,
         settings.height,
         settings.max_reflection_depth,
@@ -157,9 +214,10 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     );
     for r in rows {
         out += &format!(
-            "| {}^3 | {} | {:.1} | {} | {:.2} | {:.1} | {} ({} + {} + {}) | {} | {} |\n",
+            "| {}^3 | {} | {} | {:.1} | {} | {:.2} | {:.1} | {} ({} + {} + {}) | {} | {:.2} | {:.4} | {:.1} |\n",
             r.grid,
             r.backend,
+            r.traversal,
             r.ms(),
             r.timer,
             r.mrays_per_s(),
@@ -169,16 +227,37 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
             r.stats.secondary,
             r.stats.shadow,
             r.stats.voxel_steps,
+            r.stats.voxel_steps as f64 / r.stats.total_rays().max(1) as f64,
             r.bytes_per_voxel,
+            r.build.as_secs_f64() * 1e3,
         );
     }
     let mut ratios = String::new();
     for g in rows.iter().filter(|r| r.backend == "gpu") {
-        if let Some(c) = rows.iter().find(|r| r.backend == "cpu" && r.grid == g.grid) {
+        if let Some(c) = rows
+            .iter()
+            .find(|r| r.backend == "cpu" && r.grid == g.grid && r.traversal == g.traversal)
+        {
             ratios += &format!(
-                "{}^3: GPU is {:.2}x the CPU's speed (time ratio CPU/GPU)\n",
+                "{}^3 {}: GPU is {:.2}x the CPU's speed (time ratio CPU/GPU)\n",
                 g.grid,
+                g.traversal,
                 c.median.as_secs_f64() / g.median.as_secs_f64()
+            );
+        }
+    }
+    // Sparse against dense on each backend and size: time and steps.
+    for s in rows.iter().filter(|r| r.traversal == "sparse") {
+        if let Some(d) = rows
+            .iter()
+            .find(|r| r.traversal == "dense" && r.backend == s.backend && r.grid == s.grid)
+        {
+            ratios += &format!(
+                "{}^3 {}: sparse is {:.2}x dense's speed, with {:.2}x fewer steps per ray\n",
+                s.grid,
+                s.backend,
+                d.median.as_secs_f64() / s.median.as_secs_f64(),
+                d.stats.voxel_steps as f64 / s.stats.voxel_steps.max(1) as f64
             );
         }
     }
@@ -447,6 +526,95 @@ pub fn plan_table(rows: &[PlanRow]) -> String {
             mib(r.full_bytes),
             r.full_bytes as f64 / r.reduced_bytes as f64,
             r.max_diff
+        );
+    }
+    out
+}
+
+/// One tree shape over one scene in the structure comparison (`voxlab bench --trees`).
+#[derive(Clone, Debug)]
+pub struct TreeRow {
+    pub scene: String,
+    /// "dense", or the tree's children per node side ("octree", "64-tree", "512-tree").
+    pub structure: &'static str,
+    pub nodes: usize,
+    pub bytes_per_voxel: f64,
+    pub build: Duration,
+    /// Rays walked: the primary rays and a shadow ray from each primary hit to each
+    /// light.
+    pub rays: u64,
+    /// Moves of the walk per ray (voxel steps; a region left whole is one).
+    pub steps_per_ray: f64,
+    /// Time of the walks, one thread.
+    pub ms: f64,
+}
+
+/// Compares the dense grid with trees of 2, 4 and 8 children a side on the CPU walk
+/// (f64, one thread, so the times compare the work): the primary rays of the scene's
+/// camera at `size`^2 and a min-kt shadow ray from each hit to each light.
+pub fn bench_trees(name: &str, scene: &Scene, size: u32) -> Vec<TreeRow> {
+    use crate::cpu::{cast_over, shadow_min_kt_over};
+    use crate::sparse::SparseTree;
+    let cam = scene.camera.frame();
+    let mut rows = Vec::new();
+    for b in [0, 1, 2, 3] {
+        let (tree, build) = if b == 0 {
+            (None, Duration::ZERO)
+        } else {
+            let (t, s) = SparseTree::build_timed(&scene.grid, b);
+            (Some(t), s.time)
+        };
+        let start = std::time::Instant::now();
+        let mut stats = RayStats::default();
+        let mut rays = 0u64;
+        for j in 0..size {
+            for i in 0..size {
+                let d = cam.primary_dir(i, j, size, size);
+                let medium = scene.medium_at(cam.eye);
+                let (hit, steps) = cast_over(&scene.grid, tree.as_ref(), cam.eye, d, medium, true);
+                stats.voxel_steps += steps;
+                rays += 1;
+                if let Some(h) = hit {
+                    let q = cam.eye + h.t * d + 1e-3 * scene.grid.voxel_size() * h.normal;
+                    for l in &scene.lights {
+                        shadow_min_kt_over(scene, tree.as_ref(), q, l.position(), &mut stats);
+                        rays += 1;
+                    }
+                }
+            }
+        }
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        rows.push(TreeRow {
+            scene: name.to_string(),
+            structure: ["dense", "octree", "64-tree", "512-tree"][b as usize],
+            nodes: tree.as_ref().map_or(0, |t| t.node_count()),
+            bytes_per_voxel: tree.as_ref().map_or(1.0, |t| t.bytes_per_voxel()),
+            build,
+            rays,
+            steps_per_ray: stats.voxel_steps as f64 / rays.max(1) as f64,
+            ms,
+        });
+    }
+    rows
+}
+
+/// The structure comparison as a markdown table.
+pub fn trees_table(rows: &[TreeRow]) -> String {
+    let mut out = String::from(
+        "| scene | structure | nodes | bytes/voxel | build ms | rays | steps/ray | CPU walk ms |\n\
+         |---|---|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        out += &format!(
+            "| {} | {} | {} | {:.4} | {:.1} | {} | {:.2} | {:.1} |\n",
+            r.scene,
+            r.structure,
+            r.nodes,
+            r.bytes_per_voxel,
+            r.build.as_secs_f64() * 1e3,
+            r.rays,
+            r.steps_per_ray,
+            r.ms
         );
     }
     out

@@ -281,6 +281,15 @@ struct BenchArgs {
     /// Leave the CPU reference out (no ratio).
     #[arg(long)]
     no_cpu: bool,
+    /// Compare the sparse structures instead: the dense grid and trees of 2, 4 and 8
+    /// children a side (octree, 64-tree, 512-tree) on the CPU walk over the seed scene
+    /// at each of --sizes: nodes, bytes per voxel, build time, steps per ray.
+    #[arg(long)]
+    trees: bool,
+    /// The walks to compare at each size: dense, sparse, or auto (the plan's choice).
+    #[arg(long, value_delimiter = ',', default_values_t = ["dense".to_string(), "sparse".to_string()],
+          value_parser = ["auto", "dense", "sparse"])]
+    traversal: Vec<String>,
     /// Benchmark mesh voxelization instead: this mesh and a 50,000-triangle torus, each
     /// at --voxelize-resolution.
     #[arg(long, value_name = "MESH", num_args = 0..=1,
@@ -657,6 +666,27 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         println!("{}", voxlab::bench::plan_table(&rows));
         return Ok(());
     }
+    if a.trees {
+        let mut rows = Vec::new();
+        for &n in &a.sizes {
+            let scene = voxlab::scene::seed_scene(n)?;
+            let r = voxlab::bench::bench_trees(&format!("seed {n}^3"), &scene, a.size);
+            for row in &r {
+                eprintln!(
+                    "  {} {}: {:.2} steps/ray, {:.4} bytes/voxel",
+                    row.scene, row.structure, row.steps_per_ray, row.bytes_per_voxel
+                );
+            }
+            rows.extend(r);
+        }
+        println!(
+            "sparse structures on the CPU walk (f64, one thread): primary rays at {0}x{0} \
+             and a min-kt shadow ray from each hit to each light\n",
+            a.size
+        );
+        println!("{}", voxlab::bench::trees_table(&rows));
+        return Ok(());
+    }
     if let Some(mesh_path) = &a.voxelize {
         let bunny = voxlab::scene::load_mesh(mesh_path)?;
         // 250 x 100 quads: exactly 50,000 triangles.
@@ -684,6 +714,16 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         gpu_runs: a.gpu_runs as usize,
         cpu_runs: a.cpu_runs as usize,
         cpu: !a.no_cpu,
+        traversals: a
+            .traversal
+            .iter()
+            .map(|name| {
+                voxlab::render::Traversal::ALL
+                    .into_iter()
+                    .find(|t| t.name() == name)
+                    .expect("clap checked the name")
+            })
+            .collect(),
         ..Default::default()
     };
     opts.settings.width = a.size;

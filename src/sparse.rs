@@ -14,11 +14,12 @@
 //!
 //! Layout (`words`, also what the GPU reads): a header of [`HEADER_WORDS`] words
 //! (`levels`, `log_branch`, node count, 0), then the nodes, root first, each
-//! [`SparseTree::node_words`] words: the children's materials, four bytes to a word, child
-//! `i = x + B y + B^2 z` in byte `i % 4` of word `i / 4`; a bit mask of the children that
-//! are nodes (bit `i % 32` of mask word `i / 32`); the index of its first child node. The
-//! child nodes of one node are stored one after another, in child order, so child `i`'s
-//! node is `first + (number of node bits below i)`.
+//! [`SparseTree::node_words`] words (a multiple of 4, so the GPU reads a 64-tree node's
+//! mask and child index in one `vec4<u32>` load): a bit mask of the children that are
+//! nodes (bit `i % 32` of mask word `i / 32`, child `i = x + B y + B^2 z`); the index of
+//! its first child node; the children's materials, four bytes to a word, child `i` in
+//! byte `i % 4` of word `i / 4`. The child nodes of one node are stored one after another,
+//! in child order, so child `i`'s node is `first + (number of node bits below i)`.
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
@@ -162,16 +163,28 @@ impl SparseTree {
         1 << (3 * self.log_branch)
     }
 
-    /// Words of one node.
+    /// Words of one node: mask, first child, materials, a multiple of 4.
     pub fn node_words(&self) -> usize {
+        let (_, _, materials_at) = self.offsets();
+        (materials_at + self.children().div_ceil(4)).next_multiple_of(4)
+    }
+
+    /// Where a node's mask, first-child index and materials start within it: the
+    /// materials on a 4-word boundary unless the whole node fits in 4 words (an octree's).
+    fn offsets(&self) -> (usize, usize, usize) {
         let n = self.children();
-        n.div_ceil(4) + n.div_ceil(32) + 1
+        let mask_words = n.div_ceil(32);
+        let head = mask_words + 1;
+        if head + n.div_ceil(4) <= 4 {
+            (0, mask_words, head)
+        } else {
+            (0, mask_words, head.next_multiple_of(4))
+        }
     }
 
     /// Breadth first, so the child nodes of each node lie one after another.
     fn lay_out(&mut self, root: Box<Pending>) {
-        let n = self.children();
-        let (mat_words, mask_words) = (n.div_ceil(4), n.div_ceil(32));
+        let (mask_at, first_at, materials_at) = self.offsets();
         let mut queue = VecDeque::from([root]);
         let mut next_index = 1u32; // the root is node 0
         let mut count = 0u32;
@@ -179,12 +192,12 @@ impl SparseTree {
             count += 1;
             let mut words = vec![0u32; self.node_words()];
             for (i, &m) in node.materials.iter().enumerate() {
-                words[i / 4] |= u32::from(m) << (8 * (i % 4));
+                words[materials_at + i / 4] |= u32::from(m) << (8 * (i % 4));
             }
-            words[mat_words + mask_words] = next_index;
+            words[first_at] = next_index;
             for (i, child) in node.nodes.into_iter().enumerate() {
                 if let Some(c) = child {
-                    words[mat_words + i / 32] |= 1 << (i % 32);
+                    words[mask_at + i / 32] |= 1 << (i % 32);
                     queue.push_back(c);
                     next_index += 1;
                 }
@@ -223,8 +236,7 @@ impl SparseTree {
     /// The uniform region holding voxel `v` (inside the grid).
     pub fn region(&self, v: IVec3) -> Region {
         debug_assert!(v.cmpge(IVec3::ZERO).all() && v.as_uvec3().cmplt(self.dims).all());
-        let n = self.children();
-        let (mat_words, mask_words) = (n.div_ceil(4), n.div_ceil(32));
+        let (mask_at, first_at, materials_at) = self.offsets();
         let b = self.log_branch;
         let mask = (1 << b) - 1;
         let mut node = 0usize;
@@ -233,15 +245,15 @@ impl SparseTree {
             let c = (v >> shift as i32) & mask;
             let i = (c.x | (c.y << b) | (c.z << (2 * b))) as usize;
             let base = HEADER_WORDS + node * self.node_words();
-            let bits = &self.words[base + mat_words..base + mat_words + mask_words];
+            let bits = &self.words[base + mask_at..base + first_at];
             if bits[i / 32] & (1 << (i % 32)) != 0 {
                 let below: u32 = bits[..i / 32].iter().map(|w| w.count_ones()).sum::<u32>()
                     + (bits[i / 32] & ((1u32 << (i % 32)) - 1)).count_ones();
-                node = (self.words[base + mat_words + mask_words] + below) as usize;
+                node = (self.words[base + first_at] + below) as usize;
                 shift -= b;
                 continue;
             }
-            let material = (self.words[base + i / 4] >> (8 * (i % 4))) as u8;
+            let material = (self.words[base + materials_at + i / 4] >> (8 * (i % 4))) as u8;
             let lo = (v >> shift as i32) << shift as i32;
             let hi = (lo + IVec3::splat(1 << shift)).min(self.dims.as_ivec3());
             return Region { material, lo, hi };

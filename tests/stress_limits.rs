@@ -1,5 +1,6 @@
-//! The largest grid the device allows: rendered and checked against the oracle, and one
-//! voxel past the limit refused with an error that names the limit.
+//! The largest grid the device allows: rendered and checked against the oracle; one
+//! voxel past the limit refused with an error that names the limit when the dense walk is
+//! asked for, and rendered through the sparse tree (matching the oracle) under "auto".
 
 mod common;
 
@@ -33,6 +34,23 @@ fn longest_side_at_the_device_limit_renders_and_matches() {
 }
 
 #[test]
+fn one_past_the_limit_renders_through_the_tree_under_auto() {
+    let mut gpu = tracer();
+    let side = gpu.max_grid_side();
+    let scene = seed_scene_dims(UVec3::new(side + 1, 2, 3)).unwrap();
+    let settings = RenderSettings {
+        width: 24,
+        height: 16,
+        ..Default::default()
+    };
+    let g = gpu.render(&scene, &settings).unwrap();
+    let plan = gpu.last_plan().unwrap();
+    assert_eq!(plan.traversal, voxlab::plan::Traversal::Sparse, "{plan}");
+    let c = voxlab::cpu::render(&scene, &settings);
+    common::assert_agree("one past the texture limit, sparse", &g.frame, &c.frame);
+}
+
+#[test]
 fn one_past_the_limit_is_a_clear_error() {
     let mut gpu = tracer();
     let side = gpu.max_grid_side();
@@ -45,6 +63,7 @@ fn one_past_the_limit_is_a_clear_error() {
         let settings = RenderSettings {
             width: 8,
             height: 8,
+            traversal: voxlab::render::Traversal::Dense,
             ..Default::default()
         };
         let err = format!("{:#}", gpu.render(&scene, &settings).unwrap_err());

@@ -34,6 +34,10 @@ const MODULES: &[(&str, &str)] = &[
         include_str!("../../shaders/sampling.wgsl"),
     ),
     (
+        "shaders/sparse.wgsl",
+        include_str!("../../shaders/sparse.wgsl"),
+    ),
+    (
         "shaders/traversal.wgsl",
         include_str!("../../shaders/traversal.wgsl"),
     ),
@@ -128,7 +132,11 @@ pub(super) fn compose(
 
 /// Composes and validates the tracer kernel for `plan`. Pure CPU: no device needed.
 pub fn compose_shader(plan: &Plan) -> Result<naga::Module, ShaderError> {
-    let defs: HashMap<_, _> = plan.shader_defs().into_iter().collect();
+    let mut defs: HashMap<_, _> = plan.shader_defs().into_iter().collect();
+    // shaders/sparse.wgsl is resolved in every variant, and naga_oil substitutes its
+    // level count even where `#ifdef SPARSE` leaves the code out.
+    defs.entry("SPARSE_LEVELS".to_string())
+        .or_insert(ShaderDefValue::UInt(1));
     let mut modules = MODULES.to_vec();
     modules.push(plan.shadow_model.map_or(NO_SHADOW_MODEL, |m| m.wgsl));
     modules.push(SHADING);
@@ -163,6 +171,20 @@ mod tests {
                     module.entry_points.iter().any(|e| e.name == ENTRY_POINT),
                     "no entry point for {plan}"
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn sparse_variants_compose_at_every_depth() {
+        for levels in 1..=crate::sparse::MAX_GPU_LEVELS {
+            for mut plan in [
+                Plan::all_variants(9).pop().unwrap(),
+                Plan::all_variants(1)[0].clone(),
+            ] {
+                plan.traversal = crate::plan::Traversal::Sparse;
+                plan.tree_levels = levels;
+                compose_shader(&plan).unwrap_or_else(|e| panic!("{levels} levels: {e}"));
             }
         }
     }

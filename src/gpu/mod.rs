@@ -152,6 +152,9 @@ struct GridUpload {
     generation: u64,
     dims: glam::UVec3,
     data: Vec<u8>,
+    /// Whether `view` is the grid itself; a plan that reads no texture gets a one-voxel
+    /// stand-in, so a sparse render does not hold the dense grid on the device.
+    texture: bool,
     view: wgpu::TextureView,
 }
 
@@ -274,15 +277,21 @@ pub struct GpuTracer {
     /// `technique_data` of a plug-in technique (`crate::technique::ShadowModel::gpu_data`)
     /// and what it was made from; kept while renders need the same.
     technique_data: Option<(blake3::Hash, wgpu::Buffer)>,
-    /// Bound as `technique_data` when the plan needs none (a binding needs a buffer).
+    /// Bound as `technique_data` when the plan needs none (a binding needs a buffer),
+    /// and as `tree` when the plan walks the dense grid.
     no_technique_data: wgpu::Buffer,
+    /// The sparse tree of the grid upload of the generation it holds, while renders
+    /// walk it.
+    tree: Option<(u64, wgpu::Buffer)>,
 }
 
 /// Device memory bound by one render, in bytes: what a plan's leaving out saves.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct GpuMemory {
-    /// The voxel grid texture (1 byte per voxel).
+    /// The voxel grid texture (1 byte per voxel), when the plan reads it.
     pub grid: u64,
+    /// The sparse tree, when the plan walks it.
+    pub tree: u64,
     /// Materials, lights, parameters and ray counters.
     pub scene: u64,
     /// Radiance output and its readback copy.
@@ -297,7 +306,13 @@ pub struct GpuMemory {
 
 impl GpuMemory {
     pub fn total(&self) -> u64 {
-        self.grid + self.scene + self.image + self.accumulation + self.pyramids + self.technique
+        self.grid
+            + self.tree
+            + self.scene
+            + self.image
+            + self.accumulation
+            + self.pyramids
+            + self.technique
     }
 }
 
@@ -306,10 +321,11 @@ impl std::fmt::Display for GpuMemory {
         let mib = |b: u64| b as f64 / 1048576.0;
         write!(
             f,
-            "{:.2} MiB (grid {:.2}, scene {:.3}, image {:.2}, accumulation {:.2}, pyramids {:.2}, \
-             technique data {:.2})",
+            "{:.2} MiB (grid {:.2}, tree {:.2}, scene {:.3}, image {:.2}, accumulation {:.2}, \
+             pyramids {:.2}, technique data {:.2})",
             mib(self.total()),
             mib(self.grid),
+            mib(self.tree),
             mib(self.scene),
             mib(self.image),
             mib(self.accumulation),
@@ -478,6 +494,7 @@ impl GpuTracer {
                 storage_entry(4, false),
                 storage_entry(5, false),
                 storage_entry(6, true),
+                storage_entry(7, true),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -544,6 +561,7 @@ impl GpuTracer {
             dda_unroll,
             technique_data: None,
             no_technique_data,
+            tree: None,
         })
     }
 
@@ -643,7 +661,7 @@ impl GpuTracer {
         self.render_with(scene, settings, true)
     }
 
-    fn check(&self, scene: &Scene, settings: &RenderSettings) -> Result<()> {
+    fn check(&self, scene: &Scene, settings: &RenderSettings, plan: &Plan) -> Result<()> {
         scene.validate()?;
         let (w, h) = (settings.width, settings.height);
         if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
@@ -660,7 +678,7 @@ impl GpuTracer {
         let limits = self.device.limits();
         let dims = scene.grid.dims();
         let side = self.max_grid_side();
-        if dims.max_element() > side {
+        if Self::reads_grid_texture(plan) && dims.max_element() > side {
             bail!(
                 "grid {}x{}x{} does not fit this device: max_texture_dimension_3d is {side} \
                  on {}",
@@ -720,18 +738,37 @@ impl GpuTracer {
         Ok(&self.pipelines[&key])
     }
 
-    /// Uploads the grid unless the device already holds exactly this one.
-    fn upload_grid(&mut self, scene: &Scene) {
+    /// Whether a render of `plan` reads the grid texture: the dense walk does, and so do
+    /// the builds of the cone pyramids and of device-built technique data.
+    fn reads_grid_texture(plan: &Plan) -> bool {
+        plan.traversal != crate::plan::Traversal::Sparse
+            || plan.pyramid.is_some()
+            || plan
+                .shadow_model
+                .is_some_and(|m| matches!(m.gpu_data, Some(crate::technique::GpuData::Device(_))))
+    }
+
+    /// Uploads the grid unless the device already holds exactly this one; without
+    /// `texture` a one-voxel stand-in is bound (the grid's voxels are kept on the host to
+    /// tell a change).
+    fn upload_grid(&mut self, scene: &Scene, texture: bool) {
         let dims = scene.grid.dims();
         let data = scene.grid.data();
-        if let Some(g) = &self.grid
-            && g.dims == dims
-            && g.data == data
-        {
+        let same = self
+            .grid
+            .as_ref()
+            .is_some_and(|g| g.dims == dims && g.data == data);
+        if same && self.grid.as_ref().is_some_and(|g| g.texture || !texture) {
             return;
         }
-        let size = extent(dims);
-        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+        // The same voxels keep their generation: what was built from them stays valid.
+        let generation = self.grid_generation() + u64::from(!same);
+        let (size, data, bytes_per_row, rows) = if texture {
+            (extent(dims), data, dims.x, dims.y)
+        } else {
+            (extent(glam::UVec3::ONE), &[0u8][..], 1, 1)
+        };
+        let gpu_texture = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("voxel grid"),
             size,
             mip_level_count: 1,
@@ -745,7 +782,7 @@ impl GpuTracer {
         // buffer-to-texture copies need): x-fastest, as the grid stores them.
         self.queue.write_texture(
             wgpu::TexelCopyTextureInfo {
-                texture: &texture,
+                texture: &gpu_texture,
                 mip_level: 0,
                 origin: wgpu::Origin3d::ZERO,
                 aspect: wgpu::TextureAspect::All,
@@ -753,18 +790,57 @@ impl GpuTracer {
             data,
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
-                bytes_per_row: Some(dims.x),
-                rows_per_image: Some(dims.y),
+                bytes_per_row: Some(bytes_per_row),
+                rows_per_image: Some(rows),
             },
             size,
         );
-        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let view = gpu_texture.create_view(&wgpu::TextureViewDescriptor::default());
         self.grid = Some(GridUpload {
-            generation: self.grid_generation() + 1,
+            generation,
             dims,
-            data: data.to_vec(),
+            data: scene.grid.data().to_vec(),
+            texture,
             view,
         });
+    }
+
+    /// Builds and uploads the sparse tree of the uploaded grid unless the device holds
+    /// it already; returns its bytes.
+    fn upload_tree(&mut self, scene: &Scene) -> Result<u64> {
+        let generation = self.grid_generation();
+        if let Some((g, b)) = &self.tree
+            && *g == generation
+        {
+            return Ok(b.size());
+        }
+        self.tree = None;
+        let tree = crate::sparse::SparseTree::build(&scene.grid, crate::sparse::GPU_LOG_BRANCH);
+        let bytes = tree.bytes() as u64;
+        let limits = self.device.limits();
+        let max = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        if bytes > max {
+            bail!(
+                "the sparse tree of grid {}x{}x{} needs {bytes} bytes; the device allows {max} \
+                 (max_storage_buffer_binding_size); render.traversal = \"dense\" walks the \
+                 grid texture instead",
+                scene.grid.dims().x,
+                scene.grid.dims().y,
+                scene.grid.dims().z
+            );
+        }
+        let buf = buffer(
+            &self.device,
+            "sparse tree",
+            bytes,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        );
+        self.queue
+            .write_buffer(&buf, 0, bytemuck::cast_slice(tree.words()));
+        self.tree = Some((generation, buf));
+        Ok(bytes)
     }
 
     /// A buffer of at least `bytes` in `slot`, kept while large enough.
@@ -1172,8 +1248,23 @@ impl GpuTracer {
     ) -> Result<RenderOutput> {
         let mut plan = plan;
         plan.dda_unroll = self.dda_unroll;
+        let side = scene.grid.dims().max_element();
+        if settings.traversal == crate::render::Traversal::Auto
+            && plan.traversal != crate::plan::Traversal::Sparse
+            && side > self.max_grid_side()
+        {
+            // The device cannot hold the grid as a texture: the tree is the only way.
+            plan.traversal = crate::plan::Traversal::Sparse;
+            plan.tree_levels =
+                crate::sparse::levels_for(scene.grid.dims(), crate::sparse::GPU_LOG_BRANCH);
+            plan.traversal_reason = format!(
+                "auto: the grid's largest side {side} is above this device's \
+                 max_texture_dimension_3d {}",
+                self.max_grid_side()
+            );
+        }
         let count = plan.count_rays;
-        self.check(scene, settings)?;
+        self.check(scene, settings, &plan)?;
         Self::check_frames(settings, &plan, &frames)?;
         self.pipeline(&plan)?;
         // Device allocations fail as errors of the render, never through wgpu's default
@@ -1181,7 +1272,16 @@ impl GpuTracer {
         // with its size. Popped (in reverse order) once everything is uploaded.
         let oom_scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation_scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        self.upload_grid(scene);
+        self.upload_grid(scene, Self::reads_grid_texture(&plan));
+        let setup = Instant::now();
+        let tree_bytes = if plan.traversal == crate::plan::Traversal::Sparse {
+            self.upload_tree(scene)?
+        } else {
+            // Dropped while renders walk the grid: nothing holds it on the device.
+            self.tree = None;
+            0
+        };
+        let tree_time = setup.elapsed();
         let key = continuable.then(|| AccumulationKey::new(scene, settings, &plan));
         if frames.start > 0 {
             // Only render_frames asks for a start above 0.
@@ -1259,6 +1359,10 @@ impl GpuTracer {
                 buffer_entry(4, accumulation.as_ref().map_or(&output, |a| &a.1)),
                 buffer_entry(5, &self.counters),
                 buffer_entry(6, technique_data),
+                buffer_entry(
+                    7,
+                    self.tree.as_ref().map_or(&self.no_technique_data, |t| &t.1),
+                ),
             ],
         });
 
@@ -1279,11 +1383,12 @@ impl GpuTracer {
             }
             None => None,
         };
-        self.last_setup_time = if plan.pyramid.is_some() {
-            setup.elapsed()
-        } else {
-            Duration::ZERO
-        };
+        self.last_setup_time = tree_time
+            + if plan.pyramid.is_some() {
+                setup.elapsed()
+            } else {
+                Duration::ZERO
+            };
 
         // Finish the uploads first so the timed submission holds the trace alone.
         self.queue.submit([]);
@@ -1298,6 +1403,7 @@ impl GpuTracer {
             self.frame_slices = None;
             self.pyramid = None;
             self.technique_data = None;
+            self.tree = None;
             let d = scene.grid.dims();
             bail!(
                 "the device could not hold this render (grid {}x{}x{}: {} bytes of texture; \
@@ -1487,7 +1593,12 @@ impl GpuTracer {
                 }
         });
         self.last_memory = Some(GpuMemory {
-            grid: scene.grid.voxel_count() as u64,
+            grid: if Self::reads_grid_texture(&plan) {
+                scene.grid.voxel_count() as u64
+            } else {
+                1
+            },
+            tree: tree_bytes,
             scene: mat_buf.size() + light_buf.size() + self.params.size() + 2 * COUNTER_BYTES,
             image: output.size() + readback.size(),
             accumulation: accumulation

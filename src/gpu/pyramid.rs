@@ -344,7 +344,7 @@ impl GpuTracer {
         radiance: bool,
     ) -> Result<GpuPyramid> {
         scene.validate()?;
-        self.upload_grid(scene);
+        self.upload_grid(scene, true);
         self.upload_scene(scene, settings);
         let inputs = InjectInputs::new(scene, settings, layout.dims);
         self.build(&inputs, layout, radiance)
