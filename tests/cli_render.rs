@@ -353,7 +353,14 @@ fn bench_json_prints_one_object_per_row() {
         .lines()
         .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
         .collect();
-    assert_eq!(rows.len(), 4, "two sizes, two backends: {out}");
+    assert_eq!(rows.len(), 8, "two sizes, two backends, two walks: {out}");
+    for walk in ["dense", "sparse"] {
+        assert_eq!(
+            rows.iter().filter(|r| r["traversal"] == walk).count(),
+            4,
+            "{out}"
+        );
+    }
     for r in &rows {
         assert_eq!(r["bench"], "seed");
         assert_eq!(r["image_side"], 16);
@@ -361,10 +368,19 @@ fn bench_json_prints_one_object_per_row() {
         assert!(r["adapter"].as_str().is_some_and(|a| !a.is_empty()), "{r}");
         assert!(r["steps_per_ray"].as_f64().unwrap() > 0.0, "{r}");
     }
-    // The two tracers count the same rays.
-    for pair in rows.chunks(2) {
-        assert_eq!(pair[0]["backend"], "gpu");
-        assert_eq!(pair[1]["backend"], "cpu");
-        assert_eq!(pair[0]["rays"], pair[1]["rays"], "{pair:?}");
+    // Per size: the GPU's two walks, then the CPU's; both tracers and both walks count
+    // the same rays (steps may differ by the few rays f32 and f64 walk differently).
+    for size in rows.chunks(4) {
+        let backends: Vec<_> = size
+            .iter()
+            .map(|r| r["backend"].as_str().unwrap())
+            .collect();
+        assert_eq!(backends, ["gpu", "gpu", "cpu", "cpu"], "{size:?}");
+        for r in &size[1..] {
+            assert_eq!(r["rays"], size[0]["rays"], "{size:?}");
+        }
+        for (g, c) in [(0, 2), (1, 3)] {
+            assert_eq!(size[g]["traversal"], size[c]["traversal"]);
+        }
     }
 }

@@ -132,7 +132,13 @@ fn too_large_grid_is_a_clear_error() {
     let mut scene = seed_scene(4).unwrap();
     scene.grid = grid;
     let mut gpu = gpu;
-    let err = gpu.render(&scene, &small(8, 8)).unwrap_err().to_string();
+    // The dense walk needs the grid as a texture; "auto" walks the tree instead
+    // (tests/stress_limits.rs).
+    let settings = voxlab::RenderSettings {
+        traversal: voxlab::render::Traversal::Dense,
+        ..small(8, 8)
+    };
+    let err = gpu.render(&scene, &settings).unwrap_err().to_string();
     assert!(
         err.contains("max_texture_dimension_3d") && err.contains(&side.to_string()),
         "{err}"

@@ -337,3 +337,45 @@ fn cpu_images_over_the_tree_are_the_dense_images() {
         );
     }
 }
+
+#[test]
+fn the_experiment_file_names_the_traversal() {
+    use voxlab::experiment::Experiment;
+    for t in Traversal::ALL {
+        let text = format!("[render]\ntraversal = \"{}\"\n", t.name());
+        let e = Experiment::from_str(&text, "x.toml").unwrap();
+        assert_eq!(e.settings.traversal, t);
+        // The writer writes it back.
+        let table = voxlab::experiment::write::render_table(&e.settings, e.scene.ambient);
+        assert_eq!(table["traversal"].as_str(), Some(t.name()));
+    }
+    let err = Experiment::from_str("[render]\n\ntraversal = \"octree\"\n", "x.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.starts_with("x.toml:3:")
+            && err.contains("render.traversal")
+            && err.contains("\"auto\", \"dense\" or \"sparse\""),
+        "{err}"
+    );
+}
+
+#[test]
+fn building_from_a_vox_model_gives_the_tree_of_its_grid() {
+    // The deer as the whole scene: the tree built from the loaded grid holds every voxel
+    // the grid holds, and padding the grid with void changes no region's material.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/deer.vox");
+    let vox = voxlab::scene::load_vox(&path, None).unwrap_or_else(|e| panic!("{e}"));
+    let g = vox.grid;
+    let t = SparseTree::build(&g, 2);
+    let d = g.dims().as_ivec3();
+    for z in 0..d.z {
+        for y in 0..d.y {
+            for x in 0..d.x {
+                let v = IVec3::new(x, y, z);
+                assert_eq!(t.get(v), g.get(v), "{v}");
+            }
+        }
+    }
+    assert!(t.bytes_per_voxel() < 1.0, "{}", t.bytes_per_voxel());
+}

@@ -1273,15 +1273,14 @@ impl GpuTracer {
         let oom_scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation_scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.upload_grid(scene, Self::reads_grid_texture(&plan));
-        let setup = Instant::now();
-        let tree_bytes = if plan.traversal == crate::plan::Traversal::Sparse {
-            self.upload_tree(scene)?
+        let (tree_bytes, tree_time) = if plan.traversal == crate::plan::Traversal::Sparse {
+            let start = Instant::now();
+            (self.upload_tree(scene)?, start.elapsed())
         } else {
             // Dropped while renders walk the grid: nothing holds it on the device.
             self.tree = None;
-            0
+            (0, Duration::ZERO)
         };
-        let tree_time = setup.elapsed();
         let key = continuable.then(|| AccumulationKey::new(scene, settings, &plan));
         if frames.start > 0 {
             // Only render_frames asks for a start above 0.
