@@ -24,6 +24,9 @@ pub struct BenchOptions {
     pub cpu: bool,
     /// The walks compared at each size (`render.traversal`).
     pub traversals: Vec<Traversal>,
+    /// Experiments benchmarked after the seed scene, each with its own scene and its
+    /// camera, lights and materials, at the options' image size and depth limits.
+    pub experiments: Vec<crate::experiment::Experiment>,
 }
 
 impl Default for BenchOptions {
@@ -36,6 +39,7 @@ impl Default for BenchOptions {
             cpu_runs: 3,
             cpu: true,
             traversals: vec![Traversal::Dense, Traversal::Sparse],
+            experiments: Vec::new(),
         }
     }
 }
@@ -43,6 +47,8 @@ impl Default for BenchOptions {
 /// One backend at one grid size.
 #[derive(Clone, Debug)]
 pub struct BenchRow {
+    /// "seed N^3", or an experiment's name and grid.
+    pub scene: String,
     pub grid: u32,
     pub backend: &'static str,
     /// The walk: "dense" or "sparse" (the plan's choice under "auto").
@@ -76,6 +82,7 @@ impl BenchRow {
         let s = &self.stats;
         let rays = s.total_rays().max(1) as f64;
         serde_json::json!({
+            "scene": self.scene,
             "grid": self.grid,
             "backend": self.backend,
             "traversal": self.traversal,
@@ -97,8 +104,18 @@ fn median(mut times: Vec<Duration>) -> Duration {
     times[times.len() / 2]
 }
 
+fn scene_label(name: &str, scene: &Scene) -> String {
+    let d = scene.grid.dims();
+    if d.x == d.y && d.y == d.z {
+        format!("{name} {}^3", d.x)
+    } else {
+        format!("{name} {}x{}x{}", d.x, d.y, d.z)
+    }
+}
+
 fn bench_gpu(
     gpu: &mut GpuTracer,
+    name: &str,
     scene: &Scene,
     opts: &BenchOptions,
     traversal: Traversal,
@@ -128,6 +145,7 @@ fn bench_gpu(
         times.push(gpu.last_gpu_time().unwrap_or(out.trace_time));
     }
     Ok(BenchRow {
+        scene: scene_label(name, scene),
         grid: scene.grid.dims().x,
         backend: "gpu",
         traversal: traversal_name(plan),
@@ -146,7 +164,7 @@ fn traversal_name(t: Traversal) -> &'static str {
     }
 }
 
-fn bench_cpu(scene: &Scene, opts: &BenchOptions, traversal: Traversal) -> BenchRow {
+fn bench_cpu(name: &str, scene: &Scene, opts: &BenchOptions, traversal: Traversal) -> BenchRow {
     let s = &RenderSettings {
         traversal,
         ..opts.settings.clone()
@@ -166,6 +184,7 @@ fn bench_cpu(scene: &Scene, opts: &BenchOptions, traversal: Traversal) -> BenchR
         times.push(crate::cpu::render(scene, s).trace_time);
     }
     BenchRow {
+        scene: scene_label(name, scene),
         grid: scene.grid.dims().x,
         backend: "cpu",
         traversal: traversal_name(plan),
@@ -182,16 +201,24 @@ fn bench_cpu(scene: &Scene, opts: &BenchOptions, traversal: Traversal) -> BenchR
 pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<Vec<BenchRow>> {
     let mut gpu = GpuTracer::new()?;
     let mut rows = Vec::new();
-    for &n in &opts.sizes {
-        let scene = seed_scene(n)?;
+    let seeds = opts
+        .sizes
+        .iter()
+        .map(|&n| -> Result<(String, Scene)> { Ok(("seed".to_string(), seed_scene(n)?)) });
+    let experiments = opts
+        .experiments
+        .iter()
+        .map(|e| -> Result<(String, Scene)> { Ok((e.name.clone(), e.scene.clone())) });
+    for scene in seeds.chain(experiments) {
+        let (name, scene) = scene?;
         for &t in &opts.traversals {
-            let row = bench_gpu(&mut gpu, &scene, opts, t)?;
+            let row = bench_gpu(&mut gpu, &name, &scene, opts, t)?;
             progress(&row);
             rows.push(row);
         }
         if opts.cpu {
             for &t in &opts.traversals {
-                let row = bench_cpu(&scene, opts, t);
+                let row = bench_cpu(&name, &scene, opts, t);
                 progress(&row);
                 rows.push(row);
             }
@@ -203,8 +230,8 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
 /// The table the README quotes: one line per grid size and backend, then the ratio.
 pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> String {
     let mut out = format!(
-        "seed scene, {}x{}, depth {}/{}; GPU: {adapter}; CPU: {}\n\n\
-         | grid | backend | walk | median ms/frame | timer | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | steps/ray | bytes/voxel | build ms |\n\
+        "{}x{}, depth {}/{}; GPU: {adapter}; CPU: {}\n\n\
+         | scene | backend | walk | median ms/frame | timer | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | steps/ray | bytes/voxel | build ms |\n\
          |---:|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|\n",
         settings.width,
         settings.height,
@@ -214,8 +241,8 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     );
     for r in rows {
         out += &format!(
-            "| {}^3 | {} | {} | {:.1} | {} | {:.2} | {:.1} | {} ({} + {} + {}) | {} | {:.2} | {:.4} | {:.1} |\n",
-            r.grid,
+            "| {} | {} | {} | {:.1} | {} | {:.2} | {:.1} | {} ({} + {} + {}) | {} | {:.2} | {:.4} | {:.1} |\n",
+            r.scene,
             r.backend,
             r.traversal,
             r.ms(),
@@ -236,25 +263,25 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     for g in rows.iter().filter(|r| r.backend == "gpu") {
         if let Some(c) = rows
             .iter()
-            .find(|r| r.backend == "cpu" && r.grid == g.grid && r.traversal == g.traversal)
+            .find(|r| r.backend == "cpu" && r.scene == g.scene && r.traversal == g.traversal)
         {
             ratios += &format!(
-                "{}^3 {}: GPU is {:.2}x the CPU's speed (time ratio CPU/GPU)\n",
-                g.grid,
+                "{} {}: GPU is {:.2}x the CPU's speed (time ratio CPU/GPU)\n",
+                g.scene,
                 g.traversal,
                 c.median.as_secs_f64() / g.median.as_secs_f64()
             );
         }
     }
-    // Sparse against dense on each backend and size: time and steps.
+    // Sparse against dense on each backend and scene: time and steps.
     for s in rows.iter().filter(|r| r.traversal == "sparse") {
         if let Some(d) = rows
             .iter()
-            .find(|r| r.traversal == "dense" && r.backend == s.backend && r.grid == s.grid)
+            .find(|r| r.traversal == "dense" && r.backend == s.backend && r.scene == s.scene)
         {
             ratios += &format!(
-                "{}^3 {}: sparse is {:.2}x dense's speed, with {:.2}x fewer steps per ray\n",
-                s.grid,
+                "{} {}: sparse is {:.2}x dense's speed, with {:.2}x fewer steps per ray\n",
+                s.scene,
                 s.backend,
                 d.median.as_secs_f64() / s.median.as_secs_f64(),
                 d.stats.voxel_steps as f64 / s.stats.voxel_steps.max(1) as f64

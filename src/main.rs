@@ -281,6 +281,10 @@ struct BenchArgs {
     /// Leave the CPU reference out (no ratio).
     #[arg(long)]
     no_cpu: bool,
+    /// Experiments to benchmark after the seed scene (each its own scene, camera and
+    /// lights, at --size and depth 4/4).
+    #[arg(long, num_args = 1.., value_name = "EXPERIMENT")]
+    experiments: Vec<PathBuf>,
     /// Compare the sparse structures instead: the dense grid and trees of 2, 4 and 8
     /// children a side (octree, 64-tree, 512-tree) on the CPU walk over the seed scene
     /// at each of --sizes: nodes, bytes per voxel, build time, steps per ray.
@@ -724,6 +728,11 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
                     .expect("clap checked the name")
             })
             .collect(),
+        experiments: a
+            .experiments
+            .iter()
+            .map(|f| Experiment::load(f).map_err(anyhow::Error::from))
+            .collect::<Result<Vec<_>>>()?,
         ..Default::default()
     };
     opts.settings.width = a.size;
@@ -734,9 +743,10 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
     eprintln!("GPU: {adapter}\nCPU: {}", voxlab::cpu::backend_summary());
     let rows = voxlab::bench::run(&opts, |r| {
         eprintln!(
-            "  {}^3 {}: {:.1} ms/frame, {:.2} Mrays/s, {:.1} Msteps/s",
-            r.grid,
+            "  {} {} {}: {:.1} ms/frame, {:.2} Mrays/s, {:.1} Msteps/s",
+            r.scene,
             r.backend,
+            r.traversal,
             r.ms(),
             r.mrays_per_s(),
             r.msteps_per_s()
