@@ -88,7 +88,7 @@ pub struct Plan {
     pub dda_unroll: u32,
     /// How rays walk the grid: [`Traversal::Dense`] or [`Traversal::Sparse`], never
     /// `Auto` (`SPARSE`, with `SPARSE_LEVELS` the tree's depth). Only the sparse walk's
-    /// tree is built and uploaded, only the dense walk reads the grid texture.
+    /// tree is built and uploaded, only the dense walk's voxel buffer.
     pub traversal: Traversal,
     /// Levels of the sparse tree's nodes (0 with the dense walk).
     pub tree_levels: u32,
@@ -99,12 +99,13 @@ pub struct Plan {
 }
 
 /// The grid side from which `render.traversal = "auto"` walks the sparse tree. Below it
-/// the dense walk's one texture fetch per step costs less than the tree's descent and
-/// region skip per step, for all the steps the tree saves: on lavapipe the seed scene
-/// at 128^3 renders at 0.63x the dense walk's speed with the tree and at 256^3 at 1.24x
-/// (`voxlab bench --sizes 128,256`, README "Sparse traversal"). A grid larger than the
-/// device's 3D textures is walked sparse whatever its side (`crate::gpu`).
-pub const SPARSE_FROM_SIDE: u32 = 256;
+/// the dense walk's one load per step costs less than the tree's descent and region
+/// skip per step, for all the steps the tree saves: on lavapipe the seed scene renders
+/// at 0.80x the dense walk's speed with the tree at 256^3 and at 2.03x at 512^3, the
+/// bunny voxelized at 512 at 2.11x (`voxlab bench --sizes 256,512 --experiments
+/// experiments/bunny_512.toml`, README "Sparse traversal"). A grid larger than the
+/// device binds as one buffer is walked sparse whatever its side (`crate::gpu`).
+pub const SPARSE_FROM_SIDE: u32 = 512;
 
 /// The traversal of `scene` under `settings`, and why.
 fn choose_traversal(scene: &Scene, settings: &RenderSettings) -> (Traversal, String) {

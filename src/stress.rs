@@ -549,7 +549,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
     );
     out.push(case(
         &format!("grid-{side}x8x8"),
-        "longest side = max_texture_dimension_3d",
+        "longest side = max_texture_dimension_3d (the cone pyramids' limit)",
         s,
         settings(48, 48),
     ));

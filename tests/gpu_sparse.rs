@@ -187,16 +187,16 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
     gpu.render(&scene, &settings(16, 16, 1, Traversal::Dense))
         .unwrap();
     let dense = gpu.last_memory().unwrap();
-    assert_eq!(dense.grid, 64 * 64 * 64);
+    assert_eq!(dense.grid, 64 * 64 * 64, "the voxel buffer");
     assert_eq!(dense.tree, 0);
-    assert_eq!(sparse.grid, 1, "a one-voxel stand-in");
+    assert_eq!(sparse.grid, 0, "neither the voxel buffer nor the texture");
     assert!(sparse.tree > 0 && sparse.tree < dense.grid, "{sparse:?}");
     // Auto: dense below SPARSE_FROM_SIDE, sparse from it on; the plan says why.
     for (n, want) in [
         (voxlab::plan::SPARSE_FROM_SIDE - 1, Traversal::Dense),
         (voxlab::plan::SPARSE_FROM_SIDE, Traversal::Sparse),
     ] {
-        let scene = seed_scene(n).unwrap();
+        let scene = seed_scene_dims(UVec3::new(n, 3, 2)).unwrap();
         let plan = voxlab::plan::Plan::new(&scene, &settings(8, 8, 1, Traversal::Auto));
         assert_eq!(plan.traversal, want, "{plan}");
         assert!(plan.to_string().contains("traversal:"), "{plan}");

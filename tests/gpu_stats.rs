@@ -128,16 +128,16 @@ fn too_large_grid_is_a_clear_error() {
     println!("{}: max grid side {side}", gpu.adapter_summary());
     assert!(side >= 256);
     // A grid one voxel too long in x (thin, so it is cheap to allocate).
-    let grid = Grid::new(UVec3::new(side + 1, 1, 1), 1.0, DVec3::ZERO).unwrap();
+    let mut grid = Grid::new(UVec3::new(side + 1, 1, 1), 1.0, DVec3::ZERO).unwrap();
+    // A lit voxel, so that cone shadows are planned.
+    grid.set(glam::IVec3::ZERO, voxlab::scene::seed_ids::SOLID);
     let mut scene = seed_scene(4).unwrap();
     scene.grid = grid;
     let mut gpu = gpu;
-    // The dense walk needs the grid as a texture; "auto" walks the tree instead
+    // The cone pyramids need the grid as a texture; the walks read buffers
     // (tests/stress_limits.rs).
-    let settings = voxlab::RenderSettings {
-        traversal: voxlab::render::Traversal::Dense,
-        ..small(8, 8)
-    };
+    let mut settings = small(8, 8);
+    settings.features.cone_shadows = true;
     let err = gpu.render(&scene, &settings).unwrap_err().to_string();
     assert!(
         err.contains("max_texture_dimension_3d") && err.contains(&side.to_string()),

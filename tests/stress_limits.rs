@@ -1,6 +1,7 @@
-//! The largest grid the device allows: rendered and checked against the oracle; one
-//! voxel past the limit refused with an error that names the limit when the dense walk is
-//! asked for, and rendered through the sparse tree (matching the oracle) under "auto".
+//! The longest grid side the device's 3D textures allow: rendered and checked against
+//! the oracle; one voxel past it refused with an error that names the limit where the
+//! grid must be a texture (the cone pyramids), and rendered by both walks, which read
+//! buffers, matching the oracle.
 
 mod common;
 
@@ -34,20 +35,26 @@ fn longest_side_at_the_device_limit_renders_and_matches() {
 }
 
 #[test]
-fn one_past_the_limit_renders_through_the_tree_under_auto() {
+fn one_past_the_texture_limit_renders_on_both_walks() {
     let mut gpu = tracer();
     let side = gpu.max_grid_side();
     let scene = seed_scene_dims(UVec3::new(side + 1, 2, 3)).unwrap();
-    let settings = RenderSettings {
-        width: 24,
-        height: 16,
-        ..Default::default()
-    };
-    let g = gpu.render(&scene, &settings).unwrap();
-    let plan = gpu.last_plan().unwrap();
-    assert_eq!(plan.traversal, voxlab::plan::Traversal::Sparse, "{plan}");
-    let c = voxlab::cpu::render(&scene, &settings);
-    common::assert_agree("one past the texture limit, sparse", &g.frame, &c.frame);
+    for traversal in [
+        voxlab::render::Traversal::Dense,
+        voxlab::render::Traversal::Sparse,
+    ] {
+        let settings = RenderSettings {
+            width: 24,
+            height: 16,
+            traversal,
+            ..Default::default()
+        };
+        let g = gpu.render(&scene, &settings).unwrap();
+        let plan = gpu.last_plan().unwrap();
+        assert_eq!(plan.traversal, traversal, "{plan}");
+        let c = voxlab::cpu::render(&scene, &settings);
+        common::assert_agree("one past the texture limit", &g.frame, &c.frame);
+    }
 }
 
 #[test]
@@ -60,12 +67,13 @@ fn one_past_the_limit_is_a_clear_error() {
         UVec3::new(1, 1, side + 1),
     ] {
         let scene = seed_scene_dims(dims).unwrap();
-        let settings = RenderSettings {
+        let mut settings = RenderSettings {
             width: 8,
             height: 8,
-            traversal: voxlab::render::Traversal::Dense,
             ..Default::default()
         };
+        // The pyramids of cone shadows are 3D textures.
+        settings.features.cone_shadows = true;
         let err = format!("{:#}", gpu.render(&scene, &settings).unwrap_err());
         assert!(
             err.contains("max_texture_dimension_3d") && err.contains(&side.to_string()),

@@ -21,10 +21,7 @@ use crate::render::{
     Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings, Rules,
 };
 use crate::scene::{AreaShape, Light, Scene};
-use util::{
-    buffer, buffer_entry, extent, readback, storage_entry, texture_3d_entry, uniform_entry,
-    view_entry,
-};
+use util::{buffer, buffer_entry, extent, readback, storage_entry, uniform_entry};
 
 /// Side of the square workgroup (`@workgroup_size(8, 8, 1)` in `shaders/trace.wgsl`).
 const WORKGROUP: u32 = 8;
@@ -156,6 +153,9 @@ struct GridUpload {
     /// stand-in, so a sparse render does not hold the dense grid on the device.
     texture: bool,
     view: wgpu::TextureView,
+    /// The voxels packed four to a word, x-fastest (`voxels` of shaders/bindings.wgsl),
+    /// which the dense walk reads; only while a plan walks the dense grid.
+    voxels: Option<wgpu::Buffer>,
 }
 
 /// What a [`GpuTracer::render_frames`] accumulation was made from, so that a call that
@@ -488,7 +488,7 @@ impl GpuTracer {
             label: Some("voxlab tracer"),
             entries: &[
                 uniform_entry(0),
-                texture_3d_entry(1, wgpu::TextureSampleType::Uint),
+                storage_entry(1, true),
                 storage_entry(2, true),
                 storage_entry(3, true),
                 storage_entry(4, false),
@@ -578,7 +578,9 @@ impl GpuTracer {
         )
     }
 
-    /// Largest 3D texture side this device allows: the largest grid side.
+    /// Largest 3D texture side this device allows: the largest grid side the cone
+    /// features (their pyramids) and device-built technique data accept. The walks read
+    /// storage buffers instead, limited by [`Self::max_voxel_buffer_bytes`].
     pub fn max_grid_side(&self) -> u32 {
         self.device.limits().max_texture_dimension_3d
     }
@@ -677,6 +679,19 @@ impl GpuTracer {
         }
         let limits = self.device.limits();
         let dims = scene.grid.dims();
+        let voxel_bytes = Self::voxel_buffer_bytes(dims);
+        if Self::reads_voxel_buffer(plan) && voxel_bytes > self.max_voxel_buffer_bytes() {
+            bail!(
+                "grid {}x{}x{} needs a {voxel_bytes}-byte voxel buffer for the dense walk; {} \
+                 binds at most {} (max_storage_buffer_binding_size); render.traversal = \
+                 \"sparse\" walks the tree instead",
+                dims.x,
+                dims.y,
+                dims.z,
+                self.adapter.get_info().name,
+                self.max_voxel_buffer_bytes()
+            );
+        }
         let side = self.max_grid_side();
         if Self::reads_grid_texture(plan) && dims.max_element() > side {
             bail!(
@@ -738,14 +753,58 @@ impl GpuTracer {
         Ok(&self.pipelines[&key])
     }
 
-    /// Whether a render of `plan` reads the grid texture: the dense walk does, and so do
-    /// the builds of the cone pyramids and of device-built technique data.
+    /// Whether a render of `plan` reads the grid texture: the builds of the cone pyramids
+    /// and of device-built technique data do. The walks do not: the dense walk reads the
+    /// voxel buffer, the sparse one the tree.
     fn reads_grid_texture(plan: &Plan) -> bool {
-        plan.traversal != crate::plan::Traversal::Sparse
-            || plan.pyramid.is_some()
+        plan.pyramid.is_some()
             || plan
                 .shadow_model
                 .is_some_and(|m| matches!(m.gpu_data, Some(crate::technique::GpuData::Device(_))))
+    }
+
+    /// Whether a render of `plan` reads the voxel buffer: the dense walk does.
+    fn reads_voxel_buffer(plan: &Plan) -> bool {
+        plan.traversal != crate::plan::Traversal::Sparse
+    }
+
+    /// Bytes of the voxel buffer of a grid of `dims` (a whole number of vec4<u32>).
+    fn voxel_buffer_bytes(dims: glam::UVec3) -> u64 {
+        (dims.x as u64 * dims.y as u64 * dims.z as u64).next_multiple_of(16)
+    }
+
+    /// The largest storage buffer this device binds: the largest dense grid, in voxels.
+    pub fn max_voxel_buffer_bytes(&self) -> u64 {
+        let limits = self.device.limits();
+        limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size)
+    }
+
+    /// Makes the voxel buffer of the uploaded grid if it has none.
+    fn upload_voxel_buffer(&mut self, scene: &Scene) {
+        let Some(g) = self.grid.as_mut() else {
+            return;
+        };
+        if g.voxels.is_some() {
+            return;
+        }
+        let bytes = Self::voxel_buffer_bytes(g.dims);
+        let buf = buffer(
+            &self.device,
+            "voxels",
+            bytes,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        );
+        let data = scene.grid.data();
+        let whole = data.len() / 4 * 4;
+        self.queue.write_buffer(&buf, 0, &data[..whole]);
+        if whole < data.len() || (whole as u64) < bytes {
+            let mut tail = data[whole..].to_vec();
+            tail.resize((bytes - whole as u64) as usize, 0);
+            self.queue.write_buffer(&buf, whole as u64, &tail);
+        }
+        g.voxels = Some(buf);
     }
 
     /// Uploads the grid unless the device already holds exactly this one; without
@@ -796,7 +855,10 @@ impl GpuTracer {
             size,
         );
         let view = gpu_texture.create_view(&wgpu::TextureViewDescriptor::default());
+        // The voxel buffer of the same voxels stays.
+        let voxels = self.grid.take().filter(|_| same).and_then(|g| g.voxels);
         self.grid = Some(GridUpload {
+            voxels,
             generation,
             dims,
             data: scene.grid.data().to_vec(),
@@ -1248,19 +1310,19 @@ impl GpuTracer {
     ) -> Result<RenderOutput> {
         let mut plan = plan;
         plan.dda_unroll = self.dda_unroll;
-        let side = scene.grid.dims().max_element();
+        let voxel_bytes = Self::voxel_buffer_bytes(scene.grid.dims());
         if settings.traversal == crate::render::Traversal::Auto
             && plan.traversal != crate::plan::Traversal::Sparse
-            && side > self.max_grid_side()
+            && voxel_bytes > self.max_voxel_buffer_bytes()
         {
-            // The device cannot hold the grid as a texture: the tree is the only way.
+            // The device cannot bind the dense grid: the tree is the only way.
             plan.traversal = crate::plan::Traversal::Sparse;
             plan.tree_levels =
                 crate::sparse::levels_for(scene.grid.dims(), crate::sparse::GPU_LOG_BRANCH);
             plan.traversal_reason = format!(
-                "auto: the grid's largest side {side} is above this device's \
-                 max_texture_dimension_3d {}",
-                self.max_grid_side()
+                "auto: the dense grid's {voxel_bytes} bytes are more than this device binds \
+                 ({}, max_storage_buffer_binding_size)",
+                self.max_voxel_buffer_bytes()
             );
         }
         let count = plan.count_rays;
@@ -1273,6 +1335,12 @@ impl GpuTracer {
         let oom_scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation_scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.upload_grid(scene, Self::reads_grid_texture(&plan));
+        if Self::reads_voxel_buffer(&plan) {
+            self.upload_voxel_buffer(scene);
+        } else if let Some(g) = self.grid.as_mut() {
+            // Dropped while renders walk the tree.
+            g.voxels = None;
+        }
         let (tree_bytes, tree_time) = if plan.traversal == crate::plan::Traversal::Sparse {
             let start = Instant::now();
             (self.upload_tree(scene)?, start.elapsed())
@@ -1346,13 +1414,17 @@ impl GpuTracer {
             (Some((_, b)), 1..) => b,
             _ => &self.no_technique_data,
         };
-        let grid_view = &self.grid.as_ref().expect("grid uploaded").view;
+        let voxels = self
+            .grid
+            .as_ref()
+            .and_then(|g| g.voxels.as_ref())
+            .unwrap_or(&self.no_technique_data);
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("voxlab tracer"),
             layout: &self.layout,
             entries: &[
                 buffer_entry(0, &self.params),
-                view_entry(1, grid_view),
+                buffer_entry(1, voxels),
                 buffer_entry(2, &mat_buf),
                 buffer_entry(3, &light_buf),
                 buffer_entry(4, accumulation.as_ref().map_or(&output, |a| &a.1)),
@@ -1595,7 +1667,11 @@ impl GpuTracer {
             grid: if Self::reads_grid_texture(&plan) {
                 scene.grid.voxel_count() as u64
             } else {
-                1
+                0
+            } + if Self::reads_voxel_buffer(&plan) {
+                Self::voxel_buffer_bytes(scene.grid.dims())
+            } else {
+                0
             },
             tree: tree_bytes,
             scene: mat_buf.size() + light_buf.size() + self.params.size() + 2 * COUNTER_BYTES,
