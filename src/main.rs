@@ -1120,7 +1120,7 @@ fn render_one(
         if !setup.is_zero() {
             say!(
                 opts,
-                "setup:      {:.3} ms (cone pyramids, not in the trace time)",
+                "setup:      {:.3} ms (sparse tree, cone pyramids: not in the trace time)",
                 setup.as_secs_f64() * 1e3
             );
         }

@@ -257,7 +257,8 @@ pub struct GpuTracer {
     /// that toggle cone features do not rebuild.
     pyramid: Option<(pyramid::PyramidKey, pyramid::GpuPyramid)>,
     pyramid_builds: u64,
-    /// Time the latest render spent on its pyramids, outside the trace time.
+    /// Time the latest render spent on its sparse tree and pyramids, outside the trace
+    /// time.
     last_setup_time: Duration,
     /// Told of each finished dispatch (frames) of a render, when set.
     progress: Option<std::sync::Arc<crate::progress::Progress>>,
@@ -633,8 +634,8 @@ impl GpuTracer {
         }
     }
 
-    /// Time the latest render spent building (or finding in the cache) its cone
-    /// pyramids: zero without a cone feature, and not part of its `trace_time`.
+    /// Time the latest render spent building (or finding in the cache) its sparse tree
+    /// and cone pyramids: zero when it has neither, and not part of its `trace_time`.
     pub fn last_setup_time(&self) -> Duration {
         self.last_setup_time
     }
