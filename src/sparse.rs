@@ -50,10 +50,29 @@ pub fn levels_for(dims: UVec3, log_branch: u32) -> u32 {
 }
 
 /// A voxel source the tree can be built from without a dense copy of it.
-pub trait VoxelSource {
+pub trait VoxelSource: Sync {
     fn dims(&self) -> UVec3;
     /// The material at `v`, inside `dims`.
     fn material(&self, v: IVec3) -> u8;
+    /// The cube `lo + [0, side)^3` into `out` (x-fastest, `side^3` entries), void where it
+    /// leaves the grid. Sources with rows in memory override it.
+    fn block(&self, lo: IVec3, side: i32, out: &mut [u8]) {
+        let d = self.dims().as_ivec3();
+        let mut i = 0;
+        for z in 0..side {
+            for y in 0..side {
+                for x in 0..side {
+                    let v = lo + IVec3::new(x, y, z);
+                    out[i] = if v.cmplt(d).all() {
+                        self.material(v)
+                    } else {
+                        VOID
+                    };
+                    i += 1;
+                }
+            }
+        }
+    }
     /// `Some(m)` when the source knows the whole cube `lo + [0, size)^3` (clipped to
     /// `dims`) is material `m`, so the builder need not read its voxels. `None`: not
     /// known, read them.
@@ -68,6 +87,20 @@ impl VoxelSource for Grid {
     }
     fn material(&self, v: IVec3) -> u8 {
         self.get(v)
+    }
+    fn block(&self, lo: IVec3, side: i32, out: &mut [u8]) {
+        let d = Grid::dims(self).as_ivec3();
+        out.fill(VOID);
+        let w = (d.x - lo.x).clamp(0, side) as usize;
+        let data = self.data();
+        for z in 0..side.min(d.z - lo.z) {
+            for y in 0..side.min(d.y - lo.y) {
+                let (gy, gz) = ((lo.y + y) as usize, (lo.z + z) as usize);
+                let at = lo.x as usize + d.x as usize * (gy + d.y as usize * gz);
+                let row = (z * side * side + y * side) as usize;
+                out[row..row + w].copy_from_slice(&data[at..at + w]);
+            }
+        }
     }
 }
 
@@ -293,22 +326,42 @@ impl Builder<'_> {
         let side = 1i32 << b;
         let sub = shift - b;
         let n = 1usize << (3 * b);
+        if sub == 0 {
+            // The children are voxels: read them as one block.
+            let mut materials = vec![VOID; n];
+            self.source.block(lo, side, &mut materials);
+            if materials.iter().all(|&m| m == materials[0]) {
+                return Child::Uniform(materials[0]);
+            }
+            let nodes = (0..n).map(|_| None).collect();
+            return Child::Node(Box::new(Pending { materials, nodes }));
+        }
+        let build = |i: usize| {
+            let (x, y, z) = (
+                i as i32 % side,
+                i as i32 / side % side,
+                i as i32 / side / side,
+            );
+            self.child(lo + (IVec3::new(x, y, z) << sub as i32), sub)
+        };
+        // Children of 64 voxels a side and more are built on every core.
+        let children: Vec<Child> = if sub >= 6 {
+            use rayon::prelude::*;
+            (0..n).into_par_iter().map(build).collect()
+        } else {
+            (0..n).map(build).collect()
+        };
         let mut materials = Vec::with_capacity(n);
         let mut nodes = Vec::with_capacity(n);
-        for z in 0..side {
-            for y in 0..side {
-                for x in 0..side {
-                    let c = lo + (IVec3::new(x, y, z) << sub as i32);
-                    match self.child(c, sub) {
-                        Child::Uniform(m) => {
-                            materials.push(m);
-                            nodes.push(None);
-                        }
-                        Child::Node(node) => {
-                            materials.push(VOID);
-                            nodes.push(Some(node));
-                        }
-                    }
+        for c in children {
+            match c {
+                Child::Uniform(m) => {
+                    materials.push(m);
+                    nodes.push(None);
+                }
+                Child::Node(node) => {
+                    materials.push(VOID);
+                    nodes.push(Some(node));
                 }
             }
         }

@@ -137,18 +137,24 @@ const _: () = assert!(std::mem::size_of::<GpuParams>() == 144);
 const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuLight>() == 80);
 
+/// blake3 of a grid's voxels.
+fn voxel_hash(data: &[u8]) -> blake3::Hash {
+    blake3::hash(data)
+}
+
 fn f3(v: DVec3) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
 }
 
-/// The grid as it sits on the device, with the host copy it was made from so a render
-/// can tell whether it changed.
+/// The grid as it sits on the device, with a hash of the voxels it was made from so a
+/// render can tell whether it changed (a hash, not a copy: a 1024^3 grid is 1 GiB).
 struct GridUpload {
     /// Counts uploads, so a pyramid can tell whether the grid it was built from is
     /// still the one on the device without comparing the voxels again.
     generation: u64,
     dims: glam::UVec3,
-    data: Vec<u8>,
+    /// blake3 of the voxels.
+    hash: blake3::Hash,
     /// Whether `view` is the grid itself; a plan that reads no texture gets a one-voxel
     /// stand-in, so a sparse render does not hold the dense grid on the device.
     texture: bool,
@@ -809,15 +815,15 @@ impl GpuTracer {
     }
 
     /// Uploads the grid unless the device already holds exactly this one; without
-    /// `texture` a one-voxel stand-in is bound (the grid's voxels are kept on the host to
-    /// tell a change).
+    /// `texture` a one-voxel stand-in is bound (a hash of the voxels tells a change).
     fn upload_grid(&mut self, scene: &Scene, texture: bool) {
         let dims = scene.grid.dims();
         let data = scene.grid.data();
+        let hash = voxel_hash(data);
         let same = self
             .grid
             .as_ref()
-            .is_some_and(|g| g.dims == dims && g.data == data);
+            .is_some_and(|g| g.dims == dims && g.hash == hash);
         if same && self.grid.as_ref().is_some_and(|g| g.texture || !texture) {
             return;
         }
@@ -862,7 +868,7 @@ impl GpuTracer {
             voxels,
             generation,
             dims,
-            data: scene.grid.data().to_vec(),
+            hash,
             texture,
             view,
         });
