@@ -3,7 +3,7 @@
 // nothing outside the grid absorbs. Contract: "Shading a hit", shadow ray.
 #define_import_path voxlab::shadow
 
-#import voxlab::bindings::{materials, voxel_material, voxel_inside}
+#import voxlab::bindings::{materials, voxel_inside}
 #import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, dda_skip, dda_region, max_steps}
 #import voxlab::counters::loop_cut
 
@@ -25,7 +25,6 @@ fn min_kt_step(s: ptr<function, Dda>, v: ptr<function, f32>, len: f32) -> bool {
     if !voxel_inside((*s).voxel) {
         return true;
     }
-#ifdef SPARSE
     // A uniform region's kt counts once; the walk leaves it whole.
     let r = dda_region(s);
     *v = min(*v, kt_of(r.material));
@@ -34,10 +33,6 @@ fn min_kt_step(s: ptr<function, Dda>, v: ptr<function, f32>, len: f32) -> bool {
     }
     dda_skip(s, r);
     return false;
-#else
-    *v = min(*v, kt_of(voxel_material((*s).voxel)));
-    return *v <= 0.0;
-#endif
 }
 
 // Transmittance of the segment from q along d (unit) of length len > 0: every voxel
@@ -48,18 +43,12 @@ fn transmittance(q: vec3<f32>, d: vec3<f32>, len: f32) -> f32 {
         return 1.0;
     }
     var s = dda_init(q, d, e.voxel);
-#ifdef SPARSE
     let r = dda_region(&s);
     var v = kt_of(r.material);
-#else
-    var v = kt_of(voxel_material(e.voxel));
-#endif
     if v <= 0.0 {
         return 0.0;
     }
-#ifdef SPARSE
     dda_skip(&s, r);
-#endif
     let n = max_steps();
     // DDA_UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
     var done = false;

@@ -6,7 +6,7 @@
 // shadow.wgsl's (same voxels, same limits). Contract: "Shading a hit", shadow ray.
 #define_import_path voxlab::shadow_beer_lambert
 
-#import voxlab::bindings::{materials, voxel_material, voxel_inside}
+#import voxlab::bindings::{materials, voxel_inside}
 #import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, dda_skip, dda_region, max_steps}
 #import voxlab::counters::loop_cut
 
@@ -46,22 +46,15 @@ fn beer_lambert_step(s: ptr<function, Dda>, w: ptr<function, Walk>, len: f32) ->
         return true;
     }
     (*w).depth += (*w).sigma * (t - (*w).t_in);
-#ifdef SPARSE
     let r = dda_region(s);
-    let m = r.material;
-#else
-    let m = voxel_material((*s).voxel);
-#endif
-    if opaque(m) {
+    if opaque(r.material) {
         (*w).opaque = true;
         return true;
     }
-    (*w).sigma = sigma_of(m);
+    (*w).sigma = sigma_of(r.material);
     (*w).t_in = t;
-#ifdef SPARSE
     // One material over the region: its length counts at once, at the next step.
     dda_skip(s, r);
-#endif
     return false;
 }
 
@@ -72,24 +65,17 @@ fn transmittance_rgb(q: vec3<f32>, d: vec3<f32>, len: f32) -> vec3<f32> {
         return vec3<f32>(1.0);
     }
     var s = dda_init(q, d, e.voxel);
-#ifdef SPARSE
     let r = dda_region(&s);
-    let m = r.material;
-#else
-    let m = voxel_material(e.voxel);
-#endif
-    if opaque(m) {
+    if opaque(r.material) {
         return vec3<f32>(0.0);
     }
     var w: Walk;
-    w.sigma = sigma_of(m);
+    w.sigma = sigma_of(r.material);
     w.t_in = e.t;
     w.t_end = e.t;
     w.depth = vec3<f32>(0.0);
     w.opaque = false;
-#ifdef SPARSE
     dda_skip(&s, r);
-#endif
     let n = max_steps();
     // DDA_UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
     var done = false;

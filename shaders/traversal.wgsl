@@ -145,9 +145,14 @@ fn dda_advance(s: ptr<function, Dda>, a: i32) {
     count_step();
 }
 
-// The uniform region of the walk's current voxel (SPARSE; without it the voxel), looked
-// up from the node of the previous look-up when the voxel lies in its cube.
+// The uniform region of the walk's current voxel. With SPARSE it is looked up in the
+// tree, from the node of the previous look-up when the voxel lies in its cube; without
+// it the region is the voxel, read from the grid. Every walk reads its voxels through
+// this and dda_skip, so the dense and sparse walks are one code.
 fn dda_region(s: ptr<function, Dda>) -> Region {
+#ifndef SPARSE
+    return Region(voxel_material((*s).voxel), (*s).voxel, (*s).voxel + vec3<i32>(1));
+#else
     let u = vec3<u32>((*s).voxel);
     var node = 0u;
     var shift = ROOT_SHIFT;
@@ -160,6 +165,7 @@ fn dda_region(s: ptr<function, Dda>) -> Region {
     (*s).tree_shift = f.shift;
     (*s).tree_key = u >> vec3<u32>(f.shift + 2u);
     return f.region;
+#endif
 }
 
 // Moves the walk to the last voxel of region r (which holds the current voxel) through
@@ -169,8 +175,10 @@ fn dda_region(s: ptr<function, Dda>) -> Region {
 // come before it in that order. As crate::cpu::Dda::skip_region. The estimate from the
 // exit point, moved half a voxel ahead, is the right voxel or the one after it (the
 // point's error is far below half a voxel), so one check of the plane behind it, on
-// whole vectors and without branches, settles every axis.
+// whole vectors and without branches, settles every axis. Without SPARSE every region
+// is one voxel and the function is empty.
 fn dda_skip(s: ptr<function, Dda>, r: Region) {
+#ifdef SPARSE
     if all(r.hi - r.lo == vec3<i32>(1)) {
         return;
     }
@@ -196,6 +204,7 @@ fn dda_skip(s: ptr<function, Dda>, r: Region) {
     (*s).voxel = select(c, v, parallel);
     let t_next = min((vec3<f32>((*s).voxel + ahead) - o) / safe, vec3<f32>(BIG));
     (*s).t_max = select(t_next, vec3<f32>(BIG), parallel);
+#endif
 }
 
 // A ray visits at most nx + ny + nz voxels; the bound only guards against a hang
@@ -224,23 +233,16 @@ fn cast_step(s: ptr<function, Dda>, h: ptr<function, Hit>, medium: u32, t_limit:
         }
         return true;
     }
-#ifdef SPARSE
     let r = dda_region(s);
-    let m = r.material;
-#else
-    let m = voxel_material((*s).voxel);
-#endif
-    if m != medium {
+    if r.material != medium {
         (*h).hit = true;
         (*h).t = t;
         (*h).normal = -f32((*s).step[a]) * axis_vec(a);
-        (*h).material = m;
+        (*h).material = r.material;
         return true;
     }
-#ifdef SPARSE
     // A region of the ray's medium holds no hit: leave it whole.
     dda_skip(s, r);
-#endif
     return false;
 }
 
@@ -254,27 +256,17 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
         return h;
     }
     var s = dda_init(o, d, e.voxel);
-#ifdef SPARSE
     let r = dda_region(&s);
-    let m0 = r.material;
-#else
-    let m0 = voxel_material(e.voxel);
-#endif
-    if e.axis >= 0 {
-        let m = m0;
-        if m != medium {
-            h.hit = true;
-            h.t = e.t;
-            h.normal = -sign(d[e.axis]) * axis_vec(e.axis);
-            h.material = m;
-            return h;
-        }
+    if e.axis >= 0 && r.material != medium {
+        h.hit = true;
+        h.t = e.t;
+        h.normal = -sign(d[e.axis]) * axis_vec(e.axis);
+        h.material = r.material;
+        return h;
     }
-#ifdef SPARSE
-    if m0 == medium {
+    if r.material == medium {
         dda_skip(&s, r);
     }
-#endif
     let n = max_steps();
     // DDA_UNROLL steps (1, 2, 4 or 8; the host's choice per device, src/gpu/mod.rs) per
     // loop iteration: the software driver's loop limit counts back edges, not work

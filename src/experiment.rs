@@ -951,6 +951,34 @@ fn vec3_where(
     }
 }
 
+/// The value named `name` among `all` (by `name_of`), `default` when the key is absent;
+/// an unknown name is an error that lists every allowed one.
+fn choice<T: Copy>(
+    ctx: &Ctx,
+    key: &str,
+    name: Option<&str>,
+    default: T,
+    all: &[T],
+    name_of: fn(T) -> &'static str,
+) -> Result<T, ExperimentError> {
+    let Some(name) = name else {
+        return Ok(default);
+    };
+    all.iter()
+        .copied()
+        .find(|&v| name_of(v) == name)
+        .ok_or_else(|| {
+            let names: Vec<String> = all.iter().map(|&v| format!("\"{}\"", name_of(v))).collect();
+            let (last, rest) = names.split_last().expect("a choice has values");
+            let allowed = if rest.is_empty() {
+                last.clone()
+            } else {
+                format!("{} or {last}", rest.join(", "))
+            };
+            ctx.invalid(key, format!("must be {allowed}"))
+        })
+}
+
 fn int_in(
     ctx: &Ctx,
     key: &str,
@@ -1093,30 +1121,22 @@ fn build(
         seed: r.seed.map_or(Ok(d.seed), |v| {
             int_in(ctx, "render.seed", v, 0..=u32::MAX as i64)
         })?,
-        pixel_filter: match r.pixel_filter.as_deref() {
-            None => d.pixel_filter,
-            Some(name) => crate::render::PixelFilter::ALL
-                .into_iter()
-                .find(|f| f.name() == name)
-                .ok_or_else(|| {
-                    ctx.invalid(
-                        "render.pixel_filter",
-                        "must be \"none\", \"box\" or \"gaussian\"",
-                    )
-                })?,
-        },
-        traversal: match r.traversal.as_deref() {
-            None => d.traversal,
-            Some(name) => crate::render::Traversal::ALL
-                .into_iter()
-                .find(|t| t.name() == name)
-                .ok_or_else(|| {
-                    ctx.invalid(
-                        "render.traversal",
-                        "must be \"auto\", \"dense\" or \"sparse\"",
-                    )
-                })?,
-        },
+        pixel_filter: choice(
+            ctx,
+            "render.pixel_filter",
+            r.pixel_filter.as_deref(),
+            d.pixel_filter,
+            &crate::render::PixelFilter::ALL,
+            crate::render::PixelFilter::name,
+        )?,
+        traversal: choice(
+            ctx,
+            "render.traversal",
+            r.traversal.as_deref(),
+            d.traversal,
+            &crate::render::Traversal::ALL,
+            crate::render::Traversal::name,
+        )?,
         filter_width: r.filter_width.map_or(Ok(d.filter_width), |v| {
             float_where(
                 ctx,
