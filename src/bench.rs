@@ -129,15 +129,9 @@ fn bench_gpu(
     let counted = gpu.render_counted(scene, s)?;
     let memory = gpu.last_memory().unwrap_or_default();
     let plan = gpu.last_plan().expect("a render was made").traversal;
-    // The tree is built with the counted frame's upload; building it again times it.
-    let build = match plan {
-        Traversal::Sparse => {
-            crate::sparse::SparseTree::build_timed(&scene.grid, crate::sparse::GPU_LOG_BRANCH)
-                .1
-                .time
-        }
-        _ => Duration::ZERO,
-    };
+    // The counted frame built the tree (and uploaded it): the setup time of that render,
+    // where nothing else is set up (no cone feature in the benchmark's settings).
+    let build = gpu.last_setup_time();
     gpu.render(scene, s)?;
     let mut times = Vec::with_capacity(opts.gpu_runs);
     for _ in 0..opts.gpu_runs.max(1) {

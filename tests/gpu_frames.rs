@@ -16,7 +16,7 @@ use common::{assert_agree, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
-use voxlab::render::{RenderSettings, Rules, Transmittance};
+use voxlab::render::{RenderSettings, Rules, Transmittance, Traversal};
 use voxlab::scene::seed::seed_camera;
 use voxlab::scene::{AreaLight, AreaShape, Grid, Light, PointLight, Scene, seed_palette};
 
@@ -132,13 +132,29 @@ fn run(i: usize, case: &Case, rng: &mut StdRng, gpu: &mut voxlab::gpu::GpuTracer
     };
     settings.features.area_lights = true;
     settings.features.transmittance = case.transmittance;
-    let g = gpu.render(&scene, &settings).expect("GPU render");
-    let c = voxlab::cpu::render(&scene, &settings);
+    // Both walks: the dense grid and the sparse tree.
+    for traversal in [Traversal::Dense, Traversal::Sparse] {
+        settings.traversal = traversal;
+        run_walk(i, case, dims, &scene, &settings, gpu);
+    }
+}
+
+fn run_walk(
+    i: usize,
+    case: &Case,
+    dims: UVec3,
+    scene: &Scene,
+    settings: &RenderSettings,
+    gpu: &mut voxlab::gpu::GpuTracer,
+) {
+    let g = gpu.render(scene, settings).expect("GPU render");
+    assert_eq!(gpu.last_plan().unwrap().traversal, settings.traversal);
+    let c = voxlab::cpu::render(scene, settings);
     let pixels = (case.side * case.side) as u64;
     let per_dispatch = voxlab::gpu::frames_per_dispatch(pixels, case.spp);
     let name = format!(
         "case {i}: {0}x{0}, {1} spp ({per_dispatch} frames per dispatch, {2} dispatches), \
-         {3} light samples, {4} lights, {5}, rules {6}, depth {7:?}, grid {dims}",
+         {3} light samples, {4} lights, {5}, rules {6}, depth {7:?}, grid {dims}, {8} walk",
         case.side,
         case.spp,
         case.spp.div_ceil(per_dispatch),
@@ -147,6 +163,7 @@ fn run(i: usize, case: &Case, rng: &mut StdRng, gpu: &mut voxlab::gpu::GpuTracer
         case.transmittance.name(),
         case.rules.name(),
         case.depth,
+        settings.traversal.name(),
     );
     let d = assert_agree(&name, &g.frame, &c.frame);
     // Identical samples: the sums agree to float error, not only within the tolerance.
@@ -241,13 +258,22 @@ fn steps_per_loop_iteration_change_nothing() {
         };
         settings.features.area_lights = true;
         settings.features.transmittance = model;
-        let mut images = Vec::new();
-        for n in [1, 2, 4, 8] {
-            gpu.set_dda_unroll(n).unwrap();
-            images.push(gpu.render(&scene, &settings).expect("GPU").frame);
-        }
-        for (k, image) in images.iter().enumerate().skip(1) {
-            assert_eq!(image, &images[0], "{}: unroll index {k}", model.name());
+        for traversal in [Traversal::Dense, Traversal::Sparse] {
+            settings.traversal = traversal;
+            let mut images = Vec::new();
+            for n in [1, 2, 4, 8] {
+                gpu.set_dda_unroll(n).unwrap();
+                images.push(gpu.render(&scene, &settings).expect("GPU").frame);
+            }
+            for (k, image) in images.iter().enumerate().skip(1) {
+                assert_eq!(
+                    image,
+                    &images[0],
+                    "{} {}: unroll index {k}",
+                    model.name(),
+                    traversal.name()
+                );
+            }
         }
     }
     assert!(gpu.set_dda_unroll(3).is_err());

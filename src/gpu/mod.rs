@@ -137,11 +137,6 @@ const _: () = assert!(std::mem::size_of::<GpuParams>() == 144);
 const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuLight>() == 80);
 
-/// blake3 of a grid's voxels.
-fn voxel_hash(data: &[u8]) -> blake3::Hash {
-    blake3::hash(data)
-}
-
 fn f3(v: DVec3) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
 }
@@ -780,7 +775,8 @@ impl GpuTracer {
         (dims.x as u64 * dims.y as u64 * dims.z as u64).next_multiple_of(16)
     }
 
-    /// The largest storage buffer this device binds: the largest dense grid, in voxels.
+    /// The largest storage buffer this device binds: the largest dense grid's voxel
+    /// buffer, and the largest sparse tree.
     pub fn max_voxel_buffer_bytes(&self) -> u64 {
         let limits = self.device.limits();
         limits
@@ -819,7 +815,7 @@ impl GpuTracer {
     fn upload_grid(&mut self, scene: &Scene, texture: bool) {
         let dims = scene.grid.dims();
         let data = scene.grid.data();
-        let hash = voxel_hash(data);
+        let hash = blake3::hash(data);
         let same = self
             .grid
             .as_ref()
@@ -886,15 +882,12 @@ impl GpuTracer {
         self.tree = None;
         let tree = crate::sparse::SparseTree::build(&scene.grid, crate::sparse::GPU_LOG_BRANCH);
         let bytes = tree.bytes() as u64;
-        let limits = self.device.limits();
-        let max = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
+        let max = self.max_voxel_buffer_bytes();
         if bytes > max {
             bail!(
                 "the sparse tree of grid {}x{}x{} needs {bytes} bytes; the device allows {max} \
                  (max_storage_buffer_binding_size); render.traversal = \"dense\" walks the \
-                 grid texture instead",
+                 voxel buffer instead",
                 scene.grid.dims().x,
                 scene.grid.dims().y,
                 scene.grid.dims().z
