@@ -24,6 +24,9 @@
 @group(0) @binding(6) var<storage, read> technique_data: array<f32>;
 // The sparse tree of the grid (SPARSE; src/sparse.rs), a placeholder otherwise.
 @group(0) @binding(7) var<storage, read> tree: array<vec4<u32>>;
+// The triangle surfaces (TRIANGLES; src/triangles.rs, shaders/triangles.wgsl), a
+// placeholder otherwise.
+@group(0) @binding(8) var<storage, read> surface: array<vec4<u32>>;
 fn voxel_material(v: vec3<i32>) -> u32 {
     let u = vec3<u32>(v);
     let i = u.x + params.dims.x * (u.y + params.dims.y * u.z);

@@ -7,10 +7,15 @@
 #import voxlab::types::Material
 #import voxlab::bindings::params
 #import voxlab::counters::count_shadow
+#ifdef TRIANGLES
+#import voxlab::shadow_surface::surface_transmittance
+#import voxlab::triangles::shadow_medium
+#else
 #ifdef BEER_LAMBERT
 #import voxlab::shadow_beer_lambert::transmittance_rgb
 #else
 #import voxlab::shadow::transmittance
+#endif
 #endif
 
 // Transmittance (RGB) of the shadow segment from q to the emitter at x.
@@ -20,10 +25,15 @@ fn shadow_to(q: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
     if !(len > 0.0) {
         return vec3<f32>(1.0);
     }
+#ifdef TRIANGLES
+    // Through the triangle surfaces, in either transmittance model.
+    return surface_transmittance(q, to_light / len, len, shadow_medium);
+#else
 #ifdef BEER_LAMBERT
     return transmittance_rgb(q, to_light / len, len);
 #else
     return vec3<f32>(transmittance(q, to_light / len, len));
+#endif
 #endif
 }
 

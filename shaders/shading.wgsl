@@ -21,14 +21,15 @@
 #import voxlab::area_lights::sample_point
 #endif
 
-// The unweighted local radiance at p (normal n, ray direction d) of shading material s,
-// for the primary ray of `key` (which picks the area-light samples).
-fn local_light(p: vec3<f32>, n: vec3<f32>, d: vec3<f32>, s: Material, key: SampleKey) -> vec3<f32> {
+// The unweighted local radiance at p (shading normal n, the surface's own normal ng,
+// ray direction d) of shading material s, for the primary ray of `key` (which picks the
+// area-light samples). Shadow rays start off the surface along ng.
+fn local_light(p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, d: vec3<f32>, s: Material, key: SampleKey) -> vec3<f32> {
     var local = vec3<f32>(0.0);
     if !(s.kd > 0.0 || s.ks > 0.0) {
         return local;
     }
-    let q = p + params.eps * n;
+    let q = p + params.eps * ng;
     var j = 0u;
     for (; j < params.num_lights; j++) {
         let light = lights[j];

@@ -12,6 +12,9 @@
 #import voxlab::types::{BIG, Material, RULES_SEED, PIXEL_FILTER_BOX, PIXEL_FILTER_GAUSSIAN}
 #import voxlab::bindings::{params, materials, output}
 #import voxlab::traversal::cast_ray
+#ifdef TRIANGLES
+#import voxlab::triangles::shadow_medium
+#endif
 #import voxlab::counters::{count_primary, count_secondary, flush_counts, loop_cut}
 #import voxlab::sampling::{SampleKey, pixel_sample}
 #ifdef CONES
@@ -66,8 +69,9 @@ fn may_spawn(r: RayEntry, reflection: bool) -> bool {
 }
 
 // Pushes the refraction ray, then the reflection ray (contract order), for a hit of
-// ray r at p with normal n on voxel material h, shaded by s.
-fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, h: u32, s: Material) {
+// ray r at p with shading normal n and the surface's own normal ng (the rays start off
+// the surface along it) on material h, shaded by s.
+fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Material) {
     let d = r.dir;
     var w_r = s.kr;
     if s.kt > 0.0 {
@@ -84,7 +88,7 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, h: u32, s: Material) {
 #ifdef REFRACTION
             if may_spawn(r, false) {
                 var t: RayEntry;
-                t.origin = p - params.eps * n;
+                t.origin = p - params.eps * ng;
                 t.dir = normalize(eta * d + (eta * c - sqrt(k)) * n);
                 t.throughput = r.throughput * s.kt;
                 t.depth_reflection = r.depth_reflection;
@@ -98,7 +102,7 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, h: u32, s: Material) {
 #ifdef REFLECTION
     if w_r > 0.0 && may_spawn(r, true) {
         var f: RayEntry;
-        f.origin = p + params.eps * n;
+        f.origin = p + params.eps * ng;
         f.dir = d - 2.0 * dot(d, n) * n;
         f.throughput = r.throughput * w_r;
         f.depth_reflection = r.depth_reflection + 1u;
@@ -145,7 +149,10 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
         radiance += r.throughput * s.emission;
 #endif
 #ifdef SHADOWS
-        radiance += r.throughput * local_light(p, n, r.dir, s, key);
+#ifdef TRIANGLES
+        shadow_medium = r.medium;
+#endif
+        radiance += r.throughput * local_light(p, n, hit.geometric, r.dir, s, key);
 #endif
         // Diffuse reflection of the ambient light AO lets through and of the one-bounce
         // light the cones gather (src/cpu/mod.rs trace_ray_cones).
@@ -161,10 +168,10 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
 #endif
         // No `#if A || B` in naga_oil: spawn whenever either kind of secondary ray is in.
 #ifdef REFLECTION
-        spawn(r, p, n, hit.material, s);
+        spawn(r, p, n, hit.geometric, hit.material, s);
 #else
 #ifdef REFRACTION
-        spawn(r, p, n, hit.material, s);
+        spawn(r, p, n, hit.geometric, hit.material, s);
 #endif
 #endif
     }

@@ -8,13 +8,18 @@
 #import voxlab::bindings::{params, voxel_material, voxel_inside}
 #import voxlab::counters::{count_step, loop_cut}
 #import voxlab::sparse::{Region, ROOT_SHIFT, region_below}
+#import voxlab::triangles::{is_cell, cell_range, watertight_ray, next_transition, transition_normals}
 
 struct Hit {
     hit: bool,
     t: f32,
+    // The shading normal, facing the ray.
     normal: vec3<f32>,
-    // Material index of the hit voxel.
+    // Material past the surface: the hit voxel's, or void when leaving into void.
     material: u32,
+    // The surface's own normal, facing the ray, along which secondary and shadow rays
+    // start off it: a voxel face's normal, or a triangle's (TRIANGLES).
+    geometric: vec3<f32>,
 }
 
 // Where a ray starts its walk: the voxel, its ray parameter, and for a ray that enters
@@ -213,6 +218,24 @@ fn max_steps() -> u32 {
     return params.dims.x + params.dims.y + params.dims.z + 3u;
 }
 
+// The first crossing in the cell the walk is in, entered at t_enter (TRIANGLES): with
+// one, h is the hit and the walk is over.
+fn cell_hit(s: ptr<function, Dda>, h: ptr<function, Hit>, medium: u32, t_enter: f32) -> bool {
+    let t_exit = min((*s).t_max.x, min((*s).t_max.y, (*s).t_max.z));
+    let r = watertight_ray((*s).origin, (*s).dir);
+    let tr = next_transition(cell_range((*s).voxel), r, t_enter, t_exit, 0.0, medium);
+    if !tr.found {
+        return false;
+    }
+    let n = transition_normals(tr, (*s).dir);
+    (*h).hit = true;
+    (*h).t = tr.t;
+    (*h).normal = n[0];
+    (*h).geometric = n[1];
+    (*h).material = tr.medium;
+    return true;
+}
+
 // One step of cast_ray's walk (contract "cast", step 3); true when the walk is over,
 // with the hit, if any, in h.
 fn cast_step(s: ptr<function, Dda>, h: ptr<function, Hit>, medium: u32, t_limit: f32) -> bool {
@@ -229,15 +252,21 @@ fn cast_step(s: ptr<function, Dda>, h: ptr<function, Hit>, medium: u32, t_limit:
             (*h).hit = true;
             (*h).t = t;
             (*h).normal = -f32((*s).step[a]) * axis_vec(a);
+            (*h).geometric = (*h).normal;
             (*h).material = 0u;
         }
         return true;
     }
     let r = dda_region(s);
+    if is_cell(r.material) {
+        // A cell is never skipped: its triangles decide.
+        return cell_hit(s, h, medium, t);
+    }
     if r.material != medium {
         (*h).hit = true;
         (*h).t = t;
         (*h).normal = -f32((*s).step[a]) * axis_vec(a);
+        (*h).geometric = (*h).normal;
         (*h).material = r.material;
         return true;
     }
@@ -257,14 +286,18 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
     }
     var s = dda_init(o, d, e.voxel);
     let r = dda_region(&s);
-    if e.axis >= 0 && r.material != medium {
+    if is_cell(r.material) {
+        if cell_hit(&s, &h, medium, e.t) {
+            return h;
+        }
+    } else if e.axis >= 0 && r.material != medium {
         h.hit = true;
         h.t = e.t;
         h.normal = -sign(d[e.axis]) * axis_vec(e.axis);
+        h.geometric = h.normal;
         h.material = r.material;
         return h;
-    }
-    if r.material == medium {
+    } else if r.material == medium {
         dda_skip(&s, r);
     }
     let n = max_steps();

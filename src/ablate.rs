@@ -999,6 +999,7 @@ pub fn reference_key(scene: &Scene, halves: &[RenderSettings; 2], backend: &str)
         lights,
         camera,
         ambient,
+        mesh,
     } = scene;
     let mut h = blake3::Hasher::new();
     let mut text = format!(
@@ -1010,6 +1011,21 @@ pub fn reference_key(scene: &Scene, halves: &[RenderSettings; 2], backend: &str)
     );
     h.update(text.as_bytes());
     h.update(grid.data());
+    // The mesh only when there is one, so a voxel scene's key is what it was.
+    if let Some(m) = mesh {
+        h.update(b"\nmesh");
+        for v in m.positions.iter().chain(&m.normals) {
+            for c in v.to_array() {
+                h.update(&c.to_le_bytes());
+            }
+        }
+        for t in &m.triangles {
+            for i in t {
+                h.update(&i.to_le_bytes());
+            }
+        }
+        h.update(&m.triangle_material);
+    }
     text.clear();
     let _ = write!(
         text,

@@ -341,6 +341,7 @@ pub fn torus_mesh(rings: u32, segments: u32) -> crate::scene::mesh::TriangleMesh
         material_of: vec![0; triangles.len()],
         materials: vec![crate::scene::seed_palette()[3].clone()],
         triangles,
+        normals: Vec::new(),
         warnings: Vec::new(),
     }
 }

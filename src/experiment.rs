@@ -18,9 +18,12 @@ pub use write::{WriteError, relocate_scene_source, scene_source, to_toml};
 use std::fmt;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use glam::{DVec3, IVec3, UVec3};
 use serde::Deserialize;
+
+use crate::surface::SurfaceMesh;
 
 use crate::render::{
     ConeSettings, Features, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, RenderSettings,
@@ -290,6 +293,7 @@ struct RawRender {
     pixel_filter: Option<String>,
     filter_width: Option<f64>,
     traversal: Option<String>,
+    surface: Option<String>,
 }
 
 // ---------------------------------------------------------------------------------------
@@ -577,6 +581,7 @@ struct CachedScene {
     grid: Grid,
     palette: Option<Vec<Material>>,
     models: Vec<models::LoadedModel>,
+    mesh: Option<Arc<SurfaceMesh>>,
 }
 
 impl SceneCache {
@@ -1004,12 +1009,12 @@ fn scene_voxels(
     cache: Option<&mut SceneCache>,
 ) -> Result<SceneVoxels, ExperimentError> {
     let load = || -> Result<SceneVoxels, ExperimentError> {
-        let (grid, palette) = match load_scene_file(s, ctx)? {
-            Some((g, p)) => (g, Some(p)),
-            None => (build_grid(s, ctx)?, None),
+        let (grid, palette, mesh) = match load_scene_file(s, ctx)? {
+            Some((g, p, m)) => (g, Some(p), m.map(Arc::new)),
+            None => (build_grid(s, ctx)?, None, None),
         };
         let models = models::load_models(&s.models, ctx, grid.dims())?;
-        Ok((grid, palette, models))
+        Ok((grid, palette, models, mesh))
     };
     let Some(cache) = cache else {
         return load();
@@ -1018,21 +1023,33 @@ fn scene_voxels(
     let key = format!("{s:?}\n{}", dir.display());
     if let Some(c) = cache.entry.as_ref().filter(|c| c.key == key) {
         cache.hits += 1;
-        return Ok((c.grid.clone(), c.palette.clone(), c.models.clone()));
+        return Ok((
+            c.grid.clone(),
+            c.palette.clone(),
+            c.models.clone(),
+            c.mesh.clone(),
+        ));
     }
-    let (grid, palette, models) = load()?;
+    let (grid, palette, models, mesh) = load()?;
     cache.misses += 1;
     cache.entry = Some(CachedScene {
         key,
         grid: grid.clone(),
         palette: palette.clone(),
         models: models.clone(),
+        mesh: mesh.clone(),
     });
-    Ok((grid, palette, models))
+    Ok((grid, palette, models, mesh))
 }
 
-/// The grid, the file palette (if a file gave the grid) and the loaded models.
-type SceneVoxels = (Grid, Option<Vec<Material>>, Vec<models::LoadedModel>);
+/// The grid, the file palette (if a file gave the grid), the loaded models and the
+/// mesh the grid was voxelized from (`scene.mesh`).
+type SceneVoxels = (
+    Grid,
+    Option<Vec<Material>>,
+    Vec<models::LoadedModel>,
+    Option<Arc<SurfaceMesh>>,
+);
 
 fn build(
     raw: RawExperiment,
@@ -1137,6 +1154,14 @@ fn build(
             &crate::render::Traversal::ALL,
             crate::render::Traversal::name,
         )?,
+        surface: choice(
+            ctx,
+            "render.surface",
+            r.surface.as_deref(),
+            d.surface,
+            &crate::render::Surface::ALL,
+            crate::render::Surface::name,
+        )?,
         filter_width: r.filter_width.map_or(Ok(d.filter_width), |v| {
             float_where(
                 ctx,
@@ -1152,7 +1177,7 @@ fn build(
         None => SEED_AMBIENT,
     };
 
-    let (grid, file_palette, loaded_models) = scene_voxels(&raw.scene, ctx, cache)?;
+    let (grid, file_palette, loaded_models, mesh) = scene_voxels(&raw.scene, ctx, cache)?;
     let c = grid.centre();
     let w = grid.width();
 
@@ -1216,6 +1241,7 @@ fn build(
         lights,
         camera,
         ambient,
+        mesh,
     };
     apply_mesh_material(&mut scene, &raw.scene, ctx)?;
     models::place_models(
@@ -1229,6 +1255,7 @@ fn build(
     // Everything above checks its own key; this catches what only the whole can tell
     // (a future generator using more materials than are defined).
     scene.validate().map_err(|e| ctx.invalid("scene", e))?;
+    crate::plan::check_surface(&scene, &settings).map_err(|e| ctx.invalid("render.surface", e))?;
     // Cone pyramids scale with the grid: estimated before any render builds them.
     if let Some(layout) = crate::plan::Plan::new(&scene, &settings).pyramid {
         use crate::cpu::pyramid::{MAX_PYRAMID_BYTES, cpu_pyramid_bytes};
@@ -1555,10 +1582,7 @@ fn build_light(
 /// `.vox` grid; `origin` moves either. With a mesh `material`, the palette is the
 /// seed's (plus `[[materials]]`), as for a generator. Mesh warnings (an open mesh)
 /// are printed to stderr. `None` when the scene comes from a generator.
-fn load_scene_file(
-    s: &RawScene,
-    ctx: &Ctx,
-) -> Result<Option<(Grid, Vec<Material>)>, ExperimentError> {
+fn load_scene_file(s: &RawScene, ctx: &Ctx) -> Result<Option<LoadedScene>, ExperimentError> {
     use crate::scene::mesh::MAX_RESOLUTION;
     use crate::scene::{Resolution, VoxelizeOptions, load_vox, voxelize_mesh};
     let not_without = |present: bool, key: &str, needs: &str| {
@@ -1609,7 +1633,7 @@ fn load_scene_file(
         }
     }
     let dir = Path::new(&ctx.file).parent().unwrap_or(Path::new(""));
-    let (grid, palette) = if let Some(p) = &s.vox {
+    let (grid, palette, mesh) = if let Some(p) = &s.vox {
         let model = match s.model {
             Some(m) => Some(int_in(ctx, "scene.model", m, 0..=i64::from(u32::MAX))? as usize),
             None => None,
@@ -1629,7 +1653,7 @@ fn load_scene_file(
             g.data_mut().copy_from_slice(grid.data());
             grid = g;
         }
-        (grid, v.materials)
+        (grid, v.materials, None)
     } else {
         let p = s.mesh.as_deref().unwrap_or_default();
         let resolution = match (s.resolution, s.voxel_size) {
@@ -1672,20 +1696,25 @@ fn load_scene_file(
             Some(_) => crate::scene::seed_palette(),
             None => v.materials,
         };
-        (v.grid, palette)
+        (v.grid, palette, Some(v.surface))
     };
-    let grid = match s.origin {
+    let (grid, mesh) = match s.origin {
         Some(o) => {
             let origin = vec3_where(ctx, "scene.origin", o, |_| true, "")?;
             let mut g = Grid::new(grid.dims(), grid.voxel_size(), origin)
                 .map_err(|e| ctx.invalid("scene.origin", e))?;
             g.data_mut().copy_from_slice(grid.data());
-            g
+            // The triangles move with their voxels.
+            let mesh = mesh.map(|m| m.translated(origin - grid.origin()));
+            (g, mesh)
         }
-        None => grid,
+        None => (grid, mesh),
     };
-    Ok(Some((grid, palette)))
+    Ok(Some((grid, palette, mesh)))
 }
+
+/// A `[scene]` file's grid, palette and (for a mesh) triangles.
+type LoadedScene = (Grid, Vec<Material>, Option<SurfaceMesh>);
 
 /// A mesh's `material`, resolved in the final palette, given to all its voxels.
 fn apply_mesh_material(scene: &mut Scene, s: &RawScene, ctx: &Ctx) -> Result<(), ExperimentError> {
@@ -1697,6 +1726,9 @@ fn apply_mesh_material(scene: &mut Scene, s: &RawScene, ctx: &Ctx) -> Result<(),
         if *m != 0 {
             *m = k;
         }
+    }
+    if let Some(mesh) = &mut scene.mesh {
+        Arc::make_mut(mesh).triangle_material.fill(k);
     }
     Ok(())
 }

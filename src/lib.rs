@@ -22,6 +22,7 @@ pub mod sparse;
 pub mod stress;
 pub mod surface;
 pub mod technique;
+pub mod triangles;
 #[cfg(feature = "viewer")]
 pub mod viewer;
 

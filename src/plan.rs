@@ -21,8 +21,8 @@ use std::fmt;
 use naga_oil::compose::ShaderDefValue;
 
 use crate::cpu::pyramid::{PyramidLayout, memory_line};
-pub use crate::render::Traversal;
 use crate::render::{RenderSettings, Transmittance};
+pub use crate::render::{Surface, Traversal};
 use crate::scene::{Material, Scene, VOID};
 use crate::technique::ShadowModel;
 
@@ -94,6 +94,11 @@ pub struct Plan {
     pub tree_levels: u32,
     /// Why this traversal, in plain words.
     pub traversal_reason: String,
+    /// What rays hit (`TRIANGLES` unless voxels): voxel faces, or the triangles of the
+    /// scene's mesh or of its smooth surface (`crate::triangles`).
+    pub surface: Surface,
+    /// Why triangles were asked for but not planned; empty otherwise.
+    pub surface_reason: String,
     /// What was left out and why, in plain words.
     pub reasons: Vec<String>,
 }
@@ -121,6 +126,47 @@ fn choose_traversal(scene: &Scene, settings: &RenderSettings) -> (Traversal, Str
             Traversal::Dense,
             format!("auto: the grid's largest side {side} is below {SPARSE_FROM_SIDE}"),
         ),
+    }
+}
+
+/// The surface `settings` ask for, when `scene` can have it: a mesh scene's triangles, or
+/// a grid small enough to extract a smooth surface from; and at most 255 materials, so
+/// that the cells' tag is free (`crate::triangles`). Why not, otherwise.
+pub fn check_surface(scene: &Scene, settings: &RenderSettings) -> Result<(), String> {
+    use crate::triangles::SURFACE_TAG;
+    let name = settings.surface.name();
+    if settings.surface != Surface::Voxels && scene.materials.len() > SURFACE_TAG as usize {
+        return Err(format!(
+            "render.surface = \"{name}\" needs material index {SURFACE_TAG} free; the scene \
+             defines {} materials",
+            scene.materials.len()
+        ));
+    }
+    let voxels = scene.grid.voxel_count() as u64;
+    if settings.surface != Surface::Voxels && voxels > u32::MAX as u64 {
+        return Err(format!(
+            "render.surface = \"{name}\": the grid has {voxels} voxels, more than 2^32"
+        ));
+    }
+    match settings.surface {
+        Surface::Voxels => Ok(()),
+        Surface::Mesh => match &scene.mesh {
+            None => Err("render.surface = \"mesh\" needs a scene made from a mesh \
+                 (scene.mesh)"
+                .into()),
+            Some(m) if m.triangles.len() > crate::triangles::MAX_TRIANGLES => Err(format!(
+                "render.surface = \"mesh\": the mesh has {} triangles, at most {} are traced",
+                m.triangles.len(),
+                crate::triangles::MAX_TRIANGLES
+            )),
+            Some(_) => Ok(()),
+        },
+        Surface::Smooth if voxels > crate::surface::MAX_SURFACE_VOXELS => Err(format!(
+            "render.surface = \"smooth\": the grid has {voxels} voxels; smooth surfaces are \
+             extracted from at most {} (surface::MAX_SURFACE_VOXELS)",
+            crate::surface::MAX_SURFACE_VOXELS
+        )),
+        Surface::Smooth => Ok(()),
     }
 }
 
@@ -362,6 +408,10 @@ impl Plan {
             .then(|| PyramidLayout::new(scene.grid.dims(), settings.cones.levels));
 
         let (traversal, traversal_reason) = choose_traversal(scene, settings);
+        let (surface, surface_reason) = match check_surface(scene, settings) {
+            Ok(()) => (settings.surface, String::new()),
+            Err(why) => (Surface::Voxels, format!("{why}; voxels instead")),
+        };
         let tree_levels = if traversal == Traversal::Sparse {
             crate::sparse::levels_for(scene.grid.dims(), crate::sparse::GPU_LOG_BRANCH)
         } else {
@@ -372,6 +422,8 @@ impl Plan {
             traversal,
             tree_levels,
             traversal_reason,
+            surface,
+            surface_reason,
             reflection,
             refraction,
             shadows,
@@ -471,6 +523,8 @@ impl Plan {
                     traversal: Traversal::Dense,
                     tree_levels: 0,
                     traversal_reason: String::new(),
+                    surface: Surface::Voxels,
+                    surface_reason: String::new(),
                     reasons: Vec::new(),
                 };
                 for (i, f) in Self::FLAGS.iter().enumerate() {
@@ -511,6 +565,9 @@ impl Plan {
                 "SPARSE_LEVELS".to_string(),
                 ShaderDefValue::UInt(self.tree_levels),
             );
+        }
+        if self.surface != Surface::Voxels {
+            defs.insert("TRIANGLES".to_string(), ShaderDefValue::Bool(true));
         }
         defs.insert(
             "DDA_UNROLL".to_string(),
@@ -555,6 +612,20 @@ impl fmt::Display for Plan {
                 self.tree_levels, self.traversal_reason
             )?,
             _ => write!(f, "\n  traversal: dense DDA ({})", self.traversal_reason)?,
+        }
+        match self.surface {
+            Surface::Voxels if self.surface_reason.is_empty() => {}
+            Surface::Voxels => write!(f, "\n  surface: voxels ({})", self.surface_reason)?,
+            s => write!(
+                f,
+                "\n  surface: triangles of the {} (render.surface = \"{}\")",
+                if s == Surface::Mesh {
+                    "scene's mesh"
+                } else {
+                    "grid's smooth surface"
+                },
+                s.name()
+            )?,
         }
         if let Some(layout) = &self.pyramid {
             write!(f, "\n  {}", memory_line(layout, self.indirect))?;

@@ -87,6 +87,32 @@ impl Traversal {
     }
 }
 
+/// What a ray hits (`render.surface`): the voxels' faces (the baseline), the triangles
+/// of the mesh the scene was voxelized from, or a smooth surface extracted from the
+/// grid; triangles are found through the voxels they overlap (`crate::triangles`, the
+/// seed's O6).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Surface {
+    #[default]
+    Voxels,
+    /// The scene's own mesh (`scene.mesh`): O6 (b).
+    Mesh,
+    /// Surface nets of every material (`crate::surface`), traced as triangles: O6 (a).
+    Smooth,
+}
+
+impl Surface {
+    pub const ALL: [Surface; 3] = [Surface::Voxels, Surface::Mesh, Surface::Smooth];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Surface::Voxels => "voxels",
+            Surface::Mesh => "mesh",
+            Surface::Smooth => "smooth",
+        }
+    }
+}
+
 impl PixelFilter {
     pub const ALL: [PixelFilter; 3] = [PixelFilter::None, PixelFilter::Box, PixelFilter::Gaussian];
 
@@ -263,6 +289,8 @@ pub struct RenderSettings {
     pub filter_width: f64,
     /// Dense DDA, sparse tree, or the plan's choice.
     pub traversal: Traversal,
+    /// Voxel faces, or triangles found through the voxels.
+    pub surface: Surface,
 }
 
 /// Largest `light_samples` and `spp` accepted.
@@ -300,6 +328,7 @@ impl Default for RenderSettings {
             pixel_filter: PixelFilter::None,
             filter_width: 0.5,
             traversal: Traversal::Auto,
+            surface: Surface::Voxels,
         }
     }
 }

@@ -51,7 +51,7 @@ pub enum SurfaceError {
 }
 
 /// A triangle mesh in world coordinates, one material per triangle.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct SurfaceMesh {
     pub positions: Vec<DVec3>,
     /// Unit vertex normals, pointing out of the material.
@@ -62,6 +62,33 @@ pub struct SurfaceMesh {
 }
 
 impl SurfaceMesh {
+    /// A triangle soup as a mesh: three vertices a triangle, each with the file's
+    /// normal there (`normals`, per triangle, empty when the file has none) or else the
+    /// face's unit normal (zero for a degenerate triangle; counter-clockwise winding
+    /// gives the outward side, but tracing does not rely on it, see `crate::triangles`).
+    pub fn from_soup(triangles: &[[DVec3; 3]], normals: &[[DVec3; 3]], materials: &[u8]) -> Self {
+        let mut mesh = Self::default();
+        for (i, (t, &m)) in triangles.iter().zip(materials).enumerate() {
+            let face = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
+            let at = mesh.positions.len() as u32;
+            mesh.positions.extend_from_slice(t);
+            let given = normals.get(i).copied().unwrap_or([DVec3::ZERO; 3]);
+            mesh.normals
+                .extend(given.map(|n| if n == DVec3::ZERO { face } else { n }));
+            mesh.triangles.push([at, at + 1, at + 2]);
+            mesh.triangle_material.push(m);
+        }
+        mesh
+    }
+
+    /// The mesh moved by `offset`.
+    pub fn translated(mut self, offset: DVec3) -> Self {
+        for p in &mut self.positions {
+            *p += offset;
+        }
+        self
+    }
+
     /// Edges of `material`'s surface that bound it: those whose two directions are not
     /// used by equally many of its (consistently wound) triangles. 0 for a closed
     /// surface. Where two voxels of a material touch along an edge only, four triangles
@@ -121,12 +148,54 @@ pub fn extract(grid: &Grid, relax: u32) -> Result<SurfaceMesh, SurfaceError> {
     let used = grid.materials_used();
     let mut mesh = SurfaceMesh::default();
     for m in (0..=255u8).filter(|&m| m != VOID && used[m as usize]) {
-        append_material(grid, m, relax, &mut mesh);
+        append_material(grid, Some(m), relax, &mut mesh);
     }
     Ok(mesh)
 }
 
-fn append_material(grid: &Grid, material: u8, relax: u32, mesh: &mut SurfaceMesh) {
+/// The smooth surface between void and everything else, relaxed `relax` times, each
+/// triangle of the material of the voxel behind it: the surface `render.surface =
+/// "smooth"` traces. Unlike [`extract`], where two touching materials each get a
+/// surface, a place where two materials meet has none (the voxels show there): every
+/// triangle separates void from one material, as `crate::triangles`' medium rule
+/// reads it.
+pub fn extract_solid(grid: &Grid, relax: u32) -> Result<SurfaceMesh, SurfaceError> {
+    let voxels = grid.voxel_count() as u64;
+    if voxels > MAX_SURFACE_VOXELS {
+        return Err(SurfaceError::TooLarge {
+            voxels,
+            max: MAX_SURFACE_VOXELS,
+        });
+    }
+    let mut mesh = SurfaceMesh::default();
+    append_material(grid, None, relax, &mut mesh);
+    Ok(mesh)
+}
+
+/// The non-void voxel nearest to `p` (voxel-local coordinates) among the 27 around it.
+fn solid_near(grid: &Grid, p: DVec3) -> u8 {
+    let c = p.floor().as_ivec3();
+    let mut best = (f64::INFINITY, VOID);
+    for z in -1..=1 {
+        for y in -1..=1 {
+            for x in -1..=1 {
+                let v = c + glam::IVec3::new(x, y, z);
+                if !grid.contains(v) || grid.get(v) == VOID {
+                    continue;
+                }
+                let d = (v.as_dvec3() + 0.5 - p).length_squared();
+                if d < best.0 {
+                    best = (d, grid.get(v));
+                }
+            }
+        }
+    }
+    best.1
+}
+
+/// The surface of `material`'s voxels, or with `None` of every non-void voxel (each
+/// triangle then of the material of the voxel behind it), appended to `mesh`.
+fn append_material(grid: &Grid, material: Option<u8>, relax: u32, mesh: &mut SurfaceMesh) {
     let d = grid.dims();
     // One voxel of outside before the grid and two after: the extractor makes no face
     // for a cube edge whose cube starts on its last layer, so the outside layer that
@@ -136,7 +205,7 @@ fn append_material(grid: &Grid, material: u8, relax: u32, mesh: &mut SurfaceMesh
     // Negative inside the material; the one-voxel border is outside.
     let mut field = vec![0.5f32; shape.usize()];
     for (i, &m) in grid.data().iter().enumerate() {
-        if m == material {
+        if material.map_or(m != VOID, |k| m == k) {
             let i = i as u32;
             let (x, y, z) = (i % d.x, (i / d.x) % d.y, i / (d.x * d.y));
             field[shape.linearize([x + 1, y + 1, z + 1]) as usize] = -0.5;
@@ -226,7 +295,13 @@ fn append_material(grid: &Grid, material: u8, relax: u32, mesh: &mut SurfaceMesh
             normals[i as usize] += face;
         }
         mesh.triangles.push(t.map(|i| i + base));
-        mesh.triangle_material.push(material);
+        // Behind the face, a quarter voxel in from its centroid (voxel-local: padded
+        // index minus a half), is the voxel it bounds.
+        let m = material.unwrap_or_else(|| {
+            let inside = (a + b + c) / 3.0 - 0.25 * face.normalize_or_zero();
+            solid_near(grid, inside - DVec3::splat(0.5))
+        });
+        mesh.triangle_material.push(m);
     }
     mesh.positions.extend(p.into_iter().map(world));
     mesh.normals

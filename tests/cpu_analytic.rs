@@ -70,6 +70,7 @@ fn floor_scene(falloff_light: DVec3) -> Scene {
             vfov: 0.8,
         },
         ambient: DVec3::new(0.05, 0.075, 0.1),
+        mesh: None,
     }
 }
 
@@ -184,6 +185,7 @@ fn tir_setup(deg: f64) -> (Scene, DVec3, DVec3) {
         })],
         camera: seed_scene(4).unwrap().camera,
         ambient: DVec3::new(0.05, 0.075, 0.1),
+        mesh: None,
     };
     let t = deg.to_radians();
     let d = DVec3::new(t.sin(), t.cos(), 0.0); // upwards, towards y = 3

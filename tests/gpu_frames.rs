@@ -98,6 +98,7 @@ fn random_scene(rng: &mut StdRng, dims: UVec3, lights: usize) -> Scene {
         lights: all,
         camera: seed_camera(c, w),
         ambient: DVec3::new(0.05, 0.075, 0.1),
+        mesh: None,
     }
 }
 

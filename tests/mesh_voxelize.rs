@@ -496,6 +496,7 @@ fn in_memory_mesh_with_material_indices_out_of_order() {
     let tri = [DVec3::ZERO, DVec3::X, DVec3::Y];
     let mesh = TriangleMesh {
         triangles: vec![tri],
+        normals: vec![],
         material_of: vec![0],
         materials: vec![Material {
             name: "m".into(),

@@ -77,6 +77,7 @@ fn random_scene(rng: &mut StdRng) -> Scene {
         lights: seed_lights(c, w),
         camera,
         ambient: DVec3::new(0.05, 0.075, 0.1),
+        mesh: None,
     }
 }
 
@@ -190,6 +191,7 @@ fn a_back_lit_transmitting_face_has_no_highlight() {
             vfov: 0.3,
         },
         ambient: DVec3::new(0.05, 0.075, 0.1),
+        mesh: None,
     };
     let dark = Scene {
         lights: vec![],

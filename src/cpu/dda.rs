@@ -8,6 +8,7 @@ use glam::{DVec3, IVec3};
 
 use crate::scene::Grid;
 use crate::sparse::{Region, SparseTree};
+use crate::triangles::{SURFACE_TAG, SurfaceTrace, WatertightRay};
 
 /// One voxel on a ray's path.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -185,6 +186,11 @@ impl<'a> Dda<'a> {
 }
 
 impl Dda<'_> {
+    /// Where the voxel last visited ends along the ray (its exit plane, or `t_limit`).
+    pub fn t_exit(&self) -> f64 {
+        self.t_max.min_element().min(self.t_limit)
+    }
+
     /// The ray parameter at which it crosses boundary plane `b` (voxel units) of axis
     /// `a`: `(plane - o) / d`, the one formula every `t_max` comes from, so a region's
     /// exit compares exactly as the dense walk's steps do (trace contract, "cast", 3).
@@ -301,7 +307,12 @@ impl Iterator for Dda<'_> {
 pub struct Hit {
     pub voxel: IVec3,
     pub t: f64,
+    /// The shading normal, facing the ray's side.
     pub normal: DVec3,
+    /// The surface's own normal, facing the ray's side: secondary and shadow rays start
+    /// off the surface along it. The face's normal on a voxel, where both are one.
+    pub geometric: DVec3,
+    /// The material past the surface (void when the ray leaves into void).
     pub material: u8,
 }
 
@@ -336,15 +347,44 @@ pub fn cast_over(
     medium: u8,
     exit_hits: bool,
 ) -> (Option<Hit>, u64) {
+    cast_through(grid, tree, None, origin, dir, medium, exit_hits, &mut 0)
+}
+
+/// [`cast_over`] with triangle surfaces (`crate::triangles`): `grid` is then their
+/// tagged grid, a cell's triangles are tested inside its ray interval, and `tests`
+/// counts the ray/triangle tests.
+#[allow(clippy::too_many_arguments)]
+pub fn cast_through(
+    grid: &Grid,
+    tree: Option<&SparseTree>,
+    surfaces: Option<&SurfaceTrace>,
+    origin: DVec3,
+    dir: DVec3,
+    medium: u8,
+    exit_hits: bool,
+    tests: &mut u64,
+) -> (Option<Hit>, u64) {
     let mut dda = Dda::over(grid, tree, origin, dir, f64::INFINITY);
+    let ray = surfaces.map(|_| WatertightRay::new(origin, dir));
     let mut hit = None;
     while let Some(v) = dda.next() {
+        if let (Some(s), Some(ray)) = (surfaces, ray.as_ref())
+            && v.material == SURFACE_TAG
+        {
+            let window = (v.t_enter, dda.t_exit());
+            if let Some(tr) = s.next_transition(v.voxel, ray, window, 0.0, medium, tests) {
+                hit = Some(s.hit(v.voxel, dir, &tr));
+                break;
+            }
+            continue;
+        }
         // The start voxel is never a hit: the ray is in its medium by definition.
         if v.material != medium && v.normal != DVec3::ZERO {
             hit = Some(Hit {
                 voxel: v.voxel,
                 t: v.t_enter,
                 normal: v.normal,
+                geometric: v.normal,
                 material: v.material,
             });
             break;
@@ -362,6 +402,7 @@ pub fn cast_over(
             voxel,
             t: dda.t_end,
             normal,
+            geometric: normal,
             material: crate::scene::VOID,
         });
     }

@@ -12,13 +12,14 @@ use std::time::Instant;
 use glam::DVec3;
 use rayon::prelude::*;
 
-pub use dda::{Dda, Hit, Visit, cast, cast_over, cast_with};
+pub use dda::{Dda, Hit, Visit, cast, cast_over, cast_through, cast_with};
 
 use crate::plan::{Plan, Traversal};
 use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Rules, Transmittance};
 use crate::sampling::light_sample;
 use crate::scene::{Light, Material, Scene};
 use crate::sparse::SparseTree;
+use crate::triangles::SurfaceTrace;
 
 /// What the CPU backend is, for printing next to a GPU adapter's name.
 pub fn backend_summary() -> String {
@@ -156,21 +157,61 @@ struct StackRay {
 }
 
 /// What a render builds once from the scene before tracing, as its plan asks: the cone
-/// features' pyramids and the plug-in shadow model's own data.
+/// features' pyramids, the plug-in shadow model's own data, the triangle surfaces and
+/// the sparse tree.
 pub struct Prepared {
     pub cones: Option<cone::ConeScene>,
     pub shadow_model: Option<Box<dyn crate::technique::CpuShadow>>,
-    /// The sparse tree of the grid, when the plan traverses it.
+    /// The sparse tree of the grid the walks read, when the plan traverses it.
     pub tree: Option<SparseTree>,
+    /// The triangle surfaces, when the plan traces them.
+    pub surfaces: Option<SurfaceTrace>,
 }
 
 impl Prepared {
     pub fn new(scene: &Scene, settings: &RenderSettings, plan: &Plan) -> Self {
+        let surfaces = match crate::triangles::surface_trace(scene, plan.surface) {
+            Ok(s) => s,
+            // Past the plan's checks only a surface overlapping more voxels than are
+            // kept fails; it is drawn as voxels, and said so.
+            Err(e) => {
+                eprintln!("warning: {e}; the scene is drawn as voxels");
+                None
+            }
+        };
+        let grid = surfaces.as_ref().map_or(&scene.grid, |s| &s.tagged);
         Self {
             cones: cone::ConeScene::new(scene, settings, plan),
             shadow_model: plan.shadow_model.map(|m| (m.cpu)(scene, settings)),
             tree: (plan.traversal == Traversal::Sparse)
-                .then(|| SparseTree::build(&scene.grid, crate::sparse::GPU_LOG_BRANCH)),
+                .then(|| SparseTree::build(grid, crate::sparse::GPU_LOG_BRANCH)),
+            surfaces,
+        }
+    }
+
+    /// The grid the walks read: the scene's, or its copy with the cells tagged.
+    pub fn grid<'a>(&'a self, scene: &'a Scene) -> &'a crate::scene::Grid {
+        self.surfaces.as_ref().map_or(&scene.grid, |s| &s.tagged)
+    }
+}
+
+/// How a shadow segment walks the scene: through the sparse tree and the triangle
+/// surfaces when they are planned, starting in `medium` (the material at its start,
+/// which only the triangle walk needs: the voxel walk reads it from the grid).
+#[derive(Clone, Copy, Default)]
+pub struct ShadowWalk<'a> {
+    pub tree: Option<&'a SparseTree>,
+    pub surfaces: Option<&'a SurfaceTrace>,
+    pub medium: u8,
+}
+
+impl<'a> ShadowWalk<'a> {
+    /// The walk of `prepared`'s structures from a point in `medium`.
+    pub fn new(prepared: &'a Prepared, medium: u8) -> Self {
+        Self {
+            tree: prepared.tree.as_ref(),
+            surfaces: prepared.surfaces.as_ref(),
+            medium,
         }
     }
 }
@@ -201,6 +242,7 @@ pub fn trace_ray_with(
     stats: &mut RayStats,
 ) -> DVec3 {
     let grid = &scene.grid;
+    let walk_grid = prepared.grid(scene);
     let cones = prepared.cones.as_ref();
     let eps = settings.ray_offset * grid.voxel_size();
     let mut color = scene.ambient;
@@ -217,19 +259,22 @@ pub fn trace_ray_with(
 
     while let Some(ray) = stack.pop() {
         let exit_hits = settings.rules == Rules::Consistent;
-        let (hit, steps) = cast_over(
-            grid,
+        let (hit, steps) = cast_through(
+            walk_grid,
             prepared.tree.as_ref(),
+            prepared.surfaces.as_ref(),
             ray.origin,
             ray.dir,
             ray.medium,
             exit_hits,
+            &mut 0,
         );
         stats.voxel_steps += steps;
         let Some(hit) = hit else { continue };
 
         let p = ray.origin + hit.t * ray.dir;
         let n = hit.normal;
+        let ng = hit.geometric;
         let shade_id = if hit.material == crate::scene::VOID {
             ray.medium
         } else {
@@ -240,8 +285,14 @@ pub fn trace_ray_with(
         // Emission is seen, not cast: emissive voxels light nothing else.
         color += ray.throughput * m.emission;
         if m.is_lit() {
+            let at = Surface {
+                p,
+                n,
+                q: p + eps * ng,
+                medium: ray.medium,
+            };
             let local = direct_light(
-                scene, settings, prepared, key, p, n, ray.dir, shade_id, stats,
+                scene, settings, prepared, key, &at, ray.dir, shade_id, stats,
             );
             color += ray.throughput * local;
         }
@@ -279,7 +330,7 @@ pub fn trace_ray_with(
                 Some(refracted) => {
                     stats.secondary += 1;
                     stack.push(StackRay {
-                        origin: p - eps * n,
+                        origin: p - eps * ng,
                         dir: refracted,
                         throughput: ray.throughput * m.kt,
                         reflection_depth: a,
@@ -292,7 +343,7 @@ pub fn trace_ray_with(
         if reflection_weight > 0.0 && settings.may_spawn(a, b, true) {
             stats.secondary += 1;
             stack.push(StackRay {
-                origin: p + eps * n,
+                origin: p + eps * ng,
                 dir: ray.dir - 2.0 * ray.dir.dot(n) * n,
                 throughput: ray.throughput * reflection_weight,
                 reflection_depth: a + 1,
@@ -313,6 +364,15 @@ pub fn refract(d: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
     (k >= 0.0).then(|| (eta * d + (eta * c - k.sqrt()) * n).normalize())
 }
 
+/// A shaded point: the hit, its shading normal (facing the ray), where shadow rays
+/// start (off the surface along its own normal) and the medium there.
+struct Surface {
+    p: DVec3,
+    n: DVec3,
+    q: DVec3,
+    medium: u8,
+}
+
 /// Phong with inverse-square falloff, summed over the lights (an area light over its
 /// samples), times the albedo.
 #[allow(clippy::too_many_arguments)]
@@ -321,16 +381,14 @@ fn direct_light(
     settings: &RenderSettings,
     prepared: &Prepared,
     key: SampleKey,
-    p: DVec3,
-    n: DVec3,
+    at: &Surface,
     d: DVec3,
     shade_id: u8,
     stats: &mut RayStats,
 ) -> DVec3 {
     let m = &scene.materials[shade_id as usize];
-    let eps = settings.ray_offset * scene.grid.voxel_size();
-    let q = p + eps * n;
-    let tree = prepared.tree.as_ref();
+    let Surface { p, n, q, medium } = *at;
+    let walk = ShadowWalk::new(prepared, medium);
     let mut sum = DVec3::ZERO;
     for (j, light) in scene.lights.iter().enumerate() {
         if let Some(model) = &prepared.shadow_model {
@@ -346,7 +404,7 @@ fn direct_light(
                 key,
                 index: j as u32,
                 light,
-                tree,
+                walk,
             };
             sum += model.light_term(&at, stats);
             continue;
@@ -375,7 +433,7 @@ fn direct_light(
                         light_sample(settings.seed, key.pixel, key.frame, j as u32, k, count);
                     let x = a.sample_point(s, t);
                     light_sum += point_contribution(
-                        scene, tree, settings, m, q, p, n, d, x, radiance, stats,
+                        scene, &walk, settings, m, q, p, n, d, x, radiance, stats,
                     );
                 }
                 sum += light_sum / count as f64;
@@ -384,7 +442,7 @@ fn direct_light(
             _ => {
                 sum += point_contribution(
                     scene,
-                    tree,
+                    &walk,
                     settings,
                     m,
                     q,
@@ -406,7 +464,7 @@ fn direct_light(
 #[allow(clippy::too_many_arguments)]
 pub fn point_contribution(
     scene: &Scene,
-    tree: Option<&SparseTree>,
+    walk: &ShadowWalk,
     settings: &RenderSettings,
     m: &Material,
     q: DVec3,
@@ -418,7 +476,7 @@ pub fn point_contribution(
     stats: &mut RayStats,
 ) -> DVec3 {
     stats.shadow += 1;
-    let v = shadow_transmittance(scene, tree, settings.features.transmittance, q, x, stats);
+    let v = shadow_transmittance(scene, walk, settings.features.transmittance, q, x, stats);
     if v == DVec3::ZERO {
         return DVec3::ZERO;
     }
@@ -460,15 +518,20 @@ pub fn unshadowed(
 }
 
 /// Transmittance (RGB) of the shadow segment from `q` to `light` under `model`, over
-/// the scene's grid as `tree` holds it when there is one (the same value).
+/// the scene's grid as the walk's tree holds it when there is one (the same value), or
+/// through its triangle surfaces (`crate::triangles::SurfaceTrace::transmittance`).
 pub fn shadow_transmittance(
     scene: &Scene,
-    tree: Option<&SparseTree>,
+    walk: &ShadowWalk,
     model: Transmittance,
     q: DVec3,
     light: DVec3,
     stats: &mut RayStats,
 ) -> DVec3 {
+    let tree = walk.tree;
+    if let Some(s) = walk.surfaces {
+        return s.transmittance(scene, tree, model, q, light, walk.medium, stats);
+    }
     match model {
         Transmittance::MinKt => DVec3::splat(shadow_min_kt_over(scene, tree, q, light, stats)),
         Transmittance::BeerLambert => shadow_beer_lambert_over(scene, tree, q, light, stats),

@@ -277,6 +277,7 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
         pixel_filter: _,
         filter_width: _,
         traversal: _,
+        surface: _,
     } = s;
     let mut t = Table::new();
     let int = |v: u32| Value::Integer(i64::from(v));
@@ -298,6 +299,7 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
     t.insert("pixel_filter".into(), s.pixel_filter.name().into());
     t.insert("filter_width".into(), s.filter_width.into());
     t.insert("traversal".into(), s.traversal.name().into());
+    t.insert("surface".into(), s.surface.name().into());
     t
 }
 
@@ -515,6 +517,7 @@ const RENDER_KEYS: &[&str] = &[
     "pixel_filter",
     "filter_width",
     "traversal",
+    "surface",
 ];
 
 /// `key = value` lines of a table of plain values, the keys in `order` first, then any

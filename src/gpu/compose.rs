@@ -38,6 +38,10 @@ const MODULES: &[(&str, &str)] = &[
         include_str!("../../shaders/sparse.wgsl"),
     ),
     (
+        "shaders/triangles.wgsl",
+        include_str!("../../shaders/triangles.wgsl"),
+    ),
+    (
         "shaders/traversal.wgsl",
         include_str!("../../shaders/traversal.wgsl"),
     ),
@@ -48,6 +52,10 @@ const MODULES: &[(&str, &str)] = &[
     (
         "shaders/shadow_beer_lambert.wgsl",
         include_str!("../../shaders/shadow_beer_lambert.wgsl"),
+    ),
+    (
+        "shaders/shadow_surface.wgsl",
+        include_str!("../../shaders/shadow_surface.wgsl"),
     ),
     (
         "shaders/area_lights.wgsl",

@@ -154,9 +154,10 @@ struct GridUpload {
     /// stand-in, so a sparse render does not hold the dense grid on the device.
     texture: bool,
     view: wgpu::TextureView,
-    /// The voxels packed four to a word, x-fastest (`voxels` of shaders/bindings.wgsl),
-    /// which the dense walk reads; only while a plan walks the dense grid.
-    voxels: Option<wgpu::Buffer>,
+    /// The voxels the walks read packed four to a word, x-fastest (`voxels` of
+    /// shaders/bindings.wgsl), with the hash of those voxels (the grid's, or its copy with
+    /// the triangle cells tagged); only while a plan walks the dense grid.
+    voxels: Option<(blake3::Hash, wgpu::Buffer)>,
 }
 
 /// What a [`GpuTracer::render_frames`] accumulation was made from, so that a call that
@@ -282,9 +283,21 @@ pub struct GpuTracer {
     /// Bound as `technique_data` when the plan needs none (a binding needs a buffer),
     /// and as `tree` when the plan walks the dense grid.
     no_technique_data: wgpu::Buffer,
-    /// The sparse tree of the grid upload of the generation it holds, while renders
-    /// walk it.
-    tree: Option<(u64, wgpu::Buffer)>,
+    /// The sparse tree of the voxels the walks read (by their hash), while renders walk
+    /// it.
+    tree: Option<(blake3::Hash, wgpu::Buffer)>,
+    /// The triangle surfaces of the latest render that traced them: what they were made
+    /// from (a hash), the cells, the hash of their tagged grid and their buffer
+    /// (`surface` of shaders/bindings.wgsl).
+    surfaces: Option<SurfaceUpload>,
+}
+
+/// Triangle surfaces on the device (`crate::triangles`).
+struct SurfaceUpload {
+    key: blake3::Hash,
+    trace: std::sync::Arc<crate::triangles::SurfaceTrace>,
+    tagged_hash: blake3::Hash,
+    buffer: wgpu::Buffer,
 }
 
 /// Device memory bound by one render, in bytes: what a plan's leaving out saves.
@@ -294,6 +307,8 @@ pub struct GpuMemory {
     pub grid: u64,
     /// The sparse tree, when the plan walks it.
     pub tree: u64,
+    /// Triangles, cells and their references, when the plan traces triangle surfaces.
+    pub surfaces: u64,
     /// Materials, lights, parameters and ray counters.
     pub scene: u64,
     /// Radiance output and its readback copy.
@@ -310,6 +325,7 @@ impl GpuMemory {
     pub fn total(&self) -> u64 {
         self.grid
             + self.tree
+            + self.surfaces
             + self.scene
             + self.image
             + self.accumulation
@@ -323,11 +339,12 @@ impl std::fmt::Display for GpuMemory {
         let mib = |b: u64| b as f64 / 1048576.0;
         write!(
             f,
-            "{:.2} MiB (grid {:.2}, tree {:.2}, scene {:.3}, image {:.2}, accumulation {:.2}, \
-             pyramids {:.2}, technique data {:.2})",
+            "{:.2} MiB (grid {:.2}, tree {:.2}, surfaces {:.2}, scene {:.3}, image {:.2}, \
+             accumulation {:.2}, pyramids {:.2}, technique data {:.2})",
             mib(self.total()),
             mib(self.grid),
             mib(self.tree),
+            mib(self.surfaces),
             mib(self.scene),
             mib(self.image),
             mib(self.accumulation),
@@ -497,6 +514,7 @@ impl GpuTracer {
                 storage_entry(5, false),
                 storage_entry(6, true),
                 storage_entry(7, true),
+                storage_entry(8, true),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -564,6 +582,7 @@ impl GpuTracer {
             technique_data: None,
             no_technique_data,
             tree: None,
+            surfaces: None,
         })
     }
 
@@ -784,12 +803,13 @@ impl GpuTracer {
             .min(limits.max_buffer_size)
     }
 
-    /// Makes the voxel buffer of the uploaded grid if it has none.
-    fn upload_voxel_buffer(&mut self, scene: &Scene) {
+    /// Makes the voxel buffer of `grid` (the uploaded grid, or its copy with the cells
+    /// tagged), whose voxels hash to `hash`, unless the upload holds it.
+    fn upload_voxel_buffer(&mut self, grid: &crate::scene::Grid, hash: blake3::Hash) {
         let Some(g) = self.grid.as_mut() else {
             return;
         };
-        if g.voxels.is_some() {
+        if g.voxels.as_ref().is_some_and(|v| v.0 == hash) {
             return;
         }
         let bytes = Self::voxel_buffer_bytes(g.dims);
@@ -799,7 +819,7 @@ impl GpuTracer {
             bytes,
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         );
-        let data = scene.grid.data();
+        let data = grid.data();
         let whole = data.len() / 4 * 4;
         self.queue.write_buffer(&buf, 0, &data[..whole]);
         if whole < data.len() || (whole as u64) < bytes {
@@ -807,7 +827,7 @@ impl GpuTracer {
             tail.resize((bytes - whole as u64) as usize, 0);
             self.queue.write_buffer(&buf, whole as u64, &tail);
         }
-        g.voxels = Some(buf);
+        g.voxels = Some((hash, buf));
     }
 
     /// Uploads the grid unless the device already holds exactly this one; without
@@ -870,17 +890,16 @@ impl GpuTracer {
         });
     }
 
-    /// Builds and uploads the sparse tree of the uploaded grid unless the device holds
-    /// it already; returns its bytes.
-    fn upload_tree(&mut self, scene: &Scene) -> Result<u64> {
-        let generation = self.grid_generation();
-        if let Some((g, b)) = &self.tree
-            && *g == generation
+    /// Builds and uploads the sparse tree of `grid` (whose voxels hash to `hash`) unless
+    /// the device holds it already; returns its bytes.
+    fn upload_tree(&mut self, grid: &crate::scene::Grid, hash: blake3::Hash) -> Result<u64> {
+        if let Some((h, b)) = &self.tree
+            && *h == hash
         {
             return Ok(b.size());
         }
         self.tree = None;
-        let tree = crate::sparse::SparseTree::build(&scene.grid, crate::sparse::GPU_LOG_BRANCH);
+        let tree = crate::sparse::SparseTree::build(grid, crate::sparse::GPU_LOG_BRANCH);
         let bytes = tree.bytes() as u64;
         let max = self.max_voxel_buffer_bytes();
         if bytes > max {
@@ -888,9 +907,9 @@ impl GpuTracer {
                 "the sparse tree of grid {}x{}x{} needs {bytes} bytes; the device allows {max} \
                  (max_storage_buffer_binding_size); render.traversal = \"dense\" walks the \
                  voxel buffer instead",
-                scene.grid.dims().x,
-                scene.grid.dims().y,
-                scene.grid.dims().z
+                grid.dims().x,
+                grid.dims().y,
+                grid.dims().z
             );
         }
         let buf = buffer(
@@ -901,8 +920,78 @@ impl GpuTracer {
         );
         self.queue
             .write_buffer(&buf, 0, bytemuck::cast_slice(tree.words()));
-        self.tree = Some((generation, buf));
+        self.tree = Some((hash, buf));
         Ok(bytes)
+    }
+
+    /// Lists the plan's triangle surfaces in the grid and uploads them, unless the
+    /// device holds those already (the same grid, mesh and kind). `None` for voxels.
+    fn upload_surfaces(
+        &mut self,
+        scene: &Scene,
+        plan: &Plan,
+    ) -> Result<Option<std::sync::Arc<crate::triangles::SurfaceTrace>>> {
+        use crate::render::Surface;
+        if plan.surface == Surface::Voxels {
+            self.surfaces = None;
+            return Ok(None);
+        }
+        let mut h = blake3::Hasher::new();
+        h.update(plan.surface.name().as_bytes());
+        h.update(
+            format!(
+                "{:?}",
+                (
+                    scene.grid.dims(),
+                    scene.grid.voxel_size(),
+                    scene.grid.origin()
+                )
+            )
+            .as_bytes(),
+        );
+        h.update(scene.grid.data());
+        if plan.surface == Surface::Mesh
+            && let Some(m) = &scene.mesh
+        {
+            for v in m.positions.iter().chain(&m.normals) {
+                h.update(bytemuck::cast_slice(&v.to_array()));
+            }
+            h.update(bytemuck::cast_slice(&m.triangles));
+            h.update(&m.triangle_material);
+        }
+        let key = h.finalize();
+        if let Some(u) = self.surfaces.as_ref().filter(|u| u.key == key) {
+            return Ok(Some(u.trace.clone()));
+        }
+        self.surfaces = None;
+        let trace = crate::triangles::surface_trace(scene, plan.surface)?
+            .context("the plan traces triangles the scene does not have")?;
+        let words = trace.gpu_words();
+        let bytes = (words.len() * 4) as u64;
+        let max = self.max_voxel_buffer_bytes();
+        if bytes > max {
+            bail!(
+                "the triangle surfaces need {bytes} bytes; the device binds at most {max} \
+                 (max_storage_buffer_binding_size); render.surface = \"voxels\" draws the \
+                 voxels instead"
+            );
+        }
+        let buffer = buffer(
+            &self.device,
+            "triangle surfaces",
+            bytes,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        );
+        self.queue
+            .write_buffer(&buffer, 0, bytemuck::cast_slice(&words));
+        let trace = std::sync::Arc::new(trace);
+        self.surfaces = Some(SurfaceUpload {
+            key,
+            tagged_hash: blake3::hash(trace.tagged.data()),
+            trace: trace.clone(),
+            buffer,
+        });
+        Ok(Some(trace))
     }
 
     /// A buffer of at least `bytes` in `slot`, kept while large enough.
@@ -1335,15 +1424,26 @@ impl GpuTracer {
         let oom_scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation_scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.upload_grid(scene, Self::reads_grid_texture(&plan));
+        // The walks read the grid, or with triangle surfaces its copy with the cells
+        // tagged (the texture the cone and sdf builds read stays the grid's own).
+        let setup_start = Instant::now();
+        let trace = self.upload_surfaces(scene, &plan)?;
+        let surface_time = setup_start.elapsed();
+        let walk_grid = trace.as_ref().map_or(&scene.grid, |t| &t.tagged);
+        let walk_hash = match (&self.surfaces, &self.grid) {
+            (Some(u), _) => u.tagged_hash,
+            (None, Some(g)) => g.hash,
+            (None, None) => blake3::hash(scene.grid.data()),
+        };
         if Self::reads_voxel_buffer(&plan) {
-            self.upload_voxel_buffer(scene);
+            self.upload_voxel_buffer(walk_grid, walk_hash);
         } else if let Some(g) = self.grid.as_mut() {
             // Dropped while renders walk the tree.
             g.voxels = None;
         }
         let (tree_bytes, tree_time) = if plan.traversal == crate::plan::Traversal::Sparse {
             let start = Instant::now();
-            (self.upload_tree(scene)?, start.elapsed())
+            (self.upload_tree(walk_grid, walk_hash)?, start.elapsed())
         } else {
             // Dropped while renders walk the grid: nothing holds it on the device.
             self.tree = None;
@@ -1417,7 +1517,7 @@ impl GpuTracer {
         let voxels = self
             .grid
             .as_ref()
-            .and_then(|g| g.voxels.as_ref())
+            .and_then(|g| g.voxels.as_ref().map(|v| &v.1))
             .unwrap_or(&self.no_technique_data);
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("voxlab tracer"),
@@ -1433,6 +1533,12 @@ impl GpuTracer {
                 buffer_entry(
                     7,
                     self.tree.as_ref().map_or(&self.no_technique_data, |t| &t.1),
+                ),
+                buffer_entry(
+                    8,
+                    self.surfaces
+                        .as_ref()
+                        .map_or(&self.no_technique_data, |u| &u.buffer),
                 ),
             ],
         });
@@ -1455,6 +1561,7 @@ impl GpuTracer {
             None => None,
         };
         self.last_setup_time = tree_time
+            + surface_time
             + if plan.pyramid.is_some() {
                 setup.elapsed()
             } else {
@@ -1475,6 +1582,7 @@ impl GpuTracer {
             self.pyramid = None;
             self.technique_data = None;
             self.tree = None;
+            self.surfaces = None;
             let d = scene.grid.dims();
             bail!(
                 "the device could not hold this render (grid {}x{}x{}: {} bytes of texture; \
@@ -1674,6 +1782,7 @@ impl GpuTracer {
                 0
             },
             tree: tree_bytes,
+            surfaces: self.surfaces.as_ref().map_or(0, |u| u.buffer.size()),
             scene: mat_buf.size() + light_buf.size() + self.params.size() + 2 * COUNTER_BYTES,
             image: output.size() + readback.size(),
             accumulation: accumulation

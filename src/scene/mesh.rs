@@ -73,12 +73,18 @@ pub struct Voxelized {
     /// Voxels touched by the surface, and voxels filled inside it.
     pub shell_voxels: usize,
     pub interior_voxels: usize,
+    /// The triangles, in the mesh's coordinates (the grid's world), with the grid's
+    /// material indices and face normals: what `render.surface = "mesh"` traces.
+    pub surface: crate::surface::SurfaceMesh,
 }
 
 /// A triangle soup with one material per triangle.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriangleMesh {
     pub triangles: Vec<[DVec3; 3]>,
+    /// Per triangle, the file's normals at its vertices (zero where it gives none);
+    /// empty when the file gives no normals at all.
+    pub normals: Vec<[DVec3; 3]>,
     /// Index into `materials` per triangle.
     pub material_of: Vec<usize>,
     pub materials: Vec<Material>,
@@ -243,7 +249,19 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
                 m.positions[i + 2] as f64,
             )
         };
-        for f in m.indices.chunks(3) {
+        // The file's normals, when this object gives one per face vertex.
+        let normal = |k: usize| -> DVec3 {
+            let Some(&i) = m.normal_indices.get(k) else {
+                return DVec3::ZERO;
+            };
+            let i = i as usize * 3;
+            match m.normals.get(i..i + 3) {
+                Some(v) => DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64).normalize_or_zero(),
+                None => DVec3::ZERO,
+            }
+        };
+        let with_normals = m.normal_indices.len() == m.indices.len() && !m.normals.is_empty();
+        for (k, f) in m.indices.chunks(3).enumerate() {
             if f.len() < 3 {
                 continue;
             }
@@ -256,7 +274,16 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
             }
             mesh.triangles.push([p(f[0]), p(f[1]), p(f[2])]);
             mesh.material_of.push(slot);
+            if with_normals {
+                mesh.normals.resize(mesh.triangles.len() - 1, [DVec3::ZERO; 3]);
+                mesh.normals
+                    .push([normal(3 * k), normal(3 * k + 1), normal(3 * k + 2)]);
+            }
         }
+    }
+    if !mesh.normals.is_empty() {
+        mesh.normals
+            .resize(mesh.triangles.len(), [DVec3::ZERO; 3]);
     }
     Ok(mesh)
 }
@@ -388,6 +415,20 @@ fn gltf_triangles(
             let pos: Vec<DVec3> = pos
                 .map(|p| xf.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)))
                 .collect();
+            // Normals go through the inverse transpose of the node's transform.
+            let normal_xf = glam::DMat3::from_mat4(xf).inverse().transpose();
+            let normals: Vec<DVec3> = reader.read_normals().map_or_else(Vec::new, |n| {
+                n.map(|v| {
+                    (normal_xf * DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64))
+                        .normalize_or_zero()
+                })
+                .collect()
+            });
+            let normals = if normals.len() == pos.len() {
+                normals
+            } else {
+                Vec::new()
+            };
             let idx: Vec<u32> = match reader.read_indices() {
                 Some(i) => i.into_u32().collect(),
                 None => (0..pos.len() as u32).collect(),
@@ -421,11 +462,14 @@ fn gltf_triangles(
                 diffuse_material(name, DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64))
             });
             let tri = |a: u32, b: u32, c: u32| [pos[a as usize], pos[b as usize], pos[c as usize]];
+            let before = mesh.triangles.len();
+            let mut corners: Vec<[u32; 3]> = Vec::new();
             let n = idx.len();
             match mode {
                 Mode::Triangles => {
                     for f in idx.chunks_exact(3) {
                         mesh.triangles.push(tri(f[0], f[1], f[2]));
+                        corners.push([f[0], f[1], f[2]]);
                     }
                 }
                 Mode::TriangleStrip => {
@@ -433,15 +477,25 @@ fn gltf_triangles(
                         // Every other triangle of a strip is wound the other way.
                         let (a, b) = if k % 2 == 0 { (k, k + 1) } else { (k + 1, k) };
                         mesh.triangles.push(tri(idx[a], idx[b], idx[k + 2]));
+                        corners.push([idx[a], idx[b], idx[k + 2]]);
                     }
                 }
                 _ => {
                     for k in 1..n.saturating_sub(1) {
                         mesh.triangles.push(tri(idx[0], idx[k], idx[k + 1]));
+                        corners.push([idx[0], idx[k], idx[k + 1]]);
                     }
                 }
             }
             mesh.material_of.resize(mesh.triangles.len(), slot);
+            if !normals.is_empty() {
+                mesh.normals.resize(before, [DVec3::ZERO; 3]);
+                mesh.normals.extend(
+                    corners
+                        .iter()
+                        .map(|c| c.map(|i| normals[i as usize])),
+                );
+            }
         }
         Ok(())
     };
@@ -639,5 +693,6 @@ pub fn voxelize(
         triangle_count: tris.len(),
         shell_voxels,
         interior_voxels,
+        surface: crate::surface::SurfaceMesh::from_soup(tris, &mesh.normals, &ids),
     })
 }

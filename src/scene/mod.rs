@@ -40,6 +40,9 @@ pub struct Scene {
     pub camera: OrbitCamera,
     /// Added once to every pixel: the background colour of a miss.
     pub ambient: DVec3,
+    /// The triangles the grid was voxelized from, in world coordinates, with the
+    /// scene's material indices (`scene.mesh`); what `render.surface = "mesh"` traces.
+    pub mesh: Option<std::sync::Arc<crate::surface::SurfaceMesh>>,
 }
 
 impl Scene {

@@ -118,6 +118,7 @@ pub fn seed_scene_dims(dims: UVec3) -> Result<Scene, SceneError> {
         camera: seed_camera(c, w),
         ambient: SEED_AMBIENT,
         grid,
+        mesh: None,
     })
 }
 

@@ -166,9 +166,9 @@ pub struct LightQuery<'a> {
     /// The light's index and the light.
     pub index: u32,
     pub light: &'a Light,
-    /// The grid's sparse tree when the plan traverses it (for shadow rays:
-    /// `crate::cpu::shadow_transmittance`).
-    pub tree: Option<&'a crate::sparse::SparseTree>,
+    /// How shadow segments walk the scene (`crate::cpu::shadow_transmittance`): the
+    /// sparse tree and the triangle surfaces when planned, and the medium at `q`.
+    pub walk: crate::cpu::ShadowWalk<'a>,
 }
 
 /// A shadow model's f64 reference, made once per render (its per-scene data built).

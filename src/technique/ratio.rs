@@ -73,7 +73,7 @@ impl CpuShadow for Ratio {
         let radiance = at.light.color() * at.light.intensity();
         let contribution = |x: DVec3, stats: &mut RayStats| {
             point_contribution(
-                scene, at.tree, s, m, at.q, at.p, at.n, at.d, x, radiance, stats,
+                scene, &at.walk, s, m, at.q, at.p, at.n, at.d, x, radiance, stats,
             )
         };
         let Light::Area(a) = at.light else {
@@ -104,7 +104,7 @@ impl CpuShadow for Ratio {
             let x = sample(k);
             stats.shadow += 1;
             let vis =
-                shadow_transmittance(scene, at.tree, s.features.transmittance, at.q, x, stats);
+                shadow_transmittance(scene, &at.walk, s.features.transmittance, at.q, x, stats);
             let to = x - at.p;
             let dl = to.length();
             let l = if dl > 0.0 { to / dl } else { at.n };

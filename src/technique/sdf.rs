@@ -242,7 +242,7 @@ impl CpuShadow for Sdf {
         let x = at.light.position();
         let radiance = at.light.color() * at.light.intensity();
         stats.shadow += 1;
-        let t = shadow_transmittance(scene, at.tree, s.features.transmittance, at.q, x, stats);
+        let t = shadow_transmittance(scene, &at.walk, s.features.transmittance, at.q, x, stats);
         if t == DVec3::ZERO {
             return DVec3::ZERO;
         }
