@@ -94,7 +94,7 @@ impl SurfaceMesh {
     /// surface. Where two voxels of a material touch along an edge only, four triangles
     /// share a mesh edge (a non-manifold but watertight place): two each way.
     pub fn open_edges(&self, material: u8) -> usize {
-        self.edges(material)
+        self.edges(Some(material))
             .values()
             .filter(|(_, signed)| *signed != 0)
             .count()
@@ -103,18 +103,28 @@ impl SurfaceMesh {
     /// Edges of `material`'s surface shared by more than two of its triangles (where
     /// voxels touch along an edge only).
     pub fn non_manifold_edges(&self, material: u8) -> usize {
-        self.edges(material)
+        self.edges(Some(material))
             .values()
             .filter(|(n, _)| *n > 2)
             .count()
     }
 
-    /// Per undirected edge of `material`'s triangles: how many use it, and how many
-    /// more use it from the lower vertex index to the higher than the other way.
-    fn edges(&self, material: u8) -> std::collections::HashMap<(u32, u32), (u32, i64)> {
+    /// [`SurfaceMesh::open_edges`] of all the triangles together, whatever their
+    /// materials (the surface of [`extract_solid`] is closed as a whole).
+    pub fn open_edges_all(&self) -> usize {
+        self.edges(None)
+            .values()
+            .filter(|(_, signed)| *signed != 0)
+            .count()
+    }
+
+    /// Per undirected edge of `material`'s triangles (every triangle's with `None`): how
+    /// many use it, and how many more use it from the lower vertex index to the higher
+    /// than the other way.
+    fn edges(&self, material: Option<u8>) -> std::collections::HashMap<(u32, u32), (u32, i64)> {
         let mut edges: std::collections::HashMap<(u32, u32), (u32, i64)> = Default::default();
         for (t, &m) in self.triangles.iter().zip(&self.triangle_material) {
-            if m != material {
+            if material.is_some_and(|k| k != m) {
                 continue;
             }
             for k in 0..3 {

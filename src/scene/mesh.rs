@@ -275,15 +275,15 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
             mesh.triangles.push([p(f[0]), p(f[1]), p(f[2])]);
             mesh.material_of.push(slot);
             if with_normals {
-                mesh.normals.resize(mesh.triangles.len() - 1, [DVec3::ZERO; 3]);
+                mesh.normals
+                    .resize(mesh.triangles.len() - 1, [DVec3::ZERO; 3]);
                 mesh.normals
                     .push([normal(3 * k), normal(3 * k + 1), normal(3 * k + 2)]);
             }
         }
     }
     if !mesh.normals.is_empty() {
-        mesh.normals
-            .resize(mesh.triangles.len(), [DVec3::ZERO; 3]);
+        mesh.normals.resize(mesh.triangles.len(), [DVec3::ZERO; 3]);
     }
     Ok(mesh)
 }
@@ -490,11 +490,8 @@ fn gltf_triangles(
             mesh.material_of.resize(mesh.triangles.len(), slot);
             if !normals.is_empty() {
                 mesh.normals.resize(before, [DVec3::ZERO; 3]);
-                mesh.normals.extend(
-                    corners
-                        .iter()
-                        .map(|c| c.map(|i| normals[i as usize])),
-                );
+                mesh.normals
+                    .extend(corners.iter().map(|c| c.map(|i| normals[i as usize])));
             }
         }
         Ok(())
