@@ -5,6 +5,12 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::DVec3;
+use voxlab::scene::mesh::TriangleMesh;
+use voxlab::scene::seed::{SEED_AMBIENT, seed_camera, seed_lights};
+use voxlab::scene::{Material, Scene, VoxelizeOptions};
 
 use voxlab::Frame;
 use voxlab::experiment::Experiment;
@@ -127,4 +133,97 @@ pub fn shared_data(name: &str) -> PathBuf {
         p.display()
     );
     p
+}
+
+/// A unit icosphere subdivided `k` times, counter-clockwise outward, as a soup. Shared
+/// edges are split at the same point from both sides (the midpoint is symmetric), so the
+/// soup is watertight.
+pub fn icosphere(k: u32) -> Vec<[DVec3; 3]> {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let v: Vec<DVec3> = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
+    .collect();
+    let faces = [
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    let mut tris: Vec<[DVec3; 3]> = faces.iter().map(|f| f.map(|i| v[i])).collect();
+    for _ in 0..k {
+        tris = tris
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let m = |p: DVec3, q: DVec3| ((p + q) * 0.5).normalize();
+                let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
+                [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    tris
+}
+
+/// The scene of a triangle soup voxelized at `resolution` in material `m`, with the
+/// seed's lights and camera, keeping the triangles (and `normals`, per triangle, if
+/// given).
+pub fn mesh_scene(
+    tris: Vec<[DVec3; 3]>,
+    normals: Vec<[DVec3; 3]>,
+    m: Material,
+    resolution: u32,
+) -> Scene {
+    let mesh = TriangleMesh {
+        material_of: vec![0; tris.len()],
+        materials: vec![m.clone()],
+        triangles: tris,
+        normals,
+        warnings: vec![],
+    };
+    let v = voxlab::scene::mesh::voxelize(
+        &mesh,
+        &VoxelizeOptions {
+            resolution: voxlab::scene::Resolution::Count(resolution),
+            material: Some(m),
+        },
+    )
+    .unwrap();
+    let (c, w) = (v.grid.centre(), v.grid.width());
+    Scene {
+        lights: seed_lights(c, w),
+        camera: seed_camera(c, w),
+        ambient: SEED_AMBIENT,
+        materials: v.materials,
+        mesh: Some(Arc::new(v.surface)),
+        grid: v.grid,
+    }
 }
