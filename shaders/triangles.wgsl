@@ -101,8 +101,18 @@ fn cell_range(v: vec3<i32>) -> vec2<u32> {
     let key = u.x + params.dims.x * (u.y + params.dims.y * u.z);
     let size = 1u << header.x;
     var slot = (key * 2654435769u) >> (32u - header.x);
+    // Most look-ups end at their home slot: that one is read before the loop, whose
+    // back edges the software driver counts (shaders/counters.wgsl).
+    let home = surface[header.y + slot];
+    if home.x == key {
+        return home.yz;
+    }
+    if home.x == EMPTY_SLOT {
+        return vec2<u32>(0u);
+    }
+    slot = (slot + 1u) & (size - 1u);
     // The table always has an empty slot: the bound only guards a corrupt one.
-    for (var i = 0u; i < size; i++) {
+    for (var i = 1u; i < size; i++) {
         let c = surface[header.y + slot];
         if c.x == key {
             return c.yz;
@@ -172,24 +182,37 @@ fn next_transition(range: vec2<u32>, r: WatertightRay, t0: f32, t1: f32, after: 
     tr.found = false;
     let lo = t0 - CELL_TOLERANCE;
     let hi = t1 + CELL_TOLERANCE;
-    var best = BIG;
-    var j = 0u;
-    for (; j < range.y; j++) {
-        let t = tri_ref(range.x + j);
-        let c = intersect(r, t);
-        if c.hit && c.t > after && c.t >= lo && c.t <= hi && c.t < best {
-            best = c.t;
-            tr.found = true;
-            tr.triangle = t;
-            tr.weights = c.weights;
+    tr.t = BIG;
+    // Four triangles per loop iteration: the software driver's loop limit counts back
+    // edges (shaders/counters.wgsl), and a smooth surface's cells list several.
+    for (var j = 0u; j < range.y; j += 4u) {
+        consider(&tr, r, tri_ref(range.x + j), lo, hi, after);
+        if j + 1u < range.y {
+            consider(&tr, r, tri_ref(range.x + j + 1u), lo, hi, after);
+        }
+        if j + 2u < range.y {
+            consider(&tr, r, tri_ref(range.x + j + 2u), lo, hi, after);
+        }
+        if j + 3u < range.y {
+            consider(&tr, r, tri_ref(range.x + j + 3u), lo, hi, after);
         }
     }
-    if !tr.found {
-        return tr;
+    if tr.found {
+        tr.medium = crossed(medium, tri_material(tr.triangle));
     }
-    tr.t = best;
-    tr.medium = crossed(medium, tri_material(tr.triangle));
     return tr;
+}
+
+// Keeps triangle t's crossing in tr when it is inside [lo, hi], past `after` and the
+// nearest so far.
+fn consider(tr: ptr<function, Transition>, r: WatertightRay, t: u32, lo: f32, hi: f32, after: f32) {
+    let c = intersect(r, t);
+    if c.hit && c.t > after && c.t >= lo && c.t <= hi && c.t < (*tr).t {
+        (*tr).t = c.t;
+        (*tr).found = true;
+        (*tr).triangle = t;
+        (*tr).weights = c.weights;
+    }
 }
 
 // The normals of a transition's hit for a ray along d: the shading normal interpolated

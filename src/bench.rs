@@ -10,7 +10,7 @@ use std::time::Duration;
 use anyhow::Result;
 
 use crate::gpu::GpuTracer;
-use crate::render::{RayStats, RenderSettings, Traversal};
+use crate::render::{RayStats, RenderSettings, Surface, Traversal};
 use crate::scene::{Scene, seed_scene};
 
 #[derive(Clone, Debug)]
@@ -27,6 +27,11 @@ pub struct BenchOptions {
     /// Experiments benchmarked after the seed scene, each with its own scene and its
     /// camera, lights and materials, at the options' image size and depth limits.
     pub experiments: Vec<crate::experiment::Experiment>,
+    /// Generated scenes benchmarked after the experiments (a large mesh, say).
+    pub scenes: Vec<(String, Scene)>,
+    /// The surfaces compared on each scene (`render.surface`); a surface a scene cannot
+    /// have (a mesh without one) is left out of its rows.
+    pub surfaces: Vec<Surface>,
 }
 
 impl Default for BenchOptions {
@@ -40,6 +45,8 @@ impl Default for BenchOptions {
             cpu: true,
             traversals: vec![Traversal::Dense, Traversal::Sparse],
             experiments: Vec::new(),
+            scenes: Vec::new(),
+            surfaces: vec![Surface::Voxels],
         }
     }
 }
@@ -53,6 +60,8 @@ pub struct BenchRow {
     pub backend: &'static str,
     /// The walk: "dense" or "sparse" (the plan's choice under "auto").
     pub traversal: &'static str,
+    /// What rays hit: "voxels", "mesh" or "smooth".
+    pub surface: &'static str,
     pub median: Duration,
     pub stats: RayStats,
     /// Bytes the geometry occupies per voxel of the grid's box: the R8Uint texture's 1,
@@ -86,6 +95,8 @@ impl BenchRow {
             "grid": self.grid,
             "backend": self.backend,
             "traversal": self.traversal,
+            "surface": self.surface,
+            "triangle_tests": s.triangle_tests,
             "build_ms": self.build.as_secs_f64() * 1e3,
             "ms_per_frame": self.ms(),
             "mrays_per_s": self.mrays_per_s(),
@@ -119,9 +130,11 @@ fn bench_gpu(
     scene: &Scene,
     opts: &BenchOptions,
     traversal: Traversal,
+    surface: Surface,
 ) -> Result<BenchRow> {
     let s = &RenderSettings {
         traversal,
+        surface,
         ..opts.settings.clone()
     };
     // The counted frame doubles as warm-up: it uploads the grid and builds the counting
@@ -143,6 +156,7 @@ fn bench_gpu(
         grid: scene.grid.dims().x,
         backend: "gpu",
         traversal: traversal_name(plan),
+        surface: surface.name(),
         median: median(times),
         stats: counted.stats,
         bytes_per_voxel: (memory.grid + memory.tree) as f64 / scene.grid.voxel_count() as f64,
@@ -158,9 +172,16 @@ fn traversal_name(t: Traversal) -> &'static str {
     }
 }
 
-fn bench_cpu(name: &str, scene: &Scene, opts: &BenchOptions, traversal: Traversal) -> BenchRow {
+fn bench_cpu(
+    name: &str,
+    scene: &Scene,
+    opts: &BenchOptions,
+    traversal: Traversal,
+    surface: Surface,
+) -> BenchRow {
     let s = &RenderSettings {
         traversal,
+        surface,
         ..opts.settings.clone()
     };
     let plan = crate::plan::Plan::new(scene, s).traversal;
@@ -182,6 +203,7 @@ fn bench_cpu(name: &str, scene: &Scene, opts: &BenchOptions, traversal: Traversa
         grid: scene.grid.dims().x,
         backend: "cpu",
         traversal: traversal_name(plan),
+        surface: surface.name(),
         median: median(times),
         stats: warm.stats,
         bytes_per_voxel,
@@ -203,30 +225,134 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
         .experiments
         .iter()
         .map(|e| -> Result<(String, Scene)> { Ok((e.name.clone(), e.scene.clone())) });
-    for scene in seeds.chain(experiments) {
+    let generated = opts.scenes.iter().map(|s| Ok(s.clone()));
+    for scene in seeds.chain(experiments).chain(generated) {
         let (name, scene) = scene?;
-        for &t in &opts.traversals {
-            let row = bench_gpu(&mut gpu, &name, &scene, opts, t)?;
-            progress(&row);
-            rows.push(row);
-        }
-        if opts.cpu {
+        for &surface in &opts.surfaces {
+            let probe = RenderSettings {
+                surface,
+                ..opts.settings.clone()
+            };
+            if crate::plan::check_surface(&scene, &probe).is_err() {
+                continue;
+            }
             for &t in &opts.traversals {
-                let row = bench_cpu(&name, &scene, opts, t);
+                let row = bench_gpu(&mut gpu, &name, &scene, opts, t, surface)?;
                 progress(&row);
                 rows.push(row);
+            }
+            if opts.cpu {
+                for &t in &opts.traversals {
+                    let row = bench_cpu(&name, &scene, opts, t, surface);
+                    progress(&row);
+                    rows.push(row);
+                }
             }
         }
     }
     Ok(rows)
 }
 
+/// What a scene's triangle surface costs to hold: its triangles, the cells they
+/// overlap and the references from cells to triangles.
+#[derive(Clone, Debug)]
+pub struct SurfaceRow {
+    pub scene: String,
+    pub surface: &'static str,
+    pub triangles: usize,
+    pub cells: usize,
+    pub references: usize,
+    /// Bytes of the GPU's buffer (triangles, cell table, references).
+    pub gpu_bytes: u64,
+    /// Extracting (smooth) and listing the cells, on the host.
+    pub build: Duration,
+}
+
+impl SurfaceRow {
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "scene": self.scene,
+            "surface": self.surface,
+            "triangles": self.triangles,
+            "cells": self.cells,
+            "references": self.references,
+            "gpu_bytes": self.gpu_bytes,
+            "bytes_per_reference": self.gpu_bytes as f64 / self.references.max(1) as f64,
+            "build_ms": self.build.as_secs_f64() * 1e3,
+        })
+    }
+}
+
+/// The triangle surfaces of `opts`' scenes, one row per scene and surface other than
+/// voxels that the scene can have.
+pub fn surface_rows(opts: &BenchOptions) -> Result<Vec<SurfaceRow>> {
+    let mut rows = Vec::new();
+    let seeds = opts
+        .sizes
+        .iter()
+        .map(|&n| -> Result<(String, Scene)> { Ok(("seed".to_string(), seed_scene(n)?)) });
+    let experiments = opts
+        .experiments
+        .iter()
+        .map(|e| -> Result<(String, Scene)> { Ok((e.name.clone(), e.scene.clone())) });
+    let generated = opts.scenes.iter().map(|s| Ok(s.clone()));
+    for scene in seeds.chain(experiments).chain(generated) {
+        let (name, scene) = scene?;
+        for &surface in opts.surfaces.iter().filter(|&&s| s != Surface::Voxels) {
+            let probe = RenderSettings {
+                surface,
+                ..opts.settings.clone()
+            };
+            if crate::plan::check_surface(&scene, &probe).is_err() {
+                continue;
+            }
+            let start = std::time::Instant::now();
+            let Some(t) = crate::triangles::surface_trace(&scene, surface)? else {
+                continue;
+            };
+            rows.push(SurfaceRow {
+                scene: scene_label(&name, &scene),
+                surface: surface.name(),
+                build: start.elapsed(),
+                triangles: t.triangles.len(),
+                cells: t.cells.len(),
+                references: t.refs.len(),
+                gpu_bytes: t.gpu_bytes(),
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// The surfaces' table: sizes and bytes per triangle reference.
+pub fn surface_table(rows: &[SurfaceRow]) -> String {
+    let mut out = String::from(
+        "| scene | surface | triangles | cells | references | references/cell | GPU MiB | bytes/reference | listing ms |\n\
+         |---|---|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        out += &format!(
+            "| {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.1} | {:.1} |\n",
+            r.scene,
+            r.surface,
+            r.triangles,
+            r.cells,
+            r.references,
+            r.references as f64 / r.cells.max(1) as f64,
+            r.gpu_bytes as f64 / 1048576.0,
+            r.gpu_bytes as f64 / r.references.max(1) as f64,
+            r.build.as_secs_f64() * 1e3,
+        );
+    }
+    out
+}
+
 /// The table the README quotes: one line per grid size and backend, then the ratio.
 pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> String {
     let mut out = format!(
         "{}x{}, depth {}/{}; GPU: {adapter}; CPU: {}\n\n\
-         | scene | backend | walk | median ms/frame | timer | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | steps/ray | bytes/voxel | build ms |\n\
-         |---:|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|\n",
+         | scene | surface | backend | walk | median ms/frame | timer | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | steps/ray | triangle tests/ray | bytes/voxel | build ms |\n\
+         |---:|---|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         settings.width,
         settings.height,
         settings.max_reflection_depth,
@@ -235,8 +361,9 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     );
     for r in rows {
         out += &format!(
-            "| {} | {} | {} | {:.1} | {} | {:.2} | {:.1} | {} ({} + {} + {}) | {} | {:.2} | {:.4} | {:.1} |\n",
+            "| {} | {} | {} | {} | {:.1} | {} | {:.2} | {:.1} | {} ({} + {} + {}) | {} | {:.2} | {} | {:.4} | {:.1} |\n",
             r.scene,
+            r.surface,
             r.backend,
             r.traversal,
             r.ms(),
@@ -249,19 +376,31 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
             r.stats.shadow,
             r.stats.voxel_steps,
             r.stats.voxel_steps as f64 / r.stats.total_rays().max(1) as f64,
+            // Counted by the CPU reference only.
+            if r.backend == "cpu" && r.surface != "voxels" {
+                format!(
+                    "{:.2}",
+                    r.stats.triangle_tests as f64 / r.stats.total_rays().max(1) as f64
+                )
+            } else {
+                "-".to_string()
+            },
             r.bytes_per_voxel,
             r.build.as_secs_f64() * 1e3,
         );
     }
     let mut ratios = String::new();
     for g in rows.iter().filter(|r| r.backend == "gpu") {
-        if let Some(c) = rows
-            .iter()
-            .find(|r| r.backend == "cpu" && r.scene == g.scene && r.traversal == g.traversal)
-        {
+        if let Some(c) = rows.iter().find(|r| {
+            r.backend == "cpu"
+                && r.scene == g.scene
+                && r.traversal == g.traversal
+                && r.surface == g.surface
+        }) {
             ratios += &format!(
-                "{} {}: GPU is {:.2}x the CPU's speed (time ratio CPU/GPU)\n",
+                "{} {} {}: GPU is {:.2}x the CPU's speed (time ratio CPU/GPU)\n",
                 g.scene,
+                g.surface,
                 g.traversal,
                 c.median.as_secs_f64() / g.median.as_secs_f64()
             );
@@ -269,16 +408,37 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     }
     // Sparse against dense on each backend and scene: time and steps.
     for s in rows.iter().filter(|r| r.traversal == "sparse") {
-        if let Some(d) = rows
-            .iter()
-            .find(|r| r.traversal == "dense" && r.backend == s.backend && r.scene == s.scene)
-        {
+        if let Some(d) = rows.iter().find(|r| {
+            r.traversal == "dense"
+                && r.backend == s.backend
+                && r.scene == s.scene
+                && r.surface == s.surface
+        }) {
             ratios += &format!(
-                "{} {}: sparse is {:.2}x dense's speed, with {:.2}x fewer steps per ray\n",
+                "{} {} {}: sparse is {:.2}x dense's speed, with {:.2}x fewer steps per ray\n",
                 s.scene,
+                s.surface,
                 s.backend,
                 d.median.as_secs_f64() / s.median.as_secs_f64(),
                 d.stats.voxel_steps as f64 / s.stats.voxel_steps.max(1) as f64
+            );
+        }
+    }
+    // Triangles against the voxel image of the same scene, backend and walk.
+    for t in rows.iter().filter(|r| r.surface != "voxels") {
+        if let Some(v) = rows.iter().find(|r| {
+            r.surface == "voxels"
+                && r.backend == t.backend
+                && r.scene == t.scene
+                && r.traversal == t.traversal
+        }) {
+            ratios += &format!(
+                "{} {} {} {}: {:.2}x the voxel image's time per frame\n",
+                t.scene,
+                t.surface,
+                t.backend,
+                t.traversal,
+                t.median.as_secs_f64() / v.median.as_secs_f64()
             );
         }
     }
@@ -287,6 +447,34 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
         out += &ratios;
     }
     out
+}
+
+/// A scene of `mesh` voxelized at `resolution` in the seed's `material` (its interior
+/// filled), with the seed's lights and camera and the triangles kept: a large mesh for
+/// `voxlab bench --torus`.
+pub fn mesh_scene(
+    mesh: &crate::scene::mesh::TriangleMesh,
+    resolution: u32,
+    material: u8,
+) -> Result<Scene> {
+    let m = crate::scene::seed_palette()[material as usize].clone();
+    let v = crate::scene::mesh::voxelize(
+        mesh,
+        &crate::scene::VoxelizeOptions {
+            resolution: crate::scene::Resolution::Count(resolution),
+            material: Some(m),
+        },
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (c, w) = (v.grid.centre(), v.grid.width());
+    Ok(Scene {
+        lights: crate::scene::seed::seed_lights(c, w),
+        camera: crate::scene::seed::seed_camera(c, w),
+        ambient: crate::scene::seed::SEED_AMBIENT,
+        materials: v.materials,
+        mesh: Some(std::sync::Arc::new(v.surface)),
+        grid: v.grid,
+    })
 }
 
 /// One mesh voxelized at one resolution: the median of several runs.

@@ -317,6 +317,19 @@ struct BenchArgs {
     /// and settings in each) instead of the table.
     #[arg(long)]
     json: bool,
+    /// The surfaces to compare on each scene (`render.surface`): voxels, mesh (scenes
+    /// made from a mesh), smooth. Adds a table of the surfaces' sizes.
+    #[arg(long, value_delimiter = ',', default_values_t = ["voxels".to_string()],
+          value_parser = ["voxels", "mesh", "smooth"])]
+    surfaces: Vec<String>,
+    /// Add a generated closed torus of about this many triangles (solid, seed lights
+    /// and camera), voxelized at --torus-resolution: a large mesh.
+    #[arg(long, value_name = "TRIANGLES",
+          value_parser = clap::value_parser!(u32).range(8..=4_000_000))]
+    torus: Option<u32>,
+    #[arg(long, default_value_t = 256,
+          value_parser = clap::value_parser!(u32).range(1..=4096))]
+    torus_resolution: u32,
 }
 
 #[derive(Args, Debug)]
@@ -733,8 +746,29 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
             .iter()
             .map(|f| Experiment::load(f).map_err(anyhow::Error::from))
             .collect::<Result<Vec<_>>>()?,
+        surfaces: a
+            .surfaces
+            .iter()
+            .map(|name| {
+                voxlab::render::Surface::ALL
+                    .into_iter()
+                    .find(|s| s.name() == name)
+                    .expect("clap checked the name")
+            })
+            .collect(),
         ..Default::default()
     };
+    if let Some(n) = a.torus {
+        // About 2.5 rings to a segment (the major circle is the longer), two triangles
+        // a quad.
+        let segments = ((n as f64 / 5.0).sqrt().round() as u32).max(2);
+        let rings = (n / (2 * segments)).max(3);
+        let mesh = voxlab::bench::torus_mesh(rings, segments);
+        let name = format!("torus ({} triangles)", mesh.triangles.len());
+        let scene =
+            voxlab::bench::mesh_scene(&mesh, a.torus_resolution, voxlab::scene::seed_ids::SOLID)?;
+        opts.scenes.push((name, scene));
+    }
     opts.settings.width = a.size;
     opts.settings.height = a.size;
     let adapter = GpuTracer::new()
@@ -743,8 +777,9 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
     eprintln!("GPU: {adapter}\nCPU: {}", voxlab::cpu::backend_summary());
     let rows = voxlab::bench::run(&opts, |r| {
         eprintln!(
-            "  {} {} {}: {:.1} ms/frame, {:.2} Mrays/s, {:.1} Msteps/s",
+            "  {} {} {} {}: {:.1} ms/frame, {:.2} Mrays/s, {:.1} Msteps/s",
             r.scene,
+            r.surface,
             r.backend,
             r.traversal,
             r.ms(),
@@ -752,12 +787,18 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
             r.msteps_per_s()
         )
     })?;
+    let surfaces = voxlab::bench::surface_rows(&opts)?;
     if a.json {
         let mut head = bench_head("seed", Some(&adapter), a);
         head["cpu"] = voxlab::cpu::backend_summary().into();
-        return print_json_rows(&head, rows.iter().map(|r| r.json()));
+        print_json_rows(&head, rows.iter().map(|r| r.json()))?;
+        let head = bench_head("surfaces", None, a);
+        return print_json_rows(&head, surfaces.iter().map(|r| r.json()));
     }
     println!("{}", voxlab::bench::table(&rows, &adapter, &opts.settings));
+    if !surfaces.is_empty() {
+        println!("{}", voxlab::bench::surface_table(&surfaces));
+    }
     Ok(())
 }
 
@@ -1120,7 +1161,7 @@ fn render_one(
         if !setup.is_zero() {
             say!(
                 opts,
-                "setup:      {:.3} ms (sparse tree, cone pyramids: not in the trace time)",
+                "setup:      {:.3} ms (sparse tree, triangle surfaces, cone pyramids: not in the trace time)",
                 setup.as_secs_f64() * 1e3
             );
         }

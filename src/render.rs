@@ -460,6 +460,9 @@ pub struct RayStats {
     pub shadow: u64,
     /// DDA steps from one voxel to the next, over all rays.
     pub voxel_steps: u64,
+    /// Ray/triangle tests of triangle surfaces (`render.surface`), over all rays:
+    /// counted by the CPU reference only (the GPU's counters stop at voxel steps).
+    pub triangle_tests: u64,
 }
 
 impl RayStats {
@@ -474,6 +477,7 @@ impl std::ops::AddAssign for RayStats {
         self.secondary += o.secondary;
         self.shadow += o.shadow;
         self.voxel_steps += o.voxel_steps;
+        self.triangle_tests += o.triangle_tests;
     }
 }
 

@@ -498,6 +498,7 @@ impl SurfaceTrace {
             }
         }
         stats.voxel_steps += dda.steps;
+        stats.triangle_tests += tests;
         if opaque {
             return DVec3::ZERO;
         }

@@ -267,7 +267,7 @@ pub fn trace_ray_with(
             ray.dir,
             ray.medium,
             exit_hits,
-            &mut 0,
+            &mut stats.triangle_tests,
         );
         stats.voxel_steps += steps;
         let Some(hit) = hit else { continue };

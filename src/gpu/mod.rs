@@ -1744,6 +1744,7 @@ impl GpuTracer {
                 secondary: c(1),
                 shadow: c(2),
                 voxel_steps: c(3),
+                triangle_tests: 0,
             }
         } else {
             RayStats::default()
