@@ -6,7 +6,7 @@
 #define_import_path voxlab::shadow_surface
 
 #import voxlab::bindings::{materials, voxel_inside}
-#import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, dda_skip, dda_region, max_steps}
+#import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, dda_skip, dda_region, walk_bound}
 #import voxlab::triangles::{WatertightRay, watertight_ray, cell_range, next_transition, is_cell, CELL_TOLERANCE}
 #import voxlab::counters::loop_cut
 
@@ -40,18 +40,22 @@ fn pass_into(w: ptr<function, Media>, t: f32, next: u32) {
 fn pass_cell(s: ptr<function, Dda>, w: ptr<function, Media>, r: WatertightRay, t_enter: f32, len: f32) {
     let t_exit = min(min((*s).t_max.x, min((*s).t_max.y, (*s).t_max.z)), len);
     let range = cell_range((*s).voxel);
-    // Each pass takes one crossing or ends, so a cell takes at most one pass more than
-    // it has triangles.
-    for (var k = 0u; k <= range.y; k++) {
-        let tr = next_transition(range, r, t_enter, t_exit, (*w).after, (*w).medium);
-        if !tr.found || tr.t >= len {
-            return;
-        }
+    // One crossing per loop iteration, the first looked for before the loop (the
+    // driver's loop limit counts iterations, and most cells hold none); at most one
+    // per triangle.
+    var tr = next_transition(range, r, t_enter, t_exit, (*w).after, (*w).medium);
+    var k = 0u;
+    for (; k < range.y && tr.found && tr.t < len; k++) {
         pass_into(w, tr.t, tr.medium);
         (*w).after = tr.t + CELL_TOLERANCE;
         if (*w).opaque {
             return;
         }
+        tr = next_transition(range, r, t_enter, t_exit, (*w).after, (*w).medium);
+    }
+    // Any other way out is the driver's loop limit (shaders/counters.wgsl).
+    if k < range.y && tr.found && tr.t < len {
+        loop_cut();
     }
 }
 
@@ -70,11 +74,13 @@ fn surface_step(s: ptr<function, Dda>, w: ptr<function, Media>, r: WatertightRay
     }
     let reg = dda_region(s);
     if is_cell(reg.material) {
-        pass_cell(s, w, r, t, len);
-    } else {
-        pass_into(w, max(t, (*w).t), reg.material);
-        dda_skip(s, reg);
+        // Its crossings are taken in surface_transmittance's loop (see Dda::at_cell).
+        (*s).at_cell = true;
+        (*s).cell_t = t;
+        return true;
     }
+    pass_into(w, max(t, (*w).t), reg.material);
+    dda_skip(s, reg);
     return (*w).opaque;
 }
 
@@ -106,7 +112,7 @@ fn surface_transmittance(q: vec3<f32>, d: vec3<f32>, len: f32, medium: u32) -> v
         pass_into(&w, e.t, reg.material);
         dda_skip(&s, reg);
     }
-    let n = max_steps();
+    let n = walk_bound();
     // DDA_UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
     var done = w.opaque;
     var i = 0u;
@@ -125,6 +131,11 @@ fn surface_transmittance(q: vec3<f32>, d: vec3<f32>, len: f32, medium: u32) -> v
         if !done { done = surface_step(&s, &w, r, len); }
         if !done { done = surface_step(&s, &w, r, len); }
 #endif
+        if s.at_cell {
+            s.at_cell = false;
+            pass_cell(&s, &w, r, s.cell_t, len);
+            done = w.opaque;
+        }
     }
     // Any other way out is the driver's loop limit (shaders/counters.wgsl).
     if !done && i < n {

@@ -46,6 +46,12 @@ struct Dda {
     tree_node: u32,
     tree_shift: u32,
     tree_key: vec3<u32>,
+    // TRIANGLES: the walk stopped at a cell entered at cell_t. A step only stops there;
+    // the loop around the steps tests the cell's triangles, so that code is written
+    // once, not once per unrolled step (the software driver's code grows with each
+    // copy, and its time with it).
+    at_cell: bool,
+    cell_t: f32,
 }
 
 fn origin_inside(o: vec3<f32>) -> bool {
@@ -114,6 +120,8 @@ fn dda_init(o: vec3<f32>, d: vec3<f32>, v: vec3<i32>) -> Dda {
     s.tree_node = 0u;
     s.tree_shift = ROOT_SHIFT;
     s.tree_key = vec3<u32>(0u);
+    s.at_cell = false;
+    s.cell_t = 0.0;
     // Per axis as the contract says, on whole vectors (no loop: see enter).
     let parallel = d == vec3<f32>(0.0);
     let positive = d > vec3<f32>(0.0);
@@ -218,6 +226,18 @@ fn max_steps() -> u32 {
     return params.dims.x + params.dims.y + params.dims.z + 3u;
 }
 
+// The bound of a walk's loop counter, which counts DDA_UNROLL a loop iteration: with
+// TRIANGLES an iteration ends at every cell (Dda::at_cell), after as little as one step,
+// so the bound is max_steps iterations, not max_steps counted steps (which ended walks
+// through many cells early: a bug of the first version, seen with DDA_UNROLL 8).
+fn walk_bound() -> u32 {
+#ifdef TRIANGLES
+    return max_steps() * #{DDA_UNROLL}u;
+#else
+    return max_steps();
+#endif
+}
+
 // The first crossing in the cell the walk is in, entered at t_enter (TRIANGLES): with
 // one, h is the hit and the walk is over.
 fn cell_hit(s: ptr<function, Dda>, h: ptr<function, Hit>, medium: u32, t_enter: f32) -> bool {
@@ -259,8 +279,10 @@ fn cast_step(s: ptr<function, Dda>, h: ptr<function, Hit>, medium: u32, t_limit:
     }
     let r = dda_region(s);
     if is_cell(r.material) {
-        // A cell is never skipped: its triangles decide.
-        return cell_hit(s, h, medium, t);
+        // A cell is never skipped: its triangles decide, in cast_ray's loop.
+        (*s).at_cell = true;
+        (*s).cell_t = t;
+        return true;
     }
     if r.material != medium {
         (*h).hit = true;
@@ -300,7 +322,7 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
     } else if r.material == medium {
         dda_skip(&s, r);
     }
-    let n = max_steps();
+    let n = walk_bound();
     // DDA_UNROLL steps (1, 2, 4 or 8; the host's choice per device, src/gpu/mod.rs) per
     // loop iteration: the software driver's loop limit counts back edges, not work
     // (shaders/counters.wgsl), so a walk of k voxels spends k / DDA_UNROLL of it. But
@@ -322,6 +344,12 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
         if !done { done = cast_step(&s, &h, medium, t_limit); }
         if !done { done = cast_step(&s, &h, medium, t_limit); }
         if !done { done = cast_step(&s, &h, medium, t_limit); }
+#endif
+#ifdef TRIANGLES
+        if s.at_cell {
+            s.at_cell = false;
+            done = cell_hit(&s, &h, medium, s.cell_t);
+        }
 #endif
     }
     // The walk ends by a step, or after max_steps; leaving the loop any other way is the

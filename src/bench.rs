@@ -237,9 +237,20 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
                 continue;
             }
             for &t in &opts.traversals {
-                let row = bench_gpu(&mut gpu, &name, &scene, opts, t, surface)?;
-                progress(&row);
-                rows.push(row);
+                // A row the device cannot render (the software driver's loop limit,
+                // its memory) is said and left out; the others are still measured.
+                match bench_gpu(&mut gpu, &name, &scene, opts, t, surface) {
+                    Ok(row) => {
+                        progress(&row);
+                        rows.push(row);
+                    }
+                    Err(e) => eprintln!(
+                        "  {} {} gpu {}: not measured: {e:#}",
+                        scene_label(&name, &scene),
+                        surface.name(),
+                        t.name()
+                    ),
+                }
             }
             if opts.cpu {
                 for &t in &opts.traversals {
