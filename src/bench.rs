@@ -212,11 +212,9 @@ fn bench_cpu(
     }
 }
 
-/// Runs the benchmark, printing each row as soon as it is measured (`progress`), and
-/// returns all rows. A missing GPU is an error: the ratio is the point of the run.
-pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<Vec<BenchRow>> {
-    let mut gpu = GpuTracer::new()?;
-    let mut rows = Vec::new();
+/// The scenes of `opts`, in order: the seed scene at each size, the experiments', the
+/// generated ones; each made when it is reached.
+fn scenes(opts: &BenchOptions) -> impl Iterator<Item = Result<(String, Scene)>> + '_ {
     let seeds = opts
         .sizes
         .iter()
@@ -226,7 +224,15 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
         .iter()
         .map(|e| -> Result<(String, Scene)> { Ok((e.name.clone(), e.scene.clone())) });
     let generated = opts.scenes.iter().map(|s| Ok(s.clone()));
-    for scene in seeds.chain(experiments).chain(generated) {
+    seeds.chain(experiments).chain(generated)
+}
+
+/// Runs the benchmark, printing each row as soon as it is measured (`progress`), and
+/// returns all rows. A missing GPU is an error: the ratio is the point of the run.
+pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<Vec<BenchRow>> {
+    let mut gpu = GpuTracer::new()?;
+    let mut rows = Vec::new();
+    for scene in scenes(opts) {
         let (name, scene) = scene?;
         for &surface in &opts.surfaces {
             let probe = RenderSettings {
@@ -298,16 +304,7 @@ impl SurfaceRow {
 /// voxels that the scene can have.
 pub fn surface_rows(opts: &BenchOptions) -> Result<Vec<SurfaceRow>> {
     let mut rows = Vec::new();
-    let seeds = opts
-        .sizes
-        .iter()
-        .map(|&n| -> Result<(String, Scene)> { Ok(("seed".to_string(), seed_scene(n)?)) });
-    let experiments = opts
-        .experiments
-        .iter()
-        .map(|e| -> Result<(String, Scene)> { Ok((e.name.clone(), e.scene.clone())) });
-    let generated = opts.scenes.iter().map(|s| Ok(s.clone()));
-    for scene in seeds.chain(experiments).chain(generated) {
+    for scene in scenes(opts) {
         let (name, scene) = scene?;
         for &surface in opts.surfaces.iter().filter(|&&s| s != Surface::Voxels) {
             let probe = RenderSettings {

@@ -147,3 +147,53 @@ fn every_unroll_of_the_walks_gives_the_same_image_through_many_cells() {
         );
     }
 }
+
+#[test]
+fn every_shadow_model_and_lighting_term_shades_triangles_alike_on_both_tracers() {
+    // The bunny's mesh under an area light, with every way a light's visibility can be
+    // estimated: sampled, each plug-in model, cones; and cone-traced AO.
+    let mut e = experiment("bunny_glass.toml");
+    let c = e.scene.grid.centre();
+    e.scene.lights.push(Light::Area(AreaLight {
+        shape: AreaShape::Rect {
+            width: 6.0,
+            height: 4.0,
+        },
+        position: c + DVec3::new(0.0, 30.0, 25.0),
+        normal: DVec3::new(0.0, -0.8, -0.6),
+        rotation: 0.4,
+        color: DVec3::ONE,
+        intensity: 900.0,
+    }));
+    let mut base = e.settings.clone();
+    base.width = 20;
+    base.height = 20;
+    base.surface = Surface::Mesh;
+    base.light_samples = 1;
+    base.spp = 2;
+    let mut variants: Vec<(String, RenderSettings)> = Vec::new();
+    let mut area = base.clone();
+    area.features.area_lights = true;
+    variants.push(("sampled area lights".into(), area));
+    for m in voxlab::technique::SHADOW_MODELS {
+        let mut s = base.clone();
+        s.features.shadow_model = Some(m.name);
+        variants.push((format!("shadow model {}", m.name), s));
+    }
+    let mut cones = base.clone();
+    cones.features.cone_shadows = true;
+    cones.features.ambient_occlusion = true;
+    variants.push(("cone shadows and AO".into(), cones));
+    let mut gpu = tracer();
+    for (name, s) in variants {
+        let start = std::time::Instant::now();
+        let g = gpu
+            .render(&e.scene, &s)
+            .unwrap_or_else(|err| panic!("{name}: {err:#}"));
+        let plan = gpu.last_plan().unwrap();
+        assert_eq!(plan.surface, Surface::Mesh, "{name}: {plan}");
+        let cpu = voxlab::cpu::render(&e.scene, &s);
+        assert_agree(&format!("bunny mesh, {name}"), &g.frame, &cpu.frame);
+        eprintln!("  {name}: {:.1} s", start.elapsed().as_secs_f64());
+    }
+}

@@ -121,71 +121,17 @@ fn unit_cube_gives_exactly_the_expected_voxels() {
     assert_eq!(solid_count(&v.grid), 64);
 }
 
-/// An icosphere OBJ (closed), radius 1, centred at the origin.
+/// An icosphere OBJ (closed), radius 1, centred at the origin: `common::icosphere`'s
+/// soup, three vertices a face (the voxelizer welds them by position).
 fn icosphere(subdivisions: u32) -> String {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<DVec3> = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
-    .collect();
-    let mut f: Vec<[usize; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..subdivisions {
-        let mut mid = std::collections::HashMap::new();
-        let mut m = |a: usize, b: usize, v: &mut Vec<DVec3>| {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                v.push(((v[a] + v[b]) / 2.0).normalize());
-                v.len() - 1
-            })
-        };
-        let mut g = Vec::new();
-        for [a, b, c] in f {
-            let (ab, bc, ca) = (m(a, b, &mut v), m(b, c, &mut v), m(c, a, &mut v));
-            g.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+    let mut obj = String::new();
+    for (i, t) in common::icosphere(subdivisions).iter().enumerate() {
+        for p in t {
+            obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
         }
-        f = g;
+        obj += &format!("f {} {} {}\n", 3 * i + 1, 3 * i + 2, 3 * i + 3);
     }
-    let mut s = String::new();
-    for p in &v {
-        s += &format!("v {} {} {}\n", p.x, p.y, p.z);
-    }
-    for [a, b, c] in &f {
-        s += &format!("f {} {} {}\n", a + 1, b + 1, c + 1);
-    }
-    s
+    obj
 }
 
 #[test]

@@ -1428,7 +1428,12 @@ impl GpuTracer {
         // tagged (the texture the cone and sdf builds read stays the grid's own).
         let setup_start = Instant::now();
         let trace = self.upload_surfaces(scene, &plan)?;
-        let surface_time = setup_start.elapsed();
+        // Nothing is set up for voxels: their setup time stays exactly zero.
+        let surface_time = if trace.is_some() {
+            setup_start.elapsed()
+        } else {
+            Duration::ZERO
+        };
         let walk_grid = trace.as_ref().map_or(&scene.grid, |t| &t.tagged);
         let walk_hash = match (&self.surfaces, &self.grid) {
             (Some(u), _) => u.tagged_hash,
