@@ -1281,6 +1281,40 @@ fn the_pixel_filter_is_chosen_in_the_render_panel() {
 }
 
 #[test]
+fn the_walk_and_the_surface_are_chosen_in_the_render_panel() {
+    let mut rig = Rig::new(small_area_lights(), false);
+    rig.harness.run_steps(2);
+    rig.clear_jobs();
+    rig.harness
+        .get_by_role_and_label(Role::ComboBox, "surface")
+        .click();
+    rig.harness.run_steps(2);
+    rig.harness.get_by_label("smooth").click();
+    rig.harness.run_steps(2);
+    rig.harness
+        .get_by_role_and_label(Role::ComboBox, "traversal")
+        .click();
+    rig.harness.run_steps(2);
+    rig.harness.get_by_label("sparse").click();
+    rig.harness.run_steps(2);
+    let settings = &rig.state().base.settings;
+    assert_eq!(settings.surface, voxlab::render::Surface::Smooth);
+    assert_eq!(settings.traversal, voxlab::render::Traversal::Sparse);
+    for side in Side::BOTH {
+        let jobs = rig.take_side_jobs(side);
+        let job = jobs.last().expect("both sides restart");
+        assert_eq!(
+            job.experiment.settings.surface,
+            voxlab::render::Surface::Smooth
+        );
+        assert_eq!(
+            job.experiment.settings.traversal,
+            voxlab::render::Traversal::Sparse
+        );
+    }
+}
+
+#[test]
 fn kept_on_error_readouts_ask_for_new_references_after_every_change() {
     let mut rig = Rig::new(small_area_lights(), false);
     rig.harness.state_mut().adaptive.settle_s = 0.0;

@@ -1117,19 +1117,13 @@ impl ViewerApp {
                         .changed();
                     ui.end_row();
                     changed |= drag_row(ui, "seed", egui::DragValue::new(&mut settings.seed));
-                    let row = ui.label("pixel filter").id;
-                    egui::ComboBox::from_id_salt("pixel-filter")
-                        .selected_text(settings.pixel_filter.name())
-                        .show_ui(ui, |ui| {
-                            for f in crate::render::PixelFilter::ALL {
-                                changed |= ui
-                                    .selectable_value(&mut settings.pixel_filter, f, f.name())
-                                    .changed();
-                            }
-                        })
-                        .response
-                        .labelled_by(row);
-                    ui.end_row();
+                    changed |= choice_row(
+                        ui,
+                        "pixel filter",
+                        &mut settings.pixel_filter,
+                        &crate::render::PixelFilter::ALL,
+                        crate::render::PixelFilter::name,
+                    );
                     if settings.pixel_filter != crate::render::PixelFilter::None {
                         changed |= drag_row(
                             ui,
@@ -1140,6 +1134,20 @@ impl ViewerApp {
                         );
                     }
                     changed |= vec3_row(ui, "ambient", &mut ambient, 0.005, Some(0.0));
+                    changed |= choice_row(
+                        ui,
+                        "traversal",
+                        &mut settings.traversal,
+                        &crate::render::Traversal::ALL,
+                        crate::render::Traversal::name,
+                    );
+                    changed |= choice_row(
+                        ui,
+                        "surface",
+                        &mut settings.surface,
+                        &crate::render::Surface::ALL,
+                        crate::render::Surface::name,
+                    );
                 });
                 ui.checkbox(
                     &mut self.adaptive.enabled,
@@ -1656,6 +1664,30 @@ fn set_texture(
         Some(t) => t.set(image, options),
         None => *texture = Some(ctx.load_texture(name, image, options)),
     }
+}
+
+/// A grid row: `label`, and a combo box of the named choices `all` for `value`. True
+/// when the choice changed.
+fn choice_row<T: Copy + PartialEq>(
+    ui: &mut egui::Ui,
+    label: &str,
+    value: &mut T,
+    all: &[T],
+    name: fn(T) -> &'static str,
+) -> bool {
+    let mut changed = false;
+    let row = ui.label(label).id;
+    egui::ComboBox::from_id_salt(label)
+        .selected_text(name(*value))
+        .show_ui(ui, |ui| {
+            for &c in all {
+                changed |= ui.selectable_value(value, c, name(c)).changed();
+            }
+        })
+        .response
+        .labelled_by(row);
+    ui.end_row();
+    changed
 }
 
 /// A grid row: `label`, then `value` named by it (for screen readers and UI tests);
