@@ -1014,17 +1014,7 @@ pub fn reference_key(scene: &Scene, halves: &[RenderSettings; 2], backend: &str)
     // The mesh only when there is one, so a voxel scene's key is what it was.
     if let Some(m) = mesh {
         h.update(b"\nmesh");
-        for v in m.positions.iter().chain(&m.normals) {
-            for c in v.to_array() {
-                h.update(&c.to_le_bytes());
-            }
-        }
-        for t in &m.triangles {
-            for i in t {
-                h.update(&i.to_le_bytes());
-            }
-        }
-        h.update(&m.triangle_material);
+        m.hash_into(&mut h);
     }
     text.clear();
     let _ = write!(

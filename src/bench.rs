@@ -397,14 +397,18 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
             r.build.as_secs_f64() * 1e3,
         );
     }
+    // Each row against the row of the same scene that differs in one thing only.
+    let partner = |r: &BenchRow, backend: &str, traversal: &str, surface: &str| {
+        rows.iter().find(|p| {
+            p.scene == r.scene
+                && p.backend == backend
+                && p.traversal == traversal
+                && p.surface == surface
+        })
+    };
     let mut ratios = String::new();
     for g in rows.iter().filter(|r| r.backend == "gpu") {
-        if let Some(c) = rows.iter().find(|r| {
-            r.backend == "cpu"
-                && r.scene == g.scene
-                && r.traversal == g.traversal
-                && r.surface == g.surface
-        }) {
+        if let Some(c) = partner(g, "cpu", g.traversal, g.surface) {
             ratios += &format!(
                 "{} {} {}: GPU is {:.2}x the CPU's speed (time ratio CPU/GPU)\n",
                 g.scene,
@@ -416,12 +420,7 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     }
     // Sparse against dense on each backend and scene: time and steps.
     for s in rows.iter().filter(|r| r.traversal == "sparse") {
-        if let Some(d) = rows.iter().find(|r| {
-            r.traversal == "dense"
-                && r.backend == s.backend
-                && r.scene == s.scene
-                && r.surface == s.surface
-        }) {
+        if let Some(d) = partner(s, s.backend, "dense", s.surface) {
             ratios += &format!(
                 "{} {} {}: sparse is {:.2}x dense's speed, with {:.2}x fewer steps per ray\n",
                 s.scene,
@@ -434,12 +433,7 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     }
     // Triangles against the voxel image of the same scene, backend and walk.
     for t in rows.iter().filter(|r| r.surface != "voxels") {
-        if let Some(v) = rows.iter().find(|r| {
-            r.surface == "voxels"
-                && r.backend == t.backend
-                && r.scene == t.scene
-                && r.traversal == t.traversal
-        }) {
+        if let Some(v) = partner(t, t.backend, t.traversal, "voxels") {
             ratios += &format!(
                 "{} {} {} {}: {:.2}x the voxel image's time per frame\n",
                 t.scene,
@@ -455,34 +449,6 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
         out += &ratios;
     }
     out
-}
-
-/// A scene of `mesh` voxelized at `resolution` in the seed's `material` (its interior
-/// filled), with the seed's lights and camera and the triangles kept: a large mesh for
-/// `voxlab bench --torus`.
-pub fn mesh_scene(
-    mesh: &crate::scene::mesh::TriangleMesh,
-    resolution: u32,
-    material: u8,
-) -> Result<Scene> {
-    let m = crate::scene::seed_palette()[material as usize].clone();
-    let v = crate::scene::mesh::voxelize(
-        mesh,
-        &crate::scene::VoxelizeOptions {
-            resolution: crate::scene::Resolution::Count(resolution),
-            material: Some(m),
-        },
-    )
-    .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let (c, w) = (v.grid.centre(), v.grid.width());
-    Ok(Scene {
-        lights: crate::scene::seed::seed_lights(c, w),
-        camera: crate::scene::seed::seed_camera(c, w),
-        ambient: crate::scene::seed::SEED_AMBIENT,
-        materials: v.materials,
-        mesh: Some(std::sync::Arc::new(v.surface)),
-        grid: v.grid,
-    })
 }
 
 /// One mesh voxelized at one resolution: the median of several runs.

@@ -765,8 +765,9 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         let rings = (n / (2 * segments)).max(3);
         let mesh = voxlab::bench::torus_mesh(rings, segments);
         let name = format!("torus ({} triangles)", mesh.triangles.len());
-        let scene =
-            voxlab::bench::mesh_scene(&mesh, a.torus_resolution, voxlab::scene::seed_ids::SOLID)?;
+        let solid = voxlab::scene::seed_palette()[voxlab::scene::seed_ids::SOLID as usize].clone();
+        let scene = voxlab::scene::mesh::seed_lit_scene(&mesh, a.torus_resolution, solid)
+            .map_err(|e| anyhow::anyhow!("the torus: {e}"))?;
         opts.scenes.push((name, scene));
     }
     opts.settings.width = a.size;

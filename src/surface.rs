@@ -81,6 +81,22 @@ impl SurfaceMesh {
         mesh
     }
 
+    /// Feeds every vertex, normal, triangle and material into `h`: what the caches keyed
+    /// by a scene's mesh (the ablation reference, the GPU's surfaces) compare.
+    pub fn hash_into(&self, h: &mut blake3::Hasher) {
+        for v in self.positions.iter().chain(&self.normals) {
+            for c in v.to_array() {
+                h.update(&c.to_le_bytes());
+            }
+        }
+        for t in &self.triangles {
+            for i in t {
+                h.update(&i.to_le_bytes());
+            }
+        }
+        h.update(&self.triangle_material);
+    }
+
     /// The mesh moved by `offset`.
     pub fn translated(mut self, offset: DVec3) -> Self {
         for p in &mut self.positions {

@@ -324,9 +324,10 @@ impl SurfaceTrace {
         }
     }
 
-    /// Bytes of [`SurfaceTrace::gpu_words`].
+    /// Bytes of [`SurfaceTrace::gpu_words`], from its layout (without making it).
     pub fn gpu_bytes(&self) -> u64 {
-        4 * self.gpu_words().len() as u64
+        let refs = self.refs.len().div_ceil(4);
+        16 * (1 + table_size(self.cells.len()) + refs + 6 * self.triangles.len()) as u64
     }
 
     /// The words of `surface` in shaders/triangles.wgsl: a header `vec4` (the cell
@@ -337,11 +338,8 @@ impl SurfaceTrace {
     /// `vec4`; six `vec4`s per triangle: its vertices in voxel units (the first's `w` its
     /// material) and its vertex normals, as f32 bits.
     pub fn gpu_words(&self) -> Vec<u32> {
-        let log_size = (2 * self.cells.len())
-            .next_power_of_two()
-            .max(2)
-            .trailing_zeros();
-        let size = 1usize << log_size;
+        let size = table_size(self.cells.len());
+        let log_size = size.trailing_zeros();
         let table_at = 1;
         let refs_at = table_at + size;
         let tris_at = refs_at + self.refs.len().div_ceil(4);
@@ -539,6 +537,11 @@ impl MediumWalk<'_> {
         self.min_kt = self.min_kt.min(kt);
         kt <= 0.0
     }
+}
+
+/// Slots of the GPU's cell table for `cells` cells: a power of two, at most half full.
+fn table_size(cells: usize) -> usize {
+    (2 * cells).next_power_of_two().max(2)
 }
 
 /// A free slot of the GPU's cell table (no voxel index: grids have fewer than 2^32 - 1).

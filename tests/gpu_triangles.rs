@@ -12,6 +12,22 @@ use glam::DVec3;
 use voxlab::render::{RenderSettings, Surface, Transmittance, Traversal};
 use voxlab::scene::{AreaLight, AreaShape, Light, seed_ids, seed_palette};
 
+/// A 6 x 4 rect light above and in front of the scene's grid, facing it.
+fn add_area_light(scene: &mut voxlab::scene::Scene) {
+    let c = scene.grid.centre();
+    scene.lights.push(Light::Area(AreaLight {
+        shape: AreaShape::Rect {
+            width: 6.0,
+            height: 4.0,
+        },
+        position: c + DVec3::new(0.0, 30.0, 25.0),
+        normal: DVec3::new(0.0, -0.8, -0.6),
+        rotation: 0.4,
+        color: DVec3::ONE,
+        intensity: 900.0,
+    }));
+}
+
 #[test]
 fn generated_spheres_agree_with_the_cpu_at_every_setting() {
     let mut gpu = tracer();
@@ -74,18 +90,7 @@ fn the_bunny_mesh_and_the_smooth_deer_under_area_lights_over_many_frames() {
         ("deer_area_light.toml", Surface::Smooth),
     ] {
         let mut e = experiment(file);
-        let c = e.scene.grid.centre();
-        e.scene.lights.push(Light::Area(AreaLight {
-            shape: AreaShape::Rect {
-                width: 6.0,
-                height: 4.0,
-            },
-            position: c + DVec3::new(0.0, 30.0, 25.0),
-            normal: DVec3::new(0.0, -0.8, -0.6),
-            rotation: 0.4,
-            color: DVec3::ONE,
-            intensity: 900.0,
-        }));
+        add_area_light(&mut e.scene);
         let s = &mut e.settings;
         s.width = 40;
         s.height = 40;
@@ -153,18 +158,7 @@ fn every_shadow_model_and_lighting_term_shades_triangles_alike_on_both_tracers()
     // The bunny's mesh under an area light, with every way a light's visibility can be
     // estimated: sampled, each plug-in model, cones; and cone-traced AO.
     let mut e = experiment("bunny_glass.toml");
-    let c = e.scene.grid.centre();
-    e.scene.lights.push(Light::Area(AreaLight {
-        shape: AreaShape::Rect {
-            width: 6.0,
-            height: 4.0,
-        },
-        position: c + DVec3::new(0.0, 30.0, 25.0),
-        normal: DVec3::new(0.0, -0.8, -0.6),
-        rotation: 0.4,
-        color: DVec3::ONE,
-        intensity: 900.0,
-    }));
+    add_area_light(&mut e.scene);
     let mut base = e.settings.clone();
     base.width = 20;
     base.height = 20;

@@ -289,6 +289,8 @@ fn a_ray_inside_the_mesh_leaves_it_into_void_and_cells_are_tagged() {
     let want = brute_crossings(&tris, DVec3::ZERO, DVec3::X);
     assert!((h.t - want[0]).abs() < 1e-9);
     assert!(h.geometric.dot(DVec3::X) < 0.0, "the normal faces the ray");
+    // The GPU's buffer is as large as its layout says.
+    assert_eq!(trace.gpu_bytes(), 4 * trace.gpu_words().len() as u64);
     // Every voxel a triangle overlaps is a cell; the rest of the grid is as it was.
     let g = &scene.grid;
     for (i, (&a, &b)) in g.data().iter().zip(trace.tagged.data()).enumerate() {

@@ -936,28 +936,20 @@ impl GpuTracer {
             self.surfaces = None;
             return Ok(None);
         }
+        // What the cells were listed from: the kind, the grid's placement, its voxels
+        // (the hash upload_grid has just taken, not taken again) and the mesh.
         let mut h = blake3::Hasher::new();
         h.update(plan.surface.name().as_bytes());
-        h.update(
-            format!(
-                "{:?}",
-                (
-                    scene.grid.dims(),
-                    scene.grid.voxel_size(),
-                    scene.grid.origin()
-                )
-            )
-            .as_bytes(),
-        );
-        h.update(scene.grid.data());
+        let g = &scene.grid;
+        h.update(format!("{:?}", (g.dims(), g.voxel_size(), g.origin())).as_bytes());
+        match &self.grid {
+            Some(u) => h.update(u.hash.as_bytes()),
+            None => h.update(g.data()),
+        };
         if plan.surface == Surface::Mesh
             && let Some(m) = &scene.mesh
         {
-            for v in m.positions.iter().chain(&m.normals) {
-                h.update(bytemuck::cast_slice(&v.to_array()));
-            }
-            h.update(bytemuck::cast_slice(&m.triangles));
-            h.update(&m.triangle_material);
+            m.hash_into(&mut h);
         }
         let key = h.finalize();
         if let Some(u) = self.surfaces.as_ref().filter(|u| u.key == key) {

@@ -559,6 +559,32 @@ fn first_failing_line(bytes: &[u8], fails: impl Fn(&[u8]) -> bool) -> Option<(us
     Some((lo + 1, &bytes[start..ends[lo]]))
 }
 
+/// `mesh` voxelized at `resolution` voxels along its longest axis, all in `material`
+/// (its interior filled), keeping its triangles, lit and framed as the seed scene is:
+/// a mesh scene without an experiment file (`voxlab bench --torus`, the tests).
+pub fn seed_lit_scene(
+    mesh: &TriangleMesh,
+    resolution: u32,
+    material: Material,
+) -> Result<super::Scene, LoadErrorKind> {
+    let v = voxelize(
+        mesh,
+        &VoxelizeOptions {
+            resolution: Resolution::Count(resolution),
+            material: Some(material),
+        },
+    )?;
+    let (c, w) = (v.grid.centre(), v.grid.width());
+    Ok(super::Scene {
+        lights: super::seed::seed_lights(c, w),
+        camera: super::seed::seed_camera(c, w),
+        ambient: super::seed::SEED_AMBIENT,
+        materials: v.materials,
+        mesh: Some(std::sync::Arc::new(v.surface)),
+        grid: v.grid,
+    })
+}
+
 /// Loads a mesh file and voxelizes it; see the module documentation.
 pub fn voxelize_mesh(
     path: impl AsRef<Path>,

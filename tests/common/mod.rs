@@ -5,12 +5,10 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 use glam::DVec3;
 use voxlab::scene::mesh::TriangleMesh;
-use voxlab::scene::seed::{SEED_AMBIENT, seed_camera, seed_lights};
-use voxlab::scene::{Material, Scene, VoxelizeOptions};
+use voxlab::scene::{Material, Scene};
 
 use voxlab::Frame;
 use voxlab::experiment::Experiment;
@@ -209,21 +207,5 @@ pub fn mesh_scene(
         normals,
         warnings: vec![],
     };
-    let v = voxlab::scene::mesh::voxelize(
-        &mesh,
-        &VoxelizeOptions {
-            resolution: voxlab::scene::Resolution::Count(resolution),
-            material: Some(m),
-        },
-    )
-    .unwrap();
-    let (c, w) = (v.grid.centre(), v.grid.width());
-    Scene {
-        lights: seed_lights(c, w),
-        camera: seed_camera(c, w),
-        ambient: SEED_AMBIENT,
-        materials: v.materials,
-        mesh: Some(Arc::new(v.surface)),
-        grid: v.grid,
-    }
+    voxlab::scene::mesh::seed_lit_scene(&mesh, resolution, m).unwrap()
 }
