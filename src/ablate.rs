@@ -1010,7 +1010,12 @@ pub fn reference_key(scene: &Scene, halves: &[RenderSettings; 2], backend: &str)
         grid.origin()
     );
     h.update(text.as_bytes());
-    h.update(grid.data());
+    // A dense grid's voxels as they are (the key of earlier references); a sparse one's
+    // by its tree's hash.
+    match grid.dense() {
+        Some(d) => h.update(d),
+        None => h.update(grid.content_hash().as_bytes()),
+    };
     // The mesh only when there is one, so a voxel scene's key is what it was.
     if let Some(m) = mesh {
         h.update(b"\nmesh");
@@ -1777,7 +1782,7 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
     scene.insert("origin".into(), v3(g.origin()));
     scene.insert(
         "voxels_blake3".into(),
-        blake3::hash(g.data()).to_hex().to_string().into(),
+        g.content_hash().to_hex().to_string().into(),
     );
     doc.insert("scene".into(), scene.into());
     // Camera, lights, materials, render settings and cone knobs as `to_toml` writes

@@ -5,7 +5,7 @@
 //! counts are counted by the tracers (a separate counted frame on the GPU, so counting
 //! does not slow the timed frames), not estimated.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::Result;
 
@@ -212,18 +212,37 @@ fn bench_cpu(
     }
 }
 
+/// A scene of the run: its name, the scene, and for a grid held only as its sparse tree
+/// the time that tree took to build from its source (the rows' build time; rebuilding
+/// it from itself would say nothing).
+type BenchScene = (String, Scene, Option<Duration>);
+
 /// The scenes of `opts`, in order: the seed scene at each size, the experiments', the
 /// generated ones; each made when it is reached.
-fn scenes(opts: &BenchOptions) -> impl Iterator<Item = Result<(String, Scene)>> + '_ {
-    let seeds = opts
-        .sizes
-        .iter()
-        .map(|&n| -> Result<(String, Scene)> { Ok(("seed".to_string(), seed_scene(n)?)) });
+fn scenes(opts: &BenchOptions) -> impl Iterator<Item = Result<BenchScene>> + '_ {
+    let seeds = opts.sizes.iter().map(|&n| -> Result<BenchScene> {
+        let start = Instant::now();
+        let scene = seed_scene(n)?;
+        if scene.grid.is_sparse() {
+            // Its tree was built straight from the seed's rules: that is its build time.
+            eprintln!(
+                "  seed {n}^3: held as its sparse tree ({:.1} MiB), built from the seed's rules \
+                 in {:.1} ms, no dense grid",
+                scene.grid.host_bytes() as f64 / (1u64 << 20) as f64,
+                start.elapsed().as_secs_f64() * 1e3
+            );
+        }
+        let held = scene.grid.is_sparse().then(|| start.elapsed());
+        Ok(("seed".to_string(), scene, held))
+    });
     let experiments = opts
         .experiments
         .iter()
-        .map(|e| -> Result<(String, Scene)> { Ok((e.name.clone(), e.scene.clone())) });
-    let generated = opts.scenes.iter().map(|s| Ok(s.clone()));
+        .map(|e| -> Result<BenchScene> { Ok((e.name.clone(), e.scene.clone(), None)) });
+    let generated = opts
+        .scenes
+        .iter()
+        .map(|(n, s)| Ok((n.clone(), s.clone(), None)));
     seeds.chain(experiments).chain(generated)
 }
 
@@ -233,7 +252,13 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
     let mut gpu = GpuTracer::new()?;
     let mut rows = Vec::new();
     for scene in scenes(opts) {
-        let (name, scene) = scene?;
+        let (name, scene, held) = scene?;
+        let held_build = |mut row: BenchRow| {
+            if let Some(b) = held {
+                row.build = b;
+            }
+            row
+        };
         for &surface in &opts.surfaces {
             let probe = RenderSettings {
                 surface,
@@ -242,10 +267,35 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
             if crate::plan::check_surface(&scene, &probe).is_err() {
                 continue;
             }
-            for &t in &opts.traversals {
+            let walks: Vec<Traversal> = opts
+                .traversals
+                .iter()
+                .copied()
+                .filter(|&t| {
+                    let planned = crate::plan::Plan::new(
+                        &scene,
+                        &RenderSettings {
+                            traversal: t,
+                            ..probe.clone()
+                        },
+                    )
+                    .traversal;
+                    // A grid held only as its tree has no dense walk: not measured twice.
+                    let follows = t == Traversal::Auto || planned == t;
+                    if !follows {
+                        eprintln!(
+                            "  {} {}: not measured: the grid is held only as its sparse tree",
+                            scene_label(&name, &scene),
+                            t.name()
+                        );
+                    }
+                    follows
+                })
+                .collect();
+            for &t in &walks {
                 // A row the device cannot render (the software driver's loop limit,
                 // its memory) is said and left out; the others are still measured.
-                match bench_gpu(&mut gpu, &name, &scene, opts, t, surface) {
+                match bench_gpu(&mut gpu, &name, &scene, opts, t, surface).map(held_build) {
                     Ok(row) => {
                         progress(&row);
                         rows.push(row);
@@ -259,8 +309,8 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
                 }
             }
             if opts.cpu {
-                for &t in &opts.traversals {
-                    let row = bench_cpu(&name, &scene, opts, t, surface);
+                for &t in &walks {
+                    let row = held_build(bench_cpu(&name, &scene, opts, t, surface));
                     progress(&row);
                     rows.push(row);
                 }
@@ -305,7 +355,7 @@ impl SurfaceRow {
 pub fn surface_rows(opts: &BenchOptions) -> Result<Vec<SurfaceRow>> {
     let mut rows = Vec::new();
     for scene in scenes(opts) {
-        let (name, scene) = scene?;
+        let (name, scene, _) = scene?;
         for &surface in opts.surfaces.iter().filter(|&&s| s != Surface::Voxels) {
             let probe = RenderSettings {
                 surface,

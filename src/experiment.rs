@@ -30,8 +30,8 @@ use crate::render::{
 };
 use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
 use crate::scene::{
-    AreaLight, AreaShape, Grid, Light, MAX_VOXEL_SIZE, MAX_VOXELS, MIN_VOXEL_SIZE, Material,
-    PointLight, SEED_SHININESS, Scene,
+    AreaLight, AreaShape, DENSE_MAX_VOXELS, Grid, Light, MAX_SPARSE_SIDE, MAX_VOXEL_SIZE,
+    MIN_VOXEL_SIZE, Material, PointLight, SEED_SHININESS, Scene, Storage,
 };
 
 /// Grid side of the seed scene (`[scene] size` when neither `size` nor `dims` is given).
@@ -1256,6 +1256,17 @@ fn build(
     // (a future generator using more materials than are defined).
     scene.validate().map_err(|e| ctx.invalid("scene", e))?;
     crate::plan::check_surface(&scene, &settings).map_err(|e| ctx.invalid("render.surface", e))?;
+    if scene.grid.is_sparse() && settings.traversal == crate::plan::Traversal::Dense {
+        let d = scene.grid.dims();
+        return Err(ctx.invalid(
+            "render.traversal",
+            format!(
+                "\"dense\" walks the dense grid, and this {}x{}x{} grid is held only as its \
+                 sparse tree (more than {DENSE_MAX_VOXELS} voxels): use \"sparse\" or \"auto\"",
+                d.x, d.y, d.z
+            ),
+        ));
+    }
     // Cone pyramids scale with the grid: estimated before any render builds them.
     if let Some(layout) = crate::plan::Plan::new(&scene, &settings).pyramid {
         use crate::cpu::pyramid::{MAX_PYRAMID_BYTES, cpu_pyramid_bytes};
@@ -1648,10 +1659,9 @@ fn load_scene_file(s: &RawScene, ctx: &Ctx) -> Result<Option<LoadedScene>, Exper
                 |x| (MIN_VOXEL_SIZE..=MAX_VOXEL_SIZE).contains(&x),
                 "in [1e-6, 1e6] (world units)",
             )?;
-            let mut g = Grid::new(grid.dims(), vs, grid.origin())
+            grid = grid
+                .placed(vs, grid.origin())
                 .map_err(|e| ctx.invalid("scene.voxel_size", e))?;
-            g.data_mut().copy_from_slice(grid.data());
-            grid = g;
         }
         (grid, v.materials, None)
     } else {
@@ -1701,9 +1711,9 @@ fn load_scene_file(s: &RawScene, ctx: &Ctx) -> Result<Option<LoadedScene>, Exper
     let (grid, mesh) = match s.origin {
         Some(o) => {
             let origin = vec3_where(ctx, "scene.origin", o, |_| true, "")?;
-            let mut g = Grid::new(grid.dims(), grid.voxel_size(), origin)
+            let g = grid
+                .placed(grid.voxel_size(), origin)
                 .map_err(|e| ctx.invalid("scene.origin", e))?;
-            g.data_mut().copy_from_slice(grid.data());
             // The triangles move with their voxels.
             let mesh = mesh.map(|m| m.translated(origin - grid.origin()));
             (g, mesh)
@@ -1754,7 +1764,9 @@ fn build_grid(s: &RawScene, ctx: &Ctx) -> Result<Grid, ExperimentError> {
         (None, None) => UVec3::splat(SEED_SIZE),
     };
     let count = dims.as_u64vec3().element_product();
-    if count > MAX_VOXELS {
+    // Beyond DENSE_MAX_VOXELS the generators build the sparse tree directly.
+    let sparse = Storage::Auto.is_sparse_for(count);
+    if sparse && dims.max_element() > MAX_SPARSE_SIDE {
         let key = if s.size.is_some() {
             "scene.size"
         } else {
@@ -1763,7 +1775,8 @@ fn build_grid(s: &RawScene, ctx: &Ctx) -> Result<Grid, ExperimentError> {
         return Err(ctx.invalid(
             key,
             format!(
-                "{}x{}x{} = {count} voxels; at most {MAX_VOXELS} are allowed (scene::MAX_VOXELS)",
+                "{}x{}x{} = {count} voxels: more than {DENSE_MAX_VOXELS} are held as a sparse \
+                 tree, whose sides are at most {MAX_SPARSE_SIDE} (scene::MAX_SPARSE_SIDE)",
                 dims.x, dims.y, dims.z
             ),
         ));
@@ -1784,6 +1797,11 @@ fn build_grid(s: &RawScene, ctx: &Ctx) -> Result<Grid, ExperimentError> {
     };
     let grid = match s.generator.unwrap_or_default() {
         Generator::Seed => seed_grid(dims, voxel_size, origin),
+        Generator::Empty if sparse => Grid::from_tree(
+            crate::sparse::BrickSource::new(dims).into_tree(crate::sparse::GPU_LOG_BRANCH),
+            voxel_size,
+            origin,
+        ),
         Generator::Empty => Grid::new(dims, voxel_size, origin),
     };
     grid.map_err(|e| ctx.invalid("scene", e))
@@ -1876,6 +1894,7 @@ fn build_materials(
 
 fn fill_boxes(scene: &mut Scene, boxes: &[RawBox], ctx: &Ctx) -> Result<(), ExperimentError> {
     let dims = scene.grid.dims();
+    let mut sparse_boxes = Vec::new();
     for (i, b) in boxes.iter().enumerate() {
         let key = |k: &str| format!("scene.boxes[{i}].{k}");
         let n = scene.materials.len();
@@ -1912,6 +1931,12 @@ fn fill_boxes(scene: &mut Scene, boxes: &[RawBox], ctx: &Ctx) -> Result<(), Expe
                 ));
             }
         }
+        let corner = |c: [i64; 3]| IVec3::new(c[0] as i32, c[1] as i32, c[2] as i32);
+        if scene.grid.is_sparse() {
+            // Written all at once below, over the tree.
+            sparse_boxes.push((corner(b.min), corner(b.max), material));
+            continue;
+        }
         for z in b.min[2]..b.max[2] {
             for y in b.min[1]..b.max[1] {
                 for x in b.min[0]..b.max[0] {
@@ -1921,6 +1946,20 @@ fn fill_boxes(scene: &mut Scene, boxes: &[RawBox], ctx: &Ctx) -> Result<(), Expe
                 }
             }
         }
+    }
+    if let Some(tree) = scene
+        .grid
+        .sparse_tree()
+        .filter(|_| !sparse_boxes.is_empty())
+    {
+        let overlay = crate::sparse::BoxOverlay {
+            base: tree.as_ref(),
+            boxes: &sparse_boxes,
+        };
+        let tree = crate::sparse::SparseTree::build(&overlay, crate::sparse::GPU_LOG_BRANCH);
+        let g = &scene.grid;
+        scene.grid = Grid::from_tree(tree, g.voxel_size(), g.origin())
+            .map_err(|e| ctx.invalid("scene.boxes", e))?;
     }
     Ok(())
 }

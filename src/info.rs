@@ -111,7 +111,7 @@ fn colour(m: &Material) -> String {
 
 fn grid_lines(out: &mut String, g: &Grid) {
     let d = g.dims();
-    let occupied = g.data().iter().filter(|&&m| m != 0).count();
+    let occupied: u64 = g.material_counts()[1..].iter().sum();
     let _ = writeln!(
         out,
         "grid: {}x{}x{} ({} voxels, {} occupied, {:.2} %), voxel size {}, origin {}",
@@ -129,10 +129,7 @@ fn grid_lines(out: &mut String, g: &Grid) {
 /// Every palette entry: index, name, voxels of it, colour and weights; for a .vox, the
 /// MagicaVoxel palette index each came from.
 fn palette_lines(out: &mut String, g: &Grid, materials: &[Material], vox_index: Option<&[u8]>) {
-    let mut counts = vec![0u64; 256];
-    for &m in g.data() {
-        counts[m as usize] += 1;
-    }
+    let counts = g.material_counts();
     let _ = writeln!(out, "palette ({} entries, 0 is void):", materials.len());
     for (i, m) in materials.iter().enumerate().skip(1) {
         let from = vox_index

@@ -115,6 +115,16 @@ pub const SPARSE_FROM_SIDE: u32 = 512;
 /// The traversal of `scene` under `settings`, and why.
 fn choose_traversal(scene: &Scene, settings: &RenderSettings) -> (Traversal, String) {
     let side = scene.grid.dims().max_element();
+    if scene.grid.is_sparse() {
+        let asked = match settings.traversal {
+            Traversal::Dense => " (render.traversal = \"dense\" cannot be followed)",
+            _ => "",
+        };
+        return (
+            Traversal::Sparse,
+            format!("the grid is held only as its sparse tree{asked}"),
+        );
+    }
     match settings.traversal {
         Traversal::Dense => (Traversal::Dense, "render.traversal = \"dense\"".into()),
         Traversal::Sparse => (Traversal::Sparse, "render.traversal = \"sparse\"".into()),
@@ -140,6 +150,12 @@ pub fn check_surface(scene: &Scene, settings: &RenderSettings) -> Result<(), Str
             "render.surface = \"{name}\" needs material index {SURFACE_TAG} free; the scene \
              defines {} materials",
             scene.materials.len()
+        ));
+    }
+    if settings.surface != Surface::Voxels && scene.grid.is_sparse() {
+        return Err(format!(
+            "render.surface = \"{name}\": the grid is held only as its sparse tree, and \
+             triangle cells are listed in a dense grid"
         ));
     }
     let voxels = scene.grid.voxel_count() as u64;
@@ -403,6 +419,17 @@ impl Plan {
                 "indirect light: no diffuse material in the grid, or no light to inject"
                     .to_string(),
             );
+        }
+        let (mut cone_shadows, mut ambient_occlusion, mut indirect) =
+            (cone_shadows, ambient_occlusion, indirect);
+        if (cone_shadows || ambient_occlusion || indirect) && scene.grid.is_sparse() {
+            reasons.push(
+                "cone tracing: the grid is held only as its sparse tree, and the cone \
+                 pyramids are built from the dense grid; hard shadows and no cone terms \
+                 instead"
+                    .to_string(),
+            );
+            (cone_shadows, ambient_occlusion, indirect) = (false, false, false);
         }
         let pyramid = (cone_shadows || ambient_occlusion || indirect)
             .then(|| PyramidLayout::new(scene.grid.dims(), settings.cones.levels));

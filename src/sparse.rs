@@ -21,7 +21,7 @@
 //! byte `i % 4` of word `i / 4`. The child nodes of one node are stored one after another,
 //! in child order, so child `i`'s node is `first + (number of node bits below i)`.
 
-use std::collections::VecDeque;
+use std::collections::{HashMap, HashSet, VecDeque};
 use std::time::{Duration, Instant};
 
 use glam::{IVec3, UVec3};
@@ -75,7 +75,8 @@ pub trait VoxelSource: Sync {
     }
     /// `Some(m)` when the source knows the whole cube `lo + [0, size)^3` (clipped to
     /// `dims`) is material `m`, so the builder need not read its voxels. `None`: not
-    /// known, read them.
+    /// known, read them. (The builder counts the part of a cube outside the grid as
+    /// void itself.)
     fn uniform(&self, _lo: IVec3, _size: i32) -> Option<u8> {
         None
     }
@@ -89,10 +90,13 @@ impl VoxelSource for Grid {
         self.get(v)
     }
     fn block(&self, lo: IVec3, side: i32, out: &mut [u8]) {
+        let Some(data) = self.dense() else {
+            let tree = self.sparse_tree().expect("a grid is dense or sparse");
+            return tree.block(lo, side, out);
+        };
         let d = Grid::dims(self).as_ivec3();
         out.fill(VOID);
         let w = (d.x - lo.x).clamp(0, side) as usize;
-        let data = self.data();
         for z in 0..side.min(d.z - lo.z) {
             for y in 0..side.min(d.y - lo.y) {
                 let (gy, gz) = ((lo.y + y) as usize, (lo.z + z) as usize);
@@ -101,6 +105,157 @@ impl VoxelSource for Grid {
                 out[row..row + w].copy_from_slice(&data[at..at + w]);
             }
         }
+    }
+    fn uniform(&self, lo: IVec3, size: i32) -> Option<u8> {
+        self.sparse_tree()?.uniform(lo, size)
+    }
+}
+
+/// A tree is a source too: another branching is built from it region by region.
+impl VoxelSource for SparseTree {
+    fn dims(&self) -> UVec3 {
+        self.dims
+    }
+    fn material(&self, v: IVec3) -> u8 {
+        self.get(v)
+    }
+    fn uniform(&self, lo: IVec3, size: i32) -> Option<u8> {
+        let r = self.region(lo);
+        let hi = (lo + IVec3::splat(size)).min(self.dims.as_ivec3());
+        (r.lo.cmple(lo).all() && r.hi.cmpge(hi).all()).then_some(r.material)
+    }
+}
+
+/// Side of a [`BrickSource`]'s bricks: the leaf blocks of the 64-tree, so the builder
+/// reads a leaf with one look-up.
+pub const BRICK: i32 = 4;
+
+/// A sparse set of voxels: the material of every voxel set, void elsewhere, held in
+/// 4x4x4 bricks, with the coarser cubes that hold any brick, so the tree builder skips
+/// empty space without reading it. What loaders fill when the dense grid is too large to
+/// allocate (`.vox` scenes).
+pub struct BrickSource {
+    dims: UVec3,
+    bricks: HashMap<IVec3, [u8; 64]>,
+    /// `occupied[k]`: the cubes of side `2^k` (k >= 2) that hold a brick, by `v >> k`.
+    occupied: Vec<HashSet<IVec3>>,
+}
+
+impl BrickSource {
+    pub fn new(dims: UVec3) -> Self {
+        Self {
+            dims,
+            bricks: HashMap::new(),
+            occupied: Vec::new(),
+        }
+    }
+
+    /// Sets voxel `v` (inside `dims`); a later set replaces an earlier one.
+    pub fn set(&mut self, v: IVec3, material: u8) {
+        debug_assert!(v.cmpge(IVec3::ZERO).all() && v.as_uvec3().cmplt(self.dims).all());
+        let b = v.div_euclid(IVec3::splat(BRICK));
+        let o = v - b * BRICK;
+        self.bricks.entry(b).or_insert([VOID; 64])[(o.x + 4 * o.y + 16 * o.z) as usize] = material;
+        self.occupied.clear();
+    }
+
+    /// Bricks held (each 64 bytes).
+    pub fn brick_count(&self) -> usize {
+        self.bricks.len()
+    }
+
+    /// The tree of the voxels set.
+    pub fn into_tree(mut self, log_branch: u32) -> SparseTree {
+        self.index();
+        SparseTree::build(&self, log_branch)
+    }
+
+    /// Indexes the coarser cubes; done once after the last `set`, before building.
+    fn index(&mut self) {
+        let top = 32 - self.dims.max_element().max(1).leading_zeros() + 1;
+        self.occupied = (0..=top)
+            .map(|k| {
+                if k < 2 {
+                    return HashSet::new();
+                }
+                self.bricks
+                    .keys()
+                    .map(|b| (*b * BRICK) >> k as i32)
+                    .collect()
+            })
+            .collect();
+    }
+}
+
+impl VoxelSource for BrickSource {
+    fn dims(&self) -> UVec3 {
+        self.dims
+    }
+    fn material(&self, v: IVec3) -> u8 {
+        let b = v.div_euclid(IVec3::splat(BRICK));
+        let o = v - b * BRICK;
+        self.bricks
+            .get(&b)
+            .map_or(VOID, |k| k[(o.x + 4 * o.y + 16 * o.z) as usize])
+    }
+    fn block(&self, lo: IVec3, side: i32, out: &mut [u8]) {
+        if side == BRICK && lo % BRICK == IVec3::ZERO {
+            match self.bricks.get(&(lo / BRICK)) {
+                Some(b) => out.copy_from_slice(b),
+                None => out.fill(VOID),
+            }
+            return;
+        }
+        let mut i = 0;
+        for z in 0..side {
+            for y in 0..side {
+                for x in 0..side {
+                    out[i] = self.material(lo + IVec3::new(x, y, z));
+                    i += 1;
+                }
+            }
+        }
+    }
+    fn uniform(&self, lo: IVec3, size: i32) -> Option<u8> {
+        let k = size.trailing_zeros() as usize;
+        let aligned = size.count_ones() == 1 && lo % size == IVec3::ZERO;
+        // Not indexed yet, or not a cube the index holds: read the voxels.
+        let set = self.occupied.get(k).filter(|_| k >= 2 && aligned)?;
+        (!set.contains(&(lo >> k as i32))).then_some(VOID)
+    }
+}
+
+/// Boxes of one material each written over a source, later boxes over earlier ones: how
+/// `[[scene.boxes]]` edit a grid held as a tree (the tree is rebuilt once from this).
+pub struct BoxOverlay<'a> {
+    pub base: &'a dyn VoxelSource,
+    /// `(min, max, material)`: voxels `min <= v < max`.
+    pub boxes: &'a [(IVec3, IVec3, u8)],
+}
+
+impl VoxelSource for BoxOverlay<'_> {
+    fn dims(&self) -> UVec3 {
+        self.base.dims()
+    }
+    fn material(&self, v: IVec3) -> u8 {
+        self.boxes
+            .iter()
+            .rev()
+            .find(|(lo, hi, _)| v.cmpge(*lo).all() && v.cmplt(*hi).all())
+            .map_or_else(|| self.base.material(v), |b| b.2)
+    }
+    fn uniform(&self, lo: IVec3, size: i32) -> Option<u8> {
+        let hi = (lo + IVec3::splat(size)).min(self.dims().as_ivec3());
+        // The topmost box that meets the cube decides: covering it, it is the box's.
+        for &(bl, bh, m) in self.boxes.iter().rev() {
+            let meets = bl.cmplt(hi).all() && lo.cmplt(bh).all() && bl.cmplt(bh).all();
+            if !meets {
+                continue;
+            }
+            let covers = bl.cmple(lo).all() && hi.cmple(bh).all();
+            return covers.then_some(m);
+        }
+        self.base.uniform(lo, size)
     }
 }
 
@@ -133,7 +288,10 @@ pub struct SparseTree {
 /// A node while the tree is built, before it is laid out.
 struct Pending {
     materials: Vec<u8>,
-    nodes: Vec<Option<Box<Pending>>>,
+    /// The children that are nodes, in child order, with their child index (only
+    /// these: a leaf's list is empty, which keeps the builder's peak memory near the
+    /// tree's own on large grids).
+    nodes: Vec<(usize, Box<Pending>)>,
 }
 
 enum Child {
@@ -166,7 +324,7 @@ impl SparseTree {
                 let n = 1usize << (3 * log_branch);
                 Box::new(Pending {
                     materials: vec![m; n],
-                    nodes: (0..n).map(|_| None).collect(),
+                    nodes: Vec::new(),
                 })
             }
         };
@@ -228,12 +386,10 @@ impl SparseTree {
                 words[materials_at + i / 4] |= u32::from(m) << (8 * (i % 4));
             }
             words[first_at] = next_index;
-            for (i, child) in node.nodes.into_iter().enumerate() {
-                if let Some(c) = child {
-                    words[mask_at + i / 32] |= 1 << (i % 32);
-                    queue.push_back(c);
-                    next_index += 1;
-                }
+            for (i, c) in node.nodes {
+                words[mask_at + i / 32] |= 1 << (i % 32);
+                queue.push_back(c);
+                next_index += 1;
             }
             self.words.extend_from_slice(&words);
         }
@@ -293,6 +449,48 @@ impl SparseTree {
         }
     }
 
+    /// How many of the grid's voxels hold each material (the parts of the root's cube
+    /// outside the grid are not counted).
+    pub fn material_counts(&self) -> [u64; 256] {
+        let mut counts = [0u64; 256];
+        let (mask_at, first_at, materials_at) = self.offsets();
+        let b = self.log_branch;
+        let side = 1i32 << b;
+        let dims = self.dims.as_ivec3();
+        let mut stack = vec![(0usize, IVec3::ZERO, b * (self.levels - 1))];
+        while let Some((node, lo, shift)) = stack.pop() {
+            let base = HEADER_WORDS + node * self.node_words();
+            let first = self.words[base + first_at] as usize;
+            let mut below = 0;
+            for i in 0..self.children() {
+                let c = IVec3::new(
+                    i as i32 % side,
+                    i as i32 / side % side,
+                    i as i32 / side / side,
+                );
+                let child_lo = lo + (c << shift as i32);
+                if self.words[base + mask_at + i / 32] & (1 << (i % 32)) != 0 {
+                    stack.push((first + below, child_lo, shift.saturating_sub(b)));
+                    below += 1;
+                    continue;
+                }
+                let hi = (child_lo + IVec3::splat(1 << shift)).min(dims);
+                let volume = (hi - child_lo)
+                    .max(IVec3::ZERO)
+                    .as_u64vec3()
+                    .element_product();
+                let m = (self.words[base + materials_at + i / 4] >> (8 * (i % 4))) as u8;
+                counts[m as usize] += volume;
+            }
+        }
+        counts
+    }
+
+    /// Which materials the grid's voxels hold.
+    pub fn materials_used(&self) -> [bool; 256] {
+        self.material_counts().map(|n| n > 0)
+    }
+
     /// The material at `v` (void outside the grid).
     pub fn get(&self, v: IVec3) -> u8 {
         if v.cmplt(IVec3::ZERO).any() || v.as_uvec3().cmpge(self.dims).any() {
@@ -319,7 +517,15 @@ impl Builder<'_> {
             return Child::Uniform(self.source.material(lo));
         }
         let size = 1i32 << shift;
-        if let Some(m) = self.source.uniform(lo, size) {
+        // A cube reaching past the grid holds void there: uniform only if void (so the
+        // tree of a source is the dense grid's, word for word, whatever the source says
+        // of the part of a cube outside the grid).
+        let inside = (lo + IVec3::splat(size)).cmple(self.dims).all();
+        if let Some(m) = self
+            .source
+            .uniform(lo, size)
+            .filter(|&m| inside || m == VOID)
+        {
             return Child::Uniform(m);
         }
         let b = self.log_branch;
@@ -333,8 +539,10 @@ impl Builder<'_> {
             if materials.iter().all(|&m| m == materials[0]) {
                 return Child::Uniform(materials[0]);
             }
-            let nodes = (0..n).map(|_| None).collect();
-            return Child::Node(Box::new(Pending { materials, nodes }));
+            return Child::Node(Box::new(Pending {
+                materials,
+                nodes: Vec::new(),
+            }));
         }
         let build = |i: usize| {
             let (x, y, z) = (
@@ -352,20 +560,17 @@ impl Builder<'_> {
             (0..n).map(build).collect()
         };
         let mut materials = Vec::with_capacity(n);
-        let mut nodes = Vec::with_capacity(n);
-        for c in children {
+        let mut nodes = Vec::new();
+        for (i, c) in children.into_iter().enumerate() {
             match c {
-                Child::Uniform(m) => {
-                    materials.push(m);
-                    nodes.push(None);
-                }
+                Child::Uniform(m) => materials.push(m),
                 Child::Node(node) => {
                     materials.push(VOID);
-                    nodes.push(Some(node));
+                    nodes.push((i, node));
                 }
             }
         }
-        if nodes.iter().all(Option::is_none) && materials.iter().all(|&m| m == materials[0]) {
+        if nodes.is_empty() && materials.iter().all(|&m| m == materials[0]) {
             return Child::Uniform(materials[0]);
         }
         Child::Node(Box::new(Pending { materials, nodes }))

@@ -172,6 +172,11 @@ pub fn extract(grid: &Grid, relax: u32) -> Result<SurfaceMesh, SurfaceError> {
         });
     }
     let used = grid.materials_used();
+    let dense = grid.to_dense().map_err(|_| SurfaceError::TooLarge {
+        voxels,
+        max: MAX_SURFACE_VOXELS,
+    })?;
+    let grid = dense.as_ref();
     let mut mesh = SurfaceMesh::default();
     for m in (0..=255u8).filter(|&m| m != VOID && used[m as usize]) {
         append_material(grid, Some(m), relax, &mut mesh);
@@ -193,6 +198,11 @@ pub fn extract_solid(grid: &Grid, relax: u32) -> Result<SurfaceMesh, SurfaceErro
             max: MAX_SURFACE_VOXELS,
         });
     }
+    let dense = grid.to_dense().map_err(|_| SurfaceError::TooLarge {
+        voxels,
+        max: MAX_SURFACE_VOXELS,
+    })?;
+    let grid = dense.as_ref();
     let mut mesh = SurfaceMesh::default();
     append_material(grid, None, relax, &mut mesh);
     Ok(mesh)

@@ -293,7 +293,10 @@ impl SurfaceTrace {
             })
             .collect();
         pairs.par_sort_unstable();
-        let mut tagged = grid.clone();
+        let mut tagged = grid
+            .to_dense()
+            .map_err(|_| TriangleError::GridTooLarge(voxels))?
+            .into_owned();
         let mut cells = Vec::new();
         let mut begin = Vec::new();
         let refs: Vec<u32> = pairs.iter().map(|&(_, t)| t).collect();

@@ -5,7 +5,7 @@
 use glam::DVec3;
 use voxlab::experiment::{Experiment, ExperimentError};
 use voxlab::render::MAX_DEPTH_LIMIT;
-use voxlab::scene::{Light, MAX_VOXELS};
+use voxlab::scene::{Light, MAX_SPARSE_SIDE};
 
 const FILE: &str = "experiments/x.toml";
 
@@ -253,20 +253,22 @@ intensity = -1
 }
 
 #[test]
-fn grid_larger_than_max_voxels() {
-    let msg = err("[scene]\ndims = [2048, 2048, 1024]\n");
+fn grid_larger_than_a_sparse_grid_allows() {
+    // Past DENSE_MAX_VOXELS a generated grid is held as its sparse tree, whose sides are
+    // bounded (tests/sparse_sources.rs loads 2048^3).
+    let msg = err("[scene]\ndims = [8192, 2048, 32]\n");
     assert_has(
         &msg,
         &[
             "experiments/x.toml:2:",
-            "scene.dims = [2048, 2048, 1024]",
-            "4294967296 voxels",
-            &format!("at most {MAX_VOXELS}"),
+            "scene.dims = [8192, 2048, 32]",
+            "536870912 voxels",
+            &format!("at most {MAX_SPARSE_SIDE}"),
         ],
     );
     assert_has(
-        &err("[scene]\nsize = 2000"),
-        &["x.toml:2:", "scene.size = 2000", "at most"],
+        &err("[scene]\nsize = 5000"),
+        &["x.toml:2:", "scene.size = 5000", "at most"],
     );
     assert_has(
         &err("[scene]\ndims = [4, 0, 4]"),

@@ -163,7 +163,7 @@ pub struct Prepared {
     pub cones: Option<cone::ConeScene>,
     pub shadow_model: Option<Box<dyn crate::technique::CpuShadow>>,
     /// The sparse tree of the grid the walks read, when the plan traverses it.
-    pub tree: Option<SparseTree>,
+    pub tree: Option<std::sync::Arc<SparseTree>>,
     /// The triangle surfaces, when the plan traces them.
     pub surfaces: Option<SurfaceTrace>,
 }
@@ -184,7 +184,7 @@ impl Prepared {
             cones: cone::ConeScene::new(scene, settings, plan),
             shadow_model: plan.shadow_model.map(|m| (m.cpu)(scene, settings)),
             tree: (plan.traversal == Traversal::Sparse)
-                .then(|| SparseTree::build(grid, crate::sparse::GPU_LOG_BRANCH)),
+                .then(|| grid.tree(crate::sparse::GPU_LOG_BRANCH)),
             surfaces,
         }
     }
@@ -209,7 +209,7 @@ impl<'a> ShadowWalk<'a> {
     /// The walk of `prepared`'s structures from a point in `medium`.
     pub fn new(prepared: &'a Prepared, medium: u8) -> Self {
         Self {
-            tree: prepared.tree.as_ref(),
+            tree: prepared.tree.as_deref(),
             surfaces: prepared.surfaces.as_ref(),
             medium,
         }
@@ -261,7 +261,7 @@ pub fn trace_ray_with(
         let exit_hits = settings.rules == Rules::Consistent;
         let (hit, steps) = cast_through(
             walk_grid,
-            prepared.tree.as_ref(),
+            prepared.tree.as_deref(),
             prepared.surfaces.as_ref(),
             ray.origin,
             ray.dir,

@@ -323,7 +323,10 @@ impl Pyramid {
         layout: PyramidLayout,
         radiance: bool,
     ) -> Self {
-        let grid = &scene.grid;
+        let grid = scene
+            .grid
+            .to_dense()
+            .expect("the plan leaves cone tracing out for grids held sparse");
         let alpha = alpha_table(scene, settings.features.transmittance);
         let d0 = layout.dims;
         let base: Vec<f64> = grid.data().iter().map(|&m| alpha[m as usize]).collect();

@@ -210,6 +210,19 @@ pub(super) fn place_models(
     ctx: &Ctx,
 ) -> Result<(), ExperimentError> {
     let dims = scene.grid.dims();
+    if scene.grid.is_sparse() && !raw.is_empty() {
+        return Err(ctx.invalid(
+            "scene.models",
+            format!(
+                "models are placed into dense grids, of at most {} voxels; this {}x{}x{} grid \
+                 is held only as its sparse tree",
+                crate::scene::DENSE_MAX_VOXELS,
+                dims.x,
+                dims.y,
+                dims.z
+            ),
+        ));
+    }
     for (i, ((m, l), map)) in raw.iter().zip(loaded).zip(maps).enumerate() {
         let map = match (map, &m.material) {
             (Some(map), _) => map,

@@ -819,7 +819,11 @@ impl GpuTracer {
             bytes,
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         );
-        let data = grid.data();
+        // The plan walks a grid held sparse through its tree, never this buffer.
+        let dense = grid
+            .to_dense()
+            .expect("the plan walks sparse grids through the tree");
+        let data = dense.data();
         let whole = data.len() / 4 * 4;
         self.queue.write_buffer(&buf, 0, &data[..whole]);
         if whole < data.len() || (whole as u64) < bytes {
@@ -834,8 +838,7 @@ impl GpuTracer {
     /// `texture` a one-voxel stand-in is bound (a hash of the voxels tells a change).
     fn upload_grid(&mut self, scene: &Scene, texture: bool) {
         let dims = scene.grid.dims();
-        let data = scene.grid.data();
-        let hash = blake3::hash(data);
+        let hash = scene.grid.content_hash();
         let same = self
             .grid
             .as_ref()
@@ -845,8 +848,11 @@ impl GpuTracer {
         }
         // The same voxels keep their generation: what was built from them stays valid.
         let generation = self.grid_generation() + u64::from(!same);
-        let (size, data, bytes_per_row, rows) = if texture {
-            (extent(dims), data, dims.x, dims.y)
+        // Only the cone pyramids and the distance field read the texture, and the plan
+        // builds them for dense grids (and small ones) only.
+        let dense = texture.then(|| scene.grid.to_dense().expect("planned for dense grids"));
+        let (size, data, bytes_per_row, rows) = if let Some(d) = &dense {
+            (extent(dims), d.data(), dims.x, dims.y)
         } else {
             (extent(glam::UVec3::ONE), &[0u8][..], 1, 1)
         };
@@ -899,7 +905,7 @@ impl GpuTracer {
             return Ok(b.size());
         }
         self.tree = None;
-        let tree = crate::sparse::SparseTree::build(grid, crate::sparse::GPU_LOG_BRANCH);
+        let tree = grid.tree(crate::sparse::GPU_LOG_BRANCH);
         let bytes = tree.bytes() as u64;
         let max = self.max_voxel_buffer_bytes();
         if bytes > max {
@@ -944,7 +950,7 @@ impl GpuTracer {
         h.update(format!("{:?}", (g.dims(), g.voxel_size(), g.origin())).as_bytes());
         match &self.grid {
             Some(u) => h.update(u.hash.as_bytes()),
-            None => h.update(g.data()),
+            None => h.update(g.content_hash().as_bytes()),
         };
         if plan.surface == Surface::Mesh
             && let Some(m) = &scene.mesh
@@ -1430,7 +1436,7 @@ impl GpuTracer {
         let walk_hash = match (&self.surfaces, &self.grid) {
             (Some(u), _) => u.tagged_hash,
             (None, Some(g)) => g.hash,
-            (None, None) => blake3::hash(scene.grid.data()),
+            (None, None) => scene.grid.content_hash(),
         };
         if Self::reads_voxel_buffer(&plan) {
             self.upload_voxel_buffer(walk_grid, walk_hash);

@@ -1,8 +1,11 @@
 //! The voxel grid: dimensions, placement in the world, and one material index per voxel.
 
+use std::sync::Arc;
+
 use glam::{DVec3, IVec3, UVec3};
 
 use super::SceneError;
+use crate::sparse::SparseTree;
 
 /// Material index 0 is void (empty space) everywhere in voxlab.
 pub const VOID: u8 = 0;
@@ -18,15 +21,60 @@ pub const MAX_VOXELS: u64 = 1 << 31;
 pub const MIN_VOXEL_SIZE: f64 = 1e-6;
 pub const MAX_VOXEL_SIZE: f64 = 1e6;
 
-/// A dense voxel grid. Voxel `(x, y, z)` covers the world box
+/// Largest side of a grid held only as its sparse tree ([`Grid::from_tree`]): 4096 keeps
+/// the tree of any scene voxlab generates or loads within host memory (the seed scene's
+/// at 4096^3 is about 0.5 GiB) and its build within seconds.
+pub const MAX_SPARSE_SIDE: u32 = 4096;
+
+/// Grids of more voxels than this are held only as their sparse tree by the generators
+/// and loaders that can build one directly (the seed scene, `.vox` scenes): 2^28 bytes
+/// is 256 MiB of dense voxels, past the side (512) from which `render.traversal =
+/// "auto"` walks the tree anyway, so a dense copy would only be built to be discarded.
+pub const DENSE_MAX_VOXELS: u64 = 1 << 28;
+
+/// How a generator or loader holds a grid's voxels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Storage {
+    /// Densely up to [`DENSE_MAX_VOXELS`] voxels, as a sparse tree beyond.
+    #[default]
+    Auto,
+    Dense,
+    /// As a sparse tree built directly from the source, whatever its size.
+    Sparse,
+}
+
+impl Storage {
+    /// Whether a grid of `voxels` voxels is held as a sparse tree.
+    pub fn is_sparse_for(self, voxels: u64) -> bool {
+        match self {
+            Storage::Auto => voxels > DENSE_MAX_VOXELS,
+            Storage::Dense => false,
+            Storage::Sparse => true,
+        }
+    }
+}
+
+/// A voxel grid. Voxel `(x, y, z)` covers the world box
 /// `origin + voxel_size * [x, x+1] x [y, y+1] x [z, z+1]`.
-/// Storage is x-fastest, then y, then z (the layout of a 3D texture upload).
+///
+/// Its voxels are held densely (x-fastest, then y, then z: the layout of a 3D texture
+/// upload), or only as a sparse tree (the seed's O2) when the grid is too large to hold
+/// densely: see [`Grid::from_tree`]. Everything that reads single voxels ([`Grid::get`])
+/// works on both; what needs the dense array ([`Grid::dense`]: the cone pyramids, the
+/// distance field, smooth surfaces, the dense walk) is refused for a sparse grid by the
+/// plan and the loaders, with the reason.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Grid {
     dims: UVec3,
     voxel_size: f64,
     origin: DVec3,
-    data: Vec<u8>,
+    voxels: Voxels,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+enum Voxels {
+    Dense(Vec<u8>),
+    Sparse(Arc<SparseTree>),
 }
 
 impl Grid {
@@ -45,24 +93,119 @@ impl Grid {
                 dims.x, dims.y, dims.z
             )));
         }
-        if !(MIN_VOXEL_SIZE..=MAX_VOXEL_SIZE).contains(&voxel_size) {
-            return Err(SceneError::new(format!(
-                "voxel size {voxel_size}: must be in [{MIN_VOXEL_SIZE:e}, {MAX_VOXEL_SIZE:e}] \
-                 (world units; beyond them camera distances and light falloff leave f64's \
-                 range)"
-            )));
-        }
-        if !origin.is_finite() {
-            return Err(SceneError::new(format!(
-                "grid origin {origin}: must be finite"
-            )));
-        }
+        check_placement(voxel_size, origin)?;
         Ok(Self {
             dims,
             voxel_size,
             origin,
-            data: vec![VOID; count as usize],
+            voxels: Voxels::Dense(vec![VOID; count as usize]),
         })
+    }
+
+    /// A grid held only as `tree` (its dims are the grid's), for grids too large to hold
+    /// densely. Sides up to [`MAX_SPARSE_SIDE`].
+    pub fn from_tree(tree: SparseTree, voxel_size: f64, origin: DVec3) -> Result<Self, SceneError> {
+        let dims = tree.dims();
+        if dims.max_element() > MAX_SPARSE_SIDE {
+            return Err(SceneError::new(format!(
+                "grid dimensions {}x{}x{}: a sparse grid's sides are at most {MAX_SPARSE_SIDE}",
+                dims.x, dims.y, dims.z
+            )));
+        }
+        check_placement(voxel_size, origin)?;
+        Ok(Self {
+            dims,
+            voxel_size,
+            origin,
+            voxels: Voxels::Sparse(Arc::new(tree)),
+        })
+    }
+
+    /// The same voxels at another voxel size and origin.
+    pub fn placed(&self, voxel_size: f64, origin: DVec3) -> Result<Self, SceneError> {
+        check_placement(voxel_size, origin)?;
+        Ok(Self {
+            voxel_size,
+            origin,
+            ..self.clone()
+        })
+    }
+
+    /// The grid with its voxels held densely: itself when they are, else a dense copy of
+    /// the tree's voxels (for the builds that read every voxel: smooth surfaces, the
+    /// distance field, triangle cells), refused beyond [`MAX_VOXELS`].
+    pub fn to_dense(&self) -> Result<std::borrow::Cow<'_, Grid>, SceneError> {
+        use crate::sparse::VoxelSource;
+        let Voxels::Sparse(tree) = &self.voxels else {
+            return Ok(std::borrow::Cow::Borrowed(self));
+        };
+        let mut g = Grid::new(self.dims, self.voxel_size, self.origin)?;
+        let d = self.dims;
+        let row = d.x as usize;
+        let mut block = vec![VOID; 64];
+        let data = g.data_mut();
+        // Four-voxel blocks, so a uniform region is read once per block.
+        for z in (0..d.z).step_by(4) {
+            for y in (0..d.y).step_by(4) {
+                for x in (0..d.x).step_by(4) {
+                    let lo = UVec3::new(x, y, z).as_ivec3();
+                    tree.block(lo, 4, &mut block);
+                    for (k, &m) in block.iter().enumerate() {
+                        let v = lo.as_uvec3()
+                            + UVec3::new(k as u32 % 4, k as u32 / 4 % 4, k as u32 / 16);
+                        if v.cmplt(d).all() {
+                            data[v.x as usize
+                                + row * (v.y as usize + d.y as usize * v.z as usize)] = m;
+                        }
+                    }
+                }
+            }
+        }
+        Ok(std::borrow::Cow::Owned(g))
+    }
+
+    /// Whether the voxels are held only as a sparse tree.
+    pub fn is_sparse(&self) -> bool {
+        matches!(self.voxels, Voxels::Sparse(_))
+    }
+
+    /// The tree a sparse grid is held as.
+    pub fn sparse_tree(&self) -> Option<&Arc<SparseTree>> {
+        match &self.voxels {
+            Voxels::Sparse(t) => Some(t),
+            Voxels::Dense(_) => None,
+        }
+    }
+
+    /// The grid's tree with `2^log_branch` children a side: a sparse grid's own when its
+    /// branching is that, else built.
+    pub fn tree(&self, log_branch: u32) -> Arc<SparseTree> {
+        match &self.voxels {
+            Voxels::Sparse(t) if t.log_branch() == log_branch => t.clone(),
+            Voxels::Sparse(t) => Arc::new(SparseTree::build(t.as_ref(), log_branch)),
+            Voxels::Dense(_) => Arc::new(SparseTree::build(self, log_branch)),
+        }
+    }
+
+    /// A hash of the voxels (not of the placement): what device caches key uploads by.
+    pub fn content_hash(&self) -> blake3::Hash {
+        match &self.voxels {
+            Voxels::Dense(d) => blake3::hash(d),
+            Voxels::Sparse(t) => {
+                let mut h = blake3::Hasher::new();
+                h.update(b"sparse");
+                h.update(bytemuck::cast_slice(t.words()));
+                h.finalize()
+            }
+        }
+    }
+
+    /// The bytes the host holds for the voxels.
+    pub fn host_bytes(&self) -> usize {
+        match &self.voxels {
+            Voxels::Dense(d) => d.len(),
+            Voxels::Sparse(t) => t.bytes(),
+        }
     }
 
     pub fn dims(&self) -> UVec3 {
@@ -75,14 +218,28 @@ impl Grid {
         self.origin
     }
     pub fn voxel_count(&self) -> usize {
-        self.data.len()
+        self.dims.as_u64vec3().element_product() as usize
     }
-    /// Material indices, x-fastest.
+    /// Material indices, x-fastest, of a dense grid (`None` for a sparse one).
+    pub fn dense(&self) -> Option<&[u8]> {
+        match &self.voxels {
+            Voxels::Dense(d) => Some(d),
+            Voxels::Sparse(_) => None,
+        }
+    }
+    /// Material indices, x-fastest. Dense grids only: the generators, loaders and tests
+    /// that call it make dense grids; code that may meet a sparse grid calls
+    /// [`Grid::dense`].
     pub fn data(&self) -> &[u8] {
-        &self.data
+        self.dense()
+            .expect("Grid::data on a sparse grid (callers that may meet one use Grid::dense)")
     }
+    /// Dense grids only, as [`Grid::data`].
     pub fn data_mut(&mut self) -> &mut [u8] {
-        &mut self.data
+        match &mut self.voxels {
+            Voxels::Dense(d) => d,
+            Voxels::Sparse(_) => panic!("Grid::data_mut on a sparse grid"),
+        }
     }
 
     pub fn contains(&self, v: IVec3) -> bool {
@@ -100,18 +257,21 @@ impl Grid {
 
     /// Material at voxel `v`; void outside the grid.
     pub fn get(&self, v: IVec3) -> u8 {
-        if self.contains(v) {
-            self.data[self.index(v)]
-        } else {
-            VOID
+        if !self.contains(v) {
+            return VOID;
+        }
+        match &self.voxels {
+            Voxels::Dense(d) => d[self.index(v)],
+            Voxels::Sparse(t) => t.region(v).material,
         }
     }
 
-    /// Sets voxel `v`; panics if `v` is outside the grid (a programming error, not input).
+    /// Sets voxel `v` of a dense grid; panics if `v` is outside the grid or the grid is
+    /// sparse (programming errors, not input).
     pub fn set(&mut self, v: IVec3, material: u8) {
         assert!(self.contains(v), "voxel {v} outside grid {}", self.dims);
         let i = self.index(v);
-        self.data[i] = material;
+        self.data_mut()[i] = material;
     }
 
     /// World-space size of the grid.
@@ -156,15 +316,54 @@ impl Grid {
 
     /// Largest material index used (0 for an empty grid).
     pub fn max_material(&self) -> u8 {
-        self.data.iter().copied().max().unwrap_or(VOID)
+        let used = self.materials_used();
+        (0..=255u8)
+            .rev()
+            .find(|&m| used[m as usize])
+            .unwrap_or(VOID)
     }
 
     /// Which material indices occur in the grid.
     pub fn materials_used(&self) -> [bool; 256] {
-        let mut used = [false; 256];
-        for &m in &self.data {
-            used[m as usize] = true;
+        match &self.voxels {
+            Voxels::Dense(d) => {
+                let mut used = [false; 256];
+                for &m in d {
+                    used[m as usize] = true;
+                }
+                used
+            }
+            Voxels::Sparse(t) => t.materials_used(),
         }
-        used
     }
+
+    /// How many voxels hold each material index.
+    pub fn material_counts(&self) -> [u64; 256] {
+        match &self.voxels {
+            Voxels::Dense(d) => {
+                let mut counts = [0u64; 256];
+                for &m in d {
+                    counts[m as usize] += 1;
+                }
+                counts
+            }
+            Voxels::Sparse(t) => t.material_counts(),
+        }
+    }
+}
+
+fn check_placement(voxel_size: f64, origin: DVec3) -> Result<(), SceneError> {
+    if !(MIN_VOXEL_SIZE..=MAX_VOXEL_SIZE).contains(&voxel_size) {
+        return Err(SceneError::new(format!(
+            "voxel size {voxel_size}: must be in [{MIN_VOXEL_SIZE:e}, {MAX_VOXEL_SIZE:e}] \
+             (world units; beyond them camera distances and light falloff leave f64's \
+             range)"
+        )));
+    }
+    if !origin.is_finite() {
+        return Err(SceneError::new(format!(
+            "grid origin {origin}: must be finite"
+        )));
+    }
+    Ok(())
 }

@@ -10,12 +10,15 @@ pub mod vox;
 pub mod voxelize;
 
 pub use camera::{CameraFrame, OrbitCamera};
-pub use grid::{Grid, MAX_VOXEL_SIZE, MAX_VOXELS, MIN_VOXEL_SIZE, VOID};
+pub use grid::{
+    DENSE_MAX_VOXELS, Grid, MAX_SPARSE_SIDE, MAX_VOXEL_SIZE, MAX_VOXELS, MIN_VOXEL_SIZE, Storage,
+    VOID,
+};
 pub use light::{AreaLight, AreaShape, Light, PointLight};
 pub use material::{MIN_KT_FOR_SIGMA, Material, SEED_SHININESS, seed_ids, seed_palette};
 pub use mesh::{Resolution, VoxelizeOptions, Voxelized, load_mesh, voxelize_mesh};
 pub use seed::{seed_scene, seed_scene_dims};
-pub use vox::{LoadError, LoadErrorKind, VoxScene, load_vox, write_vox};
+pub use vox::{LoadError, LoadErrorKind, VoxScene, load_vox, load_vox_as, write_vox};
 
 use glam::DVec3;
 

@@ -3,7 +3,10 @@
 use glam::{DVec3, IVec3, UVec3};
 
 use super::material::seed_ids::{GLASS, SEMI_SOLID, SOLID, VOID};
-use super::{Grid, Light, OrbitCamera, PointLight, Scene, SceneError, seed_palette};
+use super::{
+    Grid, Light, MAX_SPARSE_SIDE, OrbitCamera, PointLight, Scene, SceneError, Storage, seed_palette,
+};
+use crate::sparse::{SparseTree, VoxelSource};
 
 /// Ambient colour of the seed's implementation.
 pub const SEED_AMBIENT: DVec3 = DVec3::new(0.05, 0.075, 0.1);
@@ -14,46 +17,125 @@ pub const SEED_AMBIENT: DVec3 = DVec3::new(0.05, 0.075, 0.1);
 /// - each pane has a void hole of radius 25 %;
 /// - the front face (z = max) has no pane: the frame stays, the pane area is void;
 /// - the interior is void but for a semi-solid cube of radius 12.5 % at the centre.
+///
+/// Beyond [`crate::scene::DENSE_MAX_VOXELS`] voxels the grid is built as its sparse
+/// tree straight from these rules ([`SeedSource`]), never densely.
 pub fn seed_grid(dims: UVec3, voxel_size: f64, origin: DVec3) -> Result<Grid, SceneError> {
-    let mut grid = Grid::new(dims, voxel_size, origin)?;
-    let half = dims.as_dvec3() * 0.5;
-    for z in 0..dims.z {
-        for y in 0..dims.y {
-            for x in 0..dims.x {
-                let v = UVec3::new(x, y, z);
-                // Normalised voxel-centre coordinates in (-1, 1).
-                let u = ((v.as_dvec3() + 0.5) - half) / half;
-                let boundary = [
-                    x == 0 || x + 1 == dims.x,
-                    y == 0 || y + 1 == dims.y,
-                    z == 0 || z + 1 == dims.z,
-                ];
-                let m = if boundary.iter().any(|&b| b) {
-                    // The pane lies on the first boundary axis; its radius is measured in
-                    // the other two. Edges and corners are always frame.
-                    let axis = boundary.iter().position(|&b| b).unwrap();
-                    let r = (0..3)
-                        .filter(|&a| a != axis)
-                        .map(|a| u[a].abs())
-                        .fold(0.0, f64::max);
-                    let on_front = z + 1 == dims.z;
-                    if r >= 0.875 || boundary.iter().filter(|&&b| b).count() > 1 {
-                        SOLID
-                    } else if on_front || r < 0.25 {
-                        VOID
-                    } else {
-                        GLASS
-                    }
-                } else if u.abs().max_element() < 0.125 {
-                    SEMI_SOLID
-                } else {
-                    VOID
-                };
-                grid.set(IVec3::new(x as i32, y as i32, z as i32), m);
-            }
+    seed_grid_as(dims, voxel_size, origin, Storage::Auto)
+}
+
+/// [`seed_grid`] held as `storage` says.
+pub fn seed_grid_as(
+    dims: UVec3,
+    voxel_size: f64,
+    origin: DVec3,
+    storage: Storage,
+) -> Result<Grid, SceneError> {
+    if dims.min_element() == 0 {
+        // Grid::new words the error.
+        return Grid::new(dims, voxel_size, origin);
+    }
+    let source = SeedSource::new(dims);
+    if storage.is_sparse_for(dims.as_u64vec3().element_product()) {
+        if dims.max_element() > MAX_SPARSE_SIDE {
+            return Err(SceneError::new(format!(
+                "grid dimensions {}x{}x{}: a sparse grid's sides are at most {MAX_SPARSE_SIDE}",
+                dims.x, dims.y, dims.z
+            )));
         }
+        let tree = SparseTree::build(&source, crate::sparse::GPU_LOG_BRANCH);
+        return Grid::from_tree(tree, voxel_size, origin);
+    }
+    let mut grid = Grid::new(dims, voxel_size, origin)?;
+    let (nx, ny) = (dims.x as usize, dims.y as usize);
+    for (i, m) in grid.data_mut().iter_mut().enumerate() {
+        let (x, y, z) = (i % nx, i / nx % ny, i / (nx * ny));
+        *m = source.material(IVec3::new(x as i32, y as i32, z as i32));
     }
     Ok(grid)
+}
+
+/// The seed scene's voxels by its rules ([`seed_grid`]), a source the sparse tree is
+/// built from without a dense grid: the interior away from the outer layer is void or
+/// the semi-solid cube, so the builder reads voxels only near the faces.
+pub struct SeedSource {
+    dims: UVec3,
+    /// Per axis, the first and one-past-last voxel of the semi-solid cube's slab (the
+    /// voxels whose centres are within 12.5 % of the half-extent of the centre).
+    cube: [(i32, i32); 3],
+}
+
+impl SeedSource {
+    pub fn new(dims: UVec3) -> Self {
+        let cube = [0, 1, 2].map(|a| {
+            let n = dims[a];
+            let inside = |v: u32| Self::normalised(v, n).abs() < 0.125;
+            let lo = (0..n).find(|&v| inside(v)).unwrap_or(n);
+            let hi = (lo..n).find(|&v| !inside(v)).unwrap_or(n);
+            (lo as i32, hi as i32)
+        });
+        Self { dims, cube }
+    }
+
+    /// The voxel centre's coordinate in (-1, 1) along an axis of `n` voxels.
+    fn normalised(v: u32, n: u32) -> f64 {
+        let half = f64::from(n) * 0.5;
+        ((f64::from(v) + 0.5) - half) / half
+    }
+}
+
+impl VoxelSource for SeedSource {
+    fn dims(&self) -> UVec3 {
+        self.dims
+    }
+
+    fn material(&self, v: IVec3) -> u8 {
+        let dims = self.dims;
+        let v = v.as_uvec3();
+        let (x, y, z) = (v.x, v.y, v.z);
+        let boundary = [
+            x == 0 || x + 1 == dims.x,
+            y == 0 || y + 1 == dims.y,
+            z == 0 || z + 1 == dims.z,
+        ];
+        if boundary.iter().any(|&b| b) {
+            // The pane lies on the first boundary axis; its radius is measured in the
+            // other two. Edges and corners are always frame.
+            let axis = boundary.iter().position(|&b| b).unwrap();
+            let r = (0..3)
+                .filter(|&a| a != axis)
+                .map(|a| Self::normalised(v[a], dims[a]).abs())
+                .fold(0.0, f64::max);
+            let on_front = z + 1 == dims.z;
+            if r >= 0.875 || boundary.iter().filter(|&&b| b).count() > 1 {
+                SOLID
+            } else if on_front || r < 0.25 {
+                VOID
+            } else {
+                GLASS
+            }
+        } else if (0..3).all(|a| Self::normalised(v[a], dims[a]).abs() < 0.125) {
+            SEMI_SOLID
+        } else {
+            VOID
+        }
+    }
+
+    fn uniform(&self, lo: IVec3, size: i32) -> Option<u8> {
+        let d = self.dims.as_ivec3();
+        let hi = (lo + IVec3::splat(size)).min(d);
+        // Away from the outer layer the rules are the centre cube's alone.
+        if lo.cmplt(IVec3::ONE).any() || hi.cmpgt(d - 1).any() {
+            return None;
+        }
+        let inside = (0..3).all(|a| self.cube[a].0 <= lo[a] && hi[a] <= self.cube[a].1);
+        let outside = (0..3).any(|a| hi[a] <= self.cube[a].0 || self.cube[a].1 <= lo[a]);
+        match (inside, outside) {
+            (true, _) => Some(SEMI_SOLID),
+            (_, true) => Some(VOID),
+            _ => None,
+        }
+    }
 }
 
 /// The seed's three point lights and orbit camera for a grid of width `W` centred at `c`.

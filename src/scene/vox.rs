@@ -50,7 +50,8 @@ use std::path::{Path, PathBuf};
 use dot_vox::{Color, DotVoxData, SceneNode};
 use glam::{DVec3, IVec3, UVec3};
 
-use super::{Grid, MAX_VOXELS, Material, SEED_SHININESS, VOID};
+use super::{Grid, MAX_SPARSE_SIDE, MAX_VOXELS, Material, SEED_SHININESS, Storage, VOID};
+use crate::sparse::BrickSource;
 
 /// Diffusivity of a diffuse material from a loaded file (`.vox` or mesh).
 pub const VOX_KD: f64 = 0.8;
@@ -334,6 +335,16 @@ fn vox_material(file_index: u32, c: Color, matl: Option<&dot_vox::Material>) -> 
 /// is `None`, model `k` alone otherwise. See the module documentation for axes,
 /// placement and materials. Errors name the file; malformed input never panics.
 pub fn load_vox(path: impl AsRef<Path>, model: Option<usize>) -> Result<VoxScene, LoadError> {
+    load_vox_as(path, model, Storage::Auto)
+}
+
+/// [`load_vox`] with the grid held as `storage` says: a scene larger than a dense grid
+/// can hold is placed straight into a sparse tree.
+pub fn load_vox_as(
+    path: impl AsRef<Path>,
+    model: Option<usize>,
+    storage: Storage,
+) -> Result<VoxScene, LoadError> {
     let path = path.as_ref();
     let fail = |kind| LoadError::new(path, kind);
     let bytes = crate::input::read_file(path, crate::input::MAX_VOX_BYTES, ".vox file")
@@ -353,7 +364,7 @@ pub fn load_vox(path: impl AsRef<Path>, model: Option<usize>) -> Result<VoxScene
                 .unwrap_or_default();
             fail(LoadErrorKind::InvalidVox(format!("{e}{at}")))
         })?;
-    vox_from_data(&data, model, &empty).map_err(|k| match k {
+    vox_from_data(&data, model, &empty, storage).map_err(|k| match k {
         // dot_vox skips what it cannot read (a model whose XYZI count is wrong, say):
         // the chunk at fault explains what is missing.
         LoadErrorKind::InvalidVox(m) => {
@@ -577,6 +588,7 @@ fn vox_from_data(
     data: &DotVoxData,
     model: Option<usize>,
     empty: &[Vec<bool>],
+    storage: Storage,
 ) -> Result<VoxScene, LoadErrorKind> {
     let invalid = LoadErrorKind::InvalidVox;
     let count = data.models.len();
@@ -649,7 +661,15 @@ fn vox_from_data(
     }
     let ext = [0, 1, 2].map(|k| hi[k] - lo[k]);
     let total = ext.iter().map(|&e| e as f64).product::<f64>();
-    if total > MAX_VOXELS as f64 || ext.iter().any(|&e| e > u32::MAX as i64) {
+    let sparse = storage.is_sparse_for(total.min(u64::MAX as f64) as u64);
+    if sparse && ext.iter().any(|&e| e > i64::from(MAX_SPARSE_SIDE)) {
+        return Err(LoadErrorKind::TooLarge(format!(
+            "the models span {} x {} x {} voxels; a sparse grid's sides are at most \
+             {MAX_SPARSE_SIDE}",
+            ext[0], ext[1], ext[2]
+        )));
+    }
+    if !sparse && (total > MAX_VOXELS as f64 || ext.iter().any(|&e| e > u32::MAX as i64)) {
         return Err(LoadErrorKind::TooLarge(format!(
             "the models span {} x {} x {} voxels; at most {MAX_VOXELS} in all are allowed",
             ext[0], ext[1], ext[2]
@@ -694,7 +714,13 @@ fn vox_from_data(
     }
 
     let dims = UVec3::new(ext[0] as u32, ext[2] as u32, ext[1] as u32);
-    let mut grid = Grid::new(dims, 1.0, DVec3::ZERO).map_err(|e| invalid(e.0))?;
+    // Dense, or straight into bricks and a tree: the same voxels either way
+    // (`tests/sparse_sources.rs`).
+    let mut target = if sparse {
+        VoxTarget::Sparse(BrickSource::new(dims))
+    } else {
+        VoxTarget::Dense(Grid::new(dims, 1.0, DVec3::ZERO).map_err(|e| invalid(e.0))?)
+    };
     for (id, place) in &placements {
         let m = &data.models[*id];
         for (k, v) in m.voxels.iter().enumerate() {
@@ -708,15 +734,41 @@ fn vox_from_data(
                 (cell[2] - lo[2]) as i32,
                 (hi[1] - 1 - cell[1]) as i32,
             );
-            grid.set(g, remap[v.i as usize]);
+            match &mut target {
+                VoxTarget::Dense(grid) => grid.set(g, remap[v.i as usize]),
+                VoxTarget::Sparse(bricks) => {
+                    bricks.set(g, remap[v.i as usize]);
+                    if bricks.brick_count() > MAX_VOX_BRICKS {
+                        return Err(LoadErrorKind::TooLarge(format!(
+                            "the models place voxels in more than {MAX_VOX_BRICKS} blocks of \
+                             4x4x4 (a sparse grid's bound on host memory)"
+                        )));
+                    }
+                }
+            }
         }
     }
+    let grid = match target {
+        VoxTarget::Dense(grid) => grid,
+        VoxTarget::Sparse(bricks) => {
+            let tree = bricks.into_tree(crate::sparse::GPU_LOG_BRANCH);
+            Grid::from_tree(tree, 1.0, DVec3::ZERO).map_err(|e| invalid(e.0))?
+        }
+    };
     Ok(VoxScene {
         grid,
         materials,
         palette_index,
         model_count: count,
     })
+}
+
+/// Most 4x4x4 blocks a `.vox` scene held sparse may fill: 2^24 of 64 bytes, 1 GiB.
+pub const MAX_VOX_BRICKS: usize = 1 << 24;
+
+enum VoxTarget {
+    Dense(Grid),
+    Sparse(BrickSource),
 }
 
 /// Writes `grid` as a MagicaVoxel `.vox` file (SIZE, XYZI, RGBA, MATL chunks, version
@@ -742,7 +794,10 @@ pub fn write_vox(
             materials.len()
         ))));
     }
-    let data = vox_data(grid, materials);
+    let dense = grid
+        .to_dense()
+        .map_err(|e| fail(LoadErrorKind::TooLarge(e.0)))?;
+    let data = vox_data(&dense, materials);
     let mut bytes = Vec::new();
     data.write_vox(&mut bytes)
         .map_err(|e| fail(LoadErrorKind::Write(e)))?;

@@ -91,7 +91,11 @@ fn plan(scene: &Scene, _: &RenderSettings) -> Result<(), String> {
 /// `D(v)` of every voxel, x fastest (module documentation); a grid without occluders
 /// is `f64::MAX` everywhere.
 pub fn distance_field(scene: &Scene) -> Vec<f64> {
-    let grid = &scene.grid;
+    let grid = scene
+        .grid
+        .to_dense()
+        .expect("the plan bounds the field to MAX_FIELD_VOXELS");
+    let grid = grid.as_ref();
     let opaque: Vec<bool> = scene
         .materials
         .iter()
