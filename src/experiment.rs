@@ -1697,6 +1697,7 @@ fn load_scene_file(s: &RawScene, ctx: &Ctx) -> Result<Option<LoadedScene>, Exper
                 .material
                 .as_ref()
                 .map(|_| crate::scene::seed_palette()[1].clone()),
+            storage: Storage::Auto,
         };
         let v = voxelize_mesh(dir.join(p), &options).map_err(|e| ctx.invalid(key, e))?;
         for w in &v.warnings {
@@ -1732,11 +1733,7 @@ fn apply_mesh_material(scene: &mut Scene, s: &RawScene, ctx: &Ctx) -> Result<(),
         return Ok(());
     };
     let k = models::resolve_material(scene, r, "scene.material", ctx)?;
-    for m in scene.grid.data_mut() {
-        if *m != 0 {
-            *m = k;
-        }
-    }
+    scene.grid.map_materials(|m| if m != 0 { k } else { m });
     if let Some(mesh) = &mut scene.mesh {
         Arc::make_mut(mesh).triangle_material.fill(k);
     }

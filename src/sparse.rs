@@ -259,6 +259,25 @@ impl VoxelSource for BoxOverlay<'_> {
     }
 }
 
+/// A tree's voxels through a table of materials (rebuilt canonically: regions that
+/// become alike merge).
+pub struct Mapped<'a> {
+    pub base: &'a SparseTree,
+    pub table: [u8; 256],
+}
+
+impl VoxelSource for Mapped<'_> {
+    fn dims(&self) -> UVec3 {
+        self.base.dims
+    }
+    fn material(&self, v: IVec3) -> u8 {
+        self.table[self.base.get(v) as usize]
+    }
+    fn uniform(&self, lo: IVec3, size: i32) -> Option<u8> {
+        self.base.uniform(lo, size).map(|m| self.table[m as usize])
+    }
+}
+
 /// The uniform region around a voxel: its material and its cube, clipped to the grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Region {

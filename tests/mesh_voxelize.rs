@@ -114,6 +114,7 @@ fn unit_cube_gives_exactly_the_expected_voxels() {
         &VoxelizeOptions {
             resolution: Resolution::VoxelSize(0.3),
             material: None,
+            storage: voxlab::scene::Storage::Auto,
         },
     )
     .unwrap();
@@ -236,6 +237,7 @@ fn mtl_colours_become_materials_and_an_override_replaces_them() {
         &VoxelizeOptions {
             resolution: Resolution::Count(16),
             material: Some(glass.clone()),
+            storage: voxlab::scene::Storage::Auto,
         },
     )
     .unwrap();
@@ -361,6 +363,7 @@ fn bad_input_gives_clear_errors() {
         let o = VoxelizeOptions {
             resolution: Resolution::VoxelSize(s),
             material: None,
+            storage: voxlab::scene::Storage::Auto,
         };
         let e = err_of(voxelize_mesh(&cube, &o));
         assert!(
@@ -373,6 +376,7 @@ fn bad_input_gives_clear_errors() {
     let o = VoxelizeOptions {
         resolution: Resolution::VoxelSize(1e-4),
         material: None,
+        storage: voxlab::scene::Storage::Auto,
     };
     let e = err_of(voxelize_mesh(&cube, &o));
     assert!(e.contains("too large") && e.contains("at most"), "{e}");

@@ -334,3 +334,117 @@ fn a_grid_held_sparse_renders_as_its_dense_twin_on_the_cpu() {
         }
     }
 }
+
+/// A mesh voxelized straight into a tree is the tree of the same mesh voxelized densely:
+/// the shell (last triangle wins), the outside flood over whole empty bricks, the filled
+/// interior and enclosed cavities, on a real mesh and on generated ones at resolutions
+/// that are and are not multiples of a brick.
+#[test]
+fn meshes_voxelize_into_the_same_tree_sparse_as_dense() {
+    use voxlab::scene::mesh::{TriangleMesh, voxelize};
+    use voxlab::scene::{Resolution, VoxelizeOptions, load_mesh};
+    let sphere = |c: DVec3, r: f64, k: u32, flip: bool| -> Vec<[DVec3; 3]> {
+        common::icosphere(k)
+            .into_iter()
+            .map(|t| {
+                let t = t.map(|p| c + r * p);
+                if flip { [t[0], t[2], t[1]] } else { t }
+            })
+            .collect()
+    };
+    let soup = |triangles: Vec<[DVec3; 3]>| TriangleMesh {
+        material_of: vec![0; triangles.len()],
+        materials: vec![seed_palette()[3].clone()],
+        normals: vec![],
+        triangles,
+        warnings: vec![],
+    };
+    // A hollow ball (a cavity the dense fill fills), an open one (its inside reached
+    // through the hole), two touching balls, and the bunny.
+    let mut hollow = sphere(DVec3::ZERO, 1.0, 2, false);
+    hollow.extend(sphere(DVec3::ZERO, 0.6, 2, true));
+    let mut open = sphere(DVec3::ZERO, 1.0, 2, false);
+    open.retain(|t| t.iter().all(|p| p.z < 0.8));
+    let mut pair = sphere(DVec3::ZERO, 1.0, 2, false);
+    pair.extend(sphere(DVec3::new(1.9, 0.3, 0.0), 0.9, 1, false));
+    let bunny = load_mesh(common::shared_data("bunny.obj")).unwrap();
+    let meshes = [
+        ("hollow", soup(hollow)),
+        ("open", soup(open)),
+        ("pair", soup(pair)),
+        ("bunny", bunny),
+    ];
+    for (name, mesh) in &meshes {
+        for n in [5, 16, 37, 64, 101] {
+            let options = |storage| VoxelizeOptions {
+                resolution: Resolution::Count(n),
+                material: Some(seed_palette()[2].clone()),
+                storage,
+            };
+            let dense = voxelize(mesh, &options(Storage::Dense)).unwrap();
+            let sparse = voxelize(mesh, &options(Storage::Sparse)).unwrap();
+            let what = format!("{name} at {n}");
+            assert!(sparse.grid.is_sparse() && !dense.grid.is_sparse(), "{what}");
+            assert_same_tree(
+                sparse.grid.sparse_tree().unwrap(),
+                &SparseTree::build(&dense.grid, 2),
+                &what,
+            );
+            assert_eq!(sparse.shell_voxels, dense.shell_voxels, "{what}");
+            assert_eq!(sparse.interior_voxels, dense.interior_voxels, "{what}");
+            assert_eq!(sparse.grid.voxel_size(), dense.grid.voxel_size());
+            assert_eq!(sparse.grid.origin(), dense.grid.origin());
+        }
+    }
+    // The hollow ball's cavity is filled, the open ball's inside is not.
+    let count = |mesh: &TriangleMesh| {
+        let o = VoxelizeOptions {
+            resolution: Resolution::Count(40),
+            material: None,
+            storage: Storage::Sparse,
+        };
+        voxelize(mesh, &o).unwrap().interior_voxels
+    };
+    assert!(count(&meshes[0].1) > 1000);
+    assert_eq!(count(&meshes[1].1), 0);
+
+    // Several materials: the dense fill's nearest-surface rule is not followed sparse.
+    let mut two = soup(sphere(DVec3::ZERO, 1.0, 1, false));
+    two.materials.push(seed_palette()[1].clone());
+    two.material_of[0] = 1;
+    let o = VoxelizeOptions {
+        resolution: Resolution::Count(16),
+        material: None,
+        storage: Storage::Sparse,
+    };
+    let err = voxelize(&two, &o).unwrap_err().to_string();
+    assert!(err.contains("one material"), "{err}");
+}
+
+/// `scene.mesh` past DENSE_MAX_VOXELS voxelizes into a tree, and `scene.material`
+/// recolours it (the tree rebuilt through the table).
+#[test]
+fn a_mesh_experiment_past_the_dense_bound_is_held_sparse() {
+    let bunny = common::shared_data("bunny.obj");
+    let text = format!(
+        "[scene]\nmesh = \"{}\"\nresolution = 1024\nmaterial = \"solid\"\n",
+        bunny.display()
+    );
+    let e = Experiment::from_str(&text, "x.toml").unwrap();
+    assert!(e.scene.grid.is_sparse());
+    let used = e.scene.grid.materials_used();
+    let solid = e
+        .scene
+        .materials
+        .iter()
+        .position(|m| m.name == "solid")
+        .unwrap();
+    let used: Vec<usize> = (0..256).filter(|&m| used[m]).collect();
+    assert_eq!(used, vec![0, solid]);
+    println!(
+        "bunny at 1024: {} voxels, tree {} bytes ({:.4} bytes/voxel)",
+        e.scene.grid.voxel_count(),
+        e.scene.grid.host_bytes(),
+        e.scene.grid.sparse_tree().unwrap().bytes_per_voxel()
+    );
+}

@@ -118,6 +118,8 @@ pub(super) fn load_models(
                 let options = VoxelizeOptions {
                     resolution: Resolution::Count(n),
                     material: None,
+                    // Placed voxel by voxel into a dense grid.
+                    storage: crate::scene::Storage::Dense,
                 };
                 let v = voxelize_mesh(dir.join(p), &options)
                     .map_err(|e| ctx.invalid(&key(i, "mesh"), e))?;

@@ -164,6 +164,26 @@ impl Grid {
         Ok(std::borrow::Cow::Owned(g))
     }
 
+    /// Replaces every voxel's material `m` by `map(m)` (`map(VOID)` must be void for a
+    /// grid held sparse, whose tree is rebuilt once).
+    pub fn map_materials(&mut self, map: impl Fn(u8) -> u8) {
+        let table: [u8; 256] = std::array::from_fn(|m| map(m as u8));
+        match &mut self.voxels {
+            Voxels::Dense(d) => d.iter_mut().for_each(|m| *m = table[*m as usize]),
+            Voxels::Sparse(t) => {
+                assert_eq!(
+                    table[VOID as usize], VOID,
+                    "a sparse grid's void stays void"
+                );
+                let source = crate::sparse::Mapped {
+                    base: t.as_ref(),
+                    table,
+                };
+                *t = Arc::new(SparseTree::build(&source, t.log_branch()));
+            }
+        }
+    }
+
     /// Whether the voxels are held only as a sparse tree.
     pub fn is_sparse(&self) -> bool {
         matches!(self.voxels, Voxels::Sparse(_))

@@ -24,8 +24,10 @@ use std::path::Path;
 use glam::{DMat4, DVec3};
 
 use super::vox::{LoadError, LoadErrorKind, diffuse_material};
-use super::voxelize::{boundary_edge_count, fill_interior, grid_layout, voxelize_triangles};
-use super::{Grid, Material, seed_palette};
+use super::voxelize::{
+    boundary_edge_count, fill_interior, grid_layout, voxelize_sparse, voxelize_triangles,
+};
+use super::{Grid, Material, Storage, seed_palette};
 
 /// Largest voxel count along the longest axis that [`Resolution::Count`] accepts.
 pub const MAX_RESOLUTION: u32 = 1 << 16;
@@ -47,6 +49,9 @@ pub struct VoxelizeOptions {
     pub resolution: Resolution,
     /// One material for the whole mesh instead of the file's own.
     pub material: Option<Material>,
+    /// Whether the grid is dense or a sparse tree voxelized straight from the triangles
+    /// (`Auto`: sparse past `DENSE_MAX_VOXELS`).
+    pub storage: Storage,
 }
 
 impl VoxelizeOptions {
@@ -54,6 +59,7 @@ impl VoxelizeOptions {
         Self {
             resolution: Resolution::Count(n),
             material: None,
+            storage: Storage::Auto,
         }
     }
 }
@@ -572,6 +578,7 @@ pub fn seed_lit_scene(
         &VoxelizeOptions {
             resolution: Resolution::Count(resolution),
             material: Some(material),
+            storage: Storage::Auto,
         },
     )?;
     let (c, w) = (v.grid.centre(), v.grid.width());
@@ -655,10 +662,11 @@ pub fn voxelize(
             s
         }
     };
-    let dims = grid_layout(extent, voxel_size).map_err(LoadErrorKind::TooLarge)?;
+    let dims = grid_layout(extent, voxel_size, options.storage).map_err(LoadErrorKind::TooLarge)?;
     let voxels = dims.x as u64 * dims.y as u64 * dims.z as u64;
+    let sparse = options.storage.is_sparse_for(voxels);
     let fill = super::voxelize::fill_bytes(voxels);
-    if fill > super::voxelize::MAX_FILL_BYTES {
+    if !sparse && fill > super::voxelize::MAX_FILL_BYTES {
         return Err(LoadErrorKind::TooLarge(format!(
             "a grid of {}x{}x{} voxels: filling its interior may need {fill} bytes, more than \
              the {} allowed (9 bytes per voxel); choose a coarser resolution",
@@ -668,8 +676,6 @@ pub fn voxelize(
             super::voxelize::MAX_FILL_BYTES
         )));
     }
-    let mut grid = Grid::new(dims, voxel_size, lo).map_err(|e| LoadErrorKind::TooLarge(e.0))?;
-
     let mut materials = vec![seed_palette()[0].clone()];
     let ids: Vec<u8> = match &options.material {
         Some(m) => {
@@ -694,13 +700,23 @@ pub fn voxelize(
         ));
     }
 
-    let shell_voxels = voxelize_triangles(&mut grid, tris, &ids);
-    let open_edges = boundary_edge_count(tris);
-    let mut warnings = Vec::new();
     // Whatever the outside flood does not reach is inside, whatever the topology says:
     // a closed volume with a non-manifold edge, a tiny crack or a pinhole (sealed by the
     // conservative shell) comes out solid. Enclosed cavities are filled too.
-    let interior_voxels = fill_interior(&mut grid);
+    let (grid, shell_voxels, interior_voxels) = if sparse {
+        let v =
+            voxelize_sparse(dims, voxel_size, lo, tris, &ids).map_err(LoadErrorKind::TooLarge)?;
+        let grid =
+            Grid::from_tree(v.tree, voxel_size, lo).map_err(|e| LoadErrorKind::TooLarge(e.0))?;
+        (grid, v.shell_voxels, v.interior_voxels as usize)
+    } else {
+        let mut grid = Grid::new(dims, voxel_size, lo).map_err(|e| LoadErrorKind::TooLarge(e.0))?;
+        let shell = voxelize_triangles(&mut grid, tris, &ids);
+        let interior = fill_interior(&mut grid);
+        (grid, shell, interior)
+    };
+    let open_edges = boundary_edge_count(tris);
+    let mut warnings = Vec::new();
     if open_edges > 0 {
         warnings.push(format!(
             "the mesh is not closed ({open_edges} edges are not shared by exactly two \

@@ -10,6 +10,7 @@ use std::collections::{HashMap, VecDeque};
 use glam::{DVec3, IVec3, UVec3};
 
 use super::{Grid, MAX_VOXELS, VOID};
+use crate::sparse::{BRICK, SparseTree, VoxelSource};
 
 /// Whether the closed axis-aligned box `centre ± half` and the closed triangle `tri`
 /// share at least one point (touching counts).
@@ -96,7 +97,11 @@ pub fn boundary_edge_count(triangles: &[[DVec3; 3]]) -> usize {
 
 /// Grid dimensions and voxel size for a box of `extent`, or why not.
 /// `count` voxels along the longest axis, or a given `voxel_size`.
-pub(crate) fn grid_layout(extent: DVec3, voxel_size: f64) -> Result<UVec3, String> {
+pub(crate) fn grid_layout(
+    extent: DVec3,
+    voxel_size: f64,
+    storage: super::Storage,
+) -> Result<UVec3, String> {
     // A small tolerance so that an extent of exactly n voxels is n, not n + 1, after
     // the rounding of extent / (extent / n).
     let dims_f = (extent / voxel_size - DVec3::splat(1e-9))
@@ -110,10 +115,15 @@ pub(crate) fn grid_layout(extent: DVec3, voxel_size: f64) -> Result<UVec3, Strin
         ));
     }
     let total = dims_f.x * dims_f.y * dims_f.z;
-    if total > MAX_VOXELS as f64 {
+    // Past DENSE_MAX_VOXELS (Storage::Auto) the voxels go straight into a sparse tree,
+    // bounded by its side instead.
+    let sparse_ok =
+        storage != super::Storage::Dense && dims_f.max_element() <= f64::from(MAX_SPARSE_MESH_SIDE);
+    if total > MAX_VOXELS as f64 && !sparse_ok {
         return Err(format!(
             "a voxel size of {voxel_size} gives a grid of {} x {} x {} = {total:.0} voxels; \
-             at most {MAX_VOXELS} are allowed (use a coarser resolution)",
+             at most {MAX_VOXELS} are allowed densely, or sides up to \
+             {MAX_SPARSE_MESH_SIDE} held as a sparse tree (use a coarser resolution)",
             dims_f.x, dims_f.y, dims_f.z
         ));
     }
@@ -254,4 +264,362 @@ pub fn fill_interior(grid: &mut Grid) -> usize {
         }
     }
     filled
+}
+
+/// Largest side of a mesh voxelized straight into a sparse tree: the fill keeps one
+/// byte per 4x4x4 brick of the grid's box (128 MiB at 2048), and a pyramid over them.
+pub const MAX_SPARSE_MESH_SIDE: u32 = 2048;
+
+/// Most shell bricks (4x4x4 blocks the surface touches) a mesh voxelized sparse may
+/// have: 2^24, each 64 bytes and a reach mask.
+pub const MAX_SHELL_BRICKS: usize = 1 << 24;
+
+/// A mesh voxelized into a sparse tree: [`voxelize_triangles`] and [`fill_interior`]
+/// done without the dense grid.
+pub struct SparseVoxels {
+    pub tree: SparseTree,
+    pub shell_voxels: usize,
+    pub interior_voxels: u64,
+}
+
+// A brick's state in the fill: touched by the surface, reached from outside, enclosed.
+const SHELL: u8 = 1;
+const OUT: u8 = 2;
+const IN: u8 = 4;
+
+/// The shell in bricks, the outside flood over whole empty bricks, and the enclosed
+/// bricks filled implicitly: the voxel source the tree is built from.
+struct FilledShell {
+    dims: UVec3,
+    bricks: HashMap<IVec3, [u8; 64]>,
+    /// Per level `j`, per cube of `2^j` bricks a side: the OR of its bricks' states.
+    levels: Vec<(IVec3, Vec<u8>)>,
+    fill: u8,
+}
+
+impl FilledShell {
+    fn state(&self, j: usize, c: IVec3) -> u8 {
+        let (n, s) = &self.levels[j];
+        if c.cmplt(IVec3::ZERO).any() || c.cmpge(*n).any() {
+            return OUT;
+        }
+        s[(c.x + n.x * (c.y + n.y * c.z)) as usize]
+    }
+}
+
+impl VoxelSource for FilledShell {
+    fn dims(&self) -> UVec3 {
+        self.dims
+    }
+    fn material(&self, v: IVec3) -> u8 {
+        let b = v.div_euclid(IVec3::splat(BRICK));
+        if let Some(k) = self.bricks.get(&b) {
+            let o = v - b * BRICK;
+            return k[(o.x + 4 * o.y + 16 * o.z) as usize];
+        }
+        if self.state(0, b) == IN {
+            self.fill
+        } else {
+            VOID
+        }
+    }
+    fn uniform(&self, lo: IVec3, size: i32) -> Option<u8> {
+        if size < BRICK || size.count_ones() != 1 || lo % size != IVec3::ZERO {
+            return None;
+        }
+        let j = (size / BRICK).trailing_zeros() as usize;
+        if j >= self.levels.len() {
+            return None;
+        }
+        match self.state(j, lo / size) {
+            OUT => Some(VOID),
+            IN => Some(self.fill),
+            _ => None,
+        }
+    }
+}
+
+/// The triangles voxelized into a sparse tree of `dims` (see [`voxelize_triangles`] and
+/// [`fill_interior`], whose rules it follows voxel for voxel: a voxel a triangle's box
+/// test touches takes the last such triangle's material; void the outside cannot reach
+/// is filled). The fill's material is the surface's one material; a surface of several
+/// materials (whose hidden voxels take the nearest surface voxel's) is refused.
+pub fn voxelize_sparse(
+    dims: UVec3,
+    voxel_size: f64,
+    origin: DVec3,
+    triangles: &[[DVec3; 3]],
+    materials: &[u8],
+) -> Result<SparseVoxels, String> {
+    assert_eq!(triangles.len(), materials.len());
+    if dims.max_element() > MAX_SPARSE_MESH_SIDE {
+        return Err(format!(
+            "{}x{}x{} voxels: a mesh is voxelized sparse up to {MAX_SPARSE_MESH_SIDE} a side",
+            dims.x, dims.y, dims.z
+        ));
+    }
+    let fill = materials.first().copied().unwrap_or(VOID);
+    if materials.iter().any(|&m| m != fill) {
+        return Err(format!(
+            "{}x{}x{} voxels are held as a sparse tree, whose interior fill takes one \
+             material, and the mesh has several: give it one material (scene.material) or \
+             a coarser resolution",
+            dims.x, dims.y, dims.z
+        ));
+    }
+    let d = dims.as_ivec3();
+    let eps = 1e-9;
+    let half = DVec3::splat(0.5 * voxel_size * (1.0 + eps));
+    // The shell, as voxelize_triangles marks it: in slabs of z on every core, each
+    // slab taking the triangles in order, so the last triangle still wins a voxel.
+    use rayon::prelude::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let total_bricks = AtomicUsize::new(0);
+    let slab = (d.z / BRICK / (4 * rayon::current_num_threads() as i32)).max(1) * BRICK;
+    let slabs: Vec<i32> = (0..d.z).step_by(slab as usize).collect();
+    type Shell = (HashMap<IVec3, [u8; 64]>, usize);
+    let shells: Vec<Result<Shell, String>> = slabs
+        .par_iter()
+        .map(|&z0| {
+            let z1 = (z0 + slab).min(d.z);
+            let mut bricks: HashMap<IVec3, [u8; 64]> = HashMap::new();
+            let mut marked = 0;
+            for (tri, &m) in triangles.iter().zip(materials) {
+                let lo = (tri[0].min(tri[1]).min(tri[2]) - origin) / voxel_size;
+                let hi = (tri[0].max(tri[1]).max(tri[2]) - origin) / voxel_size;
+                let lo = (lo - DVec3::splat(eps)).floor().as_ivec3().max(IVec3::ZERO);
+                let hi = (hi + DVec3::splat(eps)).floor().as_ivec3().min(d - 1);
+                for z in lo.z.max(z0)..=hi.z.min(z1 - 1) {
+                    for y in lo.y..=hi.y {
+                        for x in lo.x..=hi.x {
+                            let v = IVec3::new(x, y, z);
+                            let centre = origin + (v.as_dvec3() + 0.5) * voxel_size;
+                            if !tri_box_overlap(centre, half, *tri) {
+                                continue;
+                            }
+                            let b = v.div_euclid(IVec3::splat(BRICK));
+                            let o = v - b * BRICK;
+                            let brick = bricks.entry(b).or_insert_with(|| {
+                                total_bricks.fetch_add(1, Ordering::Relaxed);
+                                [VOID; 64]
+                            });
+                            let cell = &mut brick[(o.x + 4 * o.y + 16 * o.z) as usize];
+                            if *cell == VOID {
+                                marked += 1;
+                            }
+                            *cell = m;
+                        }
+                    }
+                    if total_bricks.load(Ordering::Relaxed) > MAX_SHELL_BRICKS {
+                        return Err(format!(
+                            "the surface touches more than {MAX_SHELL_BRICKS} blocks of 4x4x4 \
+                             voxels (a sparse grid's bound on host memory); choose a coarser \
+                             resolution"
+                        ));
+                    }
+                }
+            }
+            Ok((bricks, marked))
+        })
+        .collect();
+    let mut bricks: HashMap<IVec3, [u8; 64]> = HashMap::new();
+    let mut shell_voxels = 0;
+    for shell in shells {
+        let (b, marked) = shell?;
+        bricks.extend(b);
+        shell_voxels += marked;
+    }
+    // The outside flood of fill_interior, over whole empty bricks and the void voxels of
+    // shell bricks (6-connected, from the grid's boundary).
+    let nb = (d + BRICK - 1) / BRICK;
+    let brick_index = |b: IVec3| (b.x + nb.x * (b.y + nb.y * b.z)) as usize;
+    let mut state = vec![0u8; nb.as_uvec3().as_u64vec3().element_product() as usize];
+    for b in bricks.keys() {
+        state[brick_index(*b)] = SHELL;
+    }
+    // Per shell brick, the voxels reached from outside (bit o.x + 4 o.y + 16 o.z).
+    let mut reached: HashMap<IVec3, u64> = bricks.keys().map(|b| (*b, 0)).collect();
+    let mut brick_stack: Vec<IVec3> = Vec::new();
+    let mut voxel_stack: Vec<IVec3> = Vec::new();
+    let in_grid = |v: IVec3| v.cmpge(IVec3::ZERO).all() && v.cmplt(d).all();
+    let bit = |v: IVec3| {
+        let o = v.rem_euclid(IVec3::splat(BRICK));
+        1u64 << (o.x + 4 * o.y + 16 * o.z)
+    };
+    // Marks voxel `v` (inside the grid) reached, if it is void and unreached: as a
+    // whole empty brick, or one voxel of a shell brick.
+    let visit = |v: IVec3,
+                 state: &mut [u8],
+                 reached: &mut HashMap<IVec3, u64>,
+                 brick_stack: &mut Vec<IVec3>,
+                 voxel_stack: &mut Vec<IVec3>| {
+        let b = v.div_euclid(IVec3::splat(BRICK));
+        let i = brick_index(b);
+        match state[i] {
+            0 => {
+                state[i] = OUT;
+                brick_stack.push(b);
+            }
+            SHELL => {
+                let o = v - b * BRICK;
+                if bricks[&b][(o.x + 4 * o.y + 16 * o.z) as usize] != VOID {
+                    return;
+                }
+                let r = reached.get_mut(&b).expect("every shell brick has a mask");
+                if *r & bit(v) == 0 {
+                    *r |= bit(v);
+                    voxel_stack.push(v);
+                }
+            }
+            _ => {}
+        }
+    };
+    // Seeds: every voxel of the grid's boundary layer.
+    for z in 0..d.z {
+        for y in 0..d.y {
+            let on_face = z == 0 || y == 0 || z == d.z - 1 || y == d.y - 1;
+            let xs: Box<dyn Iterator<Item = i32>> = if on_face {
+                Box::new(0..d.x)
+            } else {
+                Box::new([0, d.x - 1].into_iter())
+            };
+            for x in xs {
+                visit(
+                    IVec3::new(x, y, z),
+                    &mut state,
+                    &mut reached,
+                    &mut brick_stack,
+                    &mut voxel_stack,
+                );
+            }
+        }
+    }
+    const FACES: [IVec3; 6] = [
+        IVec3::NEG_X,
+        IVec3::X,
+        IVec3::NEG_Y,
+        IVec3::Y,
+        IVec3::NEG_Z,
+        IVec3::Z,
+    ];
+    loop {
+        if let Some(b) = brick_stack.pop() {
+            // Every void voxel just outside the brick's faces is reached from it.
+            let lo = b * BRICK;
+            for f in FACES {
+                let nb_b = b + f;
+                if nb_b.cmplt(IVec3::ZERO).any() || nb_b.cmpge(nb).any() {
+                    continue;
+                }
+                match state[brick_index(nb_b)] {
+                    0 => {
+                        state[brick_index(nb_b)] = OUT;
+                        brick_stack.push(nb_b);
+                    }
+                    SHELL => {
+                        // The 16 voxels of the neighbour's face that touch this brick.
+                        let axis = f.abs().to_array().iter().position(|&c| c != 0).unwrap();
+                        let layer = if f[axis] > 0 {
+                            lo[axis] + BRICK
+                        } else {
+                            lo[axis] - 1
+                        };
+                        for u in 0..BRICK {
+                            for w in 0..BRICK {
+                                let mut v = lo;
+                                v[axis] = layer;
+                                v[(axis + 1) % 3] += u;
+                                v[(axis + 2) % 3] += w;
+                                if in_grid(v) {
+                                    visit(
+                                        v,
+                                        &mut state,
+                                        &mut reached,
+                                        &mut brick_stack,
+                                        &mut voxel_stack,
+                                    );
+                                }
+                            }
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        } else if let Some(v) = voxel_stack.pop() {
+            for f in FACES {
+                let u = v + f;
+                if in_grid(u) {
+                    visit(
+                        u,
+                        &mut state,
+                        &mut reached,
+                        &mut brick_stack,
+                        &mut voxel_stack,
+                    );
+                }
+            }
+        } else {
+            break;
+        }
+    }
+    // What the flood did not reach is inside: enclosed empty bricks whole (never at the
+    // grid's edge, whose voxels seeded the flood), and the unreached void of shell bricks.
+    let mut interior_voxels = 0u64;
+    for s in state.iter_mut().filter(|s| **s == 0) {
+        *s = IN;
+        interior_voxels += 64;
+    }
+    for (b, brick) in bricks.iter_mut() {
+        let r = reached[b];
+        for (k, cell) in brick.iter_mut().enumerate() {
+            let v = *b * BRICK + IVec3::new(k as i32 % 4, k as i32 / 4 % 4, k as i32 / 16);
+            if *cell == VOID && in_grid(v) && r & (1 << k) == 0 {
+                *cell = fill;
+                interior_voxels += 1;
+            }
+        }
+    }
+    // The pyramid of brick states the tree builder asks.
+    let mut levels = vec![(nb, state)];
+    while levels.last().unwrap().0.max_element() > 1 {
+        let (n, s) = levels.last().unwrap();
+        let m = (*n + 1) / 2;
+        let mut next = vec![0u8; m.as_uvec3().as_u64vec3().element_product() as usize];
+        for z in 0..n.z {
+            for y in 0..n.y {
+                for x in 0..n.x {
+                    let c = IVec3::new(x, y, z) / 2;
+                    next[(c.x + m.x * (c.y + m.y * c.z)) as usize] |=
+                        s[(x + n.x * (y + n.y * z)) as usize];
+                }
+            }
+        }
+        // A cube reaching past the brick grid holds void there.
+        if (*n % 2).cmpne(IVec3::ZERO).any() {
+            for z in 0..m.z {
+                for y in 0..m.y {
+                    for x in 0..m.x {
+                        let c = IVec3::new(x, y, z);
+                        if (c * 2 + 1).cmpge(*n).any() {
+                            next[(c.x + m.x * (c.y + m.y * c.z)) as usize] |= OUT;
+                        }
+                    }
+                }
+            }
+        }
+        levels.push((m, next));
+    }
+    let source = FilledShell {
+        dims,
+        bricks,
+        levels,
+        fill,
+    };
+    let tree = SparseTree::build(&source, crate::sparse::GPU_LOG_BRANCH);
+    drop(source);
+    Ok(SparseVoxels {
+        tree,
+        shell_voxels,
+        interior_voxels,
+    })
 }
