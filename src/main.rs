@@ -285,6 +285,10 @@ struct BenchArgs {
     /// lights, at --size and depth 4/4).
     #[arg(long, num_args = 1.., value_name = "EXPERIMENT")]
     experiments: Vec<PathBuf>,
+    /// Override a key of every --experiments file (e.g. `--set scene.resolution=2048`
+    /// for a mesh scene), checked exactly like the file; repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<voxlab::experiment::Override>,
     /// Compare the sparse structures instead: the dense grid and trees of 2, 4 and 8
     /// children a side (octree, 64-tree, 512-tree) on the CPU walk over the seed scene
     /// at each of --sizes: nodes, bytes per voxel, build time, steps per ray.
@@ -637,7 +641,7 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         };
         let experiments = files
             .iter()
-            .map(|f| Experiment::load(f).map_err(anyhow::Error::from))
+            .map(|f| Experiment::load_with(f, &a.set).map_err(anyhow::Error::from))
             .collect::<Result<Vec<_>>>()?;
         let rows =
             voxlab::viewer::bench::bench_adaptive(&mut gpu, &experiments, a.gpu_runs as usize)?;
@@ -744,7 +748,7 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         experiments: a
             .experiments
             .iter()
-            .map(|f| Experiment::load(f).map_err(anyhow::Error::from))
+            .map(|f| Experiment::load_with(f, &a.set).map_err(anyhow::Error::from))
             .collect::<Result<Vec<_>>>()?,
         surfaces: a
             .surfaces

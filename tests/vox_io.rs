@@ -547,6 +547,35 @@ fn bad_vox_files_give_clear_errors_and_never_panic() {
         .to_string();
     assert!(e.contains("far.vox") && e.contains("too large"), "{e}");
 
+    // Two bars 4000 apart on every axis span 6.4e10 voxels: held as a sparse tree, of
+    // four voxels, without a dense grid; 4200 apart, past a sparse grid's side, refused.
+    for (reach, loads) in [(2000, true), (2100, false)] {
+        let near = format!("{reach} {reach} {reach}");
+        let mut d = one_model_file(bar(), &[("_t", near.as_str())]);
+        d.scenes[1] = SceneNode::Group {
+            attributes: Dict::new(),
+            children: vec![2, 4],
+        };
+        let mut far = Dict::new();
+        far.insert("_t".into(), format!("-{reach} -{reach} -{reach}"));
+        d.scenes.push(SceneNode::Transform {
+            attributes: Dict::new(),
+            frames: vec![Frame::new(far)],
+            child: 3,
+            layer_id: 0,
+        });
+        let r = load_vox(save(&dir, "apart.vox", &d), None);
+        if loads {
+            let s = r.unwrap();
+            assert!(s.grid.is_sparse(), "{}", s.grid.dims());
+            assert_eq!(s.grid.material_counts()[1..].iter().sum::<u64>(), 4);
+            assert!(s.grid.host_bytes() < 1 << 16, "{}", s.grid.host_bytes());
+        } else {
+            let e = r.unwrap_err().to_string();
+            assert!(e.contains("apart.vox") && e.contains("4096"), "{e}");
+        }
+    }
+
     // A scene graph that refers to itself.
     let mut d = one_model_file(bar(), &[]);
     d.scenes[1] = SceneNode::Group {
