@@ -11,11 +11,7 @@
 #import voxlab::shadow_surface::surface_transmittance
 #import voxlab::triangles::shadow_medium
 #else
-#ifdef BEER_LAMBERT
-#import voxlab::shadow_beer_lambert::transmittance_rgb
-#else
 #import voxlab::shadow::transmittance
-#endif
 #endif
 
 // Transmittance (RGB) of the shadow segment from q to the emitter at x.
@@ -26,14 +22,10 @@ fn shadow_to(q: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
         return vec3<f32>(1.0);
     }
 #ifdef TRIANGLES
-    // Through the triangle surfaces, in either transmittance model.
+    // Through the triangle surfaces.
     return surface_transmittance(q, to_light / len, len, shadow_medium);
 #else
-#ifdef BEER_LAMBERT
-    return transmittance_rgb(q, to_light / len, len);
-#else
-    return vec3<f32>(transmittance(q, to_light / len, len));
-#endif
+    return transmittance(q, to_light / len, len);
 #endif
 }
 

@@ -1,43 +1,37 @@
 // Shadow transmittance through triangle surfaces (TRIANGLES): the segment's medium is
 // followed through every crossing, from the medium at its start (shadow_medium, set by
-// the tracer); a voxel outside the cells sets it to its material. min-kt is the
-// smallest kt of the media passed; with BEER_LAMBERT, exp(-sum sigma len) over them.
-// As crate::triangles::SurfaceTrace::transmittance. Contract: "Triangle surfaces".
+// the tracer); a voxel outside the cells sets it to its material. Each medium passes to
+// the plan's transmittance model (voxlab::transmittance), as the voxel walk's regions
+// do. As crate::triangles::SurfaceTrace::transmittance. Contract: "Triangle surfaces".
 #define_import_path voxlab::shadow_surface
 
-#import voxlab::bindings::{materials, voxel_inside}
+#import voxlab::bindings::voxel_inside
 #import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, dda_skip, dda_region, walk_bound}
 #import voxlab::triangles::{WatertightRay, watertight_ray, cell_range, next_transition, is_cell, CELL_TOLERANCE}
 #import voxlab::counters::loop_cut
+#import voxlab::transmittance::{Absorb, absorb_start, absorb_pass, absorb_result}
 
-// The media so far: the current one and where it began, the smallest kt and the optical
-// depth of those passed, the last crossing taken, and whether an opaque one was met.
+// The media so far: the current one and where it began, the last crossing taken, and
+// whether nothing more passes (the model's state is a variable of its own, `absorb`:
+// its functions take a pointer to a whole variable).
 struct Media {
     medium: u32,
     t: f32,
-    min_kt: f32,
-    depth: vec3<f32>,
     after: f32,
     opaque: bool,
 }
 
-// The segment passes into medium `next` at t. Void transmits fully and absorbs nothing.
-fn pass_into(w: ptr<function, Media>, t: f32, next: u32) {
-    if (*w).medium != 0u {
-        let m = materials[(*w).medium];
-        (*w).depth += vec3<f32>(m.sigma_r, m.sigma_g, m.sigma_b) * max(t - (*w).t, 0.0);
-    }
+// The segment passes into medium `next` at t.
+fn pass_into(w: ptr<function, Media>, absorb: ptr<function, Absorb>, t: f32, next: u32) {
     (*w).medium = next;
     (*w).t = t;
-    if next != 0u {
-        let kt = materials[next].kt;
-        (*w).min_kt = min((*w).min_kt, kt);
-        (*w).opaque = (*w).opaque || kt <= 0.0;
+    if absorb_pass(absorb, t, next) {
+        (*w).opaque = true;
     }
 }
 
 // The crossings of the cell the walk is in, entered at t_enter, up to len.
-fn pass_cell(s: ptr<function, Dda>, w: ptr<function, Media>, r: WatertightRay, t_enter: f32, len: f32) {
+fn pass_cell(s: ptr<function, Dda>, w: ptr<function, Media>, absorb: ptr<function, Absorb>, r: WatertightRay, t_enter: f32, len: f32) {
     let t_exit = min(min((*s).t_max.x, min((*s).t_max.y, (*s).t_max.z)), len);
     let range = cell_range((*s).voxel);
     // One crossing per loop iteration, the first looked for before the loop (the
@@ -46,7 +40,7 @@ fn pass_cell(s: ptr<function, Dda>, w: ptr<function, Media>, r: WatertightRay, t
     var tr = next_transition(range, r, t_enter, t_exit, (*w).after, (*w).medium);
     var k = 0u;
     for (; k < range.y && tr.found && tr.t < len; k++) {
-        pass_into(w, tr.t, tr.medium);
+        pass_into(w, absorb, tr.t, tr.medium);
         (*w).after = tr.t + CELL_TOLERANCE;
         if (*w).opaque {
             return;
@@ -60,16 +54,16 @@ fn pass_cell(s: ptr<function, Dda>, w: ptr<function, Media>, r: WatertightRay, t
 }
 
 // One step: true when the walk is over (past the segment, out of the grid, or opaque).
-fn surface_step(s: ptr<function, Dda>, w: ptr<function, Media>, r: WatertightRay, len: f32) -> bool {
+fn surface_step(s: ptr<function, Dda>, w: ptr<function, Media>, absorb: ptr<function, Absorb>, r: WatertightRay, len: f32) -> bool {
     let a = dda_axis((*s).t_max);
     let t = (*s).t_max[a];
     if !(t < len) {
-        pass_into(w, max(len, (*w).t), 0u);
+        pass_into(w, absorb, max(len, (*w).t), 0u);
         return true;
     }
     dda_advance(s, a);
     if !voxel_inside((*s).voxel) {
-        pass_into(w, max(t, (*w).t), 0u);
+        pass_into(w, absorb, max(t, (*w).t), 0u);
         return true;
     }
     let reg = dda_region(s);
@@ -79,7 +73,7 @@ fn surface_step(s: ptr<function, Dda>, w: ptr<function, Media>, r: WatertightRay
         (*s).cell_t = t;
         return true;
     }
-    pass_into(w, max(t, (*w).t), reg.material);
+    pass_into(w, absorb, max(t, (*w).t), reg.material);
     dda_skip(s, reg);
     return (*w).opaque;
 }
@@ -90,26 +84,25 @@ fn surface_transmittance(q: vec3<f32>, d: vec3<f32>, len: f32, medium: u32) -> v
     var w: Media;
     w.medium = 0u;
     w.t = 0.0;
-    w.min_kt = 1.0;
-    w.depth = vec3<f32>(0.0);
     w.after = 0.0;
     w.opaque = false;
+    var absorb = absorb_start();
     // The medium at q counts, as the start voxel does for voxels.
-    pass_into(&w, 0.0, medium);
+    pass_into(&w, &absorb, 0.0, medium);
     if w.opaque {
         return vec3<f32>(0.0);
     }
     let e = enter(q, d);
     if !e.valid || !(e.t < len) {
-        return result(w);
+        return result(w, absorb);
     }
     let r = watertight_ray(q, d);
     var s = dda_init(q, d, e.voxel);
     let reg = dda_region(&s);
     if is_cell(reg.material) {
-        pass_cell(&s, &w, r, e.t, len);
+        pass_cell(&s, &w, &absorb, r, e.t, len);
     } else {
-        pass_into(&w, e.t, reg.material);
+        pass_into(&w, &absorb, e.t, reg.material);
         dda_skip(&s, reg);
     }
     let n = walk_bound();
@@ -117,23 +110,23 @@ fn surface_transmittance(q: vec3<f32>, d: vec3<f32>, len: f32, medium: u32) -> v
     var done = w.opaque;
     var i = 0u;
     for (; i < n && !done; i += #{DDA_UNROLL}u) {
-        done = surface_step(&s, &w, r, len);
+        done = surface_step(&s, &w, &absorb, r, len);
 #if DDA_UNROLL >= 2
-        if !done { done = surface_step(&s, &w, r, len); }
+        if !done { done = surface_step(&s, &w, &absorb, r, len); }
 #endif
 #if DDA_UNROLL >= 4
-        if !done { done = surface_step(&s, &w, r, len); }
-        if !done { done = surface_step(&s, &w, r, len); }
+        if !done { done = surface_step(&s, &w, &absorb, r, len); }
+        if !done { done = surface_step(&s, &w, &absorb, r, len); }
 #endif
 #if DDA_UNROLL >= 8
-        if !done { done = surface_step(&s, &w, r, len); }
-        if !done { done = surface_step(&s, &w, r, len); }
-        if !done { done = surface_step(&s, &w, r, len); }
-        if !done { done = surface_step(&s, &w, r, len); }
+        if !done { done = surface_step(&s, &w, &absorb, r, len); }
+        if !done { done = surface_step(&s, &w, &absorb, r, len); }
+        if !done { done = surface_step(&s, &w, &absorb, r, len); }
+        if !done { done = surface_step(&s, &w, &absorb, r, len); }
 #endif
         if s.at_cell {
             s.at_cell = false;
-            pass_cell(&s, &w, r, s.cell_t, len);
+            pass_cell(&s, &w, &absorb, r, s.cell_t, len);
             done = w.opaque;
         }
     }
@@ -141,16 +134,14 @@ fn surface_transmittance(q: vec3<f32>, d: vec3<f32>, len: f32, medium: u32) -> v
     if !done && i < n {
         loop_cut();
     }
-    return result(w);
+    return result(w, absorb);
 }
 
-fn result(w: Media) -> vec3<f32> {
+// Past the segment or the grid nothing more absorbs: the last medium ends where the
+// walk did.
+fn result(w: Media, absorb: Absorb) -> vec3<f32> {
     if w.opaque {
         return vec3<f32>(0.0);
     }
-#ifdef BEER_LAMBERT
-    return exp(-w.depth);
-#else
-    return vec3<f32>(w.min_kt);
-#endif
+    return absorb_result(absorb, w.t);
 }

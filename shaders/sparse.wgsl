@@ -1,6 +1,6 @@
 // The sparse 64-tree of uniform regions (SPARSE; src/sparse.rs builds it and documents
 // its layout): the region around a voxel, found by descending from the root. The walks
-// (traversal.wgsl, shadow.wgsl, shadow_beer_lambert.wgsl) leave a region whole with
+// (traversal.wgsl, shadow.wgsl, shadow_surface.wgsl) leave a region whole with
 // dda_skip; the f64 reference does the same with crate::sparse::SparseTree::region.
 #define_import_path voxlab::sparse
 

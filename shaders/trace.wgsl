@@ -4,10 +4,11 @@
 // Contract: "Primary rays", "Shading a hit", "Stack".
 //
 // Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, EMISSION, AREA_LIGHTS,
-// BEER_LAMBERT, ACCUMULATE, COUNT_RAYS, RAY_STACK_SIZE, and the cone-tracing
+// ACCUMULATE, COUNT_RAYS, RAY_STACK_SIZE, and the cone-tracing
 // CONE_SHADOWS, AMBIENT_OCCLUSION, INDIRECT (shaders/cone.wgsl, group 1; CONES when any
-// is on). The shadow and light models live in their own files (shading.wgsl composes
-// them); this file only walks the ray tree of one frame of one pixel.
+// is on). The shadow, transmittance and light models live in their own files
+// (shading.wgsl and phong.wgsl compose them); this file only walks the ray tree of one
+// frame of one pixel.
 
 #import voxlab::types::{BIG, Material, RULES_SEED, PIXEL_FILTER_BOX, PIXEL_FILTER_GAUSSIAN}
 #import voxlab::bindings::{params, materials, output}

@@ -132,7 +132,11 @@ impl Default for AblateConfig {
             spp: (0..=8).map(|k| 1 << k).collect(),
             runs: 3,
             warmup: 1,
-            transmittance: vec![Transmittance::MinKt, Transmittance::BeerLambert],
+            // Every registered model.
+            transmittance: crate::technique::TRANSMITTANCES
+                .iter()
+                .map(|&m| Transmittance(m))
+                .collect(),
             backend: BackendChoice::Auto,
             reference_backend: BackendChoice::Cpu,
             cone_step_factor: vec![0.25, 0.5, 1.0, 2.0],
@@ -344,15 +348,12 @@ impl AblateConfig {
         if let Some(list) = &raw.transmittance {
             let mut out = Vec::new();
             for name in list {
-                let t = match name.as_str() {
-                    "min-kt" => Transmittance::MinKt,
-                    "beer-lambert" => Transmittance::BeerLambert,
-                    _ => {
-                        return Err(loc.invalid(
-                            "transmittance",
-                            "every entry must be \"min-kt\" or \"beer-lambert\"",
-                        ));
-                    }
+                let Some(t) = crate::technique::transmittance(name) else {
+                    let names = crate::technique::transmittance_names();
+                    return Err(loc.invalid(
+                        "transmittance",
+                        format!("every entry must be one of \"{}\"", names.join("\", \"")),
+                    ));
                 };
                 if out.contains(&t) {
                     return Err(loc.invalid("transmittance", "lists a model twice"));

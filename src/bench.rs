@@ -738,12 +738,7 @@ pub fn plan_table(rows: &[PlanRow]) -> String {
     );
     let mib = |b: u64| b as f64 / 1048576.0;
     for r in rows {
-        let flags: Vec<&str> = crate::plan::Plan::FLAGS
-            .iter()
-            .chain(crate::plan::Plan::CONE_FLAGS.iter())
-            .copied()
-            .filter(|f| r.reduced.flag(f))
-            .collect();
+        let flags = r.reduced.flags_on();
         out += &format!(
             "| {} | {} (stack {}) | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1e} |\n",
             r.scene,

@@ -21,10 +21,10 @@ use std::fmt;
 use naga_oil::compose::ShaderDefValue;
 
 use crate::cpu::pyramid::{PyramidLayout, memory_line};
-use crate::render::{RenderSettings, Transmittance};
+use crate::render::RenderSettings;
 pub use crate::render::{Surface, Traversal};
 use crate::scene::{Material, Scene, VOID};
-use crate::technique::ShadowModel;
+use crate::technique::{ShadowModel, TransmittanceModel};
 
 /// Shader defs of one kernel variant, ordered so they can key a pipeline cache.
 pub type ShaderDefs = BTreeMap<String, ShaderDefValue>;
@@ -48,12 +48,10 @@ pub struct Plan {
     /// an area light of non-zero size, and local lighting is in. Without it every light
     /// is a point at its centre (the baseline).
     pub area_lights: bool,
-    /// Beer-Lambert shadow transmittance (`BEER_LAMBERT`): `transmittance =
-    /// "beer-lambert"`, local lighting is in, and some material a shadow segment can cross
-    /// attenuates by distance (0 < kt < 1, or a non-zero sigma on a material that is not
-    /// opaque). Without such a material `min-kt` gives the same transmittance (0 or 1
-    /// exactly), so its cheaper walk is used.
-    pub beer_lambert: bool,
+    /// The shadow transmittance model composed in (`voxlab::transmittance`): the one
+    /// `features.transmittance` names when shadow rays are in and its plan rule keeps
+    /// it, else the default (listed, when not the default, by its name in capitals).
+    pub transmittance: &'static TransmittanceModel,
     /// Progressive accumulation over frames (`ACCUMULATE`): area lights are sampled and
     /// `spp > 1`. Allocates the compensation buffer. Without sampling every frame is the
     /// same image, so one frame is rendered whatever `spp` says.
@@ -217,28 +215,14 @@ fn tir_possible(scene: &Scene) -> bool {
     })
 }
 
-/// Whether Beer-Lambert can differ from min-kt: some material a shadow segment can
-/// cross (any used by the grid, and void) is neither opaque (kt <= 0: both give 0) nor
-/// fully transparent without absorption (kt >= 1 and sigma = 0: both give 1).
-fn attenuates_by_distance(scene: &Scene) -> bool {
-    let used = scene.grid.materials_used();
-    let vs = scene.grid.voxel_size();
-    scene.materials.iter().enumerate().any(|(i, m)| {
-        (used[i] || i == VOID as usize)
-            && m.kt > 0.0
-            && (m.kt < 1.0 || m.absorption(vs) != glam::DVec3::ZERO)
-    })
-}
-
 impl Plan {
     /// Shader flags in the order they are printed and enumerated by tests.
-    pub const FLAGS: [&'static str; 8] = [
+    pub const FLAGS: [&'static str; 7] = [
         "REFLECTION",
         "REFRACTION",
         "SHADOWS",
         "EMISSION",
         "AREA_LIGHTS",
-        "BEER_LAMBERT",
         "ACCUMULATE",
         "COUNT_RAYS",
     ];
@@ -318,20 +302,21 @@ impl Plan {
             true
         };
 
-        let beer_lambert = if settings.features.transmittance != Transmittance::BeerLambert {
-            false
+        let default = crate::technique::TRANSMITTANCES[0];
+        let asked = settings.features.transmittance.model();
+        let transmittance = if asked.index() == 0 {
+            default
         } else if !shadows {
-            reasons.push("beer-lambert: no shadow rays".to_string());
-            false
-        } else if !attenuates_by_distance(scene) {
-            reasons.push(
-                "beer-lambert: every material a shadow ray can cross is opaque or fully \
-                 transparent without absorption, where min-kt gives the same 0 or 1"
-                    .to_string(),
-            );
-            false
+            reasons.push(format!("{}: no shadow rays", asked.name));
+            default
         } else {
-            true
+            match (asked.plan)(scene, settings) {
+                Ok(()) => asked,
+                Err(why) => {
+                    reasons.push(format!("{}: {why}", asked.name));
+                    default
+                }
+            }
         };
 
         let shadow_model = match settings.features.shadow_model {
@@ -395,16 +380,16 @@ impl Plan {
         if f.cone_shadows && !shadows {
             reasons.push("cone shadows: no shadow rays to replace".to_string());
         }
-        let (mut area_lights, mut beer_lambert, mut accumulate) =
-            (area_lights, beer_lambert, accumulate);
-        if cone_shadows && (area_lights || beer_lambert) {
+        let (mut area_lights, mut transmittance, mut accumulate) =
+            (area_lights, transmittance, accumulate);
+        if cone_shadows && (area_lights || transmittance.index() != 0) {
             // The cone replaces the shadow ray and the area samples: their code is dead.
-            reasons.push(
-                "area-light sampling and beer-lambert shadow rays: cone shadows replace them"
-                    .to_string(),
-            );
+            reasons.push(format!(
+                "area-light sampling and {} shadow rays: cone shadows replace them",
+                asked.name
+            ));
             area_lights = false;
-            beer_lambert = false;
+            transmittance = default;
             // Frames still differ where the pixel filter moves the primary rays.
             accumulate = pixel_filter && settings.spp > 1;
         }
@@ -456,7 +441,7 @@ impl Plan {
             shadows,
             emission,
             area_lights,
-            beer_lambert,
+            transmittance,
             accumulate,
             cone_shadows,
             ambient_occlusion,
@@ -490,6 +475,31 @@ impl Plan {
         self
     }
 
+    /// The kernel's flags that are on, in the order plans are printed: [`Plan::FLAGS`]
+    /// and [`Plan::CONE_FLAGS`], with the transmittance model, when not the default, by
+    /// its name in capitals after `AREA_LIGHTS` (`BEER_LAMBERT`).
+    pub fn flags_on(&self) -> Vec<String> {
+        let at = Self::FLAGS
+            .iter()
+            .position(|&n| n == "ACCUMULATE")
+            .unwrap_or(0);
+        let transmittance = (self.transmittance.index() != 0)
+            .then(|| self.transmittance.name.to_uppercase().replace('-', "_"));
+        Self::FLAGS[..at]
+            .iter()
+            .filter(|n| self.flag(n))
+            .map(|n| n.to_string())
+            .chain(transmittance)
+            .chain(
+                Self::FLAGS[at..]
+                    .iter()
+                    .chain(&Self::CONE_FLAGS)
+                    .filter(|n| self.flag(n))
+                    .map(|n| n.to_string()),
+            )
+            .collect()
+    }
+
     /// The value of a flag of [`Plan::FLAGS`] by name.
     pub fn flag(&self, name: &str) -> bool {
         match name {
@@ -498,7 +508,6 @@ impl Plan {
             "SHADOWS" => self.shadows,
             "EMISSION" => self.emission,
             "AREA_LIGHTS" => self.area_lights,
-            "BEER_LAMBERT" => self.beer_lambert,
             "ACCUMULATE" => self.accumulate,
             "COUNT_RAYS" => self.count_rays,
             "CONE_SHADOWS" => self.cone_shadows,
@@ -516,7 +525,6 @@ impl Plan {
             "SHADOWS" => self.shadows = on,
             "EMISSION" => self.emission = on,
             "AREA_LIGHTS" => self.area_lights = on,
-            "BEER_LAMBERT" => self.beer_lambert = on,
             "ACCUMULATE" => self.accumulate = on,
             "COUNT_RAYS" => self.count_rays = on,
             "CONE_SHADOWS" => self.cone_shadows = on,
@@ -526,17 +534,22 @@ impl Plan {
         }
     }
 
-    /// Every combination of flags with the given stack size (2^FLAGS variants).
+    /// Every combination of flags and transmittance models with the given stack size
+    /// (2^FLAGS times the models).
     pub fn all_variants(ray_stack_size: u32) -> Vec<Plan> {
-        (0..1u32 << Self::FLAGS.len())
-            .map(|bits| {
+        let models = crate::technique::TRANSMITTANCES.len() as u32;
+        (0..models << Self::FLAGS.len())
+            .map(|code| {
+                let bits = code & ((1 << Self::FLAGS.len()) - 1);
+                let transmittance =
+                    crate::technique::TRANSMITTANCES[(code >> Self::FLAGS.len()) as usize];
                 let mut p = Plan {
                     reflection: false,
                     refraction: false,
                     shadows: false,
                     emission: false,
                     area_lights: false,
-                    beer_lambert: false,
+                    transmittance,
                     accumulate: false,
                     cone_shadows: false,
                     ambient_occlusion: false,
@@ -573,6 +586,14 @@ impl Plan {
         }
         if self.pixel_filter {
             defs.insert("PIXEL_FILTER".to_string(), ShaderDefValue::Bool(true));
+        }
+        // The transmittance model's module is composed in; a model other than the
+        // default keys the cache by its index.
+        if self.transmittance.index() != 0 {
+            defs.insert(
+                "TRANSMITTANCE_ID".to_string(),
+                ShaderDefValue::UInt(self.transmittance.index()),
+            );
         }
         // The plug-in shadow model: its module is composed in; its index keys the cache.
         if let Some(m) = self.shadow_model {
@@ -613,14 +634,12 @@ impl fmt::Display for Plan {
         let shadow_model = self
             .shadow_model
             .map(|m| format!("SHADOW_MODEL({})", m.name));
-        let pixel_filter = self.pixel_filter.then_some("PIXEL_FILTER");
-        let on: Vec<&str> = Self::FLAGS
-            .iter()
-            .chain(&Self::CONE_FLAGS)
-            .copied()
-            .filter(|n| self.flag(n))
+        let pixel_filter = self.pixel_filter.then(|| "PIXEL_FILTER".to_string());
+        let on: Vec<String> = self
+            .flags_on()
+            .into_iter()
             .chain(pixel_filter)
-            .chain(shadow_model.as_deref())
+            .chain(shadow_model)
             .collect();
         write!(
             f,

@@ -2,23 +2,39 @@
 
 use std::time::Duration;
 
-/// How a shadow segment through semi-transparent voxels is attenuated (DESIGN section 1).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Transmittance {
-    /// The seed's O1 as its code does it: the smallest kt of the voxels crossed.
-    #[default]
-    MinKt,
-    /// Distance-weighted: `T = exp(-sum sigma_m len_m)` per RGB channel, with the exact
-    /// length of the segment inside each voxel.
-    BeerLambert,
-}
+/// How a shadow segment through semi-transparent voxels is attenuated (DESIGN section 1):
+/// one of the registered transmittance models (`crate::technique::TRANSMITTANCES`,
+/// each in its own file). The default is the first, the baseline's `min-kt`.
+#[derive(Clone, Copy)]
+pub struct Transmittance(pub &'static crate::technique::TransmittanceModel);
 
 impl Transmittance {
     pub fn name(self) -> &'static str {
-        match self {
-            Transmittance::MinKt => "min-kt",
-            Transmittance::BeerLambert => "beer-lambert",
-        }
+        self.0.name
+    }
+    pub fn model(self) -> &'static crate::technique::TransmittanceModel {
+        self.0
+    }
+}
+
+impl Default for Transmittance {
+    fn default() -> Self {
+        Self(crate::technique::TRANSMITTANCES[0])
+    }
+}
+
+// A model is its name: the registry holds one value per name.
+impl PartialEq for Transmittance {
+    fn eq(&self, other: &Self) -> bool {
+        self.0.name == other.0.name
+    }
+}
+
+impl Eq for Transmittance {}
+
+impl std::fmt::Debug for Transmittance {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Transmittance({})", self.0.name)
     }
 }
 

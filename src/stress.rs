@@ -25,7 +25,7 @@ use glam::{DVec3, IVec3, UVec3};
 use crate::experiment::Experiment;
 use crate::gpu::GpuTracer;
 use crate::metrics::{Domain, ImageDiff, compare};
-use crate::render::{Frame, RenderSettings, Transmittance};
+use crate::render::{Frame, RenderSettings};
 use crate::scene::{
     AreaLight, AreaShape, Grid, Light, PointLight, Scene, seed_ids, seed_scene, seed_scene_dims,
 };
@@ -389,7 +389,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
     }));
     let mut st = settings(48, 48);
     st.features.area_lights = true;
-    st.features.transmittance = Transmittance::BeerLambert;
+    st.features.transmittance = crate::technique::beer_lambert::ID;
     st.light_samples = 4;
     st.spp = 2;
     out.push(case(
@@ -398,6 +398,20 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         s.clone(),
         st.clone(),
     ));
+    // Every transmittance model (crate::technique::TRANSMITTANCES) on the same scene.
+    for &m in crate::technique::TRANSMITTANCES {
+        let mut st = st.clone();
+        st.features.transmittance = crate::render::Transmittance(m);
+        out.push(case(
+            &format!("transmittance-{}", m.name),
+            &format!(
+                "transmittance {} on the rect area light: {}",
+                m.name, m.summary
+            ),
+            s.clone(),
+            st,
+        ));
+    }
     // Every plug-in shadow model (crate::technique) on the same scene: at its defaults,
     // and with the light shrunk to a point (its degenerate setting).
     for m in crate::technique::SHADOW_MODELS {
@@ -760,12 +774,7 @@ pub fn run_case(gpu: Option<&mut GpuTracer>, case: &StressCase) -> StressRow {
     };
     let dims = case.scene.grid.dims();
     let plan = crate::plan::Plan::new(&case.scene, &case.settings);
-    let flags: Vec<&str> = crate::plan::Plan::FLAGS
-        .iter()
-        .chain(crate::plan::Plan::CONE_FLAGS.iter())
-        .copied()
-        .filter(|f| plan.flag(f))
-        .collect();
+    let flags = plan.flags_on();
     StressRow {
         name: case.name.clone(),
         what: case.what.clone(),

@@ -461,10 +461,10 @@ impl SurfaceTrace {
         let mut walk = MediumWalk {
             materials: &scene.materials,
             voxel_size: vs,
+            model: model.model(),
+            state: (model.model().start)(),
             medium: VOID,
             t: 0.0,
-            min_kt: 1.0,
-            depth: DVec3::ZERO,
         };
         // The medium at q counts, as the start voxel does for voxels.
         if walk.pass(0.0, medium) {
@@ -505,40 +505,28 @@ impl SurfaceTrace {
         }
         // Beyond the grid is void: nothing more absorbs.
         walk.pass(dda.t_end.min(len).max(walk.t), VOID);
-        match model {
-            Transmittance::MinKt => DVec3::splat(walk.min_kt),
-            Transmittance::BeerLambert => (-walk.depth).exp(),
-        }
+        (walk.model.result)(&walk.state, walk.t)
     }
 }
 
-/// A shadow segment's media, piece by piece.
+/// A shadow segment's media, piece by piece, passed to the transmittance model.
 struct MediumWalk<'a> {
     materials: &'a [Material],
     voxel_size: f64,
+    model: &'static crate::technique::TransmittanceModel,
+    state: crate::technique::AbsorbState,
     medium: u8,
     /// Where the current medium began.
     t: f64,
-    min_kt: f64,
-    depth: DVec3,
 }
 
 impl MediumWalk<'_> {
-    /// The segment passes into `next` at `t`; true when that medium is opaque. Void
-    /// transmits fully and absorbs nothing.
+    /// The segment passes into `next` at `t`; true once nothing more passes.
     fn pass(&mut self, t: f64, next: u8) -> bool {
-        if self.medium != VOID {
-            let sigma = self.materials[self.medium as usize].absorption(self.voxel_size);
-            self.depth += sigma * (t - self.t).max(0.0);
-        }
         self.medium = next;
         self.t = t;
-        if next == VOID {
-            return false;
-        }
-        let kt = self.materials[next as usize].kt;
-        self.min_kt = self.min_kt.min(kt);
-        kt <= 0.0
+        let m = &self.materials[next as usize];
+        (self.model.pass)(&mut self.state, t, next, m, self.voxel_size)
     }
 }
 

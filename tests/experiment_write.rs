@@ -179,7 +179,7 @@ fn odd_experiment() -> Experiment {
     s.falloff_min_distance = 0.3;
     s.ray_offset = 0.0;
     s.features.area_lights = true;
-    s.features.transmittance = voxlab::Transmittance::BeerLambert;
+    s.features.transmittance = voxlab::technique::beer_lambert::ID;
     s.features.cone_shadows = true;
     s.features.ambient_occlusion = true;
     s.features.indirect = true;

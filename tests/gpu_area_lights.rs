@@ -106,10 +106,10 @@ fn beer_lambert_without_partial_materials_is_min_kt() {
         m.kt = 0.0;
     }
     let minkt = gpu.render(&e.scene, &e.settings).unwrap().frame;
-    e.settings.features.transmittance = voxlab::render::Transmittance::BeerLambert;
+    e.settings.features.transmittance = voxlab::technique::beer_lambert::ID;
     let bl = gpu.render(&e.scene, &e.settings).unwrap().frame;
     let plan = gpu.last_plan().unwrap();
-    assert!(!plan.beer_lambert, "{plan}");
+    assert_ne!(plan.transmittance.name, "beer-lambert", "{plan}");
     assert_eq!(bl, minkt);
 }
 

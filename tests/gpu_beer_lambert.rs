@@ -8,9 +8,9 @@
 mod common;
 
 use common::{linear, tracer};
+use voxlab::Frame;
 use voxlab::experiment::Experiment;
 use voxlab::gpu::GpuTracer;
-use voxlab::{Frame, Transmittance};
 
 /// A white floor under a tinted slab `thickness` voxels thick (y in [5, 5 + t)) over
 /// part of it, lit from above by `light` (a [[lights]] entry), seen obliquely so both
@@ -100,7 +100,7 @@ fn lit_floor_behind_slabs_matches_the_cpu() {
                 e.settings.spp = 2;
                 let g = gpu.render(&e.scene, &e.settings).unwrap().frame;
                 let plan = gpu.last_plan().unwrap().clone();
-                assert_eq!(plan.beer_lambert, bl, "{plan}");
+                assert_eq!(plan.transmittance.name == "beer-lambert", bl, "{plan}");
                 let c = voxlab::cpu::render(&e.scene, &e.settings).frame;
                 let name = format!(
                     "{} light, slab {t}, {}",
@@ -143,10 +143,10 @@ fn extreme_optical_depths_are_exact_and_finite_on_the_gpu() {
         let e = slab_scene(2, Some([sigma; 3]), POINT, true);
         assert_eq!(
             e.settings.features.transmittance,
-            Transmittance::BeerLambert
+            voxlab::technique::beer_lambert::ID
         );
         let g = gpu.render(&e.scene, &e.settings).unwrap().frame;
-        assert!(gpu.last_plan().unwrap().beer_lambert);
+        assert_eq!(gpu.last_plan().unwrap().transmittance.name, "beer-lambert");
         let c = voxlab::cpu::render(&e.scene, &e.settings).frame;
         assert_agree(&format!("sigma {sigma:e}"), &g, &c);
         g

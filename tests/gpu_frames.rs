@@ -175,7 +175,10 @@ fn run_walk(
 fn gpu_equals_cpu_over_frames_per_dispatch_samples_lights_and_sizes() {
     let mut rng = StdRng::seed_from_u64(13);
     let mut gpu = tracer();
-    let models = [Transmittance::MinKt, Transmittance::BeerLambert];
+    let models = [
+        voxlab::technique::min_kt::ID,
+        voxlab::technique::beer_lambert::ID,
+    ];
     let mut cases = Vec::new();
     // Frames per dispatch 1 .. 256 at 8x8 (up to 4096 frames fit one dispatch there).
     for (k, spp) in [1u32, 2, 5, 16, 33, 64, 128, 256].into_iter().enumerate() {
@@ -207,7 +210,7 @@ fn gpu_equals_cpu_over_frames_per_dispatch_samples_lights_and_sizes() {
         spp: 70,
         light_samples: 1,
         lights: 2,
-        transmittance: Transmittance::MinKt,
+        transmittance: voxlab::technique::min_kt::ID,
         rules: Rules::Consistent,
         depth: (1, 1, None),
     });
@@ -249,7 +252,10 @@ fn steps_per_loop_iteration_change_nothing() {
     let mut rng = StdRng::seed_from_u64(11);
     let scene = random_scene(&mut rng, UVec3::new(9, 7, 9), 4);
     let mut gpu = tracer();
-    for model in [Transmittance::MinKt, Transmittance::BeerLambert] {
+    for model in [
+        voxlab::technique::min_kt::ID,
+        voxlab::technique::beer_lambert::ID,
+    ] {
         let mut settings = RenderSettings {
             width: 24,
             height: 24,

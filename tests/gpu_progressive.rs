@@ -19,7 +19,7 @@ use voxlab::experiment::Experiment;
 use voxlab::gpu::GpuTracer;
 use voxlab::plan::Plan;
 use voxlab::scene::{AreaLight, AreaShape, Light, Scene, seed_scene};
-use voxlab::{Frame, RenderSettings, Transmittance};
+use voxlab::{Frame, RenderSettings};
 
 /// The seed's scene with its point lights turned into rectangle lights 4 voxels wide,
 /// area lights sampled (2 samples per light and frame), 64x48.
@@ -182,10 +182,13 @@ fn beer_lambert_chunks_equal_one_render() {
     let e = beer_lambert_scene(12);
     assert_eq!(
         e.settings.features.transmittance,
-        Transmittance::BeerLambert
+        voxlab::technique::beer_lambert::ID
     );
     let plan = Plan::new(&e.scene, &e.settings);
-    assert!(plan.beer_lambert && plan.area_lights, "{plan}");
+    assert!(
+        plan.transmittance.name == "beer-lambert" && plan.area_lights,
+        "{plan}"
+    );
     check_chunks("beer-lambert", &e.scene, &e.settings, &[0..2, 2..7, 7..12]);
 }
 

@@ -12,7 +12,7 @@ use common::{assert_agree, assert_matches_golden, experiment, linear, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
-use voxlab::render::{RenderSettings, Transmittance, Traversal};
+use voxlab::render::{RenderSettings, Traversal};
 use voxlab::scene::{
     AreaLight, AreaShape, Grid, Light, Scene, seed_ids, seed_scene, seed_scene_dims,
 };
@@ -111,7 +111,7 @@ fn generated_scenes_agree_with_the_cpu_and_the_dense_walk() {
         let mut s = settings(w, h, depth, Traversal::Sparse);
         if i % 2 == 1 {
             // Beer-Lambert: a region's length counts at once.
-            s.features.transmittance = Transmittance::BeerLambert;
+            s.features.transmittance = voxlab::technique::beer_lambert::ID;
             for m in &mut scene.materials[1..] {
                 m.sigma = Some(DVec3::new(0.2, 0.05, 0.6));
             }

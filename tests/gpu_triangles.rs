@@ -9,7 +9,7 @@ mod common;
 
 use common::{assert_agree, experiment, icosphere, mesh_scene, tracer};
 use glam::DVec3;
-use voxlab::render::{RenderSettings, Surface, Transmittance, Traversal};
+use voxlab::render::{RenderSettings, Surface, Traversal};
 use voxlab::scene::{AreaLight, AreaShape, Light, seed_ids, seed_palette};
 
 /// A 6 x 4 rect light above and in front of the scene's grid, facing it.
@@ -57,9 +57,9 @@ fn generated_spheres_agree_with_the_cpu_at_every_setting() {
             },
             features: voxlab::Features {
                 transmittance: if i % 4 == 1 {
-                    Transmittance::BeerLambert
+                    voxlab::technique::beer_lambert::ID
                 } else {
-                    Transmittance::MinKt
+                    voxlab::technique::min_kt::ID
                 },
                 ..Default::default()
             },

@@ -11,7 +11,7 @@ use glam::{DVec3, IVec3, UVec3};
 use voxlab::cpu::{Dda, cast, refract, shadow_beer_lambert};
 use voxlab::scene::{Grid, Light, Material, PointLight, Scene, seed_scene, seed_scene_dims};
 use voxlab::stress::{SuiteOptions, TOLERANCE, cases, run_case};
-use voxlab::{RayStats, RenderSettings, Transmittance};
+use voxlab::{RayStats, RenderSettings};
 
 fn settings(w: u32, h: u32) -> RenderSettings {
     RenderSettings {
@@ -236,7 +236,7 @@ fn gpu_optical_depth_is_summed_then_exponentiated() {
     let n = 200u32;
     let st = RenderSettings {
         features: voxlab::Features {
-            transmittance: Transmittance::BeerLambert,
+            transmittance: voxlab::technique::beer_lambert::ID,
             ..Default::default()
         },
         ..settings(3, 3)

@@ -5,9 +5,9 @@ mod common;
 
 use common::tracer;
 use glam::DVec3;
+use voxlab::RenderSettings;
 use voxlab::scene::{AreaLight, AreaShape, Light, seed_scene};
 use voxlab::stress::{StressCase, Verdict, run_case};
-use voxlab::{RenderSettings, Transmittance};
 
 #[test]
 fn shadows_agree_with_the_oracle_at_every_depth_limit() {
@@ -28,14 +28,14 @@ fn shadows_agree_with_the_oracle_at_every_depth_limit() {
     }));
     for depth in 0..=8u32 {
         for (label, scene, transmittance, area) in [
-            ("hard min-kt", &hard, Transmittance::MinKt, false),
+            ("hard min-kt", &hard, voxlab::technique::min_kt::ID, false),
             (
                 "hard beer-lambert",
                 &hard,
-                Transmittance::BeerLambert,
+                voxlab::technique::beer_lambert::ID,
                 false,
             ),
-            ("soft min-kt", &soft, Transmittance::MinKt, true),
+            ("soft min-kt", &soft, voxlab::technique::min_kt::ID, true),
         ] {
             let mut settings = RenderSettings {
                 width: 16,

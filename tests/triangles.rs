@@ -15,7 +15,7 @@ use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use voxlab::cpu::{Hit, ShadowWalk, cast_through, shadow_transmittance, unshadowed};
 use voxlab::experiment::Experiment;
-use voxlab::render::{RayStats, RenderSettings, Surface, Transmittance, Traversal};
+use voxlab::render::{RayStats, RenderSettings, Surface, Traversal};
 use voxlab::scene::{Light, Material, PointLight, Scene, VOID, seed_palette};
 use voxlab::sparse::SparseTree;
 use voxlab::surface::{DEFAULT_RELAX, extract_solid};
@@ -248,7 +248,7 @@ fn first_hits_and_chords_equal_brute_force_through_vertices_and_edges() {
                 let t = shadow_transmittance(
                     &scene,
                     &walk,
-                    Transmittance::BeerLambert,
+                    voxlab::technique::beer_lambert::ID,
                     o,
                     o + 6.0 * d,
                     &mut RayStats::default(),
@@ -262,7 +262,7 @@ fn first_hits_and_chords_equal_brute_force_through_vertices_and_edges() {
                 let kt = shadow_transmittance(
                     &scene,
                     &walk,
-                    Transmittance::MinKt,
+                    voxlab::technique::min_kt::ID,
                     o,
                     o + 6.0 * d,
                     &mut RayStats::default(),

@@ -196,7 +196,7 @@ fn scripted_viewer_saves_what_render_reproduces() {
     assert!(right.settings.features.area_lights);
     assert_eq!(
         right.settings.features.transmittance,
-        voxlab::Transmittance::BeerLambert
+        voxlab::technique::beer_lambert::ID
     );
     let left = Experiment::load(save.join("e2e-001-left.toml")).unwrap();
     assert!(!left.settings.features.area_lights && !left.settings.features.cone_shadows);

@@ -3,7 +3,6 @@
 #![cfg(feature = "viewer")]
 
 use voxlab::experiment::Experiment;
-use voxlab::render::Transmittance;
 use voxlab::viewer::state::{AdaptiveScale, SCALES, ShadowModel, SideSettings, scaled_size};
 use voxlab::viewer::{Side, ViewOptions, ViewerState, load_state};
 
@@ -73,7 +72,7 @@ fn default_sides_compare_the_file_with_a_soft_shadow_model() {
     assert_eq!(ShadowModel::of(&s.sides[1].features), ShadowModel::AREA);
     assert_eq!(
         s.sides[1].features.transmittance,
-        Transmittance::BeerLambert
+        voxlab::technique::beer_lambert::ID
     );
 }
 
@@ -127,7 +126,10 @@ fn side_feature_lists_parse_and_reject_with_the_allowed_items() {
     let mut side = SideSettings::from_settings(&Default::default(), 16);
     side.parse_list("area, beer-lambert,ao,samples=3").unwrap();
     assert!(side.features.area_lights && side.features.ambient_occlusion);
-    assert_eq!(side.features.transmittance, Transmittance::BeerLambert);
+    assert_eq!(
+        side.features.transmittance,
+        voxlab::technique::beer_lambert::ID
+    );
     assert_eq!(side.light_samples, 3);
     side.parse_list("cone").unwrap();
     assert!(side.features.cone_shadows && !side.features.area_lights);

@@ -517,6 +517,10 @@ pub fn unshadowed(
     e * (m.kd * diffuse + m.ks * spec)
 }
 
+// The two models' own entry points, where tests and the cone injection call them.
+pub use crate::technique::beer_lambert::{shadow_beer_lambert, shadow_beer_lambert_over};
+pub use crate::technique::min_kt::{shadow_min_kt, shadow_min_kt_over};
+
 /// Transmittance (RGB) of the shadow segment from `q` to `light` under `model`, over
 /// the scene's grid as the walk's tree holds it when there is one (the same value), or
 /// through its triangle surfaces (`crate::triangles::SurfaceTrace::transmittance`).
@@ -532,58 +536,16 @@ pub fn shadow_transmittance(
     if let Some(s) = walk.surfaces {
         return s.transmittance(scene, tree, model, q, light, walk.medium, stats);
     }
-    match model {
-        Transmittance::MinKt => DVec3::splat(shadow_min_kt_over(scene, tree, q, light, stats)),
-        Transmittance::BeerLambert => shadow_beer_lambert_over(scene, tree, q, light, stats),
-    }
+    shadow_transmittance_over(scene, tree, model, q, light, stats)
 }
 
-/// `min-kt` transmittance of the segment from `q` to `light` (the seed's O1 as its code
-/// does it): the smallest kt of the voxels visited, the start voxel included.
-pub fn shadow_min_kt(scene: &Scene, q: DVec3, light: DVec3, stats: &mut RayStats) -> f64 {
-    shadow_min_kt_over(scene, None, q, light, stats)
-}
-
-/// [`shadow_min_kt`] over the grid as `tree` holds it: a uniform region counts once.
-pub fn shadow_min_kt_over(
+/// The transmittance of the segment from `q` to `light` over the voxels, as `tree`
+/// holds them when given (a uniform region passes at once): every voxel visited, the
+/// start voxel included, passes to `model` in order; nothing outside the grid absorbs.
+pub fn shadow_transmittance_over(
     scene: &Scene,
     tree: Option<&SparseTree>,
-    q: DVec3,
-    light: DVec3,
-    stats: &mut RayStats,
-) -> f64 {
-    let to_light = light - q;
-    let len = to_light.length();
-    if len == 0.0 {
-        return 1.0;
-    }
-    let mut dda = Dda::over(&scene.grid, tree, q, to_light / len, len);
-    let mut t = 1.0f64;
-    while let Some(v) = dda.next() {
-        t = t.min(scene.materials[v.material as usize].kt);
-        if t <= 0.0 {
-            break;
-        }
-        dda.skip_region();
-    }
-    stats.voxel_steps += dda.steps;
-    t
-}
-
-/// Beer-Lambert transmittance `exp(-sum sigma_m len_m)` per channel, with `len_m` the
-/// exact length of the segment inside each voxel from the DDA (no fixed-step marching,
-/// so any sigma is exact and stable). The optical depth is summed first and exponentiated
-/// once: an optical depth of 1e4 gives exactly 0, never a negative or NaN value. A
-/// material with kt = 0 is opaque under every model.
-pub fn shadow_beer_lambert(scene: &Scene, q: DVec3, light: DVec3, stats: &mut RayStats) -> DVec3 {
-    shadow_beer_lambert_over(scene, None, q, light, stats)
-}
-
-/// [`shadow_beer_lambert`] over the grid as `tree` holds it: a uniform region's length
-/// counts at once (the per-voxel lengths telescope to it).
-pub fn shadow_beer_lambert_over(
-    scene: &Scene,
-    tree: Option<&SparseTree>,
+    model: Transmittance,
     q: DVec3,
     light: DVec3,
     stats: &mut RayStats,
@@ -593,30 +555,23 @@ pub fn shadow_beer_lambert_over(
     if len == 0.0 {
         return DVec3::ONE;
     }
+    let m = model.model();
     let grid = &scene.grid;
+    let vs = grid.voxel_size();
     let mut dda = Dda::over(grid, tree, q, to_light / len, len);
-    let mut depth = DVec3::ZERO;
-    // The voxel being crossed and where the segment entered it.
-    let mut inside: Option<(DVec3, f64)> = None;
+    let mut state = (m.start)();
     let mut opaque = false;
     while let Some(v) = dda.next() {
-        let m = &scene.materials[v.material as usize];
-        if m.kt <= 0.0 {
+        let material = &scene.materials[v.material as usize];
+        if (m.pass)(&mut state, v.t_enter, v.material, material, vs) {
             opaque = true;
             break;
         }
-        if let Some((sigma, t0)) = inside {
-            depth += sigma * (v.t_enter - t0);
-        }
-        inside = Some((m.absorption(grid.voxel_size()), v.t_enter));
         dda.skip_region();
     }
     stats.voxel_steps += dda.steps;
     if opaque {
         return DVec3::ZERO;
     }
-    if let Some((sigma, t0)) = inside {
-        depth += sigma * (dda.t_end.min(len) - t0);
-    }
-    (-depth).exp()
+    (m.result)(&state, dda.t_end.min(len))
 }

@@ -178,18 +178,7 @@ pub fn material_alpha(m: &Material, is_void: bool, model: Transmittance, voxel_s
     if is_void {
         return 0.0;
     }
-    let t1 = match model {
-        Transmittance::MinKt => m.kt,
-        Transmittance::BeerLambert => {
-            if m.kt <= 0.0 {
-                0.0
-            } else {
-                let s = m.absorption(voxel_size);
-                (-(s.x + s.y + s.z) / 3.0 * voxel_size).exp()
-            }
-        }
-    };
-    (1.0 - t1).clamp(0.0, 1.0)
+    (1.0 - (model.model().voxel_transmittance)(m, voxel_size)).clamp(0.0, 1.0)
 }
 
 /// Per-material opacity table (index = material index).

@@ -45,13 +45,14 @@ const MODULES: &[(&str, &str)] = &[
         "shaders/traversal.wgsl",
         include_str!("../../shaders/traversal.wgsl"),
     ),
+];
+
+/// Composed after [`MODULES`] and the plan's transmittance model (`voxlab::transmittance`,
+/// which the shadow walks import), in dependency order.
+const SHADOW_MODULES: &[(&str, &str)] = &[
     (
         "shaders/shadow.wgsl",
         include_str!("../../shaders/shadow.wgsl"),
-    ),
-    (
-        "shaders/shadow_beer_lambert.wgsl",
-        include_str!("../../shaders/shadow_beer_lambert.wgsl"),
     ),
     (
         "shaders/shadow_surface.wgsl",
@@ -74,8 +75,8 @@ const NO_SHADOW_MODEL: (&str, &str) = (
     include_str!("../../shaders/shadow_model_none.wgsl"),
 );
 
-/// Composed after [`MODULES`] and the plan's plug-in shadow model (which may import
-/// any of them): the local light, which imports the model.
+/// Composed after [`SHADOW_MODULES`] and the plan's plug-in shadow model (which may
+/// import any of them): the local light, which imports the model.
 const SHADING: (&str, &str) = (
     "shaders/shading.wgsl",
     include_str!("../../shaders/shading.wgsl"),
@@ -146,6 +147,8 @@ pub fn compose_shader(plan: &Plan) -> Result<naga::Module, ShaderError> {
     defs.entry("SPARSE_LEVELS".to_string())
         .or_insert(ShaderDefValue::UInt(1));
     let mut modules = MODULES.to_vec();
+    modules.push(plan.transmittance.wgsl);
+    modules.extend_from_slice(SHADOW_MODULES);
     modules.push(plan.shadow_model.map_or(NO_SHADOW_MODEL, |m| m.wgsl));
     modules.push(SHADING);
     let module = compose(&modules, TRACE, defs).map_err(|message| ShaderError::Compose {

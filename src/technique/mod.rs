@@ -10,14 +10,23 @@
 //! data it reads (made only when the plan uses it) and its f64 CPU implementation.
 //! Registering it is one line in [`SHADOW_MODELS`].
 //!
-//! The seed's techniques (hard shadows, sampled area lights, cones; min-kt and
-//! Beer-Lambert; ambient occlusion and indirect light) are declared in [`BUILT_IN`] with
-//! their settings, so the listing and the README's table cover them too; the `[cones]`
-//! settings are declared in [`cones`], from which the parser, the writer and the viewer
-//! take them. Their code predates this registry and still lives in `cpu/`, `shaders/`
-//! and `plan.rs`.
+//! A transmittance model is one [`TransmittanceModel`] value in its own file (its name,
+//! summary, plan rule, WGSL module `voxlab::transmittance` and f64 functions, and the
+//! per-voxel transmittance the cone pyramids use), registered with one line in
+//! [`TRANSMITTANCES`]: `min-kt` ([`min_kt`]) and `beer-lambert` ([`beer_lambert`]).
+//! The shadow walks (voxels, dense or sparse, and triangle surfaces; `shaders/shadow.wgsl`,
+//! `shaders/shadow_surface.wgsl`, `crate::cpu::shadow_transmittance`) are generic over it.
+//!
+//! The seed's other techniques (hard shadows, sampled area lights, cones; ambient
+//! occlusion and indirect light) are declared in [`BUILT_IN`] with their settings, so
+//! the listing and the README's table cover them too; the `[cones]` settings are
+//! declared in [`cones`], from which the parser, the writer and the viewer take them.
+//! Their code predates this registry and still lives in `cpu/`, `shaders/` and
+//! `plan.rs`.
 
+pub mod beer_lambert;
 pub mod cones;
+pub mod min_kt;
 pub mod ratio;
 pub mod sdf;
 
@@ -32,6 +41,10 @@ use crate::scene::{Light, Material, Scene};
 
 /// Plug-in shadow models, in the order they are listed and offered. One line each.
 pub const SHADOW_MODELS: &[&ShadowModel] = &[&ratio::MODEL, &sdf::MODEL];
+
+/// Transmittance models, in the order they are listed and offered; the first is the
+/// default (the baseline's). One line each.
+pub const TRANSMITTANCES: &[&TransmittanceModel] = &[&min_kt::MODEL, &beer_lambert::MODEL];
 
 /// A part of the model with several implementations.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -270,6 +283,71 @@ pub fn shadow_model(name: &str) -> Option<&'static ShadowModel> {
     SHADOW_MODELS.iter().copied().find(|m| m.name == name)
 }
 
+/// The state of one shadow segment's attenuation, as a transmittance model keeps it
+/// (each model gives the fields its own meaning, in its file).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AbsorbState {
+    pub value: DVec3,
+    pub sigma: DVec3,
+    pub t: f64,
+}
+
+/// A transmittance model: how a shadow segment through semi-transparent materials is
+/// attenuated, everything about it in one value. The shadow walks (the voxel walk,
+/// dense or sparse, and the triangle surfaces' medium walk) pass it the materials the
+/// segment goes through, in order, and ask for the result.
+pub struct TransmittanceModel {
+    /// Its name in experiment files (`[features] transmittance`) and lists.
+    pub name: &'static str,
+    /// What it is, one line, with the law or paper it follows.
+    pub summary: &'static str,
+    /// The experiment keys it reads, as `table.key` (listing).
+    pub settings: &'static [&'static str],
+    /// The plan rule, given that shadow rays are in: `Err(reason)` leaves it out for the
+    /// default model (one that would give the same values, or cannot run).
+    pub plan: fn(&Scene, &RenderSettings) -> Result<(), String>,
+    /// Its WGSL module (path, source): `#define_import_path voxlab::transmittance` with
+    /// `struct Absorb`, `fn absorb_start() -> Absorb`, `fn absorb_pass(w: ptr<function,
+    /// Absorb>, t: f32, m: u32) -> bool` and `fn absorb_result(w: Absorb, t_end: f32) ->
+    /// vec3<f32>`, the GPU twins of the three functions below.
+    pub wgsl: (&'static str, &'static str),
+    /// The state before the segment.
+    pub start: fn() -> AbsorbState,
+    /// The segment passes into material `index` (`material`) at distance `t` (in the
+    /// world, grid of `voxel_size`); true once nothing more can pass (the result is 0).
+    pub pass: fn(&mut AbsorbState, t: f64, index: u8, material: &Material, voxel_size: f64) -> bool,
+    /// The RGB transmittance of the segment ending at `t_end`.
+    pub result: fn(&AbsorbState, t_end: f64) -> DVec3,
+    /// The transmittance across one voxel of a material, for the cone pyramids'
+    /// opacity `1 - T` (`crate::cpu::pyramid::material_alpha`).
+    pub voxel_transmittance: fn(&Material, voxel_size: f64) -> f64,
+}
+
+// A model is its name, as a shadow model is.
+impl PartialEq for TransmittanceModel {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+    }
+}
+
+impl Eq for TransmittanceModel {}
+
+impl fmt::Debug for TransmittanceModel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "TransmittanceModel({})", self.name)
+    }
+}
+
+impl TransmittanceModel {
+    /// Its index in [`TRANSMITTANCES`] (keys the kernel variant).
+    pub fn index(&self) -> u32 {
+        TRANSMITTANCES
+            .iter()
+            .position(|m| m.name == self.name)
+            .expect("registered") as u32
+    }
+}
+
 /// A `[features]` boolean key of a built-in technique and the `Features` field it is.
 #[derive(Clone, Copy, Debug)]
 pub struct Flag {
@@ -290,8 +368,6 @@ pub struct BuiltIn {
     /// Its boolean `[features]` key: a lighting term's switch, or a shadow model's
     /// older key (`area_lights`, `cone_shadows`) beside `shadow_model`.
     pub flag: Option<Flag>,
-    /// A transmittance model: the value of `features.transmittance` it is.
-    pub transmittance: Option<Transmittance>,
 }
 
 /// The seed's techniques and voxlab's first extensions, in listing order.
@@ -302,7 +378,6 @@ pub const BUILT_IN: &[BuiltIn] = &[
         summary: "one shadow ray to each light's centre (the seed's hard shadows, Whitted 1980)",
         settings: &[],
         flag: None,
-        transmittance: None,
     },
     BuiltIn {
         name: "area",
@@ -315,7 +390,6 @@ pub const BUILT_IN: &[BuiltIn] = &[
             get: |f| f.area_lights,
             set: |f, on| f.area_lights = on,
         }),
-        transmittance: None,
     },
     BuiltIn {
         name: "cone",
@@ -332,23 +406,6 @@ pub const BUILT_IN: &[BuiltIn] = &[
             get: |f| f.cone_shadows,
             set: |f, on| f.cone_shadows = on,
         }),
-        transmittance: None,
-    },
-    BuiltIn {
-        name: "min-kt",
-        slot: Slot::Transmittance,
-        summary: "the smallest kt of the voxels a shadow segment crosses (the seed's O1)",
-        settings: &[],
-        flag: None,
-        transmittance: Some(Transmittance::MinKt),
-    },
-    BuiltIn {
-        name: "beer-lambert",
-        slot: Slot::Transmittance,
-        summary: "exp(-sum sigma_m len_m) with each voxel's exact length (Beer-Lambert law)",
-        settings: &["materials.sigma"],
-        flag: None,
-        transmittance: Some(Transmittance::BeerLambert),
     },
     BuiltIn {
         name: "ambient_occlusion",
@@ -361,7 +418,6 @@ pub const BUILT_IN: &[BuiltIn] = &[
             get: |f| f.ambient_occlusion,
             set: |f, on| f.ambient_occlusion = on,
         }),
-        transmittance: None,
     },
     BuiltIn {
         name: "indirect",
@@ -374,7 +430,6 @@ pub const BUILT_IN: &[BuiltIn] = &[
             get: |f| f.indirect,
             set: |f, on| f.indirect = on,
         }),
-        transmittance: None,
     },
 ];
 
@@ -389,19 +444,16 @@ pub fn feature_keys() -> Vec<&'static str> {
 
 /// The transmittance model called `name`.
 pub fn transmittance(name: &str) -> Option<Transmittance> {
-    BUILT_IN
+    TRANSMITTANCES
         .iter()
-        .find(|b| b.name == name)
-        .and_then(|b| b.transmittance)
+        .copied()
+        .find(|m| m.name == name)
+        .map(Transmittance)
 }
 
 /// Names `[features] transmittance` may take.
 pub fn transmittance_names() -> Vec<&'static str> {
-    BUILT_IN
-        .iter()
-        .filter(|b| b.transmittance.is_some())
-        .map(|b| b.name)
-        .collect()
+    TRANSMITTANCES.iter().map(|m| m.name).collect()
 }
 
 /// The lighting terms: their names and switches.
@@ -449,6 +501,20 @@ pub fn listing() -> Vec<ListingRow> {
             summary: b.summary,
         })
         .collect();
+    // Transmittance models after the built-in shadow models, where the seed's list
+    // had them.
+    let at = rows
+        .iter()
+        .position(|r| r.slot != Slot::Shadow)
+        .unwrap_or(rows.len());
+    let transmittances = TRANSMITTANCES.iter().map(|m| ListingRow {
+        name: m.name,
+        slot: Slot::Transmittance,
+        switch: format!("transmittance = \"{}\"", m.name),
+        settings: m.settings.iter().map(|s| s.to_string()).collect(),
+        summary: m.summary,
+    });
+    rows.splice(at..at, transmittances);
     for m in SHADOW_MODELS {
         rows.push(ListingRow {
             name: m.name,

@@ -15,7 +15,7 @@ use anyhow::{Result, anyhow};
 
 use crate::experiment::write::{relocate_scene_source, to_toml};
 use crate::experiment::{Experiment, SceneCache};
-use crate::render::{ConeSettings, Features, RenderSettings, Transmittance};
+use crate::render::{ConeSettings, Features, RenderSettings};
 use crate::scene::{Light, OrbitCamera};
 
 /// The two halves of the split view.
@@ -221,7 +221,7 @@ impl ViewerState {
         let mut other = right.features.clone();
         if has_area {
             ShadowModel::AREA.apply(&mut other);
-            other.transmittance = Transmittance::BeerLambert;
+            other.transmittance = crate::technique::beer_lambert::ID;
         } else {
             ShadowModel::CONE.apply(&mut other);
         }
