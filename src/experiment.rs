@@ -1256,17 +1256,7 @@ fn build(
     // (a future generator using more materials than are defined).
     scene.validate().map_err(|e| ctx.invalid("scene", e))?;
     crate::plan::check_surface(&scene, &settings).map_err(|e| ctx.invalid("render.surface", e))?;
-    if scene.grid.is_sparse() && settings.traversal == crate::plan::Traversal::Dense {
-        let d = scene.grid.dims();
-        return Err(ctx.invalid(
-            "render.traversal",
-            format!(
-                "\"dense\" walks the dense grid, and this {}x{}x{} grid is held only as its \
-                 sparse tree (more than {DENSE_MAX_VOXELS} voxels): use \"sparse\" or \"auto\"",
-                d.x, d.y, d.z
-            ),
-        ));
-    }
+    crate::plan::check_sparse_grid(&scene, &settings).map_err(|(k, e)| ctx.invalid(k, e))?;
     // Cone pyramids scale with the grid: estimated before any render builds them.
     if let Some(layout) = crate::plan::Plan::new(&scene, &settings).pyramid {
         use crate::cpu::pyramid::{MAX_PYRAMID_BYTES, cpu_pyramid_bytes};
@@ -1348,10 +1338,21 @@ fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, Experi
     }
     if let Some(name) = shadow_model {
         let key = "features.shadow_model";
-        if features.area_lights || features.cone_shadows {
+        // A built-in shadow model's own switch set beside it.
+        let switched: Vec<String> = BUILT_IN
+            .iter()
+            .filter(|b| b.slot == crate::technique::Slot::Shadow)
+            .filter_map(|b| b.flag)
+            .filter(|f| (f.get)(&features))
+            .map(|f| format!("{} = true", f.key))
+            .collect();
+        if !switched.is_empty() {
             return Err(ctx.invalid(
                 key,
-                "give either shadow_model or area_lights = true / cone_shadows = true, not both",
+                format!(
+                    "give either shadow_model or {}, not both",
+                    switched.join(" / ")
+                ),
             ));
         }
         if !features.set_shadow_model(&name) {

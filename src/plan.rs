@@ -184,6 +184,45 @@ pub fn check_surface(scene: &Scene, settings: &RenderSettings) -> Result<(), Str
     }
 }
 
+/// What `settings` ask of a grid held only as its sparse tree that needs the dense grid:
+/// the dense walk, and the cone features (their pyramids are built from the dense grid).
+/// The key that asks for it and why, for the experiment loader; the plan itself walks
+/// the tree and leaves the cone features out.
+pub fn check_sparse_grid(
+    scene: &Scene,
+    settings: &RenderSettings,
+) -> Result<(), (&'static str, String)> {
+    if !scene.grid.is_sparse() {
+        return Ok(());
+    }
+    let d = scene.grid.dims();
+    let held = format!(
+        "this {}x{}x{} grid is held only as its sparse tree (more than {} voxels)",
+        d.x,
+        d.y,
+        d.z,
+        crate::scene::DENSE_MAX_VOXELS
+    );
+    if settings.traversal == Traversal::Dense {
+        return Err((
+            "render.traversal",
+            format!("\"dense\" walks the dense grid, and {held}: use \"sparse\" or \"auto\""),
+        ));
+    }
+    let f = &settings.features;
+    if f.cone_shadows || f.ambient_occlusion || f.indirect {
+        return Err((
+            "features",
+            format!(
+                "cone tracing (cone_shadows, ambient_occlusion, indirect) builds its pyramids \
+                 from the dense grid, and {held}: turn the cone features off or use a \
+                 smaller grid"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Materials a ray can shade with: every non-void index the grid holds. Void never
 /// shades (a ray passing into void is shaded by the medium it leaves).
 fn shading_materials(scene: &Scene) -> Vec<(usize, &Material)> {

@@ -158,6 +158,20 @@ fn experiment_files_take_every_model_and_setting() {
         err.starts_with("n.toml:2:") && err.contains("hard, area, cone"),
         "{err}"
     );
+    // A built-in model's own switch beside shadow_model: both named.
+    for m in SHADOW_MODELS {
+        let text = format!(
+            "[features]\nshadow_model = \"{}\"\ncone_shadows = true\n",
+            m.name
+        );
+        let err = Experiment::from_str(&text, "n.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("features.shadow_model") && err.contains("cone_shadows = true"),
+            "{err}"
+        );
+    }
     let err = Experiment::from_str("[techniques.nope]\nx = 1\n", "n.toml")
         .unwrap_err()
         .to_string();

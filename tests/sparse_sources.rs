@@ -280,18 +280,23 @@ fn experiments_hold_large_grids_sparse_and_say_what_needs_them_dense() {
     for part in ["x.toml:2:", "scene.dims", &MAX_SPARSE_SIDE.to_string()] {
         assert!(msg.contains(part), "{part}: {msg}");
     }
-    let msg = load(
-        "[scene]\nsize = 1024\n\n[features]\ncone_shadows = true\n\n[render]\nsurface = \"smooth\"\n",
-    )
-    .unwrap_err()
-    .to_string();
+    let msg = load("[scene]\nsize = 1024\n\n[render]\nsurface = \"smooth\"\n")
+        .unwrap_err()
+        .to_string();
     for part in ["render.surface", "sparse tree"] {
         assert!(msg.contains(part), "{part}: {msg}");
     }
-    // The plan leaves the cone terms out of a grid held sparse, and says why.
-    let e =
-        load("[scene]\nsize = 1024\n\n[features]\ncone_shadows = true\nambient_occlusion = true\n")
-            .unwrap();
+    let msg = load("[scene]\nsize = 700\n\n[features]\nambient_occlusion = true\n")
+        .unwrap_err()
+        .to_string();
+    for part in ["x.toml:", "features", "dense grid", "sparse tree"] {
+        assert!(msg.contains(part), "{part}: {msg}");
+    }
+    // Past the loader (a scene made in code), the plan leaves the cone terms out of a
+    // grid held sparse, and says why.
+    let mut e = load("[scene]\nsize = 1024\n").unwrap();
+    e.settings.features.cone_shadows = true;
+    e.settings.features.ambient_occlusion = true;
     let plan = voxlab::plan::Plan::new(&e.scene, &e.settings);
     assert!(!plan.cone_shadows && !plan.ambient_occlusion && plan.pyramid.is_none());
     assert!(
