@@ -136,36 +136,52 @@ pub(crate) fn grid_layout(
 pub fn voxelize_triangles(grid: &mut Grid, triangles: &[[DVec3; 3]], materials: &[u8]) -> usize {
     assert_eq!(triangles.len(), materials.len());
     let dims = grid.dims().as_ivec3();
-    let vs = grid.voxel_size();
-    let origin = grid.origin();
-    // Grow each box by a hair: rounding must never drop a voxel the triangle touches
-    // (conservative means erring outwards), e.g. a face lying on a voxel boundary.
-    let eps = 1e-9;
-    let half = DVec3::splat(0.5 * vs * (1.0 + eps));
+    let (vs, origin) = (grid.voxel_size(), grid.origin());
     let (nx, ny) = (dims.x as usize, dims.y as usize);
     let data = grid.data_mut();
     let mut marked = 0;
     for (tri, &m) in triangles.iter().zip(materials) {
-        let lo = (tri[0].min(tri[1]).min(tri[2]) - origin) / vs;
-        let hi = (tri[0].max(tri[1]).max(tri[2]) - origin) / vs;
-        let lo = (lo - DVec3::splat(eps)).floor().as_ivec3().max(IVec3::ZERO);
-        let hi = (hi + DVec3::splat(eps)).floor().as_ivec3().min(dims - 1);
-        for z in lo.z..=hi.z {
-            for y in lo.y..=hi.y {
-                for x in lo.x..=hi.x {
-                    let centre = origin + (IVec3::new(x, y, z).as_dvec3() + 0.5) * vs;
-                    if tri_box_overlap(centre, half, *tri) {
-                        let i = x as usize + nx * (y as usize + ny * z as usize);
-                        if data[i] == VOID {
-                            marked += 1;
-                        }
-                        data[i] = m;
-                    }
+        overlapped_voxels(tri, origin, vs, dims, 0..dims.z, |v| {
+            let i = v.x as usize + nx * (v.y as usize + ny * v.z as usize);
+            if data[i] == VOID {
+                marked += 1;
+            }
+            data[i] = m;
+        });
+    }
+    marked
+}
+
+/// Calls `mark` for every voxel of a grid of `dims` (`origin`, `voxel_size`) with its z
+/// in `z` whose closed box overlaps `tri`, in x-fastest order: the conservative surface
+/// test both voxelizers share. Only the voxels of the triangle's bounding box are tested.
+fn overlapped_voxels(
+    tri: &[DVec3; 3],
+    origin: DVec3,
+    voxel_size: f64,
+    dims: IVec3,
+    z: std::ops::Range<i32>,
+    mut mark: impl FnMut(IVec3),
+) {
+    // Grow each box by a hair: rounding must never drop a voxel the triangle touches
+    // (conservative means erring outwards), e.g. a face lying on a voxel boundary.
+    let eps = 1e-9;
+    let half = DVec3::splat(0.5 * voxel_size * (1.0 + eps));
+    let lo = (tri[0].min(tri[1]).min(tri[2]) - origin) / voxel_size;
+    let hi = (tri[0].max(tri[1]).max(tri[2]) - origin) / voxel_size;
+    let lo = (lo - DVec3::splat(eps)).floor().as_ivec3().max(IVec3::ZERO);
+    let hi = (hi + DVec3::splat(eps)).floor().as_ivec3().min(dims - 1);
+    for vz in lo.z.max(z.start)..=hi.z.min(z.end - 1) {
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                let v = IVec3::new(x, y, vz);
+                let centre = origin + (v.as_dvec3() + 0.5) * voxel_size;
+                if tri_box_overlap(centre, half, *tri) {
+                    mark(v);
                 }
             }
         }
     }
-    marked
 }
 
 /// Fills the inside of a closed shell: floods the void reachable from outside the grid
@@ -368,8 +384,6 @@ pub fn voxelize_sparse(
         ));
     }
     let d = dims.as_ivec3();
-    let eps = 1e-9;
-    let half = DVec3::splat(0.5 * voxel_size * (1.0 + eps));
     // The shell, as voxelize_triangles marks it: in slabs of z on every core, each
     // slab taking the triangles in order, so the last triangle still wins a voxel.
     use rayon::prelude::*;
@@ -385,38 +399,25 @@ pub fn voxelize_sparse(
             let mut bricks: HashMap<IVec3, [u8; 64]> = HashMap::new();
             let mut marked = 0;
             for (tri, &m) in triangles.iter().zip(materials) {
-                let lo = (tri[0].min(tri[1]).min(tri[2]) - origin) / voxel_size;
-                let hi = (tri[0].max(tri[1]).max(tri[2]) - origin) / voxel_size;
-                let lo = (lo - DVec3::splat(eps)).floor().as_ivec3().max(IVec3::ZERO);
-                let hi = (hi + DVec3::splat(eps)).floor().as_ivec3().min(d - 1);
-                for z in lo.z.max(z0)..=hi.z.min(z1 - 1) {
-                    for y in lo.y..=hi.y {
-                        for x in lo.x..=hi.x {
-                            let v = IVec3::new(x, y, z);
-                            let centre = origin + (v.as_dvec3() + 0.5) * voxel_size;
-                            if !tri_box_overlap(centre, half, *tri) {
-                                continue;
-                            }
-                            let b = v.div_euclid(IVec3::splat(BRICK));
-                            let o = v - b * BRICK;
-                            let brick = bricks.entry(b).or_insert_with(|| {
-                                total_bricks.fetch_add(1, Ordering::Relaxed);
-                                [VOID; 64]
-                            });
-                            let cell = &mut brick[(o.x + 4 * o.y + 16 * o.z) as usize];
-                            if *cell == VOID {
-                                marked += 1;
-                            }
-                            *cell = m;
-                        }
+                overlapped_voxels(tri, origin, voxel_size, d, z0..z1, |v| {
+                    let b = v.div_euclid(IVec3::splat(BRICK));
+                    let o = v - b * BRICK;
+                    let brick = bricks.entry(b).or_insert_with(|| {
+                        total_bricks.fetch_add(1, Ordering::Relaxed);
+                        [VOID; 64]
+                    });
+                    let cell = &mut brick[(o.x + 4 * o.y + 16 * o.z) as usize];
+                    if *cell == VOID {
+                        marked += 1;
                     }
-                    if total_bricks.load(Ordering::Relaxed) > MAX_SHELL_BRICKS {
-                        return Err(format!(
-                            "the surface touches more than {MAX_SHELL_BRICKS} blocks of 4x4x4 \
-                             voxels (a sparse grid's bound on host memory); choose a coarser \
-                             resolution"
-                        ));
-                    }
+                    *cell = m;
+                });
+                if total_bricks.load(Ordering::Relaxed) > MAX_SHELL_BRICKS {
+                    return Err(format!(
+                        "the surface touches more than {MAX_SHELL_BRICKS} blocks of 4x4x4 \
+                         voxels (a sparse grid's bound on host memory); choose a coarser \
+                         resolution"
+                    ));
                 }
             }
             Ok((bricks, marked))
