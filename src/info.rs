@@ -124,6 +124,16 @@ fn grid_lines(out: &mut String, g: &Grid) {
         g.voxel_size(),
         v3(g.origin())
     );
+    if let Some(t) = g.sparse_tree() {
+        let _ = writeln!(
+            out,
+            "held as its sparse tree only ({} nodes, {:.1} MiB, {:.4} bytes per voxel): no dense \
+             grid, walked sparse",
+            t.node_count(),
+            t.bytes() as f64 / (1u64 << 20) as f64,
+            t.bytes_per_voxel()
+        );
+    }
 }
 
 /// Every palette entry: index, name, voxels of it, colour and weights; for a .vox, the

@@ -46,3 +46,28 @@ fn info_lists_the_palette_with_counts_that_add_up() {
     );
     assert!(err.contains("no-such.vox"), "{err}");
 }
+
+/// A grid held only as its tree: counts from the tree that add up to the dense grid's,
+/// and the tree's size said.
+#[test]
+fn info_on_a_grid_held_sparse_counts_from_the_tree() {
+    let dir = std::env::temp_dir().join(format!("voxlab-info-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("big.toml");
+    std::fs::write(
+        &path,
+        "[scene]\nsize = 1024\n\n[[scene.boxes]]\nmin = [400, 400, 400]\n\
+         max = [500, 500, 500]\nmaterial = \"glass\"\n",
+    )
+    .unwrap();
+    let text = voxlab::info::describe(&path).unwrap();
+    assert!(text.contains("held as its sparse tree only"), "{text}");
+    // The seed's semi-solid cube (128^3, voxels 448..576) less its overlap with the box
+    // (448..500 on every axis).
+    assert!(
+        text.contains(&format!("{} voxels", 128u64.pow(3) - 52u64.pow(3))),
+        "{text}"
+    );
+    assert!(text.contains("1073741824 voxels"), "{text}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
