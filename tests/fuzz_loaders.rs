@@ -3,7 +3,9 @@
 //! experiments, `../shared/data/`) and small generated meshes; each mutated input is
 //! written to a file and loaded as a user would load it. No input may panic (a panic
 //! escaping a loader fails the test with the input's seed and mutation), hang (each load
-//! is timed) or be read past its limit.
+//! is timed) or be read past its limit. `.vox` files and meshes are also loaded straight
+//! into a sparse tree (the path of grids too large to hold densely): where both loads
+//! succeed, the tree must be the dense grid's.
 //!
 //! CI runs a bounded slice (`VOXLAB_FUZZ_ITERS`, default 8000 mutations per seed, about half a
 //! minute) and every case under `tests/fuzz/regressions/` on every run. Run it longer:
@@ -21,7 +23,8 @@ use std::time::{Duration, Instant};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use voxlab::experiment::Experiment;
-use voxlab::scene::{VoxelizeOptions, load_vox, voxelize_mesh};
+use voxlab::scene::{Grid, Storage, VoxelizeOptions, load_vox_as, voxelize_mesh};
+use voxlab::sparse::SparseTree;
 
 /// Longest one load may take before it counts as a hang.
 const MAX_LOAD: Duration = Duration::from_secs(20);
@@ -46,11 +49,39 @@ fn load(path: &Path) -> Result<(), String> {
         "toml" => Experiment::load(path)
             .map(|_| ())
             .map_err(|e| e.to_string()),
-        "vox" => load_vox(path, None).map(|_| ()).map_err(|e| e.to_string()),
-        _ => voxelize_mesh(path, &VoxelizeOptions::count(12))
-            .map(|_| ())
-            .map_err(|e| e.to_string()),
+        // Dense and straight into a sparse tree: when both load, the same voxels.
+        "vox" => {
+            let dense = load_vox_as(path, None, Storage::Dense).map_err(|e| e.to_string());
+            let sparse = load_vox_as(path, None, Storage::Sparse).map_err(|e| e.to_string());
+            if let (Ok(d), Ok(s)) = (&dense, &sparse) {
+                same_voxels(&d.grid, &s.grid, path);
+            }
+            dense.map(|_| ())
+        }
+        _ => {
+            let options = |storage| VoxelizeOptions {
+                storage,
+                ..VoxelizeOptions::count(12)
+            };
+            let dense = voxelize_mesh(path, &options(Storage::Dense)).map_err(|e| e.to_string());
+            let sparse = voxelize_mesh(path, &options(Storage::Sparse));
+            if let (Ok(d), Ok(s)) = (&dense, &sparse) {
+                same_voxels(&d.grid, &s.grid, path);
+                assert_eq!(d.interior_voxels, s.interior_voxels, "{}", path.display());
+            }
+            dense.map(|_| ())
+        }
     }
+}
+
+/// A dense grid and its sparse twin hold the same tree.
+fn same_voxels(dense: &Grid, sparse: &Grid, path: &Path) {
+    let tree = sparse.sparse_tree().expect("loaded sparse");
+    assert!(
+        SparseTree::build(dense, tree.log_branch()).words() == tree.words(),
+        "{}: the sparse load differs from the dense one",
+        path.display()
+    );
 }
 
 /// Loads `path` and fails the test on a panic or a hang, naming `what`.
