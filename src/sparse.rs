@@ -259,6 +259,72 @@ impl VoxelSource for BoxOverlay<'_> {
     }
 }
 
+/// A model placed into a grid: its voxels, each a cube of `scale^3` at `base`, through
+/// `map` (the model's material index to the grid's); its void voxels leave what is below.
+pub struct PlacedModel<'a> {
+    pub voxels: &'a Grid,
+    pub base: IVec3,
+    pub scale: i32,
+    pub map: &'a [u8],
+}
+
+impl PlacedModel<'_> {
+    /// The model voxel under grid voxel `v`, if `v` is inside its box.
+    fn source(&self, v: IVec3) -> Option<IVec3> {
+        let d = self.voxels.dims().as_ivec3() * self.scale;
+        let local = v - self.base;
+        (local.cmpge(IVec3::ZERO).all() && local.cmplt(d).all()).then(|| local / self.scale)
+    }
+
+    /// Whether the cube `lo + [0, size)^3` meets the model's box.
+    fn meets(&self, lo: IVec3, size: i32) -> bool {
+        let hi = self.base + self.voxels.dims().as_ivec3() * self.scale;
+        lo.cmplt(hi).all() && self.base.cmplt(lo + size).all()
+    }
+}
+
+/// Models written over a source in order, each non-void voxel replacing what was there:
+/// how `[[scene.models]]` are placed into a grid held as a tree (rebuilt once from this).
+pub struct ModelOverlay<'a> {
+    pub base: &'a dyn VoxelSource,
+    pub models: &'a [PlacedModel<'a>],
+}
+
+impl VoxelSource for ModelOverlay<'_> {
+    fn dims(&self) -> UVec3 {
+        self.base.dims()
+    }
+    fn material(&self, v: IVec3) -> u8 {
+        for m in self.models.iter().rev() {
+            if let Some(s) = m.source(v) {
+                let k = m.voxels.get(s);
+                if k != VOID {
+                    return m.map[k as usize];
+                }
+            }
+        }
+        self.base.material(v)
+    }
+    fn uniform(&self, lo: IVec3, size: i32) -> Option<u8> {
+        // From the top: a model the cube meets decides if the cube lies inside one of
+        // its scaled voxels (a solid one covers it, a void one lets the next show).
+        for m in self.models.iter().rev() {
+            if !m.meets(lo, size) {
+                continue;
+            }
+            let (a, b) = (m.source(lo)?, m.source(lo + size - 1)?);
+            if a != b {
+                return None;
+            }
+            let k = m.voxels.get(a);
+            if k != VOID {
+                return Some(m.map[k as usize]);
+            }
+        }
+        self.base.uniform(lo, size)
+    }
+}
+
 /// A tree's voxels through a table of materials (rebuilt canonically: regions that
 /// become alike merge).
 pub struct Mapped<'a> {

@@ -453,3 +453,141 @@ fn a_mesh_experiment_past_the_dense_bound_is_held_sparse() {
         e.scene.grid.sparse_tree().unwrap().bytes_per_voxel()
     );
 }
+
+/// Models written over a tree (`ModelOverlay`, how `[[scene.models]]` go into a grid
+/// held sparse) give the tree of the dense grid they are written into voxel by voxel:
+/// overlapping models, scales 1-5, void voxels that leave what is below.
+#[test]
+fn models_over_a_tree_build_the_dense_grids_tree() {
+    use voxlab::sparse::{ModelOverlay, PlacedModel};
+    let mut rng = StdRng::seed_from_u64(0x30de1);
+    for dims in [[40u32, 33, 47], [64, 64, 64], [17, 70, 9]].map(UVec3::from_array) {
+        for _ in 0..4 {
+            let count = rng.random_range(1..4);
+            let mut sources = Vec::new();
+            for _ in 0..count {
+                let side = UVec3::new(
+                    rng.random_range(1..9),
+                    rng.random_range(1..9),
+                    rng.random_range(1..9),
+                );
+                let mut g = Grid::new(side, 1.0, DVec3::ZERO).unwrap();
+                for v in g.data_mut() {
+                    // Half void, so the models below and the seed show through.
+                    *v = if rng.random_bool(0.5) {
+                        0
+                    } else {
+                        rng.random_range(1..4)
+                    };
+                }
+                let scale = rng.random_range(1..=5i32);
+                let room = (dims.as_ivec3() - side.as_ivec3() * scale).max(IVec3::ZERO);
+                let base = IVec3::new(
+                    rng.random_range(0..=room.x),
+                    rng.random_range(0..=room.y),
+                    rng.random_range(0..=room.z),
+                );
+                let map: Vec<u8> = vec![0, 3, 1, 2];
+                sources.push((g, base, scale, map));
+            }
+            let mut dense = seed_grid_as(dims, 1.0, DVec3::ZERO, Storage::Dense).unwrap();
+            for (g, base, scale, map) in &sources {
+                let d = g.dims().as_ivec3();
+                for z in 0..d.z * scale {
+                    for y in 0..d.y * scale {
+                        for x in 0..d.x * scale {
+                            let v = IVec3::new(x, y, z);
+                            let k = g.get(v / *scale);
+                            if k != 0 && dense.contains(*base + v) {
+                                dense.set(*base + v, map[k as usize]);
+                            }
+                        }
+                    }
+                }
+            }
+            let models: Vec<PlacedModel> = sources
+                .iter()
+                .map(|(g, base, scale, map)| PlacedModel {
+                    voxels: g,
+                    base: *base,
+                    scale: *scale,
+                    map,
+                })
+                .collect();
+            let base = SparseTree::build(&SeedSource::new(dims), 2);
+            let overlay = ModelOverlay {
+                base: &base,
+                models: &models,
+            };
+            for b in 1..=3 {
+                assert_same_tree(
+                    &SparseTree::build(&overlay, b),
+                    &SparseTree::build(&dense, b),
+                    &format!("{count} models over seed {dims}, branching {b}"),
+                );
+            }
+        }
+    }
+}
+
+/// `[[scene.models]]` into a grid held sparse: the deer placed into the seed scene at
+/// 700^3, its voxels where they belong; a model too large to place is refused by key.
+#[test]
+fn models_go_into_a_grid_held_sparse() {
+    let deer = common::shared_data("deer.vox");
+    let text = format!(
+        "[scene]\nsize = 700\n\n[[scene.models]]\nvox = \"{}\"\noffset = [300, 10, 320]\n",
+        deer.display()
+    );
+    let e = Experiment::from_str(&text, "x.toml").unwrap();
+    assert!(e.scene.grid.is_sparse());
+    let v = voxlab::scene::load_vox(&deer, None).unwrap();
+    let offset = IVec3::new(300, 10, 320);
+    let d = v.grid.dims().as_ivec3();
+    let mut placed = 0;
+    for z in 0..d.z {
+        for y in 0..d.y {
+            for x in 0..d.x {
+                let p = IVec3::new(x, y, z);
+                let k = v.grid.get(p);
+                let got = e.scene.grid.get(offset + p);
+                if k != 0 {
+                    // The deer's colour, under the palette's "deer " names.
+                    assert_ne!(got, 0, "{p}");
+                    assert_eq!(
+                        e.scene.materials[got as usize].albedo, v.materials[k as usize].albedo,
+                        "{p}"
+                    );
+                    placed += 1;
+                } else {
+                    // Void model voxels leave the seed scene's voxel.
+                    let seed = SeedSource::new(UVec3::splat(700));
+                    assert_eq!(got, seed.material(offset + p), "{p}");
+                }
+            }
+        }
+    }
+    assert!(placed > 0);
+    assert_eq!(placed, v.grid.material_counts()[1..].iter().sum::<u64>());
+    // A model of 256^3 (two voxels) at scale 3 covers 768^3 voxels, past the bound.
+    let dir = std::env::temp_dir().join(format!("voxlab-models-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut g = Grid::new(UVec3::splat(256), 1.0, DVec3::ZERO).unwrap();
+    g.set(IVec3::ZERO, 1);
+    g.set(IVec3::splat(255), 2);
+    let big = dir.join("big.vox");
+    write_vox(&big, &g, &seed_palette()).unwrap();
+    let text = format!(
+        "[scene]\nsize = 800\n\n[[scene.models]]\nvox = \"{}\"\nscale = 3\n",
+        big.display()
+    );
+    let msg = match Experiment::from_str(&text, "x.toml") {
+        Ok(_) => panic!("a 768^3 model was placed"),
+        Err(e) => e.to_string(),
+    };
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(
+        msg.contains("scene.models[0].scale") && msg.contains("sparse tree"),
+        "{msg}"
+    );
+}

@@ -16,6 +16,7 @@ use serde::Deserialize;
 
 use super::{Ctx, ExperimentError, MaterialRef, int_in};
 use crate::scene::{Grid, Material, Scene};
+use crate::sparse::{ModelOverlay, PlacedModel, SparseTree};
 
 /// At most this many models in one scene: each is a file load, bounded on its own.
 pub const MAX_MODELS: usize = 64;
@@ -212,19 +213,8 @@ pub(super) fn place_models(
     ctx: &Ctx,
 ) -> Result<(), ExperimentError> {
     let dims = scene.grid.dims();
-    if scene.grid.is_sparse() && !raw.is_empty() {
-        return Err(ctx.invalid(
-            "scene.models",
-            format!(
-                "models are placed into dense grids, of at most {} voxels; this {}x{}x{} grid \
-                 is held only as its sparse tree",
-                crate::scene::DENSE_MAX_VOXELS,
-                dims.x,
-                dims.y,
-                dims.z
-            ),
-        ));
-    }
+    // Into a grid held as its tree the models are written all at once, over the tree.
+    let mut placed: Vec<(usize, IVec3, u32, Vec<u8>)> = Vec::new();
     for (i, ((m, l), map)) in raw.iter().zip(loaded).zip(maps).enumerate() {
         let map = match (map, &m.material) {
             (Some(map), _) => map,
@@ -266,7 +256,47 @@ pub(super) fn place_models(
             ));
         }
         let base = IVec3::new(offset[0] as i32, offset[1] as i32, offset[2] as i32);
-        write_scaled(&mut scene.grid, &l.grid, base, scale, &map);
+        if !scene.grid.is_sparse() {
+            write_scaled(&mut scene.grid, &l.grid, base, scale, &map);
+            continue;
+        }
+        // The builder reads a scaled model's voxels where its cubes straddle them:
+        // bounded like a dense grid.
+        let footprint = size.as_u64vec3().element_product();
+        if footprint > crate::scene::DENSE_MAX_VOXELS {
+            return Err(ctx.invalid(
+                &key(i, "scale"),
+                format!(
+                    "the model covers {}x{}x{} = {footprint} voxels (scale {scale}); placed \
+                     into a grid held as its sparse tree a model covers at most {} \
+                     (scene::DENSE_MAX_VOXELS)",
+                    size.x,
+                    size.y,
+                    size.z,
+                    crate::scene::DENSE_MAX_VOXELS
+                ),
+            ));
+        }
+        placed.push((i, base, scale, map));
+    }
+    if let Some(tree) = scene.grid.sparse_tree().filter(|_| !placed.is_empty()) {
+        let models: Vec<PlacedModel> = placed
+            .iter()
+            .map(|(i, base, scale, map)| PlacedModel {
+                voxels: &loaded[*i].grid,
+                base: *base,
+                scale: *scale as i32,
+                map,
+            })
+            .collect();
+        let overlay = ModelOverlay {
+            base: tree.as_ref(),
+            models: &models,
+        };
+        let tree = SparseTree::build(&overlay, crate::sparse::GPU_LOG_BRANCH);
+        let g = &scene.grid;
+        scene.grid = Grid::from_tree(tree, g.voxel_size(), g.origin())
+            .map_err(|e| ctx.invalid("scene.models", e))?;
     }
     Ok(())
 }
