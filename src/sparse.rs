@@ -21,7 +21,9 @@
 //! byte `i % 4` of word `i / 4`. The child nodes of one node are stored one after another,
 //! in child order, so child `i`'s node is `first + (number of node bits below i)`.
 
-use std::collections::{HashMap, HashSet, VecDeque};
+use std::collections::VecDeque;
+
+use rustc_hash::{FxHashMap, FxHashSet};
 use std::time::{Duration, Instant};
 
 use glam::{IVec3, UVec3};
@@ -136,16 +138,16 @@ pub const BRICK: i32 = 4;
 /// allocate (`.vox` scenes).
 pub struct BrickSource {
     dims: UVec3,
-    bricks: HashMap<IVec3, [u8; 64]>,
+    bricks: FxHashMap<IVec3, [u8; 64]>,
     /// `occupied[k]`: the cubes of side `2^k` (k >= 2) that hold a brick, by `v >> k`.
-    occupied: Vec<HashSet<IVec3>>,
+    occupied: Vec<FxHashSet<IVec3>>,
 }
 
 impl BrickSource {
     pub fn new(dims: UVec3) -> Self {
         Self {
             dims,
-            bricks: HashMap::new(),
+            bricks: FxHashMap::default(),
             occupied: Vec::new(),
         }
     }
@@ -176,7 +178,7 @@ impl BrickSource {
         self.occupied = (0..=top)
             .map(|k| {
                 if k < 2 {
-                    return HashSet::new();
+                    return FxHashSet::default();
                 }
                 self.bricks
                     .keys()

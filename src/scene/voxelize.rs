@@ -11,6 +11,7 @@ use glam::{DVec3, IVec3, UVec3};
 
 use super::{Grid, MAX_VOXELS, VOID};
 use crate::sparse::{BRICK, SparseTree, VoxelSource};
+use rustc_hash::FxHashMap;
 
 /// Whether the closed axis-aligned box `centre ± half` and the closed triangle `tri`
 /// share at least one point (touching counts).
@@ -302,12 +303,35 @@ pub struct SparseVoxels {
 const SHELL: u8 = 1;
 const OUT: u8 = 2;
 const IN: u8 = 4;
+/// An empty brick the flood has reached but not yet spread from (on its stack).
+const PENDING: u8 = 8;
+
+/// Calls `visit` for the 16 voxels of the neighbour of brick `b` across face `f` that
+/// touch `b` (those inside the grid are for the caller to check).
+fn shell_face(b: IVec3, f: IVec3, visit: &mut impl FnMut(IVec3)) {
+    let lo = b * BRICK;
+    let axis = f.abs().to_array().iter().position(|&c| c != 0).unwrap();
+    let layer = if f[axis] > 0 {
+        lo[axis] + BRICK
+    } else {
+        lo[axis] - 1
+    };
+    for u in 0..BRICK {
+        for w in 0..BRICK {
+            let mut v = lo;
+            v[axis] = layer;
+            v[(axis + 1) % 3] += u;
+            v[(axis + 2) % 3] += w;
+            visit(v);
+        }
+    }
+}
 
 /// The shell in bricks, the outside flood over whole empty bricks, and the enclosed
 /// bricks filled implicitly: the voxel source the tree is built from.
 struct FilledShell {
     dims: UVec3,
-    bricks: HashMap<IVec3, [u8; 64]>,
+    bricks: FxHashMap<IVec3, [u8; 64]>,
     /// Per level `j`, per cube of `2^j` bricks a side: the OR of its bricks' states.
     levels: Vec<(IVec3, Vec<u8>)>,
     fill: u8,
@@ -391,12 +415,12 @@ pub fn voxelize_sparse(
     let total_bricks = AtomicUsize::new(0);
     let slab = (d.z / BRICK / (4 * rayon::current_num_threads() as i32)).max(1) * BRICK;
     let slabs: Vec<i32> = (0..d.z).step_by(slab as usize).collect();
-    type Shell = (HashMap<IVec3, [u8; 64]>, usize);
+    type Shell = (FxHashMap<IVec3, [u8; 64]>, usize);
     let shells: Vec<Result<Shell, String>> = slabs
         .par_iter()
         .map(|&z0| {
             let z1 = (z0 + slab).min(d.z);
-            let mut bricks: HashMap<IVec3, [u8; 64]> = HashMap::new();
+            let mut bricks: FxHashMap<IVec3, [u8; 64]> = FxHashMap::default();
             let mut marked = 0;
             for (tri, &m) in triangles.iter().zip(materials) {
                 overlapped_voxels(tri, origin, voxel_size, d, z0..z1, |v| {
@@ -423,7 +447,7 @@ pub fn voxelize_sparse(
             Ok((bricks, marked))
         })
         .collect();
-    let mut bricks: HashMap<IVec3, [u8; 64]> = HashMap::new();
+    let mut bricks: FxHashMap<IVec3, [u8; 64]> = FxHashMap::default();
     let mut shell_voxels = 0;
     for shell in shells {
         let (b, marked) = shell?;
@@ -439,7 +463,7 @@ pub fn voxelize_sparse(
         state[brick_index(*b)] = SHELL;
     }
     // Per shell brick, the voxels reached from outside (bit o.x + 4 o.y + 16 o.z).
-    let mut reached: HashMap<IVec3, u64> = bricks.keys().map(|b| (*b, 0)).collect();
+    let mut reached: FxHashMap<IVec3, u64> = bricks.keys().map(|b| (*b, 0)).collect();
     let mut brick_stack: Vec<IVec3> = Vec::new();
     let mut voxel_stack: Vec<IVec3> = Vec::new();
     let in_grid = |v: IVec3| v.cmpge(IVec3::ZERO).all() && v.cmplt(d).all();
@@ -451,14 +475,14 @@ pub fn voxelize_sparse(
     // whole empty brick, or one voxel of a shell brick.
     let visit = |v: IVec3,
                  state: &mut [u8],
-                 reached: &mut HashMap<IVec3, u64>,
+                 reached: &mut FxHashMap<IVec3, u64>,
                  brick_stack: &mut Vec<IVec3>,
                  voxel_stack: &mut Vec<IVec3>| {
         let b = v.div_euclid(IVec3::splat(BRICK));
         let i = brick_index(b);
         match state[i] {
             0 => {
-                state[i] = OUT;
+                state[i] = PENDING;
                 brick_stack.push(b);
             }
             SHELL => {
@@ -505,32 +529,62 @@ pub fn voxelize_sparse(
     ];
     loop {
         if let Some(b) = brick_stack.pop() {
-            // Every void voxel just outside the brick's faces is reached from it.
-            let lo = b * BRICK;
-            for f in FACES {
-                let nb_b = b + f;
-                if nb_b.cmplt(IVec3::ZERO).any() || nb_b.cmpge(nb).any() {
+            if state[brick_index(b)] != PENDING {
+                continue; // reached along a run since it was pushed
+            }
+            // The run of unreached empty bricks along x through b, reached at once
+            // (a scanline flood: rows are contiguous in memory, seeds few).
+            let row = |x: i32| brick_index(IVec3::new(x, b.y, b.z));
+            let open = |s: u8| s == 0 || s == PENDING;
+            let (mut x0, mut x1) = (b.x, b.x);
+            state[row(b.x)] = OUT;
+            while x0 > 0 && open(state[row(x0 - 1)]) {
+                x0 -= 1;
+                state[row(x0)] = OUT;
+            }
+            while x1 + 1 < nb.x && open(state[row(x1 + 1)]) {
+                x1 += 1;
+                state[row(x1)] = OUT;
+            }
+            // Past the run's ends: shell bricks only (anything else stopped it).
+            for (x, f) in [(x0, IVec3::NEG_X), (x1, IVec3::X)] {
+                let c = IVec3::new(x, b.y, b.z);
+                let n = c + f;
+                if n.x >= 0 && n.x < nb.x && state[brick_index(n)] == SHELL {
+                    shell_face(c, f, &mut |v| {
+                        if in_grid(v) {
+                            visit(
+                                v,
+                                &mut state,
+                                &mut reached,
+                                &mut brick_stack,
+                                &mut voxel_stack,
+                            )
+                        }
+                    });
+                }
+            }
+            // The four rows beside it: one seed per run of unreached bricks, and the
+            // faces of shell bricks.
+            for f in [IVec3::NEG_Y, IVec3::Y, IVec3::NEG_Z, IVec3::Z] {
+                let side = IVec3::new(x0, b.y, b.z) + f;
+                if side.cmplt(IVec3::ZERO).any() || side.cmpge(nb).any() {
                     continue;
                 }
-                match state[brick_index(nb_b)] {
-                    0 => {
-                        state[brick_index(nb_b)] = OUT;
-                        brick_stack.push(nb_b);
-                    }
-                    SHELL => {
-                        // The 16 voxels of the neighbour's face that touch this brick.
-                        let axis = f.abs().to_array().iter().position(|&c| c != 0).unwrap();
-                        let layer = if f[axis] > 0 {
-                            lo[axis] + BRICK
-                        } else {
-                            lo[axis] - 1
-                        };
-                        for u in 0..BRICK {
-                            for w in 0..BRICK {
-                                let mut v = lo;
-                                v[axis] = layer;
-                                v[(axis + 1) % 3] += u;
-                                v[(axis + 2) % 3] += w;
+                let mut in_run = false;
+                for x in x0..=x1 {
+                    let n = IVec3::new(x, side.y, side.z);
+                    let k = brick_index(n);
+                    match state[k] {
+                        0 if !in_run => {
+                            state[k] = PENDING;
+                            brick_stack.push(n);
+                            in_run = true;
+                        }
+                        0 | PENDING => in_run = true,
+                        SHELL => {
+                            in_run = false;
+                            shell_face(IVec3::new(x, b.y, b.z), f, &mut |v| {
                                 if in_grid(v) {
                                     visit(
                                         v,
@@ -538,12 +592,12 @@ pub fn voxelize_sparse(
                                         &mut reached,
                                         &mut brick_stack,
                                         &mut voxel_stack,
-                                    );
+                                    )
                                 }
-                            }
+                            });
                         }
+                        _ => in_run = false,
                     }
-                    _ => {}
                 }
             }
         } else if let Some(v) = voxel_stack.pop() {
