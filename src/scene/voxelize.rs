@@ -307,7 +307,7 @@ const IN: u8 = 4;
 const PENDING: u8 = 8;
 
 /// Calls `visit` for the 16 voxels of the neighbour of brick `b` across face `f` that
-/// touch `b` (those inside the grid are for the caller to check).
+/// touch `b` (some may lie outside the grid: the caller skips those).
 fn shell_face(b: IVec3, f: IVec3, visit: &mut impl FnMut(IVec3)) {
     let lo = b * BRICK;
     let axis = f.abs().to_array().iter().position(|&c| c != 0).unwrap();
@@ -375,6 +375,162 @@ impl VoxelSource for FilledShell {
             OUT => Some(VOID),
             IN => Some(self.fill),
             _ => None,
+        }
+    }
+}
+
+/// The outside flood of [`fill_interior`] over bricks: whole empty bricks (a scanline
+/// fill along runs of them in x) and the void voxels of shell bricks one by one,
+/// 6-connected, from every voxel of the grid's boundary layer. Afterwards `state` says
+/// which empty bricks it reached (`OUT`; unreached ones stay 0) and `reached` which void
+/// voxels of each shell brick.
+struct OutsideFlood<'a> {
+    /// The grid's voxels and bricks a side.
+    dims: IVec3,
+    nb: IVec3,
+    bricks: &'a FxHashMap<IVec3, [u8; 64]>,
+    /// Per brick: 0 (empty, unreached), `SHELL`, `PENDING` or `OUT`.
+    state: Vec<u8>,
+    /// Per shell brick, the voxels reached (bit `o.x + 4 o.y + 16 o.z`).
+    reached: FxHashMap<IVec3, u64>,
+    brick_stack: Vec<IVec3>,
+    voxel_stack: Vec<IVec3>,
+}
+
+impl<'a> OutsideFlood<'a> {
+    fn new(dims: IVec3, bricks: &'a FxHashMap<IVec3, [u8; 64]>) -> Self {
+        let nb = (dims + BRICK - 1) / BRICK;
+        let mut flood = Self {
+            dims,
+            nb,
+            bricks,
+            state: vec![0u8; nb.as_uvec3().as_u64vec3().element_product() as usize],
+            reached: bricks.keys().map(|b| (*b, 0)).collect(),
+            brick_stack: Vec::new(),
+            voxel_stack: Vec::new(),
+        };
+        for b in bricks.keys() {
+            let i = flood.index(*b);
+            flood.state[i] = SHELL;
+        }
+        flood
+    }
+
+    fn index(&self, b: IVec3) -> usize {
+        (b.x + self.nb.x * (b.y + self.nb.y * b.z)) as usize
+    }
+
+    /// Marks voxel `v` reached, if it is in the grid, void and unreached: as a whole
+    /// empty brick (pending until the flood spreads from it), or one shell-brick voxel.
+    fn visit(&mut self, v: IVec3) {
+        if v.cmplt(IVec3::ZERO).any() || v.cmpge(self.dims).any() {
+            return;
+        }
+        let b = v.div_euclid(IVec3::splat(BRICK));
+        let i = self.index(b);
+        match self.state[i] {
+            0 => {
+                self.state[i] = PENDING;
+                self.brick_stack.push(b);
+            }
+            SHELL => {
+                let o = v - b * BRICK;
+                let k = o.x + 4 * o.y + 16 * o.z;
+                if self.bricks[&b][k as usize] != VOID {
+                    return;
+                }
+                let r = self
+                    .reached
+                    .get_mut(&b)
+                    .expect("every shell brick has a mask");
+                if *r & (1 << k) == 0 {
+                    *r |= 1 << k;
+                    self.voxel_stack.push(v);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn spread(&mut self) {
+        let d = self.dims;
+        // Seeds: every voxel of the grid's boundary layer.
+        for z in 0..d.z {
+            for y in 0..d.y {
+                if z == 0 || y == 0 || z == d.z - 1 || y == d.y - 1 {
+                    (0..d.x).for_each(|x| self.visit(IVec3::new(x, y, z)));
+                } else {
+                    self.visit(IVec3::new(0, y, z));
+                    self.visit(IVec3::new(d.x - 1, y, z));
+                }
+            }
+        }
+        loop {
+            if let Some(b) = self.brick_stack.pop() {
+                if self.state[self.index(b)] == PENDING {
+                    self.spread_run(b);
+                }
+                // Otherwise reached along a run since it was pushed.
+            } else if let Some(v) = self.voxel_stack.pop() {
+                for f in crate::cpu::pyramid::FACES {
+                    self.visit(v + f);
+                }
+            } else {
+                break;
+            }
+        }
+    }
+
+    /// Reaches the run of unreached empty bricks along x through `b` at once (a scanline
+    /// fill: rows are contiguous in memory, and seeds few), and what borders it.
+    fn spread_run(&mut self, b: IVec3) {
+        let row = |x: i32| IVec3::new(x, b.y, b.z);
+        let open = |s: u8| s == 0 || s == PENDING;
+        let (mut x0, mut x1) = (b.x, b.x);
+        let i = self.index(b);
+        self.state[i] = OUT;
+        while x0 > 0 && open(self.state[self.index(row(x0 - 1))]) {
+            x0 -= 1;
+            let i = self.index(row(x0));
+            self.state[i] = OUT;
+        }
+        while x1 + 1 < self.nb.x && open(self.state[self.index(row(x1 + 1))]) {
+            x1 += 1;
+            let i = self.index(row(x1));
+            self.state[i] = OUT;
+        }
+        // Past the run's ends: shell bricks only (anything else stopped it).
+        for (x, f) in [(x0, IVec3::NEG_X), (x1, IVec3::X)] {
+            let n = row(x) + f;
+            if n.x >= 0 && n.x < self.nb.x && self.state[self.index(n)] == SHELL {
+                shell_face(row(x), f, &mut |v| self.visit(v));
+            }
+        }
+        // The four rows beside it: one seed per run of unreached bricks, and the faces of
+        // shell bricks.
+        for f in [IVec3::NEG_Y, IVec3::Y, IVec3::NEG_Z, IVec3::Z] {
+            let side = row(x0) + f;
+            if side.cmplt(IVec3::ZERO).any() || side.cmpge(self.nb).any() {
+                continue;
+            }
+            let mut in_run = false;
+            for x in x0..=x1 {
+                let n = IVec3::new(x, side.y, side.z);
+                let k = self.index(n);
+                match self.state[k] {
+                    0 if !in_run => {
+                        self.state[k] = PENDING;
+                        self.brick_stack.push(n);
+                        in_run = true;
+                    }
+                    0 | PENDING => in_run = true,
+                    SHELL => {
+                        in_run = false;
+                        shell_face(row(x), f, &mut |v| self.visit(v));
+                    }
+                    _ => in_run = false,
+                }
+            }
         }
     }
 }
@@ -457,166 +613,12 @@ pub fn voxelize_sparse(
     // The outside flood of fill_interior, over whole empty bricks and the void voxels of
     // shell bricks (6-connected, from the grid's boundary).
     let nb = (d + BRICK - 1) / BRICK;
-    let brick_index = |b: IVec3| (b.x + nb.x * (b.y + nb.y * b.z)) as usize;
-    let mut state = vec![0u8; nb.as_uvec3().as_u64vec3().element_product() as usize];
-    for b in bricks.keys() {
-        state[brick_index(*b)] = SHELL;
-    }
-    // Per shell brick, the voxels reached from outside (bit o.x + 4 o.y + 16 o.z).
-    let mut reached: FxHashMap<IVec3, u64> = bricks.keys().map(|b| (*b, 0)).collect();
-    let mut brick_stack: Vec<IVec3> = Vec::new();
-    let mut voxel_stack: Vec<IVec3> = Vec::new();
+    let mut flood = OutsideFlood::new(d, &bricks);
+    flood.spread();
+    let OutsideFlood {
+        mut state, reached, ..
+    } = flood;
     let in_grid = |v: IVec3| v.cmpge(IVec3::ZERO).all() && v.cmplt(d).all();
-    let bit = |v: IVec3| {
-        let o = v.rem_euclid(IVec3::splat(BRICK));
-        1u64 << (o.x + 4 * o.y + 16 * o.z)
-    };
-    // Marks voxel `v` (inside the grid) reached, if it is void and unreached: as a
-    // whole empty brick, or one voxel of a shell brick.
-    let visit = |v: IVec3,
-                 state: &mut [u8],
-                 reached: &mut FxHashMap<IVec3, u64>,
-                 brick_stack: &mut Vec<IVec3>,
-                 voxel_stack: &mut Vec<IVec3>| {
-        let b = v.div_euclid(IVec3::splat(BRICK));
-        let i = brick_index(b);
-        match state[i] {
-            0 => {
-                state[i] = PENDING;
-                brick_stack.push(b);
-            }
-            SHELL => {
-                let o = v - b * BRICK;
-                if bricks[&b][(o.x + 4 * o.y + 16 * o.z) as usize] != VOID {
-                    return;
-                }
-                let r = reached.get_mut(&b).expect("every shell brick has a mask");
-                if *r & bit(v) == 0 {
-                    *r |= bit(v);
-                    voxel_stack.push(v);
-                }
-            }
-            _ => {}
-        }
-    };
-    // Seeds: every voxel of the grid's boundary layer.
-    for z in 0..d.z {
-        for y in 0..d.y {
-            let on_face = z == 0 || y == 0 || z == d.z - 1 || y == d.y - 1;
-            let xs: Box<dyn Iterator<Item = i32>> = if on_face {
-                Box::new(0..d.x)
-            } else {
-                Box::new([0, d.x - 1].into_iter())
-            };
-            for x in xs {
-                visit(
-                    IVec3::new(x, y, z),
-                    &mut state,
-                    &mut reached,
-                    &mut brick_stack,
-                    &mut voxel_stack,
-                );
-            }
-        }
-    }
-    const FACES: [IVec3; 6] = [
-        IVec3::NEG_X,
-        IVec3::X,
-        IVec3::NEG_Y,
-        IVec3::Y,
-        IVec3::NEG_Z,
-        IVec3::Z,
-    ];
-    loop {
-        if let Some(b) = brick_stack.pop() {
-            if state[brick_index(b)] != PENDING {
-                continue; // reached along a run since it was pushed
-            }
-            // The run of unreached empty bricks along x through b, reached at once
-            // (a scanline flood: rows are contiguous in memory, seeds few).
-            let row = |x: i32| brick_index(IVec3::new(x, b.y, b.z));
-            let open = |s: u8| s == 0 || s == PENDING;
-            let (mut x0, mut x1) = (b.x, b.x);
-            state[row(b.x)] = OUT;
-            while x0 > 0 && open(state[row(x0 - 1)]) {
-                x0 -= 1;
-                state[row(x0)] = OUT;
-            }
-            while x1 + 1 < nb.x && open(state[row(x1 + 1)]) {
-                x1 += 1;
-                state[row(x1)] = OUT;
-            }
-            // Past the run's ends: shell bricks only (anything else stopped it).
-            for (x, f) in [(x0, IVec3::NEG_X), (x1, IVec3::X)] {
-                let c = IVec3::new(x, b.y, b.z);
-                let n = c + f;
-                if n.x >= 0 && n.x < nb.x && state[brick_index(n)] == SHELL {
-                    shell_face(c, f, &mut |v| {
-                        if in_grid(v) {
-                            visit(
-                                v,
-                                &mut state,
-                                &mut reached,
-                                &mut brick_stack,
-                                &mut voxel_stack,
-                            )
-                        }
-                    });
-                }
-            }
-            // The four rows beside it: one seed per run of unreached bricks, and the
-            // faces of shell bricks.
-            for f in [IVec3::NEG_Y, IVec3::Y, IVec3::NEG_Z, IVec3::Z] {
-                let side = IVec3::new(x0, b.y, b.z) + f;
-                if side.cmplt(IVec3::ZERO).any() || side.cmpge(nb).any() {
-                    continue;
-                }
-                let mut in_run = false;
-                for x in x0..=x1 {
-                    let n = IVec3::new(x, side.y, side.z);
-                    let k = brick_index(n);
-                    match state[k] {
-                        0 if !in_run => {
-                            state[k] = PENDING;
-                            brick_stack.push(n);
-                            in_run = true;
-                        }
-                        0 | PENDING => in_run = true,
-                        SHELL => {
-                            in_run = false;
-                            shell_face(IVec3::new(x, b.y, b.z), f, &mut |v| {
-                                if in_grid(v) {
-                                    visit(
-                                        v,
-                                        &mut state,
-                                        &mut reached,
-                                        &mut brick_stack,
-                                        &mut voxel_stack,
-                                    )
-                                }
-                            });
-                        }
-                        _ => in_run = false,
-                    }
-                }
-            }
-        } else if let Some(v) = voxel_stack.pop() {
-            for f in FACES {
-                let u = v + f;
-                if in_grid(u) {
-                    visit(
-                        u,
-                        &mut state,
-                        &mut reached,
-                        &mut brick_stack,
-                        &mut voxel_stack,
-                    );
-                }
-            }
-        } else {
-            break;
-        }
-    }
     // What the flood did not reach is inside: enclosed empty bricks whole (never at the
     // grid's edge, whose voxels seeded the flood), and the unreached void of shell bricks.
     let mut interior_voxels = 0u64;
