@@ -1,6 +1,7 @@
-// Area lights (AREA_LIGHTS): the point of a light for sample coordinates (s, t) in
-// [0, 1)^2, uniform in area, as AreaLight::sample_point does in f64. The axes come scaled
-// by the light's size, in voxel units (types.wgsl, `Light`). Contract: "Area lights".
+// Area lights' shapes, for the shadow models that sample them: the point of a light for
+// sample coordinates (s, t) in [0, 1)^2, uniform in area, as AreaLight::sample_point
+// does in f64. The axes come scaled by the light's size, in voxel units (types.wgsl,
+// `Light`). Contract: "Area lights".
 #define_import_path voxlab::area_lights
 
 #import voxlab::types::{Light, LIGHT_RECT, LIGHT_DISK}

@@ -12,8 +12,8 @@
 // exactly trilinear filtering with a zero border. Levels are sampled at integer lods
 // and blended here (the border weight differs per level): quadrilinear filtering.
 //
-// Shader defs: INDIRECT (the radiance pyramid and gathering), CONE_SHADOWS (the
-// per-light aperture table).
+// Shader defs: INDIRECT (the radiance pyramid and gathering). The cone shadow model
+// (shaders/shadow_cone.wgsl) marches `shadow_visibility` with `light_radius`.
 #define_import_path voxlab::cone
 
 struct ConeParams {
@@ -255,21 +255,3 @@ fn shadow_visibility(p: vec3<f32>, n: vec3<f32>, l: vec3<f32>, tan_half: f32) ->
     }
     return 1.0 - march(o, to / len, tan_half, len, false).occlusion;
 }
-
-#ifdef CONE_SHADOWS
-// Visibility of light j (centre l) from p: a cone whose aperture is the angle the light
-// subtends, tan(theta / 2) = radius / distance, or the set aperture for point lights.
-// As src/cpu/cone.rs ConeScene::light_tan_half.
-fn light_visibility(p: vec3<f32>, n: vec3<f32>, l: vec3<f32>, j: u32) -> f32 {
-    let r = light_radius[j];
-    var th = cone.point_tan_half;
-    if r > 0.0 {
-        let dist = length(l - p);
-        th = 1.0e30;
-        if dist > 0.0 {
-            th = r / dist;
-        }
-    }
-    return shadow_visibility(p, n, l, th);
-}
-#endif

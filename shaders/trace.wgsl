@@ -3,10 +3,9 @@
 // adding throughput * local at every hit gives the seed's ray-tree image exactly.
 // Contract: "Primary rays", "Shading a hit", "Stack".
 //
-// Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, EMISSION, AREA_LIGHTS,
-// ACCUMULATE, COUNT_RAYS, RAY_STACK_SIZE, and the cone-tracing
-// CONE_SHADOWS, AMBIENT_OCCLUSION, INDIRECT (shaders/cone.wgsl, group 1; CONES when any
-// is on). The shadow, transmittance and light models live in their own files
+// Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, EMISSION, ACCUMULATE,
+// COUNT_RAYS, RAY_STACK_SIZE, and the cone-tracing AMBIENT_OCCLUSION, INDIRECT
+// (shaders/cone.wgsl, group 1; CONES when they or the shadow model read the pyramids). The shadow, transmittance and light models live in their own files
 // (shading.wgsl and phong.wgsl compose them); this file only walks the ray tree of one
 // frame of one pixel.
 

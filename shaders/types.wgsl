@@ -28,7 +28,8 @@ struct Params {
     // d_min^2 in world units; falloff is off when this is negative.
     falloff_min_dist_sq: f32,
     falloff: u32,
-    // Area-light sampling (AREA_LIGHTS): samples per pixel, light and frame; the hash seed.
+    // Light sampling (shadow models that sample): samples per pixel, light and frame;
+    // the hash seed.
     light_samples: u32,
     seed: u32,
     // The frames this dispatch traces: frame_begin .. frame_begin + frame_count, one per
@@ -72,8 +73,9 @@ struct Material {
     pad_d: f32,
 }
 
-// Light kinds: a point (also an area light of size 0 or with sampling off), or a shape
-// sampled by AREA_LIGHTS. Without AREA_LIGHTS every light is its centre.
+// Light kinds: a point (also an area light of size 0), or a shape the shadow model may
+// sample (shadow_area.wgsl) or integrate (shadow_ratio.wgsl); hard shadows take every
+// light at its centre.
 const LIGHT_POINT: u32 = 0u;
 const LIGHT_RECT: u32 = 1u;
 const LIGHT_DISK: u32 = 2u;

@@ -611,12 +611,10 @@ fn hard_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
             value: t.name().into(),
             settings: RenderSettings {
                 features: Features {
-                    area_lights: false,
+                    shadow_model: crate::technique::default_shadow_model(),
                     transmittance: t,
-                    cone_shadows: false,
                     ambient_occlusion: false,
                     indirect: false,
-                    shadow_model: None,
                 },
                 spp: 1,
                 ..e.settings.clone()
@@ -661,7 +659,7 @@ fn cone_step_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
             value: format!("{k}"),
             settings: RenderSettings {
                 features: Features {
-                    cone_shadows: true,
+                    shadow_model: &crate::technique::cone::MODEL,
                     ..reference_features(e)
                 },
                 spp: 1,
@@ -691,8 +689,7 @@ fn cone_aperture_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
             value: format!("{a}"),
             settings: RenderSettings {
                 features: Features {
-                    area_lights: false,
-                    cone_shadows: true,
+                    shadow_model: &crate::technique::cone::MODEL,
                     ..reference_features(e)
                 },
                 spp: 1,
@@ -740,8 +737,7 @@ pub fn light_aperture_deg(scene: &Scene) -> Option<f64> {
 /// AO and indirect light; never cone shadows (the reference samples the light).
 fn reference_features(e: &Experiment) -> Features {
     Features {
-        area_lights: true,
-        cone_shadows: false,
+        shadow_model: &crate::technique::area::MODEL,
         ..e.settings.features.clone()
     }
 }
@@ -1239,19 +1235,15 @@ fn measure(
         .ok_or_else(|| anyhow!("point and reference differ in size"))?;
     let (flip_mean, _) = flip(reference, &r.frame);
     let totals: Vec<Duration> = times.iter().zip(&setups).map(|(t, u)| *t + *u).collect();
+    let cone_shadows = r.plan.shadow_model == &crate::technique::cone::MODEL;
     Ok(Row {
         model: point.model.clone(),
         knob: point.knob.clone(),
         value: point.value.clone(),
         spp: s.spp,
         light_samples: s.light_samples,
-        area_lights: s.features.area_lights,
-        shadow_model: match &r.plan {
-            p if p.shadow_model.is_some() => p.shadow_model.map_or("", |m| m.name),
-            p if p.cone_shadows => "cone",
-            p if p.area_lights => "area",
-            _ => "hard",
-        },
+        area_lights: s.features.shadow_model == &crate::technique::area::MODEL,
+        shadow_model: r.plan.shadow_model.name,
         transmittance: s.features.transmittance.name(),
         backend: r.backend,
         fallback: r.fallback,
@@ -1266,9 +1258,9 @@ fn measure(
         ms_runs: totals.iter().map(|t| t.as_secs_f64() * 1e3).collect(),
         trace_ms_median: median_ms(&times),
         setup_ms_median: median_ms(&setups),
-        cone_shadows: r.plan.cone_shadows,
-        cone_step_factor: r.plan.cone_shadows.then_some(s.cones.step_factor),
-        cone_aperture_deg: if !r.plan.cone_shadows {
+        cone_shadows,
+        cone_step_factor: cone_shadows.then_some(s.cones.step_factor),
+        cone_aperture_deg: if !cone_shadows {
             None
         } else if scene.lights.iter().any(|l| l.is_area()) {
             light_aperture_deg(scene)

@@ -1285,17 +1285,20 @@ fn build(
 }
 
 /// `[features]`: every key one of `crate::technique::feature_keys` (the slots'
-/// choices by name, the built-in techniques' flags); `shadow_model` cannot be given
-/// beside a built-in model's own flag set to true.
+/// choices by name, the shadow models' older switches, the lighting terms' flags). A
+/// shadow model is chosen once: by `shadow_model` or by one switch set to true.
 fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, ExperimentError> {
     use crate::technique::{
-        BUILT_IN, feature_keys, shadow_model_names, transmittance, transmittance_names,
+        BUILT_IN, SHADOW_MODELS, feature_keys, shadow_model_names, transmittance,
+        transmittance_names,
     };
     let mut features = Features::default();
     let Some(t) = t else {
         return Ok(features);
     };
     let mut shadow_model = None;
+    // The shadow models chosen by their switches, as `key = true`.
+    let mut switched: Vec<(String, &'static crate::technique::ShadowModel)> = Vec::new();
     for (k, v) in t {
         let key = format!("features.{k}");
         let text = |names: Vec<&str>| {
@@ -1305,6 +1308,10 @@ fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, Experi
                     format!("must be a string, one of: {}", names.join(", ")),
                 )
             })
+        };
+        let boolean = || {
+            v.as_bool()
+                .ok_or_else(|| ctx.invalid(&key, "must be true or false"))
         };
         match k.as_str() {
             "shadow_model" => shadow_model = Some(text(shadow_model_names())?),
@@ -1321,6 +1328,12 @@ fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, Experi
                 })?;
             }
             _ => {
+                if let Some(m) = SHADOW_MODELS.iter().find(|m| m.switch == Some(k)) {
+                    if boolean()? {
+                        switched.push((format!("{k} = true"), m));
+                    }
+                    continue;
+                }
                 let Some(flag) = BUILT_IN.iter().filter_map(|b| b.flag).find(|f| f.key == k) else {
                     return Err(ExperimentError::UnknownKey {
                         file: ctx.file.clone(),
@@ -1329,41 +1342,41 @@ fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, Experi
                         allowed: feature_keys().join(", "),
                     });
                 };
-                let on = v
-                    .as_bool()
-                    .ok_or_else(|| ctx.invalid(&key, "must be true or false"))?;
-                (flag.set)(&mut features, on);
+                (flag.set)(&mut features, boolean()?);
             }
         }
     }
-    if let Some(name) = shadow_model {
-        let key = "features.shadow_model";
-        // A built-in shadow model's own switch set beside it.
-        let switched: Vec<String> = BUILT_IN
-            .iter()
-            .filter(|b| b.slot == crate::technique::Slot::Shadow)
-            .filter_map(|b| b.flag)
-            .filter(|f| (f.get)(&features))
-            .map(|f| format!("{} = true", f.key))
-            .collect();
-        if !switched.is_empty() {
+    let said: Vec<&str> = switched.iter().map(|(s, _)| s.as_str()).collect();
+    match (shadow_model, switched.as_slice()) {
+        (Some(_), [_, ..]) => {
             return Err(ctx.invalid(
-                key,
+                "features.shadow_model",
+                format!("give either shadow_model or {}, not both", said.join(" / ")),
+            ));
+        }
+        (Some(name), []) => {
+            if !features.set_shadow_model(&name) {
+                return Err(ctx.invalid(
+                    "features.shadow_model",
+                    format!(
+                        "no such shadow model; allowed: {}",
+                        shadow_model_names().join(", ")
+                    ),
+                ));
+            }
+        }
+        (None, [(_, m)]) => features.shadow_model = m,
+        (None, [(first, _), ..]) => {
+            let key = format!("features.{}", first.trim_end_matches(" = true"));
+            return Err(ctx.invalid(
+                &key,
                 format!(
-                    "give either shadow_model or {}, not both",
-                    switched.join(" / ")
+                    "{} each choose a shadow model; give one, or shadow_model",
+                    said.join(" and ")
                 ),
             ));
         }
-        if !features.set_shadow_model(&name) {
-            return Err(ctx.invalid(
-                key,
-                format!(
-                    "no such shadow model; allowed: {}",
-                    shadow_model_names().join(", ")
-                ),
-            ));
-        }
+        (None, []) => {}
     }
     Ok(features)
 }

@@ -6,14 +6,16 @@
 //! errs on the side of keeping code: a flag is dropped only when the dropped code provably
 //! contributes nothing for this scene and these settings.
 //!
-//! To add a feature (area lights, Beer-Lambert, cone tracing): add a field, decide it in
-//! [`Plan::new`] with a reason when it is left out, name its shader def in
-//! [`Plan::shader_defs`], and list it in [`Plan::FLAGS`] so the composition test covers it.
+//! A shadow or transmittance model brings its own plan rule (`crate::technique`); the
+//! plan calls it and composes the model's module. To add a feature of the kernel itself:
+//! add a field, decide it in [`Plan::new`] with a reason when it is left out, name its
+//! shader def in [`Plan::shader_defs`], and list it in [`Plan::FLAGS`] so the composition
+//! test covers it.
 //!
-//! The cone-tracing flags are listed apart, in [`Plan::CONE_FLAGS`]: every combination
-//! of them with every combination of [`Plan::FLAGS`] would be 8 times as many kernels
-//! to compose in the test; `tests/cone_render.rs` composes each cone combination with
-//! the base flags all on, all off and shadows alone.
+//! The lighting terms' cone flags are listed apart, in [`Plan::CONE_FLAGS`]: every
+//! combination of them with every combination of [`Plan::FLAGS`] would be 4 times as
+//! many kernels to compose in the test; `tests/cone_render.rs` composes each cone
+//! combination with the base flags all on, all off and shadows alone.
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -44,21 +46,20 @@ pub struct Plan {
     /// Emission (`EMISSION`): some material in the grid emits. Adding zero changes
     /// nothing, so it is left out when none does.
     pub emission: bool,
-    /// Area-light sampling (`AREA_LIGHTS`): `features.area_lights` is on, some light is
-    /// an area light of non-zero size, and local lighting is in. Without it every light
-    /// is a point at its centre (the baseline).
-    pub area_lights: bool,
+    /// The shadow model composed in (`voxlab::shadow_model`, printed by its label): the
+    /// one `features.shadow_model` names when shadow rays are in and its plan rule keeps
+    /// it, else the default (hard shadows at the light centres).
+    pub shadow_model: &'static ShadowModel,
     /// The shadow transmittance model composed in (`voxlab::transmittance`): the one
-    /// `features.transmittance` names when shadow rays are in and its plan rule keeps
-    /// it, else the default (listed, when not the default, by its name in capitals).
+    /// `features.transmittance` names when the shadow model casts shadow rays and the
+    /// model's plan rule keeps it, else the default (listed, when not the default, by its
+    /// name in capitals).
     pub transmittance: &'static TransmittanceModel,
-    /// Progressive accumulation over frames (`ACCUMULATE`): area lights are sampled and
-    /// `spp > 1`. Allocates the compensation buffer. Without sampling every frame is the
-    /// same image, so one frame is rendered whatever `spp` says.
+    /// Progressive accumulation over frames (`ACCUMULATE`): the shadow model samples or
+    /// the pixel filter moves the primary rays, and `spp > 1`. Allocates the
+    /// compensation buffer. Without sampling every frame is the same image, so one frame
+    /// is rendered whatever `spp` says.
     pub accumulate: bool,
-    /// Cone-traced shadow visibility (`CONE_SHADOWS`): the feature is on and there are
-    /// shadow rays to replace.
-    pub cone_shadows: bool,
     /// Ambient occlusion (`AMBIENT_OCCLUSION`): the feature is on and some material in
     /// the grid is diffuse (the term is `ambient * albedo * kd * AO`).
     pub ambient_occlusion: bool,
@@ -68,12 +69,8 @@ pub struct Plan {
     /// Primary rays spread over the pixel by the pixel filter (`PIXEL_FILTER`), a new
     /// position each frame: `render.pixel_filter` is not "none".
     pub pixel_filter: bool,
-    /// A plug-in shadow model (`SHADOW_MODEL`, its module composed in as
-    /// `voxlab::shadow_model`): `features.shadow_model` names it, there are shadow rays,
-    /// and its own plan rule keeps it for this scene.
-    pub shadow_model: Option<&'static ShadowModel>,
-    /// The pyramids' layout, when a cone flag is on (the radiance pyramid only with
-    /// `indirect`).
+    /// The pyramids' layout, when the shadow model or a lighting term reads them (the
+    /// radiance pyramid only with `indirect`).
     pub pyramid: Option<PyramidLayout>,
     /// Ray counters (`COUNT_RAYS`): chosen by the caller, not by the scene.
     pub count_rays: bool,
@@ -210,13 +207,24 @@ pub fn check_sparse_grid(
         ));
     }
     let f = &settings.features;
-    if f.cone_shadows || f.ambient_occlusion || f.indirect {
+    let asked: Vec<String> = f
+        .shadow_model
+        .pyramid
+        .then(|| format!("shadow_model = \"{}\"", f.shadow_model.name))
+        .into_iter()
+        .chain(
+            crate::technique::lighting_terms()
+                .filter(|(_, flag)| (flag.get)(f))
+                .map(|(name, _)| format!("{name} = true")),
+        )
+        .collect();
+    if !asked.is_empty() {
         return Err((
             "features",
             format!(
-                "cone tracing (cone_shadows, ambient_occlusion, indirect) builds its pyramids \
-                 from the dense grid, and {held}: turn the cone features off or use a \
-                 smaller grid"
+                "cone tracing ({}) builds its pyramids from the dense grid, and {held}: turn \
+                 the cone features off or use a smaller grid",
+                asked.join(", ")
             ),
         ));
     }
@@ -256,12 +264,11 @@ fn tir_possible(scene: &Scene) -> bool {
 
 impl Plan {
     /// Shader flags in the order they are printed and enumerated by tests.
-    pub const FLAGS: [&'static str; 7] = [
+    pub const FLAGS: [&'static str; 6] = [
         "REFLECTION",
         "REFRACTION",
         "SHADOWS",
         "EMISSION",
-        "AREA_LIGHTS",
         "ACCUMULATE",
         "COUNT_RAYS",
     ];
@@ -317,29 +324,33 @@ impl Plan {
             reasons.push("emission: no material in the grid emits".to_string());
         }
 
-        let sampled_lights = scene.lights.iter().filter(|l| l.is_area()).count();
-        let area_lights = if !settings.features.area_lights {
-            // A plug-in shadow model shades the area lights itself.
-            if sampled_lights > 0 && settings.features.shadow_model.is_none() {
-                reasons.push(format!(
-                    "area lights: features.area_lights is off; {sampled_lights} area \
-                     light(s) act as point lights at their centres"
-                ));
+        let default_model = crate::technique::default_shadow_model();
+        let asked_model = settings.features.shadow_model;
+        let shadow_model = if !shadows {
+            if asked_model != default_model {
+                reasons.push(format!("shadow model {}: no shadow rays", asked_model.name));
             }
-            false
-        } else if sampled_lights == 0 {
-            reasons.push(
-                "area lights: area_lights on but the scene has no area light of non-zero \
-                 size"
-                    .to_string(),
-            );
-            false
-        } else if !shadows {
-            reasons.push("area lights: no local lighting to sample them for".to_string());
-            false
+            default_model
         } else {
-            true
+            match (asked_model.plan)(scene, settings) {
+                Ok(()) => asked_model,
+                Err(why) => {
+                    reasons.push(format!(
+                        "shadow model {}: {why}; hard shadows at the light centres instead",
+                        asked_model.name
+                    ));
+                    default_model
+                }
+            }
         };
+        let sampled_lights = scene.lights.iter().filter(|l| l.is_area()).count();
+        if shadows && shadow_model == default_model && sampled_lights > 0 {
+            reasons.push(format!(
+                "area lights: shadow model {}; {sampled_lights} area light(s) act as point \
+                 lights at their centres",
+                shadow_model.name
+            ));
+        }
 
         let default = crate::technique::TRANSMITTANCES[0];
         let asked = settings.features.transmittance.model();
@@ -347,6 +358,12 @@ impl Plan {
             default
         } else if !shadows {
             reasons.push(format!("{}: no shadow rays", asked.name));
+            default
+        } else if !shadow_model.shadow_rays {
+            reasons.push(format!(
+                "{}: shadow model {} casts no shadow rays",
+                asked.name, shadow_model.name
+            ));
             default
         } else {
             match (asked.plan)(scene, settings) {
@@ -358,33 +375,8 @@ impl Plan {
             }
         };
 
-        let shadow_model = match settings.features.shadow_model {
-            None => None,
-            Some(name) => match crate::technique::shadow_model(name) {
-                None => {
-                    reasons.push(format!("shadow model {name}: not registered"));
-                    None
-                }
-                Some(m) if !shadows => {
-                    reasons.push(format!("shadow model {}: no shadow rays", m.name));
-                    None
-                }
-                Some(m) => match (m.plan)(scene, settings) {
-                    Ok(()) => Some(m),
-                    Err(why) => {
-                        reasons.push(format!(
-                            "shadow model {}: {why}; hard shadows at the light centres instead",
-                            m.name
-                        ));
-                        None
-                    }
-                },
-            },
-        };
-        // A plug-in model shades every light itself: the built-in models' code is dead.
-        let area_lights = area_lights && shadow_model.is_none();
         let pixel_filter = settings.pixel_filter != crate::render::PixelFilter::None;
-        let sampled = area_lights || shadow_model.is_some_and(|m| m.stochastic) || pixel_filter;
+        let sampled = shadow_model.stochastic || pixel_filter;
         let accumulate = sampled && settings.spp > 1;
         if !sampled && settings.spp > 1 {
             reasons.push(format!(
@@ -415,23 +407,6 @@ impl Plan {
         };
 
         let f = &settings.features;
-        let cone_shadows = f.cone_shadows && shadows && shadow_model.is_none();
-        if f.cone_shadows && !shadows {
-            reasons.push("cone shadows: no shadow rays to replace".to_string());
-        }
-        let (mut area_lights, mut transmittance, mut accumulate) =
-            (area_lights, transmittance, accumulate);
-        if cone_shadows && (area_lights || transmittance.index() != 0) {
-            // The cone replaces the shadow ray and the area samples: their code is dead.
-            reasons.push(format!(
-                "area-light sampling and {} shadow rays: cone shadows replace them",
-                asked.name
-            ));
-            area_lights = false;
-            transmittance = default;
-            // Frames still differ where the pixel filter moves the primary rays.
-            accumulate = pixel_filter && settings.spp > 1;
-        }
         let diffuse = mats.iter().any(|(_, m)| m.kd > 0.0);
         let ambient_occlusion = f.ambient_occlusion && diffuse;
         if f.ambient_occlusion && !diffuse {
@@ -444,18 +419,16 @@ impl Plan {
                     .to_string(),
             );
         }
-        let (mut cone_shadows, mut ambient_occlusion, mut indirect) =
-            (cone_shadows, ambient_occlusion, indirect);
-        if (cone_shadows || ambient_occlusion || indirect) && scene.grid.is_sparse() {
+        let (mut ambient_occlusion, mut indirect) = (ambient_occlusion, indirect);
+        if (ambient_occlusion || indirect) && scene.grid.is_sparse() {
             reasons.push(
                 "cone tracing: the grid is held only as its sparse tree, and the cone \
-                 pyramids are built from the dense grid; hard shadows and no cone terms \
-                 instead"
+                 pyramids are built from the dense grid; no cone terms"
                     .to_string(),
             );
-            (cone_shadows, ambient_occlusion, indirect) = (false, false, false);
+            (ambient_occlusion, indirect) = (false, false);
         }
-        let pyramid = (cone_shadows || ambient_occlusion || indirect)
+        let pyramid = (shadow_model.pyramid || ambient_occlusion || indirect)
             .then(|| PyramidLayout::new(scene.grid.dims(), settings.cones.levels));
 
         let (traversal, traversal_reason) = choose_traversal(scene, settings);
@@ -479,14 +452,12 @@ impl Plan {
             refraction,
             shadows,
             emission,
-            area_lights,
+            shadow_model,
             transmittance,
             accumulate,
-            cone_shadows,
             ambient_occlusion,
             indirect,
             pixel_filter,
-            shadow_model,
             pyramid,
             count_rays: false,
             ray_stack_size,
@@ -495,10 +466,11 @@ impl Plan {
         }
     }
 
-    /// Cone-tracing flags (see the module notes for why they are listed apart).
-    pub const CONE_FLAGS: [&'static str; 3] = ["CONE_SHADOWS", "AMBIENT_OCCLUSION", "INDIRECT"];
+    /// The lighting terms' cone flags (see the module notes for why they are listed
+    /// apart).
+    pub const CONE_FLAGS: [&'static str; 2] = ["AMBIENT_OCCLUSION", "INDIRECT"];
 
-    /// Frames the image is accumulated over: `spp` when area lights are sampled, else 1
+    /// Frames the image is accumulated over: `spp` when something is sampled, else 1
     /// (every frame would be the same image). Both tracers render this many.
     pub fn frames(&self, settings: &RenderSettings) -> u32 {
         if self.accumulate {
@@ -515,19 +487,23 @@ impl Plan {
     }
 
     /// The kernel's flags that are on, in the order plans are printed: [`Plan::FLAGS`]
-    /// and [`Plan::CONE_FLAGS`], with the transmittance model, when not the default, by
-    /// its name in capitals after `AREA_LIGHTS` (`BEER_LAMBERT`).
+    /// and [`Plan::CONE_FLAGS`], with the shadow model's label (`AREA_LIGHTS`) and the
+    /// transmittance model, when not the default, by its name in capitals
+    /// (`BEER_LAMBERT`), after `EMISSION`.
     pub fn flags_on(&self) -> Vec<String> {
         let at = Self::FLAGS
             .iter()
             .position(|&n| n == "ACCUMULATE")
             .unwrap_or(0);
+        let shadow_model =
+            (!self.shadow_model.label.is_empty()).then(|| self.shadow_model.label.to_string());
         let transmittance = (self.transmittance.index() != 0)
             .then(|| self.transmittance.name.to_uppercase().replace('-', "_"));
         Self::FLAGS[..at]
             .iter()
             .filter(|n| self.flag(n))
             .map(|n| n.to_string())
+            .chain(shadow_model)
             .chain(transmittance)
             .chain(
                 Self::FLAGS[at..]
@@ -546,10 +522,8 @@ impl Plan {
             "REFRACTION" => self.refraction,
             "SHADOWS" => self.shadows,
             "EMISSION" => self.emission,
-            "AREA_LIGHTS" => self.area_lights,
             "ACCUMULATE" => self.accumulate,
             "COUNT_RAYS" => self.count_rays,
-            "CONE_SHADOWS" => self.cone_shadows,
             "AMBIENT_OCCLUSION" => self.ambient_occlusion,
             "INDIRECT" => self.indirect,
             _ => false,
@@ -563,10 +537,8 @@ impl Plan {
             "REFRACTION" => self.refraction = on,
             "SHADOWS" => self.shadows = on,
             "EMISSION" => self.emission = on,
-            "AREA_LIGHTS" => self.area_lights = on,
             "ACCUMULATE" => self.accumulate = on,
             "COUNT_RAYS" => self.count_rays = on,
-            "CONE_SHADOWS" => self.cone_shadows = on,
             "AMBIENT_OCCLUSION" => self.ambient_occlusion = on,
             "INDIRECT" => self.indirect = on,
             _ => panic!("unknown plan flag {name}"),
@@ -574,7 +546,8 @@ impl Plan {
     }
 
     /// Every combination of flags and transmittance models with the given stack size
-    /// (2^FLAGS times the models).
+    /// (2^FLAGS times the models), with the default shadow model; `tests/shadow_models.rs`
+    /// composes every shadow model apart.
     pub fn all_variants(ray_stack_size: u32) -> Vec<Plan> {
         let models = crate::technique::TRANSMITTANCES.len() as u32;
         (0..models << Self::FLAGS.len())
@@ -587,14 +560,12 @@ impl Plan {
                     refraction: false,
                     shadows: false,
                     emission: false,
-                    area_lights: false,
+                    shadow_model: crate::technique::default_shadow_model(),
                     transmittance,
                     accumulate: false,
-                    cone_shadows: false,
                     ambient_occlusion: false,
                     indirect: false,
                     pixel_filter: false,
-                    shadow_model: None,
                     pyramid: None,
                     count_rays: false,
                     ray_stack_size,
@@ -634,12 +605,12 @@ impl Plan {
                 ShaderDefValue::UInt(self.transmittance.index()),
             );
         }
-        // The plug-in shadow model: its module is composed in; its index keys the cache.
-        if let Some(m) = self.shadow_model {
-            defs.insert("SHADOW_MODEL".to_string(), ShaderDefValue::Bool(true));
+        // The shadow model's module is composed in; a model other than the default keys
+        // the cache by its index.
+        if self.shadow_model.index() != 0 {
             defs.insert(
                 "SHADOW_MODEL_ID".to_string(),
-                ShaderDefValue::UInt(m.index()),
+                ShaderDefValue::UInt(self.shadow_model.index()),
             );
         }
         // Any cone feature: the pyramids' bindings and the cone module are in.
@@ -670,16 +641,8 @@ impl Plan {
 
 impl fmt::Display for Plan {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let shadow_model = self
-            .shadow_model
-            .map(|m| format!("SHADOW_MODEL({})", m.name));
         let pixel_filter = self.pixel_filter.then(|| "PIXEL_FILTER".to_string());
-        let on: Vec<String> = self
-            .flags_on()
-            .into_iter()
-            .chain(pixel_filter)
-            .chain(shadow_model)
-            .collect();
+        let on: Vec<String> = self.flags_on().into_iter().chain(pixel_filter).collect();
         write!(
             f,
             "plan: [{}] ray stack {}",
@@ -793,8 +756,8 @@ mod tests {
     #[test]
     fn all_variants_are_distinct() {
         let v = Plan::all_variants(3);
-        assert_eq!(v.len(), 256);
+        assert_eq!(v.len(), 128);
         let keys: std::collections::HashSet<_> = v.iter().map(|p| p.shader_defs()).collect();
-        assert_eq!(keys.len(), 256);
+        assert_eq!(keys.len(), 128);
     }
 }

@@ -167,18 +167,15 @@ impl PixelFilter {
 /// Largest `filter_width` accepted, pixels.
 pub const MAX_FILTER_WIDTH: f64 = 4.0;
 
-/// Extensions beyond the seed. `Features::default()` is the baseline: every one off.
-#[derive(Clone, Debug, Default, PartialEq)]
+/// Extensions beyond the seed. `Features::default()` is the baseline: hard shadows, the
+/// default transmittance, no lighting term.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Features {
-    /// Sample area lights over their shape (soft shadows). Off: each area light acts as
-    /// a point light at its centre.
-    pub area_lights: bool,
+    /// How each light's visibility is estimated: one of the registered shadow models
+    /// (`crate::technique::SHADOW_MODELS`, each in its own file); the default is the
+    /// first, the baseline's hard shadows.
+    pub shadow_model: &'static crate::technique::ShadowModel,
     pub transmittance: Transmittance,
-    /// Voxel cone tracing (knobs in [`RenderSettings::cones`]): each light's shadow-ray
-    /// visibility becomes a cone's through the opacity pyramid, its aperture the angle
-    /// an area light subtends (area lights are then shaded at their centre, unsampled)
-    /// or `cones.aperture_deg` for point lights.
-    pub cone_shadows: bool,
     /// Adds `ambient * albedo * kd * AO` at every hit of a diffuse material, AO the mean
     /// visibility of `cones.ao_cones` cosine-weighted hemisphere cones of range
     /// `cones.ao_range`. Off, nothing is added (the baseline's ambient stays the
@@ -188,43 +185,40 @@ pub struct Features {
     /// every hit of a diffuse material; `L_ind` the mean radiance the hemisphere cones
     /// gather from the radiance pyramid.
     pub indirect: bool,
-    /// A plug-in shadow model (`crate::technique::SHADOW_MODELS`) by name; it replaces
-    /// the shadow rays (and the area samples) of every light. `None`: the built-in
-    /// models above decide.
-    pub shadow_model: Option<&'static str>,
+}
+
+impl Default for Features {
+    fn default() -> Self {
+        Self {
+            shadow_model: crate::technique::default_shadow_model(),
+            transmittance: Transmittance::default(),
+            ambient_occlusion: false,
+            indirect: false,
+        }
+    }
 }
 
 impl Features {
-    /// The shadow model in force, by its name in `[features] shadow_model`: a plug-in,
-    /// else `cone`, `area` or `hard`.
+    /// The shadow model in force, by its name in `[features] shadow_model`.
     pub fn shadow_model_name(&self) -> &'static str {
-        match self.shadow_model {
-            Some(name) => name,
-            None if self.cone_shadows => "cone",
-            None if self.area_lights => "area",
-            None => "hard",
-        }
+        self.shadow_model.name
     }
 
-    /// Chooses the shadow model called `name` (a built-in or a registered plug-in);
-    /// false, and nothing changed, for an unknown name.
+    /// Chooses the shadow model called `name`; false, and nothing changed, for an
+    /// unknown name.
     pub fn set_shadow_model(&mut self, name: &str) -> bool {
-        let (area, cone, plug_in) = match name {
-            "hard" => (false, false, None),
-            "area" => (true, false, None),
-            "cone" => (false, true, None),
-            _ => match crate::technique::shadow_model(name) {
-                Some(m) => (false, false, Some(m.name)),
-                None => return false,
-            },
-        };
-        (self.area_lights, self.cone_shadows, self.shadow_model) = (area, cone, plug_in);
-        true
+        match crate::technique::shadow_model(name) {
+            Some(m) => {
+                self.shadow_model = m;
+                true
+            }
+            None => false,
+        }
     }
 
     /// Whether any feature needs the cone-tracing pyramids.
     pub fn cones(&self) -> bool {
-        self.cone_shadows || self.ambient_occlusion || self.indirect
+        self.shadow_model.pyramid || self.ambient_occlusion || self.indirect
     }
 }
 

@@ -388,7 +388,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         intensity: 300.0,
     }));
     let mut st = settings(48, 48);
-    st.features.area_lights = true;
+    st.features.shadow_model = &crate::technique::area::MODEL;
     st.features.transmittance = crate::technique::beer_lambert::ID;
     st.light_samples = 4;
     st.spp = 2;
@@ -412,7 +412,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
             st,
         ));
     }
-    // Every plug-in shadow model (crate::technique) on the same scene: at its defaults,
+    // Every shadow model (crate::technique) on the same scene: at its defaults,
     // and with the light shrunk to a point (its degenerate setting).
     for m in crate::technique::SHADOW_MODELS {
         let mut st = st.clone();
@@ -471,7 +471,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
             }));
         }
         let mut st = settings(side, side);
-        st.features.area_lights = true;
+        st.features.shadow_model = &crate::technique::area::MODEL;
         st.light_samples = samples;
         st.spp = spp;
         let per_dispatch = crate::gpu::frames_per_dispatch((side * side) as u64, spp);
@@ -488,7 +488,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
     // Cone tracing on odd, tiny and far-away grids: pyramids of odd sizes, a one-level
     // pyramid, a vanishing aperture, AO with a range past the grid, and indirect light.
     let all_cones = |st: &mut RenderSettings| {
-        st.features.cone_shadows = true;
+        st.features.shadow_model = &crate::technique::cone::MODEL;
         st.features.ambient_occlusion = true;
         st.features.indirect = true;
     };
@@ -509,7 +509,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         st,
     ));
     let mut st = settings(48, 48);
-    st.features.cone_shadows = true;
+    st.features.shadow_model = &crate::technique::cone::MODEL;
     st.cones.aperture_deg = 1e-3;
     st.cones.step_factor = 0.05;
     out.push(case(

@@ -30,7 +30,7 @@ fn sampled(width: u32, light_samples: u32, spp: u32) -> RenderSettings {
         spp,
         ..Default::default()
     };
-    s.features.area_lights = true;
+    s.features.shadow_model = &voxlab::technique::area::MODEL;
     s
 }
 
@@ -64,7 +64,7 @@ fn size_zero_or_sampling_off_is_the_point_light_image_exactly() {
         },
     );
     let mut off = settings.clone();
-    off.features.area_lights = false;
+    off.features.shadow_model = voxlab::technique::default_shadow_model();
     assert_eq!(voxlab::cpu::render(&s, &off).frame, point);
 }
 

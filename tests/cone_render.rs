@@ -98,7 +98,7 @@ fn gpu_cone_images_match_the_cpu_reference() {
 fn hard_and_cone(gpu: &mut GpuTracer, e: &Experiment, deg: f64) -> (Frame, Frame) {
     let hard = gpu.render(&e.scene, &e.settings).unwrap().frame;
     let mut s: RenderSettings = e.settings.clone();
-    s.features.cone_shadows = true;
+    s.features.shadow_model = &voxlab::technique::cone::MODEL;
     s.cones.aperture_deg = deg;
     (hard, gpu.render(&e.scene, &s).unwrap().frame)
 }
@@ -143,10 +143,10 @@ fn cone_soft_shadows_against_the_converged_area_light() {
     reference.spp = 64;
     let truth = voxlab::cpu::render(&e.scene, &reference).frame;
     let mut hard = e.settings.clone();
-    hard.features.area_lights = false;
+    hard.features.shadow_model = voxlab::technique::default_shadow_model();
     let hard = gpu.render(&e.scene, &hard).unwrap().frame;
     let mut cone = e.settings.clone();
-    cone.features.cone_shadows = true;
+    cone.features.shadow_model = &voxlab::technique::cone::MODEL;
     let cone = gpu.render(&e.scene, &cone).unwrap().frame;
     let (ec, eh) = (rmse(&cone, &truth), rmse(&hard, &truth));
     println!("RMSE against the converged area light: cone {ec:.4}, hard {eh:.4}");

@@ -178,9 +178,9 @@ fn odd_experiment() -> Experiment {
     s.falloff = false;
     s.falloff_min_distance = 0.3;
     s.ray_offset = 0.0;
-    s.features.area_lights = true;
+    s.features.shadow_model = &voxlab::technique::area::MODEL;
     s.features.transmittance = voxlab::technique::beer_lambert::ID;
-    s.features.cone_shadows = true;
+    s.features.shadow_model = &voxlab::technique::cone::MODEL;
     s.features.ambient_occlusion = true;
     s.features.indirect = true;
     s.cones.levels = 3;

@@ -75,7 +75,9 @@ fn switched_off_reproduces_the_golden_images() {
             for (samples, spp) in [(1, 1), (3, 4)] {
                 let mut e = baseline(160, 160);
                 as_area_lights(&mut e.scene, shape, size);
-                e.settings.features.area_lights = area_on;
+                e.settings
+                    .features
+                    .set_shadow_model(if area_on { "area" } else { "hard" });
                 e.settings.light_samples = samples;
                 e.settings.spp = spp;
                 let name = format!(
@@ -83,7 +85,10 @@ fn switched_off_reproduces_the_golden_images() {
                 );
                 let out = gpu.render(&e.scene, &e.settings).unwrap();
                 let plan = gpu.last_plan().unwrap();
-                assert!(!plan.area_lights && !plan.accumulate, "{name}: {plan}");
+                assert!(
+                    plan.shadow_model.name != "area" && !plan.accumulate,
+                    "{name}: {plan}"
+                );
                 if spp > 1 {
                     assert!(
                         plan.reasons.iter().any(|r| r.contains("rendered once")),
@@ -123,7 +128,7 @@ fn size_zero_area_light_is_the_point_light() {
     for (name, shape) in SHAPES {
         let mut a = e.clone();
         as_area_lights(&mut a.scene, shape, 0.0);
-        a.settings.features.area_lights = true;
+        a.settings.features.shadow_model = &voxlab::technique::area::MODEL;
         a.settings.light_samples = 8;
         let f = gpu.render(&a.scene, &a.settings).unwrap().frame;
         assert_eq!(f, point, "{name} of size 0");
@@ -146,14 +151,17 @@ fn stochastic_images_agree_with_the_cpu() {
             spp: 2,
             seed: 7,
             features: voxlab::render::Features {
-                area_lights: true,
+                shadow_model: &voxlab::technique::area::MODEL,
                 ..Default::default()
             },
             ..Default::default()
         };
         let g = gpu.render(&scene, &settings).unwrap();
         let plan = gpu.last_plan().unwrap().clone();
-        assert!(plan.area_lights && plan.accumulate, "{plan}");
+        assert!(
+            (plan.shadow_model.name == "area") && plan.accumulate,
+            "{plan}"
+        );
         let c = voxlab::cpu::render(&scene, &settings);
         let d = assert_agree(name, &g.frame, &c.frame);
         // Same samples: far closer than two independent estimates would be.
@@ -186,7 +194,7 @@ fn sample_counts_match_the_cpu() {
         light_samples: 3,
         spp: 5,
         features: voxlab::render::Features {
-            area_lights: true,
+            shadow_model: &voxlab::technique::area::MODEL,
             ..Default::default()
         },
         ..Default::default()
@@ -218,7 +226,7 @@ fn accumulation_across_dispatches_matches_the_cpu() {
         light_samples: 1,
         spp: 48,
         features: voxlab::render::Features {
-            area_lights: true,
+            shadow_model: &voxlab::technique::area::MODEL,
             ..Default::default()
         },
         max_reflection_depth: 1,
@@ -259,7 +267,7 @@ fn sphere_light_inside_an_opaque_voxel_is_finite() {
         light_samples: 4,
         spp: 2,
         features: voxlab::render::Features {
-            area_lights: true,
+            shadow_model: &voxlab::technique::area::MODEL,
             ..Default::default()
         },
         ..Default::default()
@@ -292,8 +300,8 @@ fn sphere_light_inside_an_opaque_voxel_is_finite() {
     );
 }
 
-/// The plan: AREA_LIGHTS only with sampling on and a light of non-zero size, with a
-/// reason otherwise; ACCUMULATE only when sampled and spp > 1.
+/// The plan: the area model only with a light of non-zero size, with a reason otherwise;
+/// ACCUMULATE only when sampled and spp > 1.
 #[test]
 fn plan_flags_follow_the_scene() {
     let mut scene = seed_scene(16).unwrap();
@@ -301,9 +309,9 @@ fn plan_flags_follow_the_scene() {
         spp: 4,
         ..Default::default()
     };
-    settings.features.area_lights = true;
+    settings.features.shadow_model = &voxlab::technique::area::MODEL;
     let p = Plan::new(&scene, &settings);
-    assert!(!p.area_lights && !p.accumulate, "{p}");
+    assert!(p.shadow_model.name != "area" && !p.accumulate, "{p}");
     assert!(
         p.reasons
             .iter()
@@ -313,16 +321,18 @@ fn plan_flags_follow_the_scene() {
     assert_eq!(p.frames(&settings), 1);
     as_area_lights(&mut scene, rect, 2.0);
     let p = Plan::new(&scene, &settings);
-    assert!(p.area_lights && p.accumulate, "{p}");
+    assert!((p.shadow_model.name == "area") && p.accumulate, "{p}");
     assert_eq!(p.frames(&settings), 4);
     settings.spp = 1;
     let p = Plan::new(&scene, &settings);
-    assert!(p.area_lights && !p.accumulate, "{p}");
-    settings.features.area_lights = false;
+    assert!((p.shadow_model.name == "area") && !p.accumulate, "{p}");
+    settings.features.shadow_model = voxlab::technique::default_shadow_model();
     let p = Plan::new(&scene, &settings);
-    assert!(!p.area_lights, "{p}");
+    assert!(p.shadow_model.name != "area", "{p}");
     assert!(
-        p.reasons.iter().any(|r| r.contains("area_lights is off")),
+        p.reasons
+            .iter()
+            .any(|r| r.contains("shadow model hard; 3 area light(s) act as point lights")),
         "{p}"
     );
 }

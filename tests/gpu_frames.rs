@@ -131,7 +131,7 @@ fn run(i: usize, case: &Case, rng: &mut StdRng, gpu: &mut voxlab::gpu::GpuTracer
         seed: rng.random_range(0..u32::MAX),
         ..Default::default()
     };
-    settings.features.area_lights = true;
+    settings.features.shadow_model = &voxlab::technique::area::MODEL;
     settings.features.transmittance = case.transmittance;
     // Both walks: the dense grid and the sparse tree.
     for traversal in [Traversal::Dense, Traversal::Sparse] {
@@ -232,7 +232,7 @@ fn frames_in_pieces_equal_frames_in_one_dispatch() {
         light_samples: 4,
         ..Default::default()
     };
-    settings.features.area_lights = true;
+    settings.features.shadow_model = &voxlab::technique::area::MODEL;
     let mut gpu = tracer();
     let whole = gpu.render(&scene, &settings).expect("one render").frame;
     let mut pieces = None;
@@ -263,7 +263,7 @@ fn steps_per_loop_iteration_change_nothing() {
             light_samples: 2,
             ..Default::default()
         };
-        settings.features.area_lights = true;
+        settings.features.shadow_model = &voxlab::technique::area::MODEL;
         settings.features.transmittance = model;
         for traversal in [Traversal::Dense, Traversal::Sparse] {
             settings.traversal = traversal;

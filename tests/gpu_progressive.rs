@@ -47,7 +47,7 @@ fn area_scene(spp: u32) -> (Scene, RenderSettings) {
         spp,
         seed: 3,
         features: voxlab::Features {
-            area_lights: true,
+            shadow_model: &voxlab::technique::area::MODEL,
             ..Default::default()
         },
         ..Default::default()
@@ -153,7 +153,10 @@ fn one_accumulated_frame_is_the_non_accumulating_spp_1_image() {
         ..settings.clone()
     };
     let plan = Plan::new(&scene, &s1);
-    assert!(plan.area_lights && !plan.accumulate, "{plan}");
+    assert!(
+        (plan.shadow_model.name == "area") && !plan.accumulate,
+        "{plan}"
+    );
     let want = gpu.render(&scene, &s1).unwrap().frame;
     assert_bitwise("frames 0..1 of cap 64 against spp 1", &one, &want);
     // And through render_frames with spp 1: only 0..1, not continued.
@@ -186,7 +189,7 @@ fn beer_lambert_chunks_equal_one_render() {
     );
     let plan = Plan::new(&e.scene, &e.settings);
     assert!(
-        plan.transmittance.name == "beer-lambert" && plan.area_lights,
+        plan.transmittance.name == "beer-lambert" && (plan.shadow_model.name == "area"),
         "{plan}"
     );
     check_chunks("beer-lambert", &e.scene, &e.settings, &[0..2, 2..7, 7..12]);
@@ -219,9 +222,12 @@ fn ambient_occlusion_with_area_lights_chunks_equal_one_render() {
 fn cone_shadows_render_one_frame_only() {
     let mut gpu = tracer();
     let (scene, mut settings) = area_scene(16);
-    settings.features.cone_shadows = true;
+    settings.features.shadow_model = &voxlab::technique::cone::MODEL;
     let plan = Plan::new(&scene, &settings);
-    assert!(plan.cone_shadows && !plan.accumulate, "{plan}");
+    assert!(
+        (plan.shadow_model.name == "cone") && !plan.accumulate,
+        "{plan}"
+    );
     let one = gpu.render_frames(&scene, &settings, 0..1).unwrap().frame;
     assert_eq!(gpu.accumulated_frames(), 0);
     let want = gpu.render(&scene, &settings).unwrap().frame;
@@ -232,7 +238,7 @@ fn cone_shadows_render_one_frame_only() {
             .expect_err("cone shadows accumulate nothing");
         let msg = format!("{e:#}");
         assert!(
-            msg.contains("does not accumulate") && msg.contains("cone shadows"),
+            msg.contains("does not accumulate") && msg.contains("shadow model cone"),
             "{r:?}: {msg}"
         );
     }

@@ -168,7 +168,7 @@ fn sampled_area_lights_over_many_frames_per_dispatch() {
         intensity: 2500.0,
     })];
     let mut s = settings(32, 32, 2, Traversal::Sparse);
-    s.features.area_lights = true;
+    s.features.shadow_model = &voxlab::technique::area::MODEL;
     s.light_samples = 2;
     s.spp = 24;
     let mut gpu = tracer();

@@ -137,7 +137,7 @@ fn too_large_grid_is_a_clear_error() {
     // The cone pyramids need the grid as a texture; the walks read buffers
     // (tests/stress_limits.rs).
     let mut settings = small(8, 8);
-    settings.features.cone_shadows = true;
+    settings.features.shadow_model = &voxlab::technique::cone::MODEL;
     let err = gpu.render(&scene, &settings).unwrap_err().to_string();
     assert!(
         err.contains("max_texture_dimension_3d") && err.contains(&side.to_string()),

@@ -44,7 +44,7 @@ fn timestamp_queries_time_the_trace_within_its_wall_time() {
     let s = RenderSettings {
         spp: 4,
         features: voxlab::Features {
-            area_lights: true,
+            shadow_model: &voxlab::technique::area::MODEL,
             ..Default::default()
         },
         ..settings

@@ -95,7 +95,7 @@ fn the_bunny_mesh_and_the_smooth_deer_under_area_lights_over_many_frames() {
         s.width = 40;
         s.height = 40;
         s.surface = surface;
-        s.features.area_lights = true;
+        s.features.shadow_model = &voxlab::technique::area::MODEL;
         s.light_samples = 2;
         s.spp = 24;
         let g = gpu.render(&e.scene, &e.settings).unwrap();
@@ -166,16 +166,13 @@ fn every_shadow_model_and_lighting_term_shades_triangles_alike_on_both_tracers()
     base.light_samples = 1;
     base.spp = 2;
     let mut variants: Vec<(String, RenderSettings)> = Vec::new();
-    let mut area = base.clone();
-    area.features.area_lights = true;
-    variants.push(("sampled area lights".into(), area));
     for m in voxlab::technique::SHADOW_MODELS {
         let mut s = base.clone();
-        s.features.shadow_model = Some(m.name);
+        s.features.shadow_model = m;
         variants.push((format!("shadow model {}", m.name), s));
     }
     let mut cones = base.clone();
-    cones.features.cone_shadows = true;
+    cones.features.shadow_model = &voxlab::technique::cone::MODEL;
     cones.features.ambient_occlusion = true;
     variants.push(("cone shadows and AO".into(), cones));
     let mut gpu = tracer();

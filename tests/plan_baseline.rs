@@ -39,7 +39,7 @@ fn switches_that_the_scene_cannot_use_leave_the_baseline_kernel() {
     // the kernel is the baseline's and the plan says why.
     let mut e = baseline();
     let base = Plan::new(&e.scene, &e.settings).shader_defs();
-    e.settings.features.area_lights = true;
+    e.settings.features.shadow_model = &voxlab::technique::area::MODEL;
     e.settings.spp = 8;
     let plan = Plan::new(&e.scene, &e.settings);
     assert_eq!(plan.shader_defs(), base, "{plan}");

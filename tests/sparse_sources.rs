@@ -295,10 +295,10 @@ fn experiments_hold_large_grids_sparse_and_say_what_needs_them_dense() {
     // Past the loader (a scene made in code), the plan leaves the cone terms out of a
     // grid held sparse, and says why.
     let mut e = load("[scene]\nsize = 1024\n").unwrap();
-    e.settings.features.cone_shadows = true;
+    e.settings.features.shadow_model = &voxlab::technique::cone::MODEL;
     e.settings.features.ambient_occlusion = true;
     let plan = voxlab::plan::Plan::new(&e.scene, &e.settings);
-    assert!(!plan.cone_shadows && !plan.ambient_occlusion && plan.pyramid.is_none());
+    assert!(plan.shadow_model.name != "cone" && !plan.ambient_occlusion && plan.pyramid.is_none());
     assert!(
         plan.reasons
             .iter()

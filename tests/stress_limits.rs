@@ -73,7 +73,7 @@ fn one_past_the_limit_is_a_clear_error() {
             ..Default::default()
         };
         // The pyramids of cone shadows are 3D textures.
-        settings.features.cone_shadows = true;
+        settings.features.shadow_model = &voxlab::technique::cone::MODEL;
         let err = format!("{:#}", gpu.render(&scene, &settings).unwrap_err());
         assert!(
             err.contains("max_texture_dimension_3d") && err.contains(&side.to_string()),

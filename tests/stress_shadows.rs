@@ -46,7 +46,9 @@ fn shadows_agree_with_the_oracle_at_every_depth_limit() {
                 ..Default::default()
             };
             settings.features.transmittance = transmittance;
-            settings.features.area_lights = area;
+            settings
+                .features
+                .set_shadow_model(if area { "area" } else { "hard" });
             let case = StressCase {
                 name: format!("{label}, depth {depth}"),
                 what: String::new(),

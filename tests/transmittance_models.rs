@@ -211,7 +211,7 @@ fn every_model_gpu_equals_cpu() {
                     color: DVec3::ONE,
                     intensity: 400.0,
                 }));
-                s.features.area_lights = true;
+                s.features.shadow_model = &voxlab::technique::area::MODEL;
                 s.light_samples = 2;
                 s.spp = 12;
             }

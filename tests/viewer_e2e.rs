@@ -193,13 +193,16 @@ fn scripted_viewer_saves_what_render_reproduces() {
     let right = Experiment::load(save.join("e2e-001-right.toml")).unwrap();
     assert_eq!(right.settings.spp, 5);
     assert_eq!(right.settings.light_samples, 2);
-    assert!(right.settings.features.area_lights);
+    assert!((right.settings.features.shadow_model.name == "area"));
     assert_eq!(
         right.settings.features.transmittance,
         voxlab::technique::beer_lambert::ID
     );
     let left = Experiment::load(save.join("e2e-001-left.toml")).unwrap();
-    assert!(!left.settings.features.area_lights && !left.settings.features.cone_shadows);
+    assert!(
+        left.settings.features.shadow_model.name != "area"
+            && left.settings.features.shadow_model.name != "cone"
+    );
     assert_eq!((left.settings.width, left.settings.height), (96, 72));
     for e in [&left, &right] {
         let yaw = e.scene.camera.yaw.to_degrees() - original.scene.camera.yaw.to_degrees();

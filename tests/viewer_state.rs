@@ -67,7 +67,7 @@ fn default_sides_compare_the_file_with_a_soft_shadow_model() {
         env!("CARGO_MANIFEST_DIR")
     ))
     .unwrap();
-    e.settings.features.area_lights = false;
+    e.settings.features.shadow_model = voxlab::technique::default_shadow_model();
     let s = ViewerState::new(e, None, None).unwrap();
     assert_eq!(ShadowModel::of(&s.sides[1].features), ShadowModel::AREA);
     assert_eq!(
@@ -125,14 +125,16 @@ fn zoom_moves_closer_and_stays_bounded() {
 fn side_feature_lists_parse_and_reject_with_the_allowed_items() {
     let mut side = SideSettings::from_settings(&Default::default(), 16);
     side.parse_list("area, beer-lambert,ao,samples=3").unwrap();
-    assert!(side.features.area_lights && side.features.ambient_occlusion);
+    assert!((side.features.shadow_model.name == "area") && side.features.ambient_occlusion);
     assert_eq!(
         side.features.transmittance,
         voxlab::technique::beer_lambert::ID
     );
     assert_eq!(side.light_samples, 3);
     side.parse_list("cone").unwrap();
-    assert!(side.features.cone_shadows && !side.features.area_lights);
+    assert!(
+        (side.features.shadow_model.name == "cone") && side.features.shadow_model.name != "area"
+    );
     let e = side.parse_list("soft").unwrap_err().to_string();
     assert!(e.contains("`soft`") && e.contains("beer-lambert"), "{e}");
     let e = side.parse_list("samples=0").unwrap_err().to_string();

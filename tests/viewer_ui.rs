@@ -404,7 +404,7 @@ fn shadow_combo_box_switches_the_left_side_to_cones_and_leaves_the_right_alone()
     let jobs = rig.take_side_jobs(Side::Left);
     assert_eq!(jobs.len(), 1);
     let f = &jobs[0].experiment.settings.features;
-    assert!(f.cone_shadows && !f.area_lights, "{f:?}");
+    assert_eq!(f.shadow_model.name, "cone", "{f:?}");
     assert_eq!(jobs[0].generation, before[0] + 1);
     assert_eq!(rig.state().generation, [before[0] + 1, before[1]]);
     assert!(rig.take_side_jobs(Side::Right).is_empty());
@@ -679,7 +679,7 @@ fn error_vs_reference_renders_references_and_shows_rmse() {
     let base_seed = rig.state().base.settings.seed;
     let left = rig.state().rendered(Side::Left).clone();
     let s = &first.experiment.settings;
-    assert!(s.features.area_lights && !s.features.cone_shadows);
+    assert_eq!(s.features.shadow_model.name, "area");
     assert_eq!(
         s.features.transmittance,
         left.settings.features.transmittance

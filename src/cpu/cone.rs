@@ -224,7 +224,6 @@ pub fn shadow_visibility(
 pub struct ConeScene {
     pub pyramid: Pyramid,
     pub params: ConeParams,
-    pub shadows: bool,
     pub ambient_occlusion: bool,
     pub indirect: bool,
     /// `tan(aperture / 2)` of point lights' shadow cones.
@@ -249,7 +248,6 @@ impl ConeScene {
                 step_factor: c.step_factor,
                 start_offset: c.start_offset,
             },
-            shadows: plan.cone_shadows,
             ambient_occlusion: plan.ambient_occlusion,
             indirect: plan.indirect,
             point_tan_half: (c.aperture_deg.to_radians() / 2.0).tan(),
@@ -257,28 +255,6 @@ impl ConeScene {
             ao_range: c.ao_range,
             indirect_strength: c.indirect_strength,
         })
-    }
-
-    /// `tan(theta / 2)` of the shadow cone from grid-local `p` to `light`: for an area
-    /// light the angle it subtends, `theta = 2 atan(R / dist)` with `R` its radius (a
-    /// rectangle's half-diagonal), so `tan(theta / 2) = R / dist` (R in voxels); the
-    /// set aperture for point lights.
-    pub fn light_tan_half(
-        &self,
-        light: &crate::scene::Light,
-        radius_voxels: f64,
-        dist: f64,
-    ) -> f64 {
-        match light {
-            crate::scene::Light::Area(_) if radius_voxels > 0.0 => {
-                if dist > 0.0 {
-                    radius_voxels / dist
-                } else {
-                    f64::MAX
-                }
-            }
-            _ => self.point_tan_half,
-        }
     }
 }
 

@@ -16,8 +16,7 @@ pub use dda::{Dda, Hit, Visit, cast, cast_over, cast_through, cast_with};
 
 use crate::plan::{Plan, Traversal};
 use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Rules, Transmittance};
-use crate::sampling::light_sample;
-use crate::scene::{Light, Material, Scene};
+use crate::scene::{Material, Scene};
 use crate::sparse::SparseTree;
 use crate::triangles::SurfaceTrace;
 
@@ -157,11 +156,10 @@ struct StackRay {
 }
 
 /// What a render builds once from the scene before tracing, as its plan asks: the cone
-/// features' pyramids, the plug-in shadow model's own data, the triangle surfaces and
-/// the sparse tree.
+/// pyramids, the shadow model's own data, the triangle surfaces and the sparse tree.
 pub struct Prepared {
     pub cones: Option<cone::ConeScene>,
-    pub shadow_model: Option<Box<dyn crate::technique::CpuShadow>>,
+    pub shadow_model: Box<dyn crate::technique::CpuShadow>,
     /// The sparse tree of the grid the walks read, when the plan traverses it.
     pub tree: Option<std::sync::Arc<SparseTree>>,
     /// The triangle surfaces, when the plan traces them.
@@ -182,7 +180,7 @@ impl Prepared {
         let grid = surfaces.as_ref().map_or(&scene.grid, |s| &s.tagged);
         Self {
             cones: cone::ConeScene::new(scene, settings, plan),
-            shadow_model: plan.shadow_model.map(|m| (m.cpu)(scene, settings)),
+            shadow_model: (plan.shadow_model.cpu)(scene, settings),
             tree: (plan.traversal == Traversal::Sparse)
                 .then(|| grid.tree(crate::sparse::GPU_LOG_BRANCH)),
             surfaces,
@@ -373,8 +371,8 @@ struct Surface {
     medium: u8,
 }
 
-/// Phong with inverse-square falloff, summed over the lights (an area light over its
-/// samples), times the albedo.
+/// Phong with inverse-square falloff, summed over the lights as the plan's shadow model
+/// shades each, times the albedo.
 #[allow(clippy::too_many_arguments)]
 fn direct_light(
     scene: &Scene,
@@ -391,70 +389,22 @@ fn direct_light(
     let walk = ShadowWalk::new(prepared, medium);
     let mut sum = DVec3::ZERO;
     for (j, light) in scene.lights.iter().enumerate() {
-        if let Some(model) = &prepared.shadow_model {
-            // A plug-in shadow model shades the whole light (crate::technique).
-            let at = crate::technique::LightQuery {
-                scene,
-                settings,
-                material: m,
-                p,
-                n,
-                d,
-                q,
-                key,
-                index: j as u32,
-                light,
-                walk,
-            };
-            sum += model.light_term(&at, stats);
-            continue;
-        }
-        let radiance = light.color() * light.intensity();
-        if let Some(c) = prepared.cones.as_ref().filter(|c| c.shadows) {
-            // One cone to the light's centre replaces the shadow ray (and the area
-            // samples), in grid-local units.
-            stats.shadow += 1;
-            let g = &scene.grid;
-            let (pl, ll) = (g.to_local(p), g.to_local(light.position()));
-            let r = cone::light_radius(light) / g.voxel_size();
-            let th = c.light_tan_half(light, r, (ll - pl).length());
-            let v = cone::shadow_visibility(&c.pyramid, &c.params, pl, n, ll, th);
-            if v > 0.0 {
-                sum += v * unshadowed(settings, m, p, n, d, light.position(), radiance);
-            }
-            continue;
-        }
-        match light {
-            Light::Area(a) if settings.features.area_lights && !a.is_degenerate() => {
-                let count = settings.light_samples.max(1);
-                let mut light_sum = DVec3::ZERO;
-                for k in 0..count {
-                    let (s, t) =
-                        light_sample(settings.seed, key.pixel, key.frame, j as u32, k, count);
-                    let x = a.sample_point(s, t);
-                    light_sum += point_contribution(
-                        scene, &walk, settings, m, q, p, n, d, x, radiance, stats,
-                    );
-                }
-                sum += light_sum / count as f64;
-            }
-            // Point lights, and area lights with sampling off or of size 0: the centre.
-            _ => {
-                sum += point_contribution(
-                    scene,
-                    &walk,
-                    settings,
-                    m,
-                    q,
-                    p,
-                    n,
-                    d,
-                    light.position(),
-                    radiance,
-                    stats,
-                );
-            }
-        }
+        // The plan's shadow model shades the whole light (crate::technique).
+        let at = crate::technique::LightQuery {
+            scene,
+            settings,
+            material: m,
+            p,
+            n,
+            d,
+            q,
+            key,
+            index: j as u32,
+            light,
+            walk,
+            cones: prepared.cones.as_ref(),
+        };
+        sum += prepared.shadow_model.light_term(&at, stats);
     }
     m.albedo * sum
 }

@@ -303,17 +303,15 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
     t
 }
 
-/// `[features]`: every built-in technique's flag, the transmittance model by name, and
-/// a plug-in shadow model's name (`crate::technique`).
+/// `[features]`: every lighting term's flag, and the shadow and transmittance models by
+/// name (`crate::technique`).
 pub fn features_table(f: &Features) -> Table {
     let mut t = Table::new();
     for flag in crate::technique::BUILT_IN.iter().filter_map(|b| b.flag) {
         t.insert(flag.key.into(), (flag.get)(f).into());
     }
     t.insert("transmittance".into(), f.transmittance.name().into());
-    if let Some(name) = f.shadow_model {
-        t.insert("shadow_model".into(), name.into());
-    }
+    t.insert("shadow_model".into(), f.shadow_model.name.into());
     t
 }
 

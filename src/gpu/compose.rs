@@ -69,14 +69,8 @@ const SHADOW_MODULES: &[(&str, &str)] = &[
     ),
 ];
 
-/// `voxlab::shadow_model` when the plan has no plug-in shadow model.
-const NO_SHADOW_MODEL: (&str, &str) = (
-    "shaders/shadow_model_none.wgsl",
-    include_str!("../../shaders/shadow_model_none.wgsl"),
-);
-
-/// Composed after [`SHADOW_MODULES`] and the plan's plug-in shadow model (which may
-/// import any of them): the local light, which imports the model.
+/// Composed after [`SHADOW_MODULES`] and the plan's shadow model (which may import any
+/// of them): the local light, which imports the model.
 const SHADING: (&str, &str) = (
     "shaders/shading.wgsl",
     include_str!("../../shaders/shading.wgsl"),
@@ -149,7 +143,7 @@ pub fn compose_shader(plan: &Plan) -> Result<naga::Module, ShaderError> {
     let mut modules = MODULES.to_vec();
     modules.push(plan.transmittance.wgsl);
     modules.extend_from_slice(SHADOW_MODULES);
-    modules.push(plan.shadow_model.map_or(NO_SHADOW_MODEL, |m| m.wgsl));
+    modules.push(plan.shadow_model.wgsl);
     modules.push(SHADING);
     let module = compose(&modules, TRACE, defs).map_err(|message| ShaderError::Compose {
         defs: defs_string(plan),

@@ -779,9 +779,10 @@ impl GpuTracer {
     /// voxel buffer, the sparse one the tree.
     fn reads_grid_texture(plan: &Plan) -> bool {
         plan.pyramid.is_some()
-            || plan
-                .shadow_model
-                .is_some_and(|m| matches!(m.gpu_data, Some(crate::technique::GpuData::Device(_))))
+            || matches!(
+                plan.shadow_model.gpu_data,
+                Some(crate::technique::GpuData::Device(_))
+            )
     }
 
     /// Whether a render of `plan` reads the voxel buffer: the dense walk does.
@@ -1012,7 +1013,7 @@ impl GpuTracer {
 
     /// The materials and lights as `shaders/types.wgsl` lays them out: the tracer's
     /// and the pyramid injection's.
-    fn scene_data(scene: &Scene, settings: &RenderSettings) -> (Vec<GpuMaterial>, Vec<GpuLight>) {
+    fn scene_data(scene: &Scene) -> (Vec<GpuMaterial>, Vec<GpuLight>) {
         let materials = scene
             .materials
             .iter()
@@ -1030,11 +1031,8 @@ impl GpuTracer {
                 _pad_e: 0.0,
             })
             .collect();
-        let mut lights: Vec<GpuLight> = scene
-            .lights
-            .iter()
-            .map(|l| Self::light(scene, settings, l))
-            .collect();
+        let mut lights: Vec<GpuLight> =
+            scene.lights.iter().map(|l| Self::light(scene, l)).collect();
         // A binding cannot be empty: a scene without lights binds one unused entry.
         if lights.is_empty() {
             lights.push(GpuLight::zeroed());
@@ -1044,12 +1042,8 @@ impl GpuTracer {
 
     /// Writes the materials and lights into their buffers (grown when too small) and
     /// returns those.
-    fn upload_scene(
-        &mut self,
-        scene: &Scene,
-        settings: &RenderSettings,
-    ) -> (wgpu::Buffer, wgpu::Buffer) {
-        let (materials, lights) = Self::scene_data(scene, settings);
+    fn upload_scene(&mut self, scene: &Scene) -> (wgpu::Buffer, wgpu::Buffer) {
+        let (materials, lights) = Self::scene_data(scene);
         let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let upload = |slot: &mut Option<(u64, wgpu::Buffer)>, bytes: &[u8], label| {
             let b = Self::grow(&self.device, slot, bytes.len() as u64, label, usage);
@@ -1126,11 +1120,11 @@ impl GpuTracer {
         }
     }
 
-    /// A light as the kernel sees it. Point lights, area lights of size 0 and area
-    /// lights with sampling and plug-in shadow models off are points at their centres (exactly the baseline's
-    /// upload); sampled ones carry their kind and their axes scaled by their size, from
-    /// AreaLight::frame in f64, divided by the voxel size into voxel units.
-    fn light(scene: &Scene, settings: &RenderSettings, light: &Light) -> GpuLight {
+    /// A light as the kernel sees it. Point lights and area lights of size 0 are points
+    /// at their centres; other area lights carry their kind and their axes scaled by
+    /// their size, from AreaLight::frame in f64, divided by the voxel size into voxel
+    /// units. Only the shadow model reads the shape: hard shadows take the centre alone.
+    fn light(scene: &Scene, light: &Light) -> GpuLight {
         let grid = &scene.grid;
         let mut g = GpuLight {
             position: f3(grid.to_local(light.position())),
@@ -1138,10 +1132,10 @@ impl GpuTracer {
             radiance: f3(light.color() * light.intensity()),
             ..GpuLight::zeroed()
         };
+        // Every area light of non-zero size goes with its shape: the shadow model decides
+        // whether to read it (hard shadows take its centre).
         let Light::Area(a) = light else { return g };
-        // A plug-in shadow model reads the light's shape whether it samples it or not.
-        let shaped = settings.features.area_lights || settings.features.shadow_model.is_some();
-        if !(shaped && light.is_area()) {
+        if !light.is_area() {
             return g;
         }
         let local = |v: DVec3| f3(v / grid.voxel_size());
@@ -1231,12 +1225,13 @@ impl GpuTracer {
             );
         }
         let why = if settings.spp <= 1 {
-            "settings.spp is 1"
-        } else if plan.cone_shadows && settings.features.area_lights {
-            "cone shadows replace the area-light samples, so nothing is sampled"
+            "settings.spp is 1".to_string()
         } else {
-            "nothing is sampled (no area light of non-zero size with features.area_lights \
-             on), so every frame is the same image"
+            format!(
+                "nothing is sampled (shadow model {} draws no samples here and there is no \
+                 pixel filter), so every frame is the same image",
+                plan.shadow_model.name
+            )
         };
         bail!(
             "frames {a}..{b}: this plan does not accumulate ({why}); it renders one frame, \
@@ -1326,7 +1321,8 @@ impl GpuTracer {
         settings: &RenderSettings,
         plan: &Plan,
     ) -> Result<u64> {
-        let Some((model, make)) = plan.shadow_model.and_then(|m| m.gpu_data.map(|f| (m, f))) else {
+        let model = plan.shadow_model;
+        let Some(make) = model.gpu_data else {
             self.technique_data = None;
             return Ok(0);
         };
@@ -1478,7 +1474,7 @@ impl GpuTracer {
         self.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
 
-        let (mat_buf, light_buf) = self.upload_scene(scene, settings);
+        let (mat_buf, light_buf) = self.upload_scene(scene);
         self.queue
             .write_buffer(&self.counters, 0, &[0u8; COUNTER_BYTES as usize]);
 

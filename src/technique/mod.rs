@@ -2,13 +2,16 @@
 //!
 //! A *slot* is a part of the model with several implementations (how a light's
 //! visibility is estimated, how a shadow segment is attenuated, what lighting terms are
-//! added). A *technique* fills a slot. What a shadow model needs is one
-//! [`ShadowModel`] value in its own file (`src/technique/<name>.rs`): its name and the
-//! paper it follows, its settings (each with type, default and range, from which the
-//! experiment parser, the writer, the viewer's lists, `voxlab ablate`'s curves, the
-//! stress suite and `voxlab techniques` follow), its plan rule, its WGSL module, the GPU
-//! data it reads (made only when the plan uses it) and its f64 CPU implementation.
-//! Registering it is one line in [`SHADOW_MODELS`].
+//! added). A *technique* fills a slot. A shadow model is one [`ShadowModel`] value in
+//! its own file (`src/technique/<name>.rs`): its name and the paper it follows, its
+//! settings (each with type, default and range, from which the experiment parser, the
+//! writer, the viewer's lists, `voxlab ablate`'s curves, the stress suite and `voxlab
+//! techniques` follow), its plan rule, its WGSL module, the GPU data it reads (made
+//! only when the plan uses it) and its f64 CPU implementation. Registering it is one
+//! line in [`SHADOW_MODELS`]: the seed's `hard` shadows ([`hard`], the default), sampled
+//! `area` lights ([`area`]), `cone` shadows ([`cone`]), and the plug-ins `ratio`
+//! ([`ratio`]) and `sdf` ([`sdf`]). The kernel composes exactly one
+//! (`shaders/shading.wgsl` calls its `light_term`).
 //!
 //! A transmittance model is one [`TransmittanceModel`] value in its own file (its name,
 //! summary, plan rule, WGSL module `voxlab::transmittance` and f64 functions, and the
@@ -17,15 +20,17 @@
 //! The shadow walks (voxels, dense or sparse, and triangle surfaces; `shaders/shadow.wgsl`,
 //! `shaders/shadow_surface.wgsl`, `crate::cpu::shadow_transmittance`) are generic over it.
 //!
-//! The seed's other techniques (hard shadows, sampled area lights, cones; ambient
-//! occlusion and indirect light) are declared in [`BUILT_IN`] with their settings, so
-//! the listing and the README's table cover them too; the `[cones]` settings are
-//! declared in [`cones`], from which the parser, the writer and the viewer take them.
-//! Their code predates this registry and still lives in `cpu/`, `shaders/` and
-//! `plan.rs`.
+//! The lighting terms (ambient occlusion and indirect light) are declared in
+//! [`BUILT_IN`] with their settings, so the listing and the README's table cover them
+//! too; the `[cones]` settings are declared in [`cones`], from which the parser, the
+//! writer and the viewer take them. Their code predates this registry and still lives
+//! in `cpu/cone.rs`, `shaders/cone.wgsl` and `plan.rs`.
 
+pub mod area;
 pub mod beer_lambert;
+pub mod cone;
 pub mod cones;
+pub mod hard;
 pub mod min_kt;
 pub mod ratio;
 pub mod sdf;
@@ -39,8 +44,15 @@ use crate::cpu::SampleKey;
 use crate::render::{Features, RayStats, RenderSettings, Transmittance};
 use crate::scene::{Light, Material, Scene};
 
-/// Plug-in shadow models, in the order they are listed and offered. One line each.
-pub const SHADOW_MODELS: &[&ShadowModel] = &[&ratio::MODEL, &sdf::MODEL];
+/// Shadow models, in the order they are listed and offered; the first is the default
+/// (the baseline's hard shadows). One line each.
+pub const SHADOW_MODELS: &[&ShadowModel] = &[
+    &hard::MODEL,
+    &area::MODEL,
+    &cone::MODEL,
+    &ratio::MODEL,
+    &sdf::MODEL,
+];
 
 /// Transmittance models, in the order they are listed and offered; the first is the
 /// default (the baseline's). One line each.
@@ -182,6 +194,8 @@ pub struct LightQuery<'a> {
     /// How shadow segments walk the scene (`crate::cpu::shadow_transmittance`): the
     /// sparse tree and the triangle surfaces when planned, and the medium at `q`.
     pub walk: crate::cpu::ShadowWalk<'a>,
+    /// The cone pyramids, when the plan built them (for a model with `pyramid`).
+    pub cones: Option<&'a crate::cpu::cone::ConeScene>,
 }
 
 /// A shadow model's f64 reference, made once per render (its per-scene data built).
@@ -236,8 +250,24 @@ pub struct ShadowModel {
     /// Makes the CPU implementation for a render.
     pub cpu: fn(&Scene, &RenderSettings) -> Box<dyn CpuShadow>,
     /// The knob its ablation curve sweeps: one of its settings, or `"spp"` (the
-    /// `[ablate] spp` list) for a stochastic model whose quality is its sample count.
+    /// `[ablate] spp` list) for a stochastic model whose quality is its sample count;
+    /// empty for a model `voxlab ablate` draws by its own sweeps (hard, area, cone).
     pub ablate_knob: &'static str,
+    /// How printed plans name it (`AREA_LIGHTS`, `SHADOW_MODEL(sdf)`); empty for the
+    /// default, which the baseline's plans do not name.
+    pub label: &'static str,
+    /// Its older `[features]` switch (`area_lights = true`), still read: `true` chooses
+    /// it, `false` leaves whatever else is chosen.
+    pub switch: Option<&'static str>,
+    /// Settings it reads from the shared tables, as `table.key` (`render.spp`,
+    /// `cones.levels`): listed with its own `[techniques.<name>]` ones.
+    pub shared_settings: &'static [&'static str],
+    /// Whether it casts shadow rays through the transmittance model. A model that does
+    /// not (cones) leaves the transmittance model out of the plan.
+    pub shadow_rays: bool,
+    /// Whether it reads the cone pyramids (`LightQuery::cones`; shaders/cone.wgsl):
+    /// the plan builds them for it.
+    pub pyramid: bool,
 }
 
 impl ShadowModel {
@@ -356,8 +386,8 @@ pub struct Flag {
     pub set: fn(&mut Features, bool),
 }
 
-/// A technique of the seed's set, declared for the listing, the parser and writer of
-/// `[features]`, and the viewer's lists.
+/// A lighting term, declared for the listing, the parser and writer of `[features]`,
+/// and the viewer's lists.
 #[derive(Clone, Copy, Debug)]
 pub struct BuiltIn {
     pub name: &'static str,
@@ -365,48 +395,12 @@ pub struct BuiltIn {
     pub summary: &'static str,
     /// Its settings as `table.key` (`[cones]` ones declared in [`cones`]).
     pub settings: &'static [&'static str],
-    /// Its boolean `[features]` key: a lighting term's switch, or a shadow model's
-    /// older key (`area_lights`, `cone_shadows`) beside `shadow_model`.
+    /// Its boolean `[features]` key.
     pub flag: Option<Flag>,
 }
 
-/// The seed's techniques and voxlab's first extensions, in listing order.
+/// The lighting terms, in listing order.
 pub const BUILT_IN: &[BuiltIn] = &[
-    BuiltIn {
-        name: "hard",
-        slot: Slot::Shadow,
-        summary: "one shadow ray to each light's centre (the seed's hard shadows, Whitted 1980)",
-        settings: &[],
-        flag: None,
-    },
-    BuiltIn {
-        name: "area",
-        slot: Slot::Shadow,
-        summary: "area lights sampled over their shape, stratified, accumulated over frames \
-                  (Cook, Porter and Carpenter 1984)",
-        settings: &["render.light_samples", "render.spp"],
-        flag: Some(Flag {
-            key: "area_lights",
-            get: |f| f.area_lights,
-            set: |f, on| f.area_lights = on,
-        }),
-    },
-    BuiltIn {
-        name: "cone",
-        slot: Slot::Shadow,
-        summary: "one cone per light through the opacity pyramid (Crassin et al. 2011, section 4)",
-        settings: &[
-            "cones.levels",
-            "cones.step_factor",
-            "cones.aperture_deg",
-            "cones.start_offset",
-        ],
-        flag: Some(Flag {
-            key: "cone_shadows",
-            get: |f| f.cone_shadows,
-            set: |f, on| f.cone_shadows = on,
-        }),
-    },
     BuiltIn {
         name: "ambient_occlusion",
         slot: Slot::Lighting,
@@ -433,11 +427,12 @@ pub const BUILT_IN: &[BuiltIn] = &[
     },
 ];
 
-/// The `[features]` keys in the order they are written: `shadow_model`, `transmittance`,
-/// then every built-in's flag.
+/// The `[features]` keys: `shadow_model`, `transmittance`, the shadow models' older
+/// switches, then every lighting term's.
 pub fn feature_keys() -> Vec<&'static str> {
     ["shadow_model", "transmittance"]
         .into_iter()
+        .chain(SHADOW_MODELS.iter().filter_map(|m| m.switch))
         .chain(BUILT_IN.iter().filter_map(|b| b.flag.map(|f| f.key)))
         .collect()
 }
@@ -464,15 +459,14 @@ pub fn lighting_terms() -> impl Iterator<Item = (&'static str, Flag)> {
         .filter_map(|b| b.flag.map(|f| (b.name, f)))
 }
 
-/// Names a `[features] shadow_model` may take: the built-in shadow models, then the
-/// plug-ins.
+/// Names a `[features] shadow_model` may take, in registry order.
 pub fn shadow_model_names() -> Vec<&'static str> {
-    BUILT_IN
-        .iter()
-        .filter(|b| b.slot == Slot::Shadow)
-        .map(|b| b.name)
-        .chain(SHADOW_MODELS.iter().map(|m| m.name))
-        .collect()
+    SHADOW_MODELS.iter().map(|m| m.name).collect()
+}
+
+/// The default shadow model: the baseline's.
+pub fn default_shadow_model() -> &'static ShadowModel {
+    SHADOW_MODELS[0]
 }
 
 /// One row of the listing: name, slot, how it is switched on, settings, summary.
@@ -485,28 +479,24 @@ pub struct ListingRow {
     pub summary: &'static str,
 }
 
-/// Every technique, built-in first.
+/// Every technique: the shadow models, the transmittance models, the lighting terms.
 pub fn listing() -> Vec<ListingRow> {
-    let mut rows: Vec<ListingRow> = BUILT_IN
-        .iter()
-        .map(|b| ListingRow {
-            name: b.name,
-            slot: b.slot,
-            switch: match b.slot {
-                Slot::Shadow => format!("shadow_model = \"{}\"", b.name),
-                Slot::Transmittance => format!("transmittance = \"{}\"", b.name),
-                Slot::Lighting => format!("{} = true", b.name),
-            },
-            settings: b.settings.iter().map(|s| s.to_string()).collect(),
-            summary: b.summary,
-        })
-        .collect();
-    // Transmittance models after the built-in shadow models, where the seed's list
-    // had them.
-    let at = rows
-        .iter()
-        .position(|r| r.slot != Slot::Shadow)
-        .unwrap_or(rows.len());
+    let shadow = SHADOW_MODELS.iter().map(|m| ListingRow {
+        name: m.name,
+        slot: Slot::Shadow,
+        switch: format!("shadow_model = \"{}\"", m.name),
+        settings: m
+            .shared_settings
+            .iter()
+            .map(|s| s.to_string())
+            .chain(
+                m.settings
+                    .iter()
+                    .map(|s| format!("techniques.{}.{}", m.name, s.key)),
+            )
+            .collect(),
+        summary: m.summary,
+    });
     let transmittances = TRANSMITTANCES.iter().map(|m| ListingRow {
         name: m.name,
         slot: Slot::Transmittance,
@@ -514,21 +504,14 @@ pub fn listing() -> Vec<ListingRow> {
         settings: m.settings.iter().map(|s| s.to_string()).collect(),
         summary: m.summary,
     });
-    rows.splice(at..at, transmittances);
-    for m in SHADOW_MODELS {
-        rows.push(ListingRow {
-            name: m.name,
-            slot: Slot::Shadow,
-            switch: format!("shadow_model = \"{}\"", m.name),
-            settings: m
-                .settings
-                .iter()
-                .map(|s| format!("techniques.{}.{}", m.name, s.key))
-                .collect(),
-            summary: m.summary,
-        });
-    }
-    rows
+    let terms = BUILT_IN.iter().map(|b| ListingRow {
+        name: b.name,
+        slot: b.slot,
+        switch: format!("{} = true", b.name),
+        settings: b.settings.iter().map(|s| s.to_string()).collect(),
+        summary: b.summary,
+    });
+    shadow.chain(transmittances).chain(terms).collect()
 }
 
 /// The listing as a markdown table (what `voxlab techniques --markdown` prints and the
@@ -570,34 +553,25 @@ pub fn listing_text() -> String {
             r.switch,
             r.summary
         );
-        if let Some(m) = shadow_model(r.name) {
-            for s in m.settings {
-                out += &format!(
-                    "  [techniques.{}] {} = {} ({}; {})\n",
-                    m.name,
+        for key in &r.settings {
+            let own = shadow_model(r.name).and_then(|m| {
+                let k = key.strip_prefix(&format!("techniques.{}.", m.name))?;
+                Some((format!("[techniques.{}]", m.name), m.setting(k)?))
+            });
+            let declared = own.or_else(|| {
+                let c = cones::cone_setting(key.strip_prefix("cones.")?)?;
+                Some(("[cones]".to_string(), &c.setting))
+            });
+            out += &match declared {
+                Some((table, s)) => format!(
+                    "  {table} {} = {} ({}; {})\n",
                     s.key,
                     s.default,
                     s.range_text().trim_start_matches("must be "),
                     s.doc
-                );
-            }
-        } else {
-            for key in &r.settings {
-                let declared = key
-                    .strip_prefix("cones.")
-                    .and_then(cones::cone_setting)
-                    .map(|c| &c.setting);
-                out += &match declared {
-                    Some(s) => format!(
-                        "  [cones] {} = {} ({}; {})\n",
-                        s.key,
-                        s.default,
-                        s.range_text().trim_start_matches("must be "),
-                        s.doc
-                    ),
-                    None => format!("  {key}\n"),
-                };
-            }
+                ),
+                None => format!("  {key}\n"),
+            };
         }
     }
     out

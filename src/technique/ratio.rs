@@ -55,6 +55,11 @@ pub const MODEL: ShadowModel = ShadowModel {
     gpu_data: None,
     cpu: |_, _| Box::new(Ratio),
     ablate_knob: "spp",
+    label: "SHADOW_MODEL(ratio)",
+    switch: None,
+    shared_settings: &["render.light_samples", "render.spp"],
+    shadow_rays: true,
+    pyramid: false,
 };
 
 fn plan(scene: &Scene, _: &RenderSettings) -> Result<(), String> {

@@ -75,6 +75,11 @@ pub const MODEL: ShadowModel = ShadowModel {
         })
     },
     ablate_knob: "softness",
+    label: "SHADOW_MODEL(sdf)",
+    switch: None,
+    shared_settings: &[],
+    shadow_rays: true,
+    pyramid: false,
 };
 
 fn plan(scene: &Scene, _: &RenderSettings) -> Result<(), String> {

@@ -1333,8 +1333,7 @@ impl ViewerApp {
                     ..e.settings.clone()
                 };
                 let plan = crate::plan::Plan::new(&e.scene, &many);
-                let samples = (plan.area_lights && !plan.cone_shadows)
-                    || plan.shadow_model.is_some_and(|m| m.stochastic);
+                let samples = plan.shadow_model.stochastic;
                 self.views[i].controls = Some((generation, samples, plan.accumulate));
                 (samples, plan.accumulate)
             }
@@ -1370,13 +1369,8 @@ impl ViewerApp {
                     });
                 });
         }
-        // The plug-in shadow model's settings, from its declaration.
-        if let Some(m) = s
-            .features
-            .shadow_model
-            .and_then(crate::technique::shadow_model)
-            .filter(|m| !m.settings.is_empty())
-        {
+        // The shadow model's own settings, from its declaration.
+        if let Some(m) = Some(s.features.shadow_model).filter(|m| !m.settings.is_empty()) {
             egui::CollapsingHeader::new(format!("{} knobs", m.name))
                 .id_salt((m.name, i))
                 .show(ui, |ui| {

@@ -1,0 +1,105 @@
+//! Cone shadows: one cone per light through the opacity pyramid replaces the shadow rays
+//! (C. Crassin et al., "Interactive Indirect Illumination Using Voxel Cone Tracing",
+//! CGF 30(7), 2011, section 4). The march and the pyramids are shared with ambient
+//! occlusion and indirect light (`crate::cpu::cone`, `shaders/cone.wgsl`); its knobs are
+//! the `[cones]` table's ([`super::cones`]).
+//!
+//! Contract (both tracers): light j at centre `x` is `V E (kd diffuse + ks specular)`
+//! (`crate::cpu::unshadowed`) at `x`, `V` the visibility `1 - occ` of one cone from the
+//! hit (grid-local, apex `start_offset` along the normal) to `x`. Its aperture is the
+//! angle the light subtends, `tan(theta / 2) = R / dist` with `R` its radius in voxels
+//! (`crate::cpu::cone::light_radius`: a rectangle's half-diagonal) and `dist` from the
+//! hit to `x`; `cones.aperture_deg` for point lights. Each light counts one shadow ray.
+//! It casts no shadow ray through the transmittance model: the pyramid's opacity
+//! already holds the materials' transmittance, so the plan leaves the model out.
+
+use glam::DVec3;
+
+use super::{CpuShadow, LightQuery, ShadowModel};
+use crate::cpu::cone::{ConeScene, light_radius, shadow_visibility};
+use crate::render::{RayStats, RenderSettings};
+use crate::scene::{Light, Scene};
+
+pub const MODEL: ShadowModel = ShadowModel {
+    name: "cone",
+    summary: "one cone per light through the opacity pyramid (Crassin et al. 2011, section 4)",
+    settings: &[],
+    stochastic: false,
+    plan,
+    wgsl: (
+        "shaders/shadow_cone.wgsl",
+        include_str!("../../shaders/shadow_cone.wgsl"),
+    ),
+    // The pyramids are the plan's (`Plan::pyramid`), shared with the lighting terms.
+    gpu_data: None,
+    cpu: |_, _| Box::new(Cone),
+    ablate_knob: "",
+    label: "CONE_SHADOWS",
+    switch: Some("cone_shadows"),
+    shared_settings: &[
+        "cones.levels",
+        "cones.step_factor",
+        "cones.aperture_deg",
+        "cones.start_offset",
+    ],
+    shadow_rays: false,
+    pyramid: true,
+};
+
+fn plan(scene: &Scene, _: &RenderSettings) -> Result<(), String> {
+    if scene.grid.is_sparse() {
+        Err(
+            "the grid is held only as its sparse tree, and the cone pyramids are built \
+             from the dense grid"
+                .to_string(),
+        )
+    } else {
+        Ok(())
+    }
+}
+
+/// `tan(theta / 2)` of the shadow cone from grid-local `p` to `light` at distance
+/// `dist`: the angle an area light subtends, `R / dist` (`radius_voxels` = R), the set
+/// aperture (`point_tan_half`) for point lights and lights of radius 0.
+pub fn light_tan_half(light: &Light, radius_voxels: f64, dist: f64, point_tan_half: f64) -> f64 {
+    match light {
+        Light::Area(_) if radius_voxels > 0.0 => {
+            if dist > 0.0 {
+                radius_voxels / dist
+            } else {
+                f64::MAX
+            }
+        }
+        _ => point_tan_half,
+    }
+}
+
+struct Cone;
+
+impl CpuShadow for Cone {
+    fn light_term(&self, at: &LightQuery, stats: &mut RayStats) -> DVec3 {
+        let c: &ConeScene = at
+            .cones
+            .expect("the plan builds the pyramids for cone shadows");
+        stats.shadow += 1;
+        let g = &at.scene.grid;
+        let (pl, ll) = (g.to_local(at.p), g.to_local(at.light.position()));
+        let r = light_radius(at.light) / g.voxel_size();
+        let th = light_tan_half(at.light, r, (ll - pl).length(), c.point_tan_half);
+        let v = shadow_visibility(&c.pyramid, &c.params, pl, at.n, ll, th);
+        if v > 0.0 {
+            let radiance = at.light.color() * at.light.intensity();
+            v * crate::cpu::unshadowed(
+                at.settings,
+                at.material,
+                at.p,
+                at.n,
+                at.d,
+                at.light.position(),
+                radiance,
+            )
+        } else {
+            DVec3::ZERO
+        }
+    }
+}
