@@ -645,7 +645,9 @@ impl PlanRow {
     }
 }
 
-/// The full kernel for `scene`: `plan` with every image-neutral flag on.
+/// The full kernel for `scene`: `plan` with every image-neutral flag on and the cone
+/// bindings in. The shadow model and the lighting terms stay the plan's: they are
+/// choices, not code the plan leaves out.
 pub fn full_plan(
     scene: &Scene,
     settings: &RenderSettings,
@@ -657,7 +659,6 @@ pub fn full_plan(
         "REFRACTION",
         "SHADOWS",
         "EMISSION",
-        "AREA_LIGHTS",
         "ACCUMULATE",
     ] {
         full.set_flag(f, true);

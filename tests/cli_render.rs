@@ -329,6 +329,38 @@ fn progress_goes_to_stderr_as_lines_when_asked() {
     }
 }
 
+/// `voxlab bench --plan`: each scene's reduced kernel against the full one (every
+/// image-neutral flag on), which must render the same image.
+#[test]
+fn bench_plan_compares_the_reduced_kernel_with_the_full_one() {
+    let dir = scratch("bench-plan");
+    let o = voxlab(
+        &dir,
+        &[
+            "bench",
+            "--plan",
+            "--sizes",
+            "8",
+            "--size",
+            "16",
+            "--gpu-runs",
+            "1",
+            "--json",
+        ],
+    );
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let rows: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    assert_eq!(rows.len(), 3, "{out}");
+    for r in &rows {
+        assert_eq!(r["max_diff"].as_f64(), Some(0.0), "{r}");
+        assert!(r["full_ms"].as_f64().unwrap() > 0.0, "{r}");
+    }
+}
+
 #[test]
 fn bench_json_prints_one_object_per_row() {
     let dir = scratch("bench-json");
