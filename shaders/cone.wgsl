@@ -12,8 +12,10 @@
 // exactly trilinear filtering with a zero border. Levels are sampled at integer lods
 // and blended here (the border weight differs per level): quadrilinear filtering.
 //
-// Shader defs: INDIRECT (the radiance pyramid and gathering). The cone shadow model
-// (shaders/shadow_cone.wgsl) marches `shadow_visibility` with `light_radius`.
+// Shader defs: RADIANCE_PYRAMID (the radiance pyramid and gathering). The techniques
+// built on it call in from their own files: the cone shadow model
+// (shaders/shadow_cone.wgsl, `shadow_visibility` with `light_radius`) and the lighting
+// terms (shaders/term_*.wgsl, `ambient_occlusion`, `indirect_light`).
 #define_import_path voxlab::cone
 
 struct ConeParams {
@@ -82,7 +84,7 @@ fn opacity_at(x: vec3<f32>, lod: f32) -> f32 {
     return a + (opacity_level(x, u32(l0) + 1u) - a) * f;
 }
 
-#ifdef INDIRECT
+#ifdef RADIANCE_PYRAMID
 fn radiance_level(x: vec3<f32>, l: u32) -> vec4<f32> {
     let s = f32(1u << l);
     let c = textureSampleLevel(radiance_tex, pyramid_sampler, x / cone.padded, f32(l));
@@ -137,7 +139,7 @@ fn march_step(m: ptr<function, March>, o: vec3<f32>, w: vec3<f32>, tan_half: f32
     let lod = log2(d);
     var a = 0.0;
     var c = vec3<f32>(0.0);
-#ifdef INDIRECT
+#ifdef RADIANCE_PYRAMID
     if gather {
         let s = radiance_at(x, lod);
         a = s.w;
@@ -168,7 +170,7 @@ fn march_step(m: ptr<function, March>, o: vec3<f32>, w: vec3<f32>, tan_half: f32
 }
 
 // One cone from apex o along unit w, tan(theta/2) = tan_half, up to max_dist; gathers
-// radiance when `gather` (INDIRECT only). Steps as src/cpu/cone.rs `march`, four per
+// radiance when `gather` (RADIANCE_PYRAMID only). Steps as src/cpu/cone.rs `march`, four per
 // loop iteration: the software driver's loop limit counts back edges, not work
 // (shaders/counters.wgsl).
 fn march(o: vec3<f32>, w: vec3<f32>, tan_half: f32, max_dist: f32, gather: bool) -> ConeResult {
@@ -228,7 +230,7 @@ fn ambient_occlusion(p: vec3<f32>, n: vec3<f32>) -> f32 {
     return sum / f32(cone.ao_cones);
 }
 
-#ifdef INDIRECT
+#ifdef RADIANCE_PYRAMID
 // Mean radiance gathered by the hemisphere cones at p.
 fn indirect_light(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let o = p + cone.start_offset * n;

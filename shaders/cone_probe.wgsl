@@ -2,7 +2,7 @@
 // src/cpu/cone.rs directly, without the tracer around it (src/gpu/pyramid.rs).
 
 #import voxlab::cone::{march, ambient_occlusion, shadow_visibility}
-#ifdef INDIRECT
+#ifdef RADIANCE_PYRAMID
 #import voxlab::cone::indirect_light
 #endif
 
@@ -42,7 +42,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             out.x = ambient_occlusion(q.origin, q.dir);
         }
         case 3u: {
-#ifdef INDIRECT
+#ifdef RADIANCE_PYRAMID
             out = vec4<f32>(indirect_light(q.origin, q.dir), 0.0);
 #endif
         }

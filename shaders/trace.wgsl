@@ -4,8 +4,9 @@
 // Contract: "Primary rays", "Shading a hit", "Stack".
 //
 // Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, EMISSION, ACCUMULATE,
-// COUNT_RAYS, RAY_STACK_SIZE, and the cone-tracing AMBIENT_OCCLUSION, INDIRECT
-// (shaders/cone.wgsl, group 1; CONES when they or the shadow model read the pyramids). The shadow, transmittance and light models live in their own files
+// COUNT_RAYS, RAY_STACK_SIZE, LIGHTING_TERMS (the plan's terms, summed by the module
+// src/gpu/compose.rs writes), CONES (shaders/cone.wgsl, group 1, when the shadow model
+// or a term reads the pyramids). The shadow, transmittance and light models live in their own files
 // (shading.wgsl and phong.wgsl compose them); this file only walks the ray tree of one
 // frame of one pixel.
 
@@ -23,12 +24,7 @@
 #ifdef SHADOWS
 #import voxlab::shading::local_light
 #endif
-#ifdef AMBIENT_OCCLUSION
-#import voxlab::cone::ambient_occlusion
-#endif
-#ifdef INDIRECT
-#import voxlab::cone::{cone, indirect_light}
-#endif
+#import voxlab::lighting_terms::lighting_terms
 
 struct RayEntry {
     origin: vec3<f32>,
@@ -154,17 +150,9 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
 #endif
         radiance += r.throughput * local_light(p, n, hit.geometric, r.dir, s, key);
 #endif
-        // Diffuse reflection of the ambient light AO lets through and of the one-bounce
-        // light the cones gather (src/cpu/mod.rs trace_ray_cones).
-#ifdef AMBIENT_OCCLUSION
-        if s.kd > 0.0 {
-            radiance += r.throughput * params.ambient * s.albedo * s.kd * ambient_occlusion(p, n);
-        }
-#endif
-#ifdef INDIRECT
-        if s.kd > 0.0 {
-            radiance += r.throughput * cone.indirect_strength * s.albedo * s.kd * indirect_light(p, n);
-        }
+        // The lighting terms (src/technique/: ambient occlusion, indirect light).
+#ifdef LIGHTING_TERMS
+        radiance += r.throughput * lighting_terms(p, n, s);
 #endif
         // No `#if A || B` in naga_oil: spawn whenever either kind of secondary ray is in.
 #ifdef REFLECTION

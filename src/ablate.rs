@@ -1,15 +1,17 @@
 //! `voxlab ablate`: error against run time for every shadow model and its quality knob
 //! (DESIGN section 3), measured against a converged reference.
 //!
-//! The reference is stochastic area lighting at `[ablate] reference_spp`, rendered in two
+//! The reference is the reference shadow model (`crate::technique::reference_shadow_model`:
+//! stochastic area lighting) at `[ablate] reference_spp`, rendered in two
 //! halves with independent seeds: their mean is the reference, and half their RMSE
 //! estimates its own noise (the error floor of every measurement). It is cached on disk
 //! under a blake3 hash of everything that changes its pixels, so a second run only pays
 //! for the sweep.
 //!
-//! The sweep is a list of [`SWEEPS`]: each turns the experiment into the points of one
-//! model (a fixed point, or a curve over its quality knob). A new shadow model is one
-//! more entry there.
+//! The sweep is a list of [`SWEEPS`]: the baseline, then the curves each shadow model
+//! declares (`crate::technique::ShadowModel::ablate`: a label and a knob), then
+//! `[ablate] sweep`. A new shadow model brings its curves in its own file; the lists of
+//! `[ablate]` its curves name are read and checked against the settings they set.
 //!
 //! Each point is rendered `warmup` times untimed, then `runs` times; its time is the
 //! median over the runs of trace time plus setup time. Trace time: GPU, wall time around
@@ -23,6 +25,7 @@
 //! RMSE and PSNR on linear radiance and the FLIP mean (NVIDIA's implementation,
 //! `nv-flip`) on the displayed sRGB-encoded 8-bit image (`metrics::flip`). Everything is deterministic but the times.
 
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -43,6 +46,7 @@ use crate::output::{read_exr, write_frame};
 use crate::plan::Plan;
 use crate::render::{ConeSettings, Features, Frame, MAX_SAMPLES, RenderSettings, Transmittance};
 use crate::scene::{Light, PointLight, Scene};
+use crate::technique::Knob;
 
 /// Part of the reference cache key. Bump it whenever a tracer's model changes what an
 /// image looks like (shading, sampling, transmittance): cached references made by the
@@ -96,13 +100,10 @@ pub struct AblateConfig {
     pub backend: BackendChoice,
     /// The reference's tracer: `cpu` (the f64 oracle) or `gpu`.
     pub reference_backend: BackendChoice,
-    /// Cone shadows with each light's own aperture (an area light's subtended angle)
-    /// over these step factors, ascending; empty leaves the curve out.
-    pub cone_step_factor: Vec<f64>,
-    /// Cone shadows with every area light replaced by a point light at its centre (what
-    /// the cone model shades anyway) over these apertures in degrees, ascending, at the
-    /// experiment's `[cones] step_factor`; empty leaves the curve out.
-    pub cone_aperture_deg: Vec<f64>,
+    /// The value lists of the shadow models' curves over shared settings
+    /// (`crate::technique::Knob::Shared`): list name (`cone_step_factor`) -> values,
+    /// ascending; empty leaves the curve out.
+    pub lists: BTreeMap<String, Vec<f64>>,
     /// `[ablate] sweep`: a curve over the values of any experiment key, each point the
     /// experiment with `--set key=value` (its settings, parsed and checked as the file).
     pub sweeps: Vec<KeySweep>,
@@ -125,6 +126,25 @@ pub struct SweepValue {
     pub scene: Option<std::sync::Arc<Scene>>,
 }
 
+/// The `[ablate]` lists the shadow models' curves declare: list name, the shared
+/// setting it sets, its default values.
+fn shared_lists() -> impl Iterator<Item = (&'static str, &'static str, &'static [f64])> {
+    crate::technique::SHADOW_MODELS
+        .iter()
+        .flat_map(|m| m.ablate)
+        .filter_map(|c| match c.knob {
+            Knob::Shared { key, list, default } => Some((list, key, default)),
+            _ => None,
+        })
+}
+
+impl AblateConfig {
+    /// The values of the `[ablate]` list `name` (empty when none is declared).
+    pub fn list(&self, name: &str) -> &[f64] {
+        self.lists.get(name).map_or(&[], Vec::as_slice)
+    }
+}
+
 impl Default for AblateConfig {
     fn default() -> Self {
         Self {
@@ -139,15 +159,17 @@ impl Default for AblateConfig {
                 .collect(),
             backend: BackendChoice::Auto,
             reference_backend: BackendChoice::Cpu,
-            cone_step_factor: vec![0.25, 0.5, 1.0, 2.0],
-            cone_aperture_deg: vec![4.0, 8.0, 16.0, 32.0, 64.0],
+            lists: shared_lists()
+                .map(|(list, _, default)| (list.to_string(), default.to_vec()))
+                .collect(),
             sweeps: Vec::new(),
         }
     }
 }
 
+// Not `deny_unknown_fields`: the shadow models' lists land in `lists`, whose keys are
+// checked against their declarations (AblateConfig::from_str).
 #[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
 struct RawAblate {
     reference_spp: Option<i64>,
     spp: Option<Vec<i64>>,
@@ -156,10 +178,22 @@ struct RawAblate {
     transmittance: Option<Vec<String>>,
     backend: Option<String>,
     reference_backend: Option<String>,
-    cone_step_factor: Option<Vec<f64>>,
-    cone_aperture_deg: Option<Vec<f64>>,
     sweep: Option<toml::Table>,
+    #[serde(flatten)]
+    lists: BTreeMap<String, toml::Value>,
 }
+
+/// The fixed keys of `[ablate]`, in the order its messages list them.
+const ABLATE_KEYS: &[&str] = &[
+    "reference_spp",
+    "spp",
+    "runs",
+    "warmup",
+    "transmittance",
+    "backend",
+    "reference_backend",
+    "sweep",
+];
 
 /// The rest of the file is the experiment's, read by `Experiment::load`.
 #[derive(Debug, Deserialize)]
@@ -401,25 +435,40 @@ impl AblateConfig {
             }
             Ok(out)
         };
-        // The ranges of the [cones] keys, as declared (crate::technique::cones).
-        let declared = |key: &str| {
-            let s = crate::technique::cones::cone_setting(key)
-                .expect("a [cones] key")
-                .setting;
-            (
-                move |x: f64| s.check(x).is_ok(),
-                s.range_text()
-                    .trim_start_matches("must be a finite number in ")
-                    .to_string(),
-            )
-        };
-        if let Some(list) = &raw.cone_step_factor {
-            let (ok, range) = declared("step_factor");
-            c.cone_step_factor = floats("cone_step_factor", list, &ok, &range)?;
-        }
-        if let Some(list) = &raw.cone_aperture_deg {
-            let (ok, range) = declared("aperture_deg");
-            c.cone_aperture_deg = floats("cone_aperture_deg", list, &ok, &range)?;
+        // The shadow models' lists, each entry in the range its setting declares.
+        for (name, value) in &raw.lists {
+            let Some((_, key, _)) = shared_lists().find(|(list, _, _)| list == name) else {
+                return Err(ExperimentError::UnknownKey {
+                    file: loc.file.clone(),
+                    line: loc.find(name).0,
+                    key: format!("ablate.{name}"),
+                    allowed: ABLATE_KEYS
+                        .iter()
+                        .copied()
+                        .chain(shared_lists().map(|(list, _, _)| list))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                });
+            };
+            let setting =
+                crate::technique::shared_setting(key).expect("a curve's knob is declared");
+            let ok = |x: f64| setting.check(x).is_ok();
+            let range = setting
+                .range_text()
+                .trim_start_matches("must be a finite number in ")
+                .to_string();
+            let list: Vec<f64> = match value.as_array() {
+                Some(a) => a
+                    .iter()
+                    .map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+                    .collect::<Option<_>>()
+                    .ok_or_else(|| {
+                        loc.invalid(name, format!("every entry must be a number in {range}"))
+                    })?,
+                None => return Err(loc.invalid(name, "must be a list of numbers")),
+            };
+            c.lists
+                .insert(name.clone(), floats(name, &list, &ok, &range)?);
         }
         if let Some(table) = &raw.sweep {
             c.sweeps = key_sweeps(table, text, path.as_ref(), &loc)?;
@@ -557,27 +606,16 @@ pub struct Sweep {
     pub points: fn(&Experiment, &AblateConfig) -> Vec<Point>,
 }
 
-/// Every sweep, in the order of the outputs.
+/// Every sweep, in the order of the outputs: the baseline, then each shadow model's
+/// curves (`crate::technique::ShadowModel::ablate`), then `[ablate] sweep`.
 pub const SWEEPS: &[Sweep] = &[
     Sweep {
         name: "baseline",
         points: baseline_points,
     },
     Sweep {
-        name: "hard",
-        points: hard_points,
-    },
-    Sweep {
-        name: "stochastic",
-        points: stochastic_points,
-    },
-    Sweep {
-        name: "cone step",
-        points: cone_step_points,
-    },
-    Sweep {
-        name: "cone aperture",
-        points: cone_aperture_points,
+        name: "shadow models",
+        points: model_points,
     },
 ];
 
@@ -598,111 +636,66 @@ fn baseline_points(e: &Experiment, _: &AblateConfig) -> Vec<Point> {
     }]
 }
 
-/// Area lights as points at their centres (no knob), once per transmittance model.
-/// The `Features` literal is spelled out on purpose (no `..Default::default()`): a new
-/// feature stops it compiling, so whoever adds one decides here that hard shadows
-/// leave it off. Cone features are off: these are the shadow-ray points.
-fn hard_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
-    c.transmittance
-        .iter()
-        .map(|&t| Point {
-            model: format!("hard ({})", t.name()),
-            knob: "transmittance".into(),
-            value: t.name().into(),
-            settings: RenderSettings {
-                features: Features {
-                    shadow_model: crate::technique::default_shadow_model(),
-                    transmittance: t,
-                    ambient_occlusion: false,
-                    indirect: false,
-                },
-                spp: 1,
-                ..e.settings.clone()
-            },
-            lights_as_points: false,
-            scene: None,
-        })
-        .collect()
-}
-
-/// Stochastic area lights over the spp list, with the experiment's transmittance: the
-/// model the reference converges.
-fn stochastic_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
-    let t = e.settings.features.transmittance;
-    c.spp
-        .iter()
-        .map(|&n| Point {
-            model: format!("stochastic ({})", t.name()),
-            knob: "spp".into(),
-            value: n.to_string(),
-            settings: RenderSettings {
-                features: reference_features(e),
-                spp: n,
-                ..e.settings.clone()
-            },
-            lights_as_points: false,
-            scene: None,
-        })
-        .collect()
-}
-
-/// Cone shadows (one cone per light replaces the shadow rays and the area samples), each
-/// area light at the aperture it subtends, over the step factors; the rest as the
-/// reference. One frame: the cone model draws no samples.
-fn cone_step_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
-    let t = e.settings.features.transmittance;
-    c.cone_step_factor
-        .iter()
-        .map(|&k| Point {
-            model: format!("cone at light's aperture ({})", t.name()),
-            knob: "step_factor".into(),
-            value: format!("{k}"),
-            settings: RenderSettings {
-                features: Features {
-                    shadow_model: &crate::technique::cone::MODEL,
-                    ..reference_features(e)
-                },
-                spp: 1,
-                cones: ConeSettings {
-                    step_factor: k,
-                    ..e.settings.cones.clone()
-                },
-                ..e.settings.clone()
-            },
-            lights_as_points: false,
-            scene: None,
-        })
-        .collect()
-}
-
-/// Cone shadows with every area light as a point light at its centre, over the point
-/// lights' aperture, at the experiment's step factor. The cone model shades an area
-/// light at its centre anyway, so this differs from [`cone_step_points`] only in the
-/// aperture: it asks whether the subtended angle is the best one.
-fn cone_aperture_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
-    let t = e.settings.features.transmittance;
-    c.cone_aperture_deg
-        .iter()
-        .map(|&a| Point {
-            model: format!("cone at set aperture ({})", t.name()),
-            knob: "aperture_deg".into(),
-            value: format!("{a}"),
-            settings: RenderSettings {
-                features: Features {
-                    shadow_model: &crate::technique::cone::MODEL,
-                    ..reference_features(e)
-                },
-                spp: 1,
-                cones: ConeSettings {
-                    aperture_deg: a,
-                    ..e.settings.cones.clone()
-                },
-                ..e.settings.clone()
-            },
-            lights_as_points: true,
-            scene: None,
-        })
-        .collect()
+/// The curves every shadow model declares, in registry order: the reference's features
+/// with the model, at one frame unless it samples, over the curve's knob.
+fn model_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
+    let mut out = Vec::new();
+    for m in crate::technique::SHADOW_MODELS {
+        let mut features = reference_features(e);
+        features.shadow_model = m;
+        let base = RenderSettings {
+            features,
+            spp: if m.stochastic { e.settings.spp } else { 1 },
+            ..e.settings.clone()
+        };
+        for curve in m.ablate {
+            let point = |settings: RenderSettings, knob: &str, value: String| Point {
+                model: format!(
+                    "{} ({})",
+                    curve.label,
+                    settings.features.transmittance.name()
+                ),
+                knob: knob.into(),
+                value,
+                settings,
+                lights_as_points: curve.lights_as_points,
+                scene: None,
+            };
+            match curve.knob {
+                Knob::Spp => out.extend(c.spp.iter().map(|&n| {
+                    let s = RenderSettings {
+                        spp: n,
+                        ..base.clone()
+                    };
+                    point(s, "spp", n.to_string())
+                })),
+                Knob::Transmittance => out.extend(c.transmittance.iter().map(|&t| {
+                    let mut s = base.clone();
+                    s.features.transmittance = t;
+                    point(s, "transmittance", t.name().into())
+                })),
+                Knob::Own(key) => {
+                    let Some(setting) = m.setting(key) else {
+                        continue;
+                    };
+                    out.extend(setting.sweep.iter().map(|&v| {
+                        let mut s = base.clone();
+                        s.technique_params.set(m.name, key, v);
+                        point(s, key, format!("{v}"))
+                    }));
+                }
+                Knob::Shared { key, list, .. } => {
+                    let short = key.rsplit('.').next().unwrap_or(key);
+                    out.extend(c.list(list).iter().map(|&v| {
+                        let mut s = base.clone();
+                        crate::technique::set_shared(&mut s, key, v);
+                        point(s, short, format!("{v}"))
+                    }));
+                }
+            }
+        }
+    }
+    out
 }
 
 /// The scene with every area light replaced by a point light at its centre, of the
@@ -733,58 +726,13 @@ pub fn light_aperture_deg(scene: &Scene) -> Option<f64> {
     (dist > 0.0).then(|| 2.0 * (r / dist).atan().to_degrees())
 }
 
-/// The reference's features: stochastic area lights, the experiment's transmittance,
-/// AO and indirect light; never cone shadows (the reference samples the light).
+/// The reference's features: the experiment's, with the reference shadow model
+/// (`crate::technique::reference_shadow_model`, the one that converges).
 fn reference_features(e: &Experiment) -> Features {
     Features {
-        shadow_model: &crate::technique::area::MODEL,
+        shadow_model: crate::technique::reference_shadow_model(),
         ..e.settings.features.clone()
     }
-}
-
-/// The curve of each plug-in shadow model (`crate::technique::SHADOW_MODELS`), over
-/// the knob it declares: `spp` (the `[ablate] spp` list) or one of its settings (its
-/// declared sweep values), at one frame unless it samples; the rest as the reference.
-fn plug_in_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
-    let t = e.settings.features.transmittance;
-    let mut out = Vec::new();
-    for m in crate::technique::SHADOW_MODELS {
-        let mut features = reference_features(e);
-        features.set_shadow_model(m.name);
-        let base = RenderSettings {
-            features,
-            spp: if m.stochastic { e.settings.spp } else { 1 },
-            ..e.settings.clone()
-        };
-        let model = format!("{} ({})", m.name, t.name());
-        if m.ablate_knob == "spp" {
-            out.extend(c.spp.iter().map(|&n| Point {
-                model: model.clone(),
-                knob: "spp".into(),
-                value: n.to_string(),
-                settings: RenderSettings {
-                    spp: n,
-                    ..base.clone()
-                },
-                lights_as_points: false,
-                scene: None,
-            }));
-        } else if let Some(knob) = m.setting(m.ablate_knob) {
-            out.extend(knob.sweep.iter().map(|&v| {
-                let mut settings = base.clone();
-                settings.technique_params.set(m.name, knob.key, v);
-                Point {
-                    model: model.clone(),
-                    knob: knob.key.into(),
-                    value: format!("{v}"),
-                    settings,
-                    lights_as_points: false,
-                    scene: None,
-                }
-            }));
-        }
-    }
-    out
 }
 
 /// The curves of `[ablate] sweep`: the experiment with one key set to each value.
@@ -809,7 +757,6 @@ pub fn points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
     SWEEPS
         .iter()
         .flat_map(|s| (s.points)(e, c))
-        .chain(plug_in_points(e, c))
         .chain(key_sweep_points(e, c))
         .collect()
 }
@@ -936,7 +883,7 @@ impl Tracers {
             return Ok(Duration::ZERO);
         };
         let start = std::time::Instant::now();
-        let pyr = gpu.build_pyramid(scene, s, layout, plan.indirect)?;
+        let pyr = gpu.build_pyramid(scene, s, layout, plan.radiance_pyramid())?;
         gpu.read_pyramid_level(&pyr, false, layout.levels - 1)?;
         Ok(start.elapsed())
     }
@@ -1826,11 +1773,9 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
             .collect::<Vec<_>>()
             .into(),
     );
-    ablate.insert("cone_step_factor".into(), c.cone_step_factor.clone().into());
-    ablate.insert(
-        "cone_aperture_deg".into(),
-        c.cone_aperture_deg.clone().into(),
-    );
+    for (list, values) in &c.lists {
+        ablate.insert(list.clone(), values.clone().into());
+    }
     ablate.insert("backend".into(), c.backend.name().into());
     ablate.insert(
         "reference_backend".into(),

@@ -1258,9 +1258,10 @@ fn build(
     crate::plan::check_surface(&scene, &settings).map_err(|e| ctx.invalid("render.surface", e))?;
     crate::plan::check_sparse_grid(&scene, &settings).map_err(|(k, e)| ctx.invalid(k, e))?;
     // Cone pyramids scale with the grid: estimated before any render builds them.
-    if let Some(layout) = crate::plan::Plan::new(&scene, &settings).pyramid {
+    let plan = crate::plan::Plan::new(&scene, &settings);
+    if let Some(layout) = plan.pyramid {
         use crate::cpu::pyramid::{MAX_PYRAMID_BYTES, cpu_pyramid_bytes};
-        let indirect = settings.features.indirect;
+        let indirect = plan.radiance_pyramid();
         let bytes = cpu_pyramid_bytes(&layout, indirect);
         if bytes > MAX_PYRAMID_BYTES {
             let d = scene.grid.dims();
@@ -1289,7 +1290,7 @@ fn build(
 /// shadow model is chosen once: by `shadow_model` or by one switch set to true.
 fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, ExperimentError> {
     use crate::technique::{
-        BUILT_IN, SHADOW_MODELS, feature_keys, shadow_model_names, transmittance,
+        LIGHTING_TERMS, SHADOW_MODELS, feature_keys, shadow_model_names, transmittance,
         transmittance_names,
     };
     let mut features = Features::default();
@@ -1334,7 +1335,7 @@ fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, Experi
                     }
                     continue;
                 }
-                let Some(flag) = BUILT_IN.iter().filter_map(|b| b.flag).find(|f| f.key == k) else {
+                let Some(term) = LIGHTING_TERMS.iter().find(|t| t.name == k) else {
                     return Err(ExperimentError::UnknownKey {
                         file: ctx.file.clone(),
                         line: ctx.span_of(&key).map(|s| ctx.line_of(s.start)),
@@ -1342,7 +1343,7 @@ fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, Experi
                         allowed: feature_keys().join(", "),
                     });
                 };
-                (flag.set)(&mut features, boolean()?);
+                features.set_term(term.name, boolean()?);
             }
         }
     }

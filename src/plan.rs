@@ -12,10 +12,10 @@
 //! shader def in [`Plan::shader_defs`], and list it in [`Plan::FLAGS`] so the composition
 //! test covers it.
 //!
-//! The lighting terms' cone flags are listed apart, in [`Plan::CONE_FLAGS`]: every
+//! Lighting terms, like shadow and transmittance models, bring their plan rules; every
 //! combination of them with every combination of [`Plan::FLAGS`] would be 4 times as
-//! many kernels to compose in the test; `tests/cone_render.rs` composes each cone
-//! combination with the base flags all on, all off and shadows alone.
+//! many kernels to compose in the test, so `tests/cone_render.rs` composes each
+//! combination of terms with the base flags all on, all off and shadows alone.
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -26,7 +26,7 @@ use crate::cpu::pyramid::{PyramidLayout, memory_line};
 use crate::render::RenderSettings;
 pub use crate::render::{Surface, Traversal};
 use crate::scene::{Material, Scene, VOID};
-use crate::technique::{ShadowModel, TransmittanceModel};
+use crate::technique::{LightingTerm, ShadowModel, TransmittanceModel};
 
 /// Shader defs of one kernel variant, ordered so they can key a pipeline cache.
 pub type ShaderDefs = BTreeMap<String, ShaderDefValue>;
@@ -60,17 +60,14 @@ pub struct Plan {
     /// compensation buffer. Without sampling every frame is the same image, so one frame
     /// is rendered whatever `spp` says.
     pub accumulate: bool,
-    /// Ambient occlusion (`AMBIENT_OCCLUSION`): the feature is on and some material in
-    /// the grid is diffuse (the term is `ambient * albedo * kd * AO`).
-    pub ambient_occlusion: bool,
-    /// One-bounce indirect diffuse light (`INDIRECT`): the feature is on, some material
-    /// is diffuse and there is a light to inject (else the radiance pyramid is 0).
-    pub indirect: bool,
+    /// The lighting terms composed in (`voxlab::lighting_terms`, each printed by its
+    /// label): those switched on whose plan rules keep them, in registry order.
+    pub terms: Vec<&'static LightingTerm>,
     /// Primary rays spread over the pixel by the pixel filter (`PIXEL_FILTER`), a new
     /// position each frame: `render.pixel_filter` is not "none".
     pub pixel_filter: bool,
     /// The pyramids' layout, when the shadow model or a lighting term reads them (the
-    /// radiance pyramid only with `indirect`).
+    /// radiance pyramid only when a term reads it: [`Plan::radiance_pyramid`]).
     pub pyramid: Option<PyramidLayout>,
     /// Ray counters (`COUNT_RAYS`): chosen by the caller, not by the scene.
     pub count_rays: bool,
@@ -213,9 +210,10 @@ pub fn check_sparse_grid(
         .then(|| format!("shadow_model = \"{}\"", f.shadow_model.name))
         .into_iter()
         .chain(
-            crate::technique::lighting_terms()
-                .filter(|(_, flag)| (flag.get)(f))
-                .map(|(name, _)| format!("{name} = true")),
+            f.terms
+                .iter()
+                .filter(|t| t.pyramid)
+                .map(|t| format!("{} = true", t.name)),
         )
         .collect();
     if !asked.is_empty() {
@@ -229,6 +227,12 @@ pub fn check_sparse_grid(
         ));
     }
     Ok(())
+}
+
+/// Whether some material the grid holds is diffuse (`kd > 0`): the lighting terms' plan
+/// rules.
+pub fn diffuse_in_grid(scene: &Scene) -> bool {
+    shading_materials(scene).iter().any(|(_, m)| m.kd > 0.0)
 }
 
 /// Materials a ray can shade with: every non-void index the grid holds. Void never
@@ -406,29 +410,23 @@ impl Plan {
             1
         };
 
-        let f = &settings.features;
-        let diffuse = mats.iter().any(|(_, m)| m.kd > 0.0);
-        let ambient_occlusion = f.ambient_occlusion && diffuse;
-        if f.ambient_occlusion && !diffuse {
-            reasons.push("ambient occlusion: no diffuse material in the grid".to_string());
+        let mut terms = Vec::new();
+        for &t in &settings.features.terms {
+            let kept = if t.pyramid && scene.grid.is_sparse() {
+                Err(
+                    "the grid is held only as its sparse tree, and the cone pyramids are \
+                     built from the dense grid"
+                        .to_string(),
+                )
+            } else {
+                (t.plan)(scene, settings)
+            };
+            match kept {
+                Ok(()) => terms.push(t),
+                Err(why) => reasons.push(format!("lighting term {}: {why}", t.name)),
+            }
         }
-        let indirect = f.indirect && diffuse && !scene.lights.is_empty();
-        if f.indirect && !indirect {
-            reasons.push(
-                "indirect light: no diffuse material in the grid, or no light to inject"
-                    .to_string(),
-            );
-        }
-        let (mut ambient_occlusion, mut indirect) = (ambient_occlusion, indirect);
-        if (ambient_occlusion || indirect) && scene.grid.is_sparse() {
-            reasons.push(
-                "cone tracing: the grid is held only as its sparse tree, and the cone \
-                 pyramids are built from the dense grid; no cone terms"
-                    .to_string(),
-            );
-            (ambient_occlusion, indirect) = (false, false);
-        }
-        let pyramid = (shadow_model.pyramid || ambient_occlusion || indirect)
+        let pyramid = (shadow_model.pyramid || terms.iter().any(|t| t.pyramid))
             .then(|| PyramidLayout::new(scene.grid.dims(), settings.cones.levels));
 
         let (traversal, traversal_reason) = choose_traversal(scene, settings);
@@ -455,8 +453,7 @@ impl Plan {
             shadow_model,
             transmittance,
             accumulate,
-            ambient_occlusion,
-            indirect,
+            terms,
             pixel_filter,
             pyramid,
             count_rays: false,
@@ -466,9 +463,10 @@ impl Plan {
         }
     }
 
-    /// The lighting terms' cone flags (see the module notes for why they are listed
-    /// apart).
-    pub const CONE_FLAGS: [&'static str; 2] = ["AMBIENT_OCCLUSION", "INDIRECT"];
+    /// Whether the radiance pyramid is built: a planned term reads it.
+    pub fn radiance_pyramid(&self) -> bool {
+        self.terms.iter().any(|t| t.radiance_pyramid)
+    }
 
     /// Frames the image is accumulated over: `spp` when something is sampled, else 1
     /// (every frame would be the same image). Both tracers render this many.
@@ -486,10 +484,10 @@ impl Plan {
         self
     }
 
-    /// The kernel's flags that are on, in the order plans are printed: [`Plan::FLAGS`]
-    /// and [`Plan::CONE_FLAGS`], with the shadow model's label (`AREA_LIGHTS`) and the
-    /// transmittance model, when not the default, by its name in capitals
-    /// (`BEER_LAMBERT`), after `EMISSION`.
+    /// The kernel's flags that are on, in the order plans are printed: [`Plan::FLAGS`],
+    /// with the shadow model's label (`AREA_LIGHTS`) and the transmittance model, when
+    /// not the default, by its name in capitals (`BEER_LAMBERT`), after `EMISSION`, and
+    /// the lighting terms' labels (`AMBIENT_OCCLUSION`) last.
     pub fn flags_on(&self) -> Vec<String> {
         let at = Self::FLAGS
             .iter()
@@ -508,10 +506,10 @@ impl Plan {
             .chain(
                 Self::FLAGS[at..]
                     .iter()
-                    .chain(&Self::CONE_FLAGS)
                     .filter(|n| self.flag(n))
                     .map(|n| n.to_string()),
             )
+            .chain(self.terms.iter().map(|t| t.label.to_string()))
             .collect()
     }
 
@@ -524,8 +522,6 @@ impl Plan {
             "EMISSION" => self.emission,
             "ACCUMULATE" => self.accumulate,
             "COUNT_RAYS" => self.count_rays,
-            "AMBIENT_OCCLUSION" => self.ambient_occlusion,
-            "INDIRECT" => self.indirect,
             _ => false,
         }
     }
@@ -539,8 +535,6 @@ impl Plan {
             "EMISSION" => self.emission = on,
             "ACCUMULATE" => self.accumulate = on,
             "COUNT_RAYS" => self.count_rays = on,
-            "AMBIENT_OCCLUSION" => self.ambient_occlusion = on,
-            "INDIRECT" => self.indirect = on,
             _ => panic!("unknown plan flag {name}"),
         }
     }
@@ -563,8 +557,7 @@ impl Plan {
                     shadow_model: crate::technique::default_shadow_model(),
                     transmittance,
                     accumulate: false,
-                    ambient_occlusion: false,
-                    indirect: false,
+                    terms: Vec::new(),
                     pixel_filter: false,
                     pyramid: None,
                     count_rays: false,
@@ -589,7 +582,7 @@ impl Plan {
     /// and the stack size as an integer def. Also the key of the pipeline cache.
     pub fn shader_defs(&self) -> ShaderDefs {
         let mut defs = ShaderDefs::new();
-        for f in Self::FLAGS.iter().chain(&Self::CONE_FLAGS) {
+        for f in Self::FLAGS {
             if self.flag(f) {
                 defs.insert(f.to_string(), ShaderDefValue::Bool(true));
             }
@@ -613,9 +606,22 @@ impl Plan {
                 ShaderDefValue::UInt(self.shadow_model.index()),
             );
         }
-        // Any cone feature: the pyramids' bindings and the cone module are in.
+        // Any cone feature: the pyramids' bindings and the cone module are in; the
+        // radiance pyramid's only when a term reads it.
         if self.pyramid.is_some() {
             defs.insert("CONES".to_string(), ShaderDefValue::Bool(true));
+        }
+        if self.radiance_pyramid() {
+            defs.insert("RADIANCE_PYRAMID".to_string(), ShaderDefValue::Bool(true));
+        }
+        // The lighting terms' modules are composed in (crate::gpu::compose); their set
+        // keys the cache.
+        if !self.terms.is_empty() {
+            defs.insert("LIGHTING_TERMS".to_string(), ShaderDefValue::Bool(true));
+            defs.insert(
+                "LIGHTING_TERMS_MASK".to_string(),
+                ShaderDefValue::UInt(self.terms.iter().map(|t| 1 << t.index()).sum()),
+            );
         }
         if self.traversal == Traversal::Sparse {
             defs.insert("SPARSE".to_string(), ShaderDefValue::Bool(true));
@@ -676,7 +682,7 @@ impl fmt::Display for Plan {
             )?,
         }
         if let Some(layout) = &self.pyramid {
-            write!(f, "\n  {}", memory_line(layout, self.indirect))?;
+            write!(f, "\n  {}", memory_line(layout, self.radiance_pyramid()))?;
         }
         for r in &self.reasons {
             write!(f, "\n  left out: {r}")?;

@@ -176,15 +176,10 @@ pub struct Features {
     /// first, the baseline's hard shadows.
     pub shadow_model: &'static crate::technique::ShadowModel,
     pub transmittance: Transmittance,
-    /// Adds `ambient * albedo * kd * AO` at every hit of a diffuse material, AO the mean
-    /// visibility of `cones.ao_cones` cosine-weighted hemisphere cones of range
-    /// `cones.ao_range`. Off, nothing is added (the baseline's ambient stays the
-    /// per-pixel background term).
-    pub ambient_occlusion: bool,
-    /// Adds one bounce of diffuse light, `indirect_strength * albedo * kd * L_ind`, at
-    /// every hit of a diffuse material; `L_ind` the mean radiance the hemisphere cones
-    /// gather from the radiance pyramid.
-    pub indirect: bool,
+    /// The lighting terms switched on (`crate::technique::LIGHTING_TERMS`, each in its
+    /// own file: ambient occlusion, indirect light), in registry order; each adds its
+    /// radiance at every hit. None: the baseline.
+    pub terms: Vec<&'static crate::technique::LightingTerm>,
 }
 
 impl Default for Features {
@@ -192,8 +187,7 @@ impl Default for Features {
         Self {
             shadow_model: crate::technique::default_shadow_model(),
             transmittance: Transmittance::default(),
-            ambient_occlusion: false,
-            indirect: false,
+            terms: Vec::new(),
         }
     }
 }
@@ -216,9 +210,28 @@ impl Features {
         }
     }
 
+    /// Whether the lighting term called `name` (or its short name) is on.
+    pub fn term(&self, name: &str) -> bool {
+        self.terms.iter().any(|t| t.name == name || t.short == name)
+    }
+
+    /// Switches the lighting term called `name` (or its short name) on or off, keeping
+    /// the registry's order; false, and nothing changed, for an unknown name.
+    pub fn set_term(&mut self, name: &str, on: bool) -> bool {
+        let Some(term) = crate::technique::lighting_term(name) else {
+            return false;
+        };
+        self.terms.retain(|t| t.name != term.name);
+        if on {
+            self.terms.push(term);
+            self.terms.sort_by_key(|t| t.index());
+        }
+        true
+    }
+
     /// Whether any feature needs the cone-tracing pyramids.
     pub fn cones(&self) -> bool {
-        self.shadow_model.pyramid || self.ambient_occlusion || self.indirect
+        self.shadow_model.pyramid || self.terms.iter().any(|t| t.pyramid)
     }
 }
 

@@ -489,8 +489,8 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
     // pyramid, a vanishing aperture, AO with a range past the grid, and indirect light.
     let all_cones = |st: &mut RenderSettings| {
         st.features.shadow_model = &crate::technique::cone::MODEL;
-        st.features.ambient_occlusion = true;
-        st.features.indirect = true;
+        st.features.set_term("ambient_occlusion", true);
+        st.features.set_term("indirect", true);
     };
     let mut st = settings(48, 48);
     all_cones(&mut st);
@@ -519,7 +519,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         st,
     ));
     let mut st = settings(48, 48);
-    st.features.ambient_occlusion = true;
+    st.features.set_term("ambient_occlusion", true);
     st.cones.ao_range = 1e4;
     st.cones.start_offset = 0.0;
     out.push(case(

@@ -112,8 +112,8 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     let dir = scratch("sweep");
     let (e, c) = load(&dir, &experiment_text(110.0, SWEEP));
     assert_eq!(c.spp, vec![1, 2, 4, 8, 16]);
-    assert_eq!(c.cone_step_factor, vec![0.5, 2.0]);
-    assert_eq!(c.cone_aperture_deg, vec![10.0, 40.0]);
+    assert_eq!(c.list("cone_step_factor"), [0.5, 2.0]);
+    assert_eq!(c.list("cone_aperture_deg"), [10.0, 40.0]);
     let out = dir.join("out");
     let report = run(&e, &c, &out, &dir.join("cache"));
 
@@ -157,19 +157,22 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     ] {
         assert!(header.iter().any(|h| h == required), "no column {required}");
     }
-    // Baseline, hard shadows with each transmittance model, five stochastic points, two
-    // cone step factors and two cone apertures; then each plug-in shadow model over its
-    // knob (the spp list, or its setting's declared sweep).
-    let plug_ins: usize = voxlab::technique::SHADOW_MODELS
+    // The baseline, then every curve each shadow model declares over its knob: hard
+    // shadows with each transmittance model, five stochastic points, two cone step
+    // factors and two cone apertures, the plug-ins over the spp list or their setting's
+    // declared sweep.
+    use voxlab::technique::Knob;
+    let curves: usize = voxlab::technique::SHADOW_MODELS
         .iter()
-        .map(|m| match m.setting(m.ablate_knob) {
-            Some(s) => s.sweep.len(),
-            None if m.ablate_knob == "spp" => c.spp.len(),
-            // Drawn by ablate's own sweeps (counted above).
-            None => 0,
+        .flat_map(|m| m.ablate.iter().map(move |curve| (m, curve)))
+        .map(|(m, curve)| match curve.knob {
+            Knob::Spp => c.spp.len(),
+            Knob::Transmittance => c.transmittance.len(),
+            Knob::Own(key) => m.setting(key).unwrap().sweep.len(),
+            Knob::Shared { list, .. } => c.list(list).len(),
         })
         .sum();
-    assert_eq!(rows.len(), 1 + 2 + 5 + 2 + 2 + plug_ins);
+    assert_eq!(rows.len(), 1 + curves);
     for m in voxlab::technique::SHADOW_MODELS {
         assert!(
             rows.iter()
@@ -494,7 +497,7 @@ fn ablate_table_errors_name_file_line_and_key() {
         "[ablate]\ncone_aperture_deg = \"wide\"",
         16,
         "ablate.cone_aperture_deg",
-        "invalid type",
+        "must be a list of numbers",
     );
     check("[ablate]\nspp = 4", 16, "ablate.spp", "invalid type");
     check(

@@ -19,22 +19,38 @@ fn small(e: &mut Experiment, side: u32) {
 
 #[test]
 fn every_cone_variant_composes() {
-    // Each combination of the cone flags with the base flags all off, shadows alone,
-    // and all on (see src/plan.rs on why not the full product).
+    // Each combination of the lighting terms and the shadow models that read the
+    // pyramids (and the default) with the base flags all off, shadows alone, and all on
+    // (see src/plan.rs on why not the full product).
+    use voxlab::technique::{LIGHTING_TERMS, SHADOW_MODELS, default_shadow_model};
     let base = Plan::all_variants(9);
     let mut bases = vec![base[0].clone(), base.last().unwrap().clone()];
     let mut shadows = base[0].clone();
     shadows.set_flag("SHADOWS", true);
     bases.push(shadows);
+    let models = SHADOW_MODELS
+        .iter()
+        .copied()
+        .filter(|m| m.pyramid || *m == default_shadow_model());
+    let layout = voxlab::cpu::pyramid::PyramidLayout::new(glam::UVec3::new(16, 9, 5), 3);
+    let mut composed = 0;
     for b in bases {
-        for bits in 0..8u32 {
-            let mut p = b.clone();
-            for (i, f) in Plan::CONE_FLAGS.iter().enumerate() {
-                p.set_flag(f, bits & (1 << i) != 0);
+        for model in models.clone() {
+            for bits in 0..1u32 << LIGHTING_TERMS.len() {
+                let mut p = b.clone();
+                p.shadow_model = model;
+                p.terms = (0..LIGHTING_TERMS.len())
+                    .filter(|i| bits & (1 << i) != 0)
+                    .map(|i| LIGHTING_TERMS[i])
+                    .collect();
+                let cones = model.pyramid || p.terms.iter().any(|t| t.pyramid);
+                p.pyramid = cones.then_some(layout);
+                compose_shader(&p).unwrap_or_else(|e| panic!("{p}: {e}"));
+                composed += 1;
             }
-            compose_shader(&p).unwrap_or_else(|e| panic!("{p}: {e}"));
         }
     }
+    assert_eq!(composed, 3 * 2 * (1 << LIGHTING_TERMS.len()));
 }
 
 /// With the features off, cone knobs change nothing: the golden image (tolerance of

@@ -181,8 +181,8 @@ fn odd_experiment() -> Experiment {
     s.features.shadow_model = &voxlab::technique::area::MODEL;
     s.features.transmittance = voxlab::technique::beer_lambert::ID;
     s.features.shadow_model = &voxlab::technique::cone::MODEL;
-    s.features.ambient_occlusion = true;
-    s.features.indirect = true;
+    s.features.set_term("ambient_occlusion", true);
+    s.features.set_term("indirect", true);
     s.cones.levels = 3;
     s.cones.step_factor = 0.37;
     s.cones.aperture_deg = 12.5;

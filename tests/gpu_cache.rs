@@ -81,8 +81,8 @@ fn indirect_pyramids_are_reused_and_rebuilt_when_their_inputs_change() {
 
     // Rendering without cones keeps the cache for the next cone render.
     let mut plain = e.clone();
-    plain.settings.features.indirect = false;
-    plain.settings.features.ambient_occlusion = false;
+    plain.settings.features.set_term("indirect", false);
+    plain.settings.features.set_term("ambient_occlusion", false);
     render(&mut gpu, &plain);
     assert_eq!(gpu.last_setup_time(), std::time::Duration::ZERO);
     assert_eq!(render(&mut gpu, &e), falloff);

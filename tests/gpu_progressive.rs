@@ -200,9 +200,12 @@ fn beer_lambert_chunks_equal_one_render() {
 #[test]
 fn ambient_occlusion_with_area_lights_chunks_equal_one_render() {
     let (scene, mut settings) = area_scene(10);
-    settings.features.ambient_occlusion = true;
+    settings.features.set_term("ambient_occlusion", true);
     let plan = Plan::new(&scene, &settings);
-    assert!(plan.ambient_occlusion && plan.pyramid.is_some(), "{plan}");
+    assert!(
+        plan.terms.iter().any(|t| t.name == "ambient_occlusion") && plan.pyramid.is_some(),
+        "{plan}"
+    );
     check_chunks("ambient occlusion", &scene, &settings, &[0..4, 4..10]);
 
     let mut gpu = tracer();

@@ -173,7 +173,7 @@ fn every_shadow_model_and_lighting_term_shades_triangles_alike_on_both_tracers()
     }
     let mut cones = base.clone();
     cones.features.shadow_model = &voxlab::technique::cone::MODEL;
-    cones.features.ambient_occlusion = true;
+    cones.features.set_term("ambient_occlusion", true);
     variants.push(("cone shadows and AO".into(), cones));
     let mut gpu = tracer();
     for (name, s) in variants {

@@ -74,15 +74,24 @@ fn declarations_are_sound() {
             "{}'s WGSL module must fill the slot voxlab::shadow_model",
             m.name
         );
-        // Empty: drawn by `voxlab ablate`'s own sweeps (every_model_is_offered_everywhere
-        // checks that it is).
-        assert!(
-            m.ablate_knob.is_empty()
-                || m.ablate_knob == "spp"
-                || m.setting(m.ablate_knob).is_some(),
-            "{}: its ablation knob must be `spp` or one of its settings",
-            m.name
-        );
+        assert!(!m.ablate.is_empty(), "{}: no ablation curve", m.name);
+        for curve in m.ablate {
+            match curve.knob {
+                technique::Knob::Own(key) => assert!(
+                    m.setting(key).is_some_and(|s| !s.sweep.is_empty()),
+                    "{}: its curve sweeps {key}, which it does not declare with a sweep",
+                    m.name
+                ),
+                technique::Knob::Shared { key, default, .. } => {
+                    let s = technique::shared_setting(key)
+                        .unwrap_or_else(|| panic!("{}: no shared setting {key}", m.name));
+                    for &v in default {
+                        assert_eq!(s.check(v), Ok(v), "{}: {key} = {v}", m.name);
+                    }
+                }
+                technique::Knob::Spp | technique::Knob::Transmittance => {}
+            }
+        }
         for s in m.settings {
             assert_eq!(
                 s.check(s.default),

@@ -296,13 +296,17 @@ fn experiments_hold_large_grids_sparse_and_say_what_needs_them_dense() {
     // grid held sparse, and says why.
     let mut e = load("[scene]\nsize = 1024\n").unwrap();
     e.settings.features.shadow_model = &voxlab::technique::cone::MODEL;
-    e.settings.features.ambient_occlusion = true;
+    e.settings.features.set_term("ambient_occlusion", true);
     let plan = voxlab::plan::Plan::new(&e.scene, &e.settings);
-    assert!(plan.shadow_model.name != "cone" && !plan.ambient_occlusion && plan.pyramid.is_none());
+    assert!(
+        plan.shadow_model.name != "cone"
+            && !plan.terms.iter().any(|t| t.name == "ambient_occlusion")
+            && plan.pyramid.is_none()
+    );
     assert!(
         plan.reasons
             .iter()
-            .any(|r| r.contains("cone tracing") && r.contains("sparse tree")),
+            .any(|r| r.contains("cone pyramids") && r.contains("sparse tree")),
         "{plan}"
     );
 }

@@ -125,7 +125,7 @@ fn zoom_moves_closer_and_stays_bounded() {
 fn side_feature_lists_parse_and_reject_with_the_allowed_items() {
     let mut side = SideSettings::from_settings(&Default::default(), 16);
     side.parse_list("area, beer-lambert,ao,samples=3").unwrap();
-    assert!((side.features.shadow_model.name == "area") && side.features.ambient_occlusion);
+    assert!((side.features.shadow_model.name == "area") && side.features.term("ambient_occlusion"));
     assert_eq!(
         side.features.transmittance,
         voxlab::technique::beer_lambert::ID

@@ -363,7 +363,7 @@ fn ambient_occlusion_checkbox_restarts_only_its_side() {
             .rendered(Side::Right)
             .settings
             .features
-            .ambient_occlusion
+            .term("ambient_occlusion")
     );
     rig.checkbox("ambient occlusion (right)").click();
     rig.harness.run_steps(2);
@@ -372,7 +372,13 @@ fn ambient_occlusion_checkbox_restarts_only_its_side() {
     let jobs = rig.take_side_jobs(Side::Right);
     assert_eq!(jobs.len(), 1);
     assert_eq!(jobs[0].generation, before[1] + 1);
-    assert!(jobs[0].experiment.settings.features.ambient_occlusion);
+    assert!(
+        jobs[0]
+            .experiment
+            .settings
+            .features
+            .term("ambient_occlusion")
+    );
     assert!(Arc::ptr_eq(
         &jobs[0].experiment,
         state.rendered(Side::Right)
@@ -384,7 +390,7 @@ fn ambient_occlusion_checkbox_restarts_only_its_side() {
             .rendered(Side::Left)
             .settings
             .features
-            .ambient_occlusion
+            .term("ambient_occlusion")
     );
 }
 
@@ -929,7 +935,7 @@ fn save_side_exports_the_traced_size_of_an_adaptive_image() {
             .unwrap()
             .settings
             .features
-            .ambient_occlusion
+            .term("ambient_occlusion")
     );
     // The left side has no image: nothing to save.
     let err = rig
@@ -1340,7 +1346,7 @@ fn kept_on_error_readouts_ask_for_new_references_after_every_change() {
     assert_eq!(jobs.len(), 1, "one reference at a time");
     let right = jobs.remove(0);
     assert!(right.generation > first[0].generation);
-    assert!(!right.experiment.settings.features.ambient_occlusion);
+    assert!(!right.experiment.settings.features.term("ambient_occlusion"));
     rig.send(
         Channel::Reference,
         right.generation,
@@ -1351,7 +1357,13 @@ fn kept_on_error_readouts_ask_for_new_references_after_every_change() {
     rig.harness.run_steps(2);
     let left = rig.take_jobs(2);
     assert_eq!(left.len(), 1, "{}", left.len());
-    assert!(left[0].experiment.settings.features.ambient_occlusion);
+    assert!(
+        left[0]
+            .experiment
+            .settings
+            .features
+            .term("ambient_occlusion")
+    );
 }
 
 #[test]

@@ -224,8 +224,6 @@ pub fn shadow_visibility(
 pub struct ConeScene {
     pub pyramid: Pyramid,
     pub params: ConeParams,
-    pub ambient_occlusion: bool,
-    pub indirect: bool,
     /// `tan(aperture / 2)` of point lights' shadow cones.
     pub point_tan_half: f64,
     pub ao_cones: u32,
@@ -243,13 +241,11 @@ impl ConeScene {
         let layout = plan.pyramid?;
         let c = &settings.cones;
         Some(Self {
-            pyramid: Pyramid::build(scene, settings, layout, plan.indirect),
+            pyramid: Pyramid::build(scene, settings, layout, plan.radiance_pyramid()),
             params: ConeParams {
                 step_factor: c.step_factor,
                 start_offset: c.start_offset,
             },
-            ambient_occlusion: plan.ambient_occlusion,
-            indirect: plan.indirect,
             point_tan_half: (c.aperture_deg.to_radians() / 2.0).tan(),
             ao_cones: c.ao_cones.max(1),
             ao_range: c.ao_range,

@@ -160,6 +160,8 @@ struct StackRay {
 pub struct Prepared {
     pub cones: Option<cone::ConeScene>,
     pub shadow_model: Box<dyn crate::technique::CpuShadow>,
+    /// The plan's lighting terms.
+    pub terms: Vec<&'static crate::technique::LightingTerm>,
     /// The sparse tree of the grid the walks read, when the plan traverses it.
     pub tree: Option<std::sync::Arc<SparseTree>>,
     /// The triangle surfaces, when the plan traces them.
@@ -181,6 +183,7 @@ impl Prepared {
         Self {
             cones: cone::ConeScene::new(scene, settings, plan),
             shadow_model: (plan.shadow_model.cpu)(scene, settings),
+            terms: plan.terms.clone(),
             tree: (plan.traversal == Traversal::Sparse)
                 .then(|| grid.tree(crate::sparse::GPU_LOG_BRANCH)),
             surfaces,
@@ -241,7 +244,6 @@ pub fn trace_ray_with(
 ) -> DVec3 {
     let grid = &scene.grid;
     let walk_grid = prepared.grid(scene);
-    let cones = prepared.cones.as_ref();
     let eps = settings.ray_offset * grid.voxel_size();
     let mut color = scene.ambient;
     let mut stack = Vec::with_capacity(settings.ray_stack_size() as usize);
@@ -294,23 +296,17 @@ pub fn trace_ray_with(
             );
             color += ray.throughput * local;
         }
-        if let Some(c) = cones
-            && m.kd > 0.0
-        {
-            let pl = grid.to_local(p);
-            // Both are diffuse reflections of light arriving over the hemisphere:
-            // `albedo kd` times the ambient light AO lets through, and times the
-            // one-bounce radiance the cones gather (Crassin et al. 2011, section 4.2).
-            if c.ambient_occlusion {
-                let ao =
-                    cone::ambient_occlusion(&c.pyramid, &c.params, pl, n, c.ao_cones, c.ao_range);
-                color += ray.throughput * scene.ambient * m.albedo * m.kd * ao;
-            }
-            if c.indirect {
-                let range = cone::indirect_range(&c.pyramid.layout);
-                let l = cone::indirect(&c.pyramid, &c.params, pl, n, c.ao_cones, range);
-                color += ray.throughput * c.indirect_strength * m.albedo * m.kd * l;
-            }
+        // The plan's lighting terms (crate::technique).
+        for term in &prepared.terms {
+            let at = crate::technique::TermQuery {
+                scene,
+                settings,
+                material: m,
+                p,
+                n,
+                cones: prepared.cones.as_ref(),
+            };
+            color += ray.throughput * (term.cpu)(&at);
         }
 
         let mut reflection_weight = m.kr;

@@ -307,8 +307,8 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
 /// name (`crate::technique`).
 pub fn features_table(f: &Features) -> Table {
     let mut t = Table::new();
-    for flag in crate::technique::BUILT_IN.iter().filter_map(|b| b.flag) {
-        t.insert(flag.key.into(), (flag.get)(f).into());
+    for term in crate::technique::LIGHTING_TERMS {
+        t.insert(term.name.into(), f.term(term.name).into());
     }
     t.insert("transmittance".into(), f.transmittance.name().into());
     t.insert("shadow_model".into(), f.shadow_model.name.into());

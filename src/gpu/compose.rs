@@ -133,6 +133,33 @@ pub(super) fn compose(
     module.map_err(|e| e.emit_to_string(&composer))
 }
 
+/// `voxlab::lighting_terms` for `plan`: `fn lighting_terms(p, n, s) -> vec3<f32>`, the
+/// sum of the planned terms' `term` (src/technique/), in registry order. Written per
+/// plan because a shader cannot list modules it does not know; without terms it
+/// returns 0 and `LIGHTING_TERMS` leaves its call out.
+fn lighting_terms_module(plan: &Plan) -> String {
+    let mut imports = String::new();
+    let mut sum = String::from("vec3<f32>(0.0)");
+    for (i, t) in plan.terms.iter().enumerate() {
+        let path = t
+            .wgsl
+            .1
+            .lines()
+            .find_map(|l| l.trim().strip_prefix("#define_import_path "))
+            .expect("a lighting term's module declares its import path")
+            .trim();
+        imports += &format!("#import {path}::{{term as term_{i}}}\n");
+        sum += &format!(" + term_{i}(p, n, s)");
+    }
+    format!(
+        "#define_import_path voxlab::lighting_terms\n\
+         #import voxlab::types::Material\n\
+         {imports}\n\
+         fn lighting_terms(p: vec3<f32>, n: vec3<f32>, s: Material) -> vec3<f32> {{\n    \
+         return {sum};\n}}\n"
+    )
+}
+
 /// Composes and validates the tracer kernel for `plan`. Pure CPU: no device needed.
 pub fn compose_shader(plan: &Plan) -> Result<naga::Module, ShaderError> {
     let mut defs: HashMap<_, _> = plan.shader_defs().into_iter().collect();
@@ -145,6 +172,9 @@ pub fn compose_shader(plan: &Plan) -> Result<naga::Module, ShaderError> {
     modules.extend_from_slice(SHADOW_MODULES);
     modules.push(plan.shadow_model.wgsl);
     modules.push(SHADING);
+    modules.extend(plan.terms.iter().map(|t| t.wgsl));
+    let terms = lighting_terms_module(plan);
+    modules.push(("voxlab::lighting_terms (src/gpu/compose.rs)", &terms));
     let module = compose(&modules, TRACE, defs).map_err(|message| ShaderError::Compose {
         defs: defs_string(plan),
         message,

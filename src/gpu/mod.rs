@@ -1547,7 +1547,7 @@ impl GpuTracer {
         let setup = Instant::now();
         let cone_group = match plan.pyramid {
             Some(layout) => {
-                self.cache_pyramid(scene, settings, layout, plan.indirect)?;
+                self.cache_pyramid(scene, settings, layout, plan.radiance_pyramid())?;
                 let pyr = &self.pyramid.as_ref().expect("pyramid cached").1;
                 let grid = &scene.grid;
                 let radii: Vec<f32> = scene
@@ -1765,7 +1765,7 @@ impl GpuTracer {
         }
         let pyramids = plan.pyramid.map_or(0, |layout| {
             layout.texture_bytes(crate::cpu::pyramid::OPACITY_TEXEL_BYTES)
-                + if plan.indirect {
+                + if plan.radiance_pyramid() {
                     layout.texture_bytes(crate::cpu::pyramid::RADIANCE_TEXEL_BYTES)
                 } else {
                     0

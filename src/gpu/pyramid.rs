@@ -698,7 +698,7 @@ impl GpuTracer {
         let indirect = pyr.radiance.is_some();
         let module = compose_with_cone(
             ("shaders/cone_probe.wgsl", CONE_PROBE),
-            if indirect { &["INDIRECT"] } else { &[] },
+            if indirect { &["RADIANCE_PYRAMID"] } else { &[] },
         )?;
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("cone probe"),

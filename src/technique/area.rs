@@ -15,7 +15,7 @@
 
 use glam::DVec3;
 
-use super::{CpuShadow, LightQuery, ShadowModel};
+use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
 use crate::render::{RayStats, RenderSettings};
 use crate::sampling::light_sample;
 use crate::scene::{Light, Scene};
@@ -33,7 +33,11 @@ pub const MODEL: ShadowModel = ShadowModel {
     ),
     gpu_data: None,
     cpu: |_, _| Box::new(Area),
-    ablate_knob: "",
+    ablate: &[AblateCurve {
+        label: "stochastic",
+        knob: Knob::Spp,
+        lights_as_points: false,
+    }],
     label: "AREA_LIGHTS",
     switch: Some("area_lights"),
     shared_settings: &["render.light_samples", "render.spp"],

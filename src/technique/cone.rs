@@ -15,7 +15,7 @@
 
 use glam::DVec3;
 
-use super::{CpuShadow, LightQuery, ShadowModel};
+use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
 use crate::cpu::cone::{ConeScene, light_radius, shadow_visibility};
 use crate::render::{RayStats, RenderSettings};
 use crate::scene::{Light, Scene};
@@ -33,7 +33,29 @@ pub const MODEL: ShadowModel = ShadowModel {
     // The pyramids are the plan's (`Plan::pyramid`), shared with the lighting terms.
     gpu_data: None,
     cpu: |_, _| Box::new(Cone),
-    ablate_knob: "",
+    // Over the step factor, each area light at the aperture it subtends; and, with
+    // every area light as a point light at its centre (which the model shades it as
+    // anyway), over the point lights' aperture: whether the subtended angle is the best.
+    ablate: &[
+        AblateCurve {
+            label: "cone at light's aperture",
+            knob: Knob::Shared {
+                key: "cones.step_factor",
+                list: "cone_step_factor",
+                default: &[0.25, 0.5, 1.0, 2.0],
+            },
+            lights_as_points: false,
+        },
+        AblateCurve {
+            label: "cone at set aperture",
+            knob: Knob::Shared {
+                key: "cones.aperture_deg",
+                list: "cone_aperture_deg",
+                default: &[4.0, 8.0, 16.0, 32.0, 64.0],
+            },
+            lights_as_points: true,
+        },
+    ],
     label: "CONE_SHADOWS",
     switch: Some("cone_shadows"),
     shared_settings: &[

@@ -9,7 +9,7 @@
 
 use glam::DVec3;
 
-use super::{CpuShadow, LightQuery, ShadowModel};
+use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
 use crate::render::RayStats;
 
 pub const MODEL: ShadowModel = ShadowModel {
@@ -24,7 +24,12 @@ pub const MODEL: ShadowModel = ShadowModel {
     ),
     gpu_data: None,
     cpu: |_, _| Box::new(Hard),
-    ablate_knob: "",
+    // The fixed points every curve starts from, once per transmittance model.
+    ablate: &[AblateCurve {
+        label: "hard",
+        knob: Knob::Transmittance,
+        lights_as_points: false,
+    }],
     label: "",
     switch: None,
     shared_settings: &[],

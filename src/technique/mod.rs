@@ -20,17 +20,21 @@
 //! The shadow walks (voxels, dense or sparse, and triangle surfaces; `shaders/shadow.wgsl`,
 //! `shaders/shadow_surface.wgsl`, `crate::cpu::shadow_transmittance`) are generic over it.
 //!
-//! The lighting terms (ambient occlusion and indirect light) are declared in
-//! [`BUILT_IN`] with their settings, so the listing and the README's table cover them
-//! too; the `[cones]` settings are declared in [`cones`], from which the parser, the
-//! writer and the viewer take them. Their code predates this registry and still lives
-//! in `cpu/cone.rs`, `shaders/cone.wgsl` and `plan.rs`.
+//! A lighting term is one [`LightingTerm`] value in its own file (name, summary, plan
+//! rule, the pyramids it reads, WGSL module `voxlab::term::<name>` and f64 function),
+//! registered with one line in [`LIGHTING_TERMS`]: [`ambient_occlusion`] and
+//! [`indirect`]. The kernel adds every planned term's `term` at each hit (a module
+//! `voxlab::lighting_terms` composed for the plan, `crate::gpu::compose`). The cone
+//! techniques share the march and the pyramids (`crate::cpu::cone`,
+//! `shaders/cone.wgsl`) and the `[cones]` settings, declared in [`cones`].
 
+pub mod ambient_occlusion;
 pub mod area;
 pub mod beer_lambert;
 pub mod cone;
 pub mod cones;
 pub mod hard;
+pub mod indirect;
 pub mod min_kt;
 pub mod ratio;
 pub mod sdf;
@@ -41,7 +45,7 @@ use std::fmt;
 use glam::DVec3;
 
 use crate::cpu::SampleKey;
-use crate::render::{Features, RayStats, RenderSettings, Transmittance};
+use crate::render::{RayStats, RenderSettings, Transmittance};
 use crate::scene::{Light, Material, Scene};
 
 /// Shadow models, in the order they are listed and offered; the first is the default
@@ -53,6 +57,9 @@ pub const SHADOW_MODELS: &[&ShadowModel] = &[
     &ratio::MODEL,
     &sdf::MODEL,
 ];
+
+/// Lighting terms, in the order they are listed and offered. One line each.
+pub const LIGHTING_TERMS: &[&LightingTerm] = &[&ambient_occlusion::TERM, &indirect::TERM];
 
 /// Transmittance models, in the order they are listed and offered; the first is the
 /// default (the baseline's). One line each.
@@ -249,10 +256,8 @@ pub struct ShadowModel {
     pub gpu_data: Option<GpuData>,
     /// Makes the CPU implementation for a render.
     pub cpu: fn(&Scene, &RenderSettings) -> Box<dyn CpuShadow>,
-    /// The knob its ablation curve sweeps: one of its settings, or `"spp"` (the
-    /// `[ablate] spp` list) for a stochastic model whose quality is its sample count;
-    /// empty for a model `voxlab ablate` draws by its own sweeps (hard, area, cone).
-    pub ablate_knob: &'static str,
+    /// The curves `voxlab ablate` draws of it (error against time), in order.
+    pub ablate: &'static [AblateCurve],
     /// How printed plans name it (`AREA_LIGHTS`, `SHADOW_MODEL(sdf)`); empty for the
     /// default, which the baseline's plans do not name.
     pub label: &'static str,
@@ -290,6 +295,68 @@ impl ShadowModel {
             .iter()
             .position(|m| m.name == self.name)
             .expect("registered") as u32
+    }
+}
+
+/// What a curve of `voxlab ablate` sweeps.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Knob {
+    /// The `[ablate] spp` list: the frames a stochastic model accumulates.
+    Spp,
+    /// The `[ablate] transmittance` list: one point per transmittance model.
+    Transmittance,
+    /// One of the model's own settings, over its declared `sweep`.
+    Own(&'static str),
+    /// A setting of a shared table (`cones.step_factor`, [`shared_setting`]) over the
+    /// `[ablate]` list called `list` (`cone_step_factor`), `default` when the file
+    /// gives none; an empty list leaves the curve out.
+    Shared {
+        key: &'static str,
+        list: &'static str,
+        default: &'static [f64],
+    },
+}
+
+/// One curve `voxlab ablate` draws of a shadow model: the reference's features with
+/// this model, at one frame unless it samples, over its knob.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AblateCurve {
+    /// The curve's name in outputs, before ` (<transmittance>)`.
+    pub label: &'static str,
+    pub knob: Knob,
+    /// Every area light replaced by a point light at its centre, of the same colour and
+    /// intensity (to sweep what a point light's model does with them).
+    pub lights_as_points: bool,
+}
+
+/// The shadow model whose converged image is `voxlab ablate`'s reference: sampled area
+/// lights, the estimator every soft shadow model here approximates.
+pub fn reference_shadow_model() -> &'static ShadowModel {
+    &area::MODEL
+}
+
+/// The declaration of a shared table's setting by `table.key` (`cones.step_factor`),
+/// where one is declared ([`cones`]).
+pub fn shared_setting(key: &str) -> Option<&'static Setting> {
+    let c = cones::cone_setting(key.strip_prefix("cones.")?)?;
+    Some(&c.setting)
+}
+
+/// The value of the shared setting `key` in `settings`.
+pub fn get_shared(settings: &RenderSettings, key: &str) -> Option<f64> {
+    let c = cones::cone_setting(key.strip_prefix("cones.")?)?;
+    Some((c.get)(&settings.cones))
+}
+
+/// Sets the shared setting `key` in `settings` (checked by the caller); false for an
+/// unknown key.
+pub fn set_shared(settings: &mut RenderSettings, key: &str, v: f64) -> bool {
+    match key.strip_prefix("cones.").and_then(cones::cone_setting) {
+        Some(c) => {
+            (c.set)(&mut settings.cones, v);
+            true
+        }
+        None => false,
     }
 }
 
@@ -378,54 +445,78 @@ impl TransmittanceModel {
     }
 }
 
-/// A `[features]` boolean key of a built-in technique and the `Features` field it is.
-#[derive(Clone, Copy, Debug)]
-pub struct Flag {
-    pub key: &'static str,
-    pub get: fn(&Features) -> bool,
-    pub set: fn(&mut Features, bool),
+/// What a lighting term's CPU implementation is asked at one diffuse-or-not hit.
+pub struct TermQuery<'a> {
+    pub scene: &'a Scene,
+    pub settings: &'a RenderSettings,
+    /// The shading material.
+    pub material: &'a Material,
+    /// The hit point (world) and its unit shading normal (facing the ray).
+    pub p: DVec3,
+    pub n: DVec3,
+    /// The cone pyramids, when the plan built them (for a term with `pyramid`).
+    pub cones: Option<&'a crate::cpu::cone::ConeScene>,
 }
 
-/// A lighting term, declared for the listing, the parser and writer of `[features]`,
-/// and the viewer's lists.
-#[derive(Clone, Copy, Debug)]
-pub struct BuiltIn {
+/// A lighting term: radiance added at every hit on top of the local light, everything
+/// about it in one value. Any number of terms may be on at once.
+pub struct LightingTerm {
+    /// Its name, which is also its `[features]` switch (`ambient_occlusion = true`).
     pub name: &'static str,
-    pub slot: Slot,
+    /// A short name the viewer's `--left`/`--right` lists also take (`ao`).
+    pub short: &'static str,
+    /// What it is, one line, with the paper or section it follows.
     pub summary: &'static str,
-    /// Its settings as `table.key` (`[cones]` ones declared in [`cones`]).
-    pub settings: &'static [&'static str],
-    /// Its boolean `[features]` key.
-    pub flag: Option<Flag>,
+    /// How printed plans name it (`AMBIENT_OCCLUSION`).
+    pub label: &'static str,
+    /// Settings it reads from the shared tables, as `table.key` (`cones.ao_cones`).
+    pub shared_settings: &'static [&'static str],
+    /// The plan rule, given that the term is switched on: `Err(reason)` leaves it out.
+    pub plan: fn(&Scene, &RenderSettings) -> Result<(), String>,
+    /// Whether it reads the cone pyramids (the plan builds them for it), and the
+    /// radiance pyramid too (light injected into the voxels).
+    pub pyramid: bool,
+    pub radiance_pyramid: bool,
+    /// Its WGSL module (path, source): `#define_import_path voxlab::term::<name>` with
+    /// `fn term(p: vec3<f32>, n: vec3<f32>, s: Material) -> vec3<f32>` (grid-local `p`,
+    /// the radiance it adds before the ray's throughput), the twin of `cpu`.
+    pub wgsl: (&'static str, &'static str),
+    /// Its f64 reference: the radiance it adds at the hit, before throughput.
+    pub cpu: fn(&TermQuery) -> DVec3,
 }
 
-/// The lighting terms, in listing order.
-pub const BUILT_IN: &[BuiltIn] = &[
-    BuiltIn {
-        name: "ambient_occlusion",
-        slot: Slot::Lighting,
-        summary: "ambient times the visibility of cosine-weighted hemisphere cones \
-                  (Crassin et al. 2011)",
-        settings: &["cones.ao_cones", "cones.ao_range"],
-        flag: Some(Flag {
-            key: "ambient_occlusion",
-            get: |f| f.ambient_occlusion,
-            set: |f, on| f.ambient_occlusion = on,
-        }),
-    },
-    BuiltIn {
-        name: "indirect",
-        slot: Slot::Lighting,
-        summary: "one bounce of diffuse light gathered by hemisphere cones from the radiance \
-                  pyramid (Crassin et al. 2011, section 4.2)",
-        settings: &["cones.indirect_strength"],
-        flag: Some(Flag {
-            key: "indirect",
-            get: |f| f.indirect,
-            set: |f, on| f.indirect = on,
-        }),
-    },
-];
+// A term is its name, as a shadow model is.
+impl PartialEq for LightingTerm {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+    }
+}
+
+impl Eq for LightingTerm {}
+
+impl fmt::Debug for LightingTerm {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "LightingTerm({})", self.name)
+    }
+}
+
+impl LightingTerm {
+    /// Its index in [`LIGHTING_TERMS`] (its bit in the kernel variant's key).
+    pub fn index(&self) -> u32 {
+        LIGHTING_TERMS
+            .iter()
+            .position(|t| t.name == self.name)
+            .expect("registered") as u32
+    }
+}
+
+/// The lighting term called `name` (or its short name).
+pub fn lighting_term(name: &str) -> Option<&'static LightingTerm> {
+    LIGHTING_TERMS
+        .iter()
+        .copied()
+        .find(|t| t.name == name || t.short == name)
+}
 
 /// The `[features]` keys: `shadow_model`, `transmittance`, the shadow models' older
 /// switches, then every lighting term's.
@@ -433,7 +524,7 @@ pub fn feature_keys() -> Vec<&'static str> {
     ["shadow_model", "transmittance"]
         .into_iter()
         .chain(SHADOW_MODELS.iter().filter_map(|m| m.switch))
-        .chain(BUILT_IN.iter().filter_map(|b| b.flag.map(|f| f.key)))
+        .chain(LIGHTING_TERMS.iter().map(|t| t.name))
         .collect()
 }
 
@@ -449,14 +540,6 @@ pub fn transmittance(name: &str) -> Option<Transmittance> {
 /// Names `[features] transmittance` may take.
 pub fn transmittance_names() -> Vec<&'static str> {
     TRANSMITTANCES.iter().map(|m| m.name).collect()
-}
-
-/// The lighting terms: their names and switches.
-pub fn lighting_terms() -> impl Iterator<Item = (&'static str, Flag)> {
-    BUILT_IN
-        .iter()
-        .filter(|b| b.slot == Slot::Lighting)
-        .filter_map(|b| b.flag.map(|f| (b.name, f)))
 }
 
 /// Names a `[features] shadow_model` may take, in registry order.
@@ -504,12 +587,12 @@ pub fn listing() -> Vec<ListingRow> {
         settings: m.settings.iter().map(|s| s.to_string()).collect(),
         summary: m.summary,
     });
-    let terms = BUILT_IN.iter().map(|b| ListingRow {
-        name: b.name,
-        slot: b.slot,
-        switch: format!("{} = true", b.name),
-        settings: b.settings.iter().map(|s| s.to_string()).collect(),
-        summary: b.summary,
+    let terms = LIGHTING_TERMS.iter().map(|t| ListingRow {
+        name: t.name,
+        slot: Slot::Lighting,
+        switch: format!("{} = true", t.name),
+        settings: t.shared_settings.iter().map(|s| s.to_string()).collect(),
+        summary: t.summary,
     });
     shadow.chain(transmittances).chain(terms).collect()
 }

@@ -35,7 +35,7 @@
 
 use glam::DVec3;
 
-use super::{CpuShadow, LightQuery, ShadowModel};
+use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
 use crate::cpu::{point_contribution, shadow_transmittance};
 use crate::render::{RayStats, RenderSettings};
 use crate::sampling::light_sample;
@@ -54,7 +54,11 @@ pub const MODEL: ShadowModel = ShadowModel {
     ),
     gpu_data: None,
     cpu: |_, _| Box::new(Ratio),
-    ablate_knob: "spp",
+    ablate: &[AblateCurve {
+        label: "ratio",
+        knob: Knob::Spp,
+        lights_as_points: false,
+    }],
     label: "SHADOW_MODEL(ratio)",
     switch: None,
     shared_settings: &["render.light_samples", "render.spp"],

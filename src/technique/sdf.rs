@@ -32,7 +32,9 @@
 
 use glam::{DVec3, IVec3, UVec3};
 
-use super::{CpuShadow, GpuBuild, GpuData, Kind, LightQuery, Setting, ShadowModel};
+use super::{
+    AblateCurve, CpuShadow, GpuBuild, GpuData, Kind, Knob, LightQuery, Setting, ShadowModel,
+};
 use crate::cpu::{Dda, shadow_transmittance, unshadowed};
 use crate::render::{RayStats, RenderSettings};
 use crate::scene::{Scene, VOID};
@@ -74,7 +76,11 @@ pub const MODEL: ShadowModel = ShadowModel {
             softness: MODEL.value(settings, "softness"),
         })
     },
-    ablate_knob: "softness",
+    ablate: &[AblateCurve {
+        label: "sdf",
+        knob: Knob::Own("softness"),
+        lights_as_points: false,
+    }],
     label: "SHADOW_MODEL(sdf)",
     switch: None,
     shared_settings: &[],

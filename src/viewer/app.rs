@@ -1305,17 +1305,17 @@ impl ViewerApp {
                 }
             });
         s.features.transmittance = t;
-        // The lighting terms, each its own switch (crate::technique::BUILT_IN).
-        for (name, flag) in crate::technique::lighting_terms() {
-            let mut on = (flag.get)(&s.features);
+        // The lighting terms, each its own switch (crate::technique::LIGHTING_TERMS).
+        for t in crate::technique::LIGHTING_TERMS {
+            let mut on = s.features.term(t.name);
             if ui
                 .checkbox(
                     &mut on,
-                    format!("{} ({})", name.replace('_', " "), side.name()),
+                    format!("{} ({})", t.name.replace('_', " "), side.name()),
                 )
                 .changed()
             {
-                (flag.set)(&mut s.features, on);
+                s.features.set_term(t.name, on);
                 changed = true;
             }
         }

@@ -113,7 +113,7 @@ impl SideSettings {
     /// (`min-kt`, `beer-lambert`), a lighting term's (`ambient_occlusion` or `ao`,
     /// `indirect`), `samples=N`.
     pub fn parse_list(&mut self, list: &str) -> Result<()> {
-        use crate::technique::{lighting_terms, transmittance};
+        use crate::technique::{LIGHTING_TERMS, transmittance};
         for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             if self.features.set_shadow_model(item) {
                 continue;
@@ -122,24 +122,22 @@ impl SideSettings {
                 self.features.transmittance = t;
                 continue;
             }
-            let term = if item == "ao" {
-                "ambient_occlusion"
-            } else {
-                item
-            };
-            if let Some((_, flag)) = lighting_terms().find(|(name, _)| *name == term) {
-                (flag.set)(&mut self.features, true);
+            if self.features.set_term(item, true) {
                 continue;
             }
             let Some(n) = item.strip_prefix("samples=") else {
+                let terms: Vec<String> = LIGHTING_TERMS
+                    .iter()
+                    .map(|t| match t.short {
+                        s if s == t.name => s.to_string(),
+                        s => format!("{s}, {}", t.name),
+                    })
+                    .collect();
                 return Err(anyhow!(
-                    "feature list item `{item}`: allowed are {}, {}, ao, {}, samples=N",
+                    "feature list item `{item}`: allowed are {}, {}, {}, samples=N",
                     crate::technique::shadow_model_names().join(", "),
                     crate::technique::transmittance_names().join(", "),
-                    lighting_terms()
-                        .map(|(name, _)| name)
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    terms.join(", ")
                 ));
             };
             self.light_samples = n

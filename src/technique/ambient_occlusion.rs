@@ -1,0 +1,53 @@
+//! Ambient occlusion by voxel cones: the ambient light a hit receives, times the mean
+//! visibility of cosine-weighted hemisphere cones through the opacity pyramid (C.
+//! Crassin et al., "Interactive Indirect Illumination Using Voxel Cone Tracing", CGF
+//! 30(7), 2011, section 4; the march is `crate::cpu::cone`'s).
+//!
+//! Contract (both tracers): at a hit of a material with `kd > 0` it adds
+//! `ambient * albedo * kd * AO`, `AO` the mean visibility `1 - occ` of `cones.ao_cones`
+//! hemisphere cones (Malley's method on a golden spiral about the shading normal) of
+//! range `cones.ao_range` voxels from the grid-local hit (`crate::cpu::cone::
+//! ambient_occlusion`). Off, nothing is added: the baseline's ambient stays the
+//! per-pixel background term.
+
+use glam::DVec3;
+
+use super::{LightingTerm, TermQuery};
+
+pub const TERM: LightingTerm = LightingTerm {
+    name: "ambient_occlusion",
+    short: "ao",
+    summary: "ambient times the visibility of cosine-weighted hemisphere cones \
+              (Crassin et al. 2011)",
+    label: "AMBIENT_OCCLUSION",
+    shared_settings: &["cones.ao_cones", "cones.ao_range"],
+    plan: |scene, _| {
+        if crate::plan::diffuse_in_grid(scene) {
+            Ok(())
+        } else {
+            Err("no diffuse material in the grid".to_string())
+        }
+    },
+    pyramid: true,
+    radiance_pyramid: false,
+    wgsl: (
+        "shaders/term_ambient_occlusion.wgsl",
+        include_str!("../../shaders/term_ambient_occlusion.wgsl"),
+    ),
+    cpu: term,
+};
+
+fn term(at: &TermQuery) -> DVec3 {
+    let m = at.material;
+    if m.kd <= 0.0 {
+        return DVec3::ZERO;
+    }
+    let c = at
+        .cones
+        .expect("the plan builds the pyramids for ambient occlusion");
+    let pl = at.scene.grid.to_local(at.p);
+    let ao = crate::cpu::cone::ambient_occlusion(
+        &c.pyramid, &c.params, pl, at.n, c.ao_cones, c.ao_range,
+    );
+    at.scene.ambient * m.albedo * m.kd * ao
+}

@@ -1,0 +1,52 @@
+//! One bounce of diffuse light by voxel cones: the direct light injected into the
+//! radiance pyramid, gathered at each hit by cosine-weighted hemisphere cones (C.
+//! Crassin et al., "Interactive Indirect Illumination Using Voxel Cone Tracing", CGF
+//! 30(7), 2011, section 4.2; injection `crate::cpu::pyramid`, march `crate::cpu::cone`).
+//!
+//! Contract (both tracers): at a hit of a material with `kd > 0` it adds
+//! `indirect_strength * albedo * kd * L_ind`, `L_ind` the mean radiance `cones.ao_cones`
+//! hemisphere cones gather from the radiance pyramid until they leave the grid
+//! (`crate::cpu::cone::indirect`, range `indirect_range`).
+
+use glam::DVec3;
+
+use super::{LightingTerm, TermQuery};
+
+pub const TERM: LightingTerm = LightingTerm {
+    name: "indirect",
+    short: "indirect",
+    summary: "one bounce of diffuse light gathered by hemisphere cones from the radiance \
+              pyramid (Crassin et al. 2011, section 4.2)",
+    label: "INDIRECT",
+    shared_settings: &["cones.indirect_strength"],
+    plan: |scene, _| {
+        if !crate::plan::diffuse_in_grid(scene) {
+            Err("no diffuse material in the grid".to_string())
+        } else if scene.lights.is_empty() {
+            Err("no light to inject".to_string())
+        } else {
+            Ok(())
+        }
+    },
+    pyramid: true,
+    radiance_pyramid: true,
+    wgsl: (
+        "shaders/term_indirect.wgsl",
+        include_str!("../../shaders/term_indirect.wgsl"),
+    ),
+    cpu: term,
+};
+
+fn term(at: &TermQuery) -> DVec3 {
+    let m = at.material;
+    if m.kd <= 0.0 {
+        return DVec3::ZERO;
+    }
+    let c = at
+        .cones
+        .expect("the plan builds the pyramids for indirect light");
+    let pl = at.scene.grid.to_local(at.p);
+    let range = crate::cpu::cone::indirect_range(&c.pyramid.layout);
+    let l = crate::cpu::cone::indirect(&c.pyramid, &c.params, pl, at.n, c.ao_cones, range);
+    c.indirect_strength * m.albedo * m.kd * l
+}
