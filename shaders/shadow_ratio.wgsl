@@ -6,12 +6,12 @@
 // integral F is dimensionless and the area is divided by voxel_size^2.
 #define_import_path voxlab::shadow_model
 
-#import voxlab::types::{Material, Light, LIGHT_POINT, LIGHT_RECT}
+#import voxlab::types::{Material, Light, LIGHT_RECT}
 #import voxlab::bindings::params
 #import voxlab::counters::{count_shadow, loop_cut}
 #import voxlab::sampling::{SampleKey, light_sample}
-#import voxlab::area_lights::sample_point
-#import voxlab::phong::{point_contribution, shadow_to}
+#import voxlab::area_lights::{sample_point, sampled_light}
+#import voxlab::phong::shadow_to
 
 // crate::technique::ratio::SMALL_LIGHT
 const SMALL_LIGHT: f32 = 1e-3;
@@ -105,13 +105,13 @@ fn light_term(
     s: Material,
     key: SampleKey,
 ) -> vec3<f32> {
-    if light.kind == LIGHT_POINT {
-        return point_contribution(q, p, n, d, light.position, light.radiance, s);
-    }
-    let count = max(params.light_samples, 1u);
     let analytic = light.kind == LIGHT_RECT && length(light.axis_u) > 0.0
         && length(light.axis_v) > 0.0 && params.falloff != 0u;
-    var sampled = vec3<f32>(0.0);
+    if !analytic {
+        // Points at their centres, other shapes sampled: the area model's estimate.
+        return sampled_light(q, p, n, d, light, j, s, key);
+    }
+    let count = max(params.light_samples, 1u);
     var shadowed = vec3<f32>(0.0);
     var free = 0.0;
     var specular = vec3<f32>(0.0);
@@ -120,10 +120,6 @@ fn light_term(
     var k = 0u;
     for (; k < count; k++) {
         let x = sample_point(light, light_sample(params.seed, key, j, k, count));
-        if !analytic {
-            sampled += point_contribution(q, p, n, d, x, light.radiance, s);
-            continue;
-        }
         count_shadow();
         let vis = shadow_to(q, x);
         let to = x - p;
@@ -146,9 +142,6 @@ fn light_term(
     // Only the driver's loop limit ends it early (shaders/counters.wgsl).
     if k < count {
         loop_cut();
-    }
-    if !analytic {
-        return sampled / f32(count);
     }
     var ratio = visible / f32(count);
     if free > 0.0 {

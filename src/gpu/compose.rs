@@ -58,14 +58,14 @@ const SHADOW_MODULES: &[(&str, &str)] = &[
         "shaders/shadow_surface.wgsl",
         include_str!("../../shaders/shadow_surface.wgsl"),
     ),
-    (
-        "shaders/area_lights.wgsl",
-        include_str!("../../shaders/area_lights.wgsl"),
-    ),
     super::pyramid::CONE_MODULE,
     (
         "shaders/phong.wgsl",
         include_str!("../../shaders/phong.wgsl"),
+    ),
+    (
+        "shaders/area_lights.wgsl",
+        include_str!("../../shaders/area_lights.wgsl"),
     ),
 ];
 

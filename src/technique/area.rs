@@ -26,7 +26,7 @@ pub const MODEL: ShadowModel = ShadowModel {
               (Cook, Porter and Carpenter 1984)",
     settings: &[],
     stochastic: true,
-    plan,
+    plan: needs_area_light,
     wgsl: (
         "shaders/shadow_area.wgsl",
         include_str!("../../shaders/shadow_area.wgsl"),
@@ -45,7 +45,8 @@ pub const MODEL: ShadowModel = ShadowModel {
     pyramid: false,
 };
 
-fn plan(scene: &Scene, _: &RenderSettings) -> Result<(), String> {
+/// The plan rule of models that integrate area lights: some light of non-zero size.
+pub fn needs_area_light(scene: &Scene, _: &RenderSettings) -> Result<(), String> {
     if scene.lights.iter().any(Light::is_area) {
         Ok(())
     } else {
@@ -57,32 +58,37 @@ struct Area;
 
 impl CpuShadow for Area {
     fn light_term(&self, at: &LightQuery, stats: &mut RayStats) -> DVec3 {
-        match at.light {
-            Light::Area(a) if at.light.is_area() => {
-                let s = at.settings;
-                let radiance = at.light.color() * at.light.intensity();
-                let count = s.light_samples.max(1);
-                let mut sum = DVec3::ZERO;
-                for k in 0..count {
-                    let (u, v) =
-                        light_sample(s.seed, at.key.pixel, at.key.frame, at.index, k, count);
-                    sum += crate::cpu::point_contribution(
-                        at.scene,
-                        &at.walk,
-                        s,
-                        at.material,
-                        at.q,
-                        at.p,
-                        at.n,
-                        at.d,
-                        a.sample_point(u, v),
-                        radiance,
-                        stats,
-                    );
-                }
-                sum / count as f64
+        sampled(at, stats)
+    }
+}
+
+/// The area model's light term: an area light of non-zero size over its samples, any
+/// other light at its centre.
+pub fn sampled(at: &LightQuery, stats: &mut RayStats) -> DVec3 {
+    match at.light {
+        Light::Area(a) if at.light.is_area() => {
+            let s = at.settings;
+            let radiance = at.light.color() * at.light.intensity();
+            let count = s.light_samples.max(1);
+            let mut sum = DVec3::ZERO;
+            for k in 0..count {
+                let (u, v) = light_sample(s.seed, at.key.pixel, at.key.frame, at.index, k, count);
+                sum += crate::cpu::point_contribution(
+                    at.scene,
+                    &at.walk,
+                    s,
+                    at.material,
+                    at.q,
+                    at.p,
+                    at.n,
+                    at.d,
+                    a.sample_point(u, v),
+                    radiance,
+                    stats,
+                );
             }
-            _ => super::hard::at_centre(at, stats),
+            sum / count as f64
         }
+        _ => super::hard::at_centre(at, stats),
     }
 }

@@ -36,10 +36,10 @@
 use glam::DVec3;
 
 use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
-use crate::cpu::{point_contribution, shadow_transmittance};
-use crate::render::{RayStats, RenderSettings};
+use crate::cpu::shadow_transmittance;
+use crate::render::RayStats;
 use crate::sampling::light_sample;
-use crate::scene::{AreaShape, Light, Scene};
+use crate::scene::{AreaShape, Light};
 
 pub const MODEL: ShadowModel = ShadowModel {
     name: "ratio",
@@ -47,7 +47,8 @@ pub const MODEL: ShadowModel = ShadowModel {
               shadowed to unshadowed light (Heitz, Hill and McGuire, I3D 2018)",
     settings: &[],
     stochastic: true,
-    plan,
+    // As the area model's: it needs a light of non-zero size.
+    plan: super::area::needs_area_light,
     wgsl: (
         "shaders/shadow_ratio.wgsl",
         include_str!("../../shaders/shadow_ratio.wgsl"),
@@ -66,46 +67,31 @@ pub const MODEL: ShadowModel = ShadowModel {
     pyramid: false,
 };
 
-fn plan(scene: &Scene, _: &RenderSettings) -> Result<(), String> {
-    if scene.lights.iter().any(Light::is_area) {
-        Ok(())
-    } else {
-        Err("no area light of non-zero size: every light is a point".to_string())
-    }
-}
-
 struct Ratio;
 
 impl CpuShadow for Ratio {
     fn light_term(&self, at: &LightQuery, stats: &mut RayStats) -> DVec3 {
         let (scene, s, m) = (at.scene, at.settings, at.material);
         let radiance = at.light.color() * at.light.intensity();
-        let contribution = |x: DVec3, stats: &mut RayStats| {
-            point_contribution(
-                scene, &at.walk, s, m, at.q, at.p, at.n, at.d, x, radiance, stats,
-            )
+        // Rectangles with falloff in closed form; every other light as the area model
+        // shades it (sampled, or at its centre).
+        let rect = match at.light {
+            Light::Area(a) if at.light.is_area() => match a.shape {
+                AreaShape::Rect { width, height } if width > 0.0 && height > 0.0 && s.falloff => {
+                    let (u, v, _) = a.frame();
+                    Some((a, u * width, v * height))
+                }
+                _ => None,
+            },
+            _ => None,
         };
-        let Light::Area(a) = at.light else {
-            return contribution(at.light.position(), stats);
+        let Some((a, axis_u, axis_v)) = rect else {
+            return super::area::sampled(at, stats);
         };
-        if !at.light.is_area() {
-            return contribution(a.position, stats);
-        }
         let count = s.light_samples.max(1);
         let sample = |k: u32| {
             let (u, v) = light_sample(s.seed, at.key.pixel, at.key.frame, at.index, k, count);
             a.sample_point(u, v)
-        };
-        let rect = match a.shape {
-            AreaShape::Rect { width, height } if width > 0.0 && height > 0.0 && s.falloff => {
-                let (u, v, _) = a.frame();
-                Some((u * width, v * height))
-            }
-            _ => None,
-        };
-        let Some((axis_u, axis_v)) = rect else {
-            let sum: DVec3 = (0..count).map(|k| contribution(sample(k), stats)).sum();
-            return sum / count as f64;
         };
         let (mut shadowed, mut free, mut specular, mut visible) =
             (DVec3::ZERO, 0.0, DVec3::ZERO, DVec3::ZERO);
