@@ -65,8 +65,14 @@ fn declarations_are_sound() {
     for n in &names {
         assert!(seen.insert(*n), "shadow model {n} registered twice");
     }
+    let mut titles = std::collections::HashSet::new();
     for m in SHADOW_MODELS {
         assert!(!m.summary.is_empty() && m.summary.len() < 200, "{}", m.name);
+        assert!(
+            !m.title.is_empty() && m.title.len() < 40 && titles.insert(m.title),
+            "{}: the viewer lists it by a short title of its own",
+            m.name
+        );
         assert!(
             m.wgsl
                 .1

@@ -59,9 +59,9 @@ fn export_relocates_scene_files_next_to_the_export() {
 fn default_sides_compare_the_file_with_a_soft_shadow_model() {
     // An area light in the scene: the right side samples it with Beer-Lambert.
     let s = load_state(&experiment("baseline.toml")).unwrap();
-    assert_eq!(ShadowModel::of(&s.sides[0].features), ShadowModel::HARD);
+    assert_eq!(ShadowModel::of(&s.sides[0].features), ShadowModel("hard"));
     // The seed has point lights only: cones soften them, sampling would not.
-    assert_eq!(ShadowModel::of(&s.sides[1].features), ShadowModel::CONE);
+    assert_eq!(ShadowModel::of(&s.sides[1].features), ShadowModel("cone"));
     let mut e = Experiment::load(format!(
         "{}/experiments/area_lights.toml",
         env!("CARGO_MANIFEST_DIR")
@@ -69,7 +69,7 @@ fn default_sides_compare_the_file_with_a_soft_shadow_model() {
     .unwrap();
     e.settings.features.shadow_model = voxlab::technique::default_shadow_model();
     let s = ViewerState::new(e, None, None).unwrap();
-    assert_eq!(ShadowModel::of(&s.sides[1].features), ShadowModel::AREA);
+    assert_eq!(ShadowModel::of(&s.sides[1].features), ShadowModel("area"));
     assert_eq!(
         s.sides[1].features.transmittance,
         voxlab::technique::beer_lambert::ID

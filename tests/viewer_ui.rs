@@ -405,7 +405,7 @@ fn shadow_combo_box_switches_the_left_side_to_cones_and_leaves_the_right_alone()
         .get_by_role_and_label(Role::ComboBox, "shadows (left)")
         .click();
     rig.harness.run_steps(2);
-    rig.harness.get_by_label(ShadowModel::CONE.name()).click();
+    rig.harness.get_by_label(ShadowModel("cone").name()).click();
     rig.harness.run_steps(2);
     let jobs = rig.take_side_jobs(Side::Left);
     assert_eq!(jobs.len(), 1);
@@ -669,7 +669,7 @@ fn error_vs_reference_renders_references_and_shows_rmse() {
     // The left side traces cones: its reference samples the area lights instead.
     {
         let state = &mut rig.harness.state_mut().state;
-        ShadowModel::CONE.apply(&mut state.sides[0].features);
+        ShadowModel("cone").apply(&mut state.sides[0].features);
         state.commit(&[Side::Left]).unwrap();
     }
     rig.harness.run_steps(2);
@@ -787,8 +787,8 @@ fn sides_with_equal_reference_settings_share_one_reference_job() {
     let mut state = small_area_lights();
     // The same settings but the shadow model, which the reference replaces anyway.
     state.sides[1] = state.sides[0].clone();
-    ShadowModel::HARD.apply(&mut state.sides[0].features);
-    ShadowModel::CONE.apply(&mut state.sides[1].features);
+    ShadowModel("hard").apply(&mut state.sides[0].features);
+    ShadowModel("cone").apply(&mut state.sides[1].features);
     state.sides[1].max_spp = 64;
     state.commit(&Side::BOTH).unwrap();
     let mut rig = Rig::new(state, false);
@@ -1239,7 +1239,7 @@ fn controls_that_do_not_apply_are_not_shown() {
     // Cones draw no samples: the left side's rows go.
     {
         let state = &mut rig.harness.state_mut().state;
-        ShadowModel::CONE.apply(&mut state.sides[0].features);
+        ShadowModel("cone").apply(&mut state.sides[0].features);
         state.commit(&[Side::Left]).unwrap();
     }
     rig.harness.run_steps(2);

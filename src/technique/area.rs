@@ -24,6 +24,7 @@ pub const MODEL: ShadowModel = ShadowModel {
     name: "area",
     summary: "area lights sampled over their shape, stratified, accumulated over frames \
               (Cook, Porter and Carpenter 1984)",
+    title: "area lights, sampled",
     settings: &[],
     stochastic: true,
     plan: needs_area_light,

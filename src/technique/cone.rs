@@ -23,6 +23,7 @@ use crate::scene::{Light, Scene};
 pub const MODEL: ShadowModel = ShadowModel {
     name: "cone",
     summary: "one cone per light through the opacity pyramid (Crassin et al. 2011, section 4)",
+    title: "cone traced",
     settings: &[],
     stochastic: false,
     plan,

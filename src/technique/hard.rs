@@ -15,6 +15,7 @@ use crate::render::RayStats;
 pub const MODEL: ShadowModel = ShadowModel {
     name: "hard",
     summary: "one shadow ray to each light's centre (the seed's hard shadows, Whitted 1980)",
+    title: "hard (light centres)",
     settings: &[],
     stochastic: false,
     plan: |_, _| Ok(()),

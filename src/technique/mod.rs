@@ -239,6 +239,8 @@ pub struct ShadowModel {
     pub name: &'static str,
     /// What it is, one line, with the paper or section it follows.
     pub summary: &'static str,
+    /// Its label in the viewer's lists, a few words.
+    pub title: &'static str,
     /// Its settings (`[techniques.<name>]`).
     pub settings: &'static [Setting],
     /// Whether each frame draws new light samples, so `spp` frames are accumulated.

@@ -45,6 +45,7 @@ pub const MODEL: ShadowModel = ShadowModel {
     name: "ratio",
     summary: "closed-form unshadowed diffuse light of rect lights times the sampled ratio of \
               shadowed to unshadowed light (Heitz, Hill and McGuire, I3D 2018)",
+    title: "ratio estimator",
     settings: &[],
     stochastic: true,
     // As the area model's: it needs a light of non-zero size.

@@ -60,6 +60,7 @@ pub const MODEL: ShadowModel = ShadowModel {
     summary: "penumbra min k h / t along one ray to each light over an exact Euclidean \
               distance transform of the occluders (Quilez 2010; Felzenszwalb and \
               Huttenlocher 2012)",
+    title: "distance-field penumbra",
     settings: SETTINGS,
     stochastic: false,
     plan,

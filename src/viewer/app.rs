@@ -485,12 +485,13 @@ impl ViewerApp {
         }
     }
 
-    /// The reference experiment `side` is compared with: its scene and settings with
-    /// area lights sampled and no cone shadows (the estimator that converges to the
-    /// model), `references.spp` frames, an independent seed.
+    /// The reference experiment `side` is compared with: its scene and settings with the
+    /// reference shadow model (`crate::technique::reference_shadow_model`, sampled area
+    /// lights: the estimator that converges to the model), `references.spp` frames, an
+    /// independent seed.
     fn reference_experiment(&self, side: Side) -> anyhow::Result<(String, Experiment)> {
         let mut e = self.state.rendered(side).as_ref().clone();
-        ShadowModel::AREA.apply(&mut e.settings.features);
+        e.settings.features.shadow_model = crate::technique::reference_shadow_model();
         e.settings.spp = self.references.spp;
         e.settings.seed = e.settings.seed.wrapping_add(REFERENCE_SEED_OFFSET);
         // The key is the experiment's file text: equal text, equal reference.

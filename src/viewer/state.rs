@@ -49,14 +49,7 @@ impl Side {
 pub struct ShadowModel(pub &'static str);
 
 impl ShadowModel {
-    /// One shadow ray to each light's centre (the seed's hard shadows).
-    pub const HARD: ShadowModel = ShadowModel("hard");
-    /// Area lights sampled over their shape, accumulated over frames (soft, noisy).
-    pub const AREA: ShadowModel = ShadowModel("area");
-    /// One cone through the opacity pyramid per light (soft, biased, noise-free).
-    pub const CONE: ShadowModel = ShadowModel("cone");
-
-    /// Every shadow model, the registry's plug-ins after the built-in three.
+    /// Every shadow model, in registry order.
     pub fn all() -> Vec<ShadowModel> {
         crate::technique::shadow_model_names()
             .into_iter()
@@ -64,14 +57,9 @@ impl ShadowModel {
             .collect()
     }
 
-    /// Its label in the viewer.
+    /// Its label in the viewer (the model's `title`).
     pub fn name(self) -> &'static str {
-        match self.0 {
-            "hard" => "hard (light centres)",
-            "area" => "area lights, sampled",
-            "cone" => "cone traced",
-            plug_in => plug_in,
-        }
+        crate::technique::shadow_model(self.0).map_or(self.0, |m| m.title)
     }
 
     pub fn of(f: &Features) -> Self {
@@ -207,24 +195,28 @@ impl ViewerState {
         };
         let left = SideSettings::from_settings(&base.settings, cap);
         let mut right = left.clone();
-        // A useful first comparison: what the file asks for against soft shadows, from
-        // sampled area lights with distance-weighted transmittance where the scene has
-        // area lights of some size, else from cones (which soften point lights too),
-        // or against hard shadows when the file already asks for that.
-        let has_area = base
-            .scene
-            .lights
-            .iter()
-            .any(|l| matches!(l, Light::Area(a) if !a.is_degenerate()));
+        // A useful first comparison: what the file asks for against the first shadow
+        // model after the default whose plan rule keeps it for this scene (sampled area
+        // lights where the scene has some of non-zero size, else cones, which soften
+        // point lights too), with the first transmittance model after the default that
+        // its plan keeps; or against the default when the file already asks for that.
         let mut other = right.features.clone();
-        if has_area {
-            ShadowModel::AREA.apply(&mut other);
-            other.transmittance = crate::technique::beer_lambert::ID;
-        } else {
-            ShadowModel::CONE.apply(&mut other);
+        let (scene, settings) = (&base.scene, &base.settings);
+        let default = crate::technique::default_shadow_model();
+        if let Some(&m) = crate::technique::SHADOW_MODELS[1..]
+            .iter()
+            .find(|m| (m.plan)(scene, settings).is_ok())
+        {
+            other.shadow_model = m;
+            let transmittance = crate::technique::TRANSMITTANCES[1..]
+                .iter()
+                .find(|t| (t.plan)(scene, settings).is_ok());
+            if let Some(&t) = transmittance.filter(|_| m.shadow_rays) {
+                other.transmittance = crate::render::Transmittance(t);
+            }
         }
         if other == right.features {
-            ShadowModel::HARD.apply(&mut other);
+            other.shadow_model = default;
         }
         right.features = other;
         let home_camera = base.scene.camera.clone();
