@@ -715,17 +715,6 @@ pub fn lights_as_points(scene: &Scene) -> Scene {
     s
 }
 
-/// The full angle (degrees) the first area light subtends at the grid's centre, the
-/// aperture its shadow cones have there (`cpu::cone::ConeScene::light_tan_half`).
-pub fn light_aperture_deg(scene: &Scene) -> Option<f64> {
-    let light = scene.lights.iter().find(|l| l.is_area())?;
-    let g = &scene.grid;
-    let centre = g.to_world(g.dims().as_dvec3() * 0.5);
-    let dist = (light.position() - centre).length();
-    let r = crate::cpu::cone::light_radius(light);
-    (dist > 0.0).then(|| 2.0 * (r / dist).atan().to_degrees())
-}
-
 /// The reference's features: the experiment's, with the reference shadow model
 /// (`crate::technique::reference_shadow_model`, the one that converges).
 fn reference_features(e: &Experiment) -> Features {
@@ -1087,9 +1076,14 @@ pub struct Row {
     pub value: String,
     pub spp: u32,
     pub light_samples: u32,
-    pub area_lights: bool,
     /// The shadow model the plan used (`hard`, `area`, `cone` or a plug-in's name).
     pub shadow_model: &'static str,
+    /// The settings that model reads, as `key=value` (its shared ones, `cones.
+    /// step_factor`, and its own, `techniques.sdf.softness`), in its declared order.
+    pub model_settings: Vec<(String, f64)>,
+    /// What the model says of this point, if anything (`ShadowModel::describe`: the
+    /// aperture an area light's cone has).
+    pub model_note: Option<String>,
     pub transmittance: &'static str,
     /// `gpu` or `cpu`.
     pub backend: &'static str,
@@ -1104,12 +1098,6 @@ pub struct Row {
     pub trace_ms_median: f64,
     /// Median setup time the trace time leaves out (the GPU's cone pyramids; else 0).
     pub setup_ms_median: f64,
-    pub cone_shadows: bool,
-    /// The cone step factor (cone points only).
-    pub cone_step_factor: Option<f64>,
-    /// The shadow cones' aperture, degrees (cone points only): the set one for point
-    /// lights, else the angle the area light subtends at the grid's centre.
-    pub cone_aperture_deg: Option<f64>,
     pub lights_as_points: bool,
     pub rmse: f64,
     pub psnr: f64,
@@ -1182,15 +1170,27 @@ fn measure(
         .ok_or_else(|| anyhow!("point and reference differ in size"))?;
     let (flip_mean, _) = flip(reference, &r.frame);
     let totals: Vec<Duration> = times.iter().zip(&setups).map(|(t, u)| *t + *u).collect();
-    let cone_shadows = r.plan.shadow_model == &crate::technique::cone::MODEL;
+    let m = r.plan.shadow_model;
+    let model_settings = m
+        .shared_settings
+        .iter()
+        .filter_map(|&k| Some((k.to_string(), crate::technique::get_shared(s, k)?)))
+        .chain(m.settings.iter().map(|st| {
+            (
+                format!("techniques.{}.{}", m.name, st.key),
+                s.technique_params.get(m.name, st),
+            )
+        }))
+        .collect();
     Ok(Row {
         model: point.model.clone(),
         knob: point.knob.clone(),
         value: point.value.clone(),
         spp: s.spp,
         light_samples: s.light_samples,
-        area_lights: s.features.shadow_model == &crate::technique::area::MODEL,
-        shadow_model: r.plan.shadow_model.name,
+        shadow_model: m.name,
+        model_settings,
+        model_note: m.describe.and_then(|f| f(scene, s)),
         transmittance: s.features.transmittance.name(),
         backend: r.backend,
         fallback: r.fallback,
@@ -1205,15 +1205,6 @@ fn measure(
         ms_runs: totals.iter().map(|t| t.as_secs_f64() * 1e3).collect(),
         trace_ms_median: median_ms(&times),
         setup_ms_median: median_ms(&setups),
-        cone_shadows,
-        cone_step_factor: cone_shadows.then_some(s.cones.step_factor),
-        cone_aperture_deg: if !cone_shadows {
-            None
-        } else if scene.lights.iter().any(|l| l.is_area()) {
-            light_aperture_deg(scene)
-        } else {
-            Some(s.cones.aperture_deg)
-        },
         lights_as_points: point.lights_as_points,
         rmse: d.rmse,
         psnr: d.psnr,
@@ -1425,14 +1416,14 @@ fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
     write_bytes(path, bytes.get_ref())
 }
 
-pub const CSV_COLUMNS: [&str; 27] = [
+pub const CSV_COLUMNS: [&str; 24] = [
     "model",
     "knob",
     "value",
     "spp",
     "light_samples",
-    "area_lights",
     "shadow_model",
+    "model_settings",
     "transmittance",
     "backend",
     "timer",
@@ -1441,9 +1432,6 @@ pub const CSV_COLUMNS: [&str; 27] = [
     "runs",
     "trace_ms_median",
     "setup_ms_median",
-    "cone_shadows",
-    "cone_step_factor",
-    "cone_aperture_deg",
     "lights_as_points",
     "rmse",
     "psnr",
@@ -1473,8 +1461,12 @@ fn csv(rows: &[Row], r: &Reference) -> String {
             row.value.clone(),
             row.spp.to_string(),
             row.light_samples.to_string(),
-            row.area_lights.to_string(),
             row.shadow_model.to_string(),
+            row.model_settings
+                .iter()
+                .map(|(k, v)| format!("{k}={v}"))
+                .collect::<Vec<_>>()
+                .join(";"),
             row.transmittance.to_string(),
             row.backend.to_string(),
             row.timer.to_string(),
@@ -1483,11 +1475,6 @@ fn csv(rows: &[Row], r: &Reference) -> String {
             row.ms_runs.len().to_string(),
             format!("{:.4}", row.trace_ms_median),
             format!("{:.4}", row.setup_ms_median),
-            row.cone_shadows.to_string(),
-            row.cone_step_factor
-                .map_or(String::new(), |k| format!("{k}")),
-            row.cone_aperture_deg
-                .map_or(String::new(), |a| format!("{a:.3}")),
             row.lights_as_points.to_string(),
             format!("{:.9e}", row.rmse),
             format!("{:.6}", row.psnr),
@@ -1559,29 +1546,28 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
             row.flip_mean
         );
     }
-    if let Some(a) = rows
-        .iter()
-        .find(|r| r.cone_shadows && !r.lights_as_points)
-        .and_then(|r| r.cone_aperture_deg)
-    {
-        let _ = write!(
+    // What each shadow model with points says of itself, then of its curves.
+    for m in crate::technique::SHADOW_MODELS {
+        let mine: Vec<&Row> = rows.iter().filter(|r| r.shadow_model == m.name).collect();
+        let curves: Vec<String> = m
+            .ablate
+            .iter()
+            .filter(|c| !c.about.is_empty())
+            .filter(|c| {
+                mine.iter()
+                    .any(|r| r.model.starts_with(&format!("{} (", c.label)))
+            })
+            .map(|c| format!("\"{}\": {}", c.label, c.about))
+            .collect();
+        let note = mine.iter().find_map(|r| r.model_note.clone());
+        if note.is_none() && curves.is_empty() {
+            continue;
+        }
+        let _ = writeln!(
             t,
-            "\nCone shadows replace the shadow rays and the area samples with one cone per \
-             light and pixel. \"cone at light's aperture\": an area light's cone has the angle it \
-             subtends ({a:.1} deg at the grid's centre), over the step factor. ",
+            "\n{}",
+            note.into_iter().chain(curves).collect::<Vec<_>>().join(" ")
         );
-    }
-    if rows.iter().any(|r| r.lights_as_points) {
-        let k = e.settings.cones.step_factor;
-        let _ = write!(
-            t,
-            "\"cone at set aperture\": each area light replaced by a point light at its centre \
-             (the cone model shades it there anyway), over the cone aperture, at step \
-             factor {k}.",
-        );
-    }
-    if rows.iter().any(|r| r.cone_shadows) {
-        t.push('\n');
     }
     if rows.iter().any(|r| r.own_reference.is_some()) {
         let _ = write!(
@@ -1802,17 +1788,15 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
             t.insert("model".into(), row.model.clone().into());
             t.insert("knob".into(), row.knob.clone().into());
             t.insert("value".into(), row.value.clone().into());
-            t.insert("area_lights".into(), row.area_lights.into());
             t.insert("shadow_model".into(), row.shadow_model.into());
+            let settings: Table = row
+                .model_settings
+                .iter()
+                .map(|(k, v)| (k.clone(), Value::Float(*v)))
+                .collect();
+            t.insert("model_settings".into(), settings.into());
             t.insert("transmittance".into(), row.transmittance.into());
             t.insert("spp".into(), i64::from(row.spp).into());
-            t.insert("cone_shadows".into(), row.cone_shadows.into());
-            if let Some(k) = row.cone_step_factor {
-                t.insert("cone_step_factor".into(), k.into());
-            }
-            if let Some(a) = row.cone_aperture_deg {
-                t.insert("cone_aperture_deg".into(), a.into());
-            }
             t.insert("lights_as_points".into(), row.lights_as_points.into());
             t.insert("seed".into(), i64::from(s.seed).into());
             t.insert("backend".into(), row.backend.into());

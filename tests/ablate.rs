@@ -148,9 +148,8 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         "ms_runs",
         "trace_ms_median",
         "setup_ms_median",
-        "cone_shadows",
-        "cone_step_factor",
-        "cone_aperture_deg",
+        "shadow_model",
+        "model_settings",
         "rmse",
         "psnr",
         "flip_mean",
@@ -199,14 +198,22 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         let setup: f64 = col(&header, r, "setup_ms_median").parse().unwrap();
         assert!(trace > 0.0 && trace.is_finite() && setup >= 0.0 && setup.is_finite());
         assert!(ms >= trace - 1e-3, "{r:?}");
-        let cone: bool = col(&header, r, "cone_shadows").parse().unwrap();
-        if cone {
-            for name in ["cone_step_factor", "cone_aperture_deg"] {
-                let v: f64 = col(&header, r, name).parse().unwrap();
-                assert!(v.is_finite() && v > 0.0, "{name} of {r:?}");
-            }
-        } else {
-            assert_eq!(col(&header, r, "cone_step_factor"), "");
+        // Each point lists the settings its model reads, as key=value.
+        let model = voxlab::technique::shadow_model(col(&header, r, "shadow_model")).unwrap();
+        let settings: Vec<(&str, f64)> = col(&header, r, "model_settings")
+            .split(';')
+            .filter(|s| !s.is_empty())
+            .map(|kv| {
+                let (k, v) = kv.split_once('=').unwrap();
+                (k, v.parse().unwrap())
+            })
+            .collect();
+        let declared = model.shared_settings.len() + model.settings.len();
+        assert_eq!(settings.len(), declared, "{r:?}");
+        for (k, v) in settings {
+            assert!(v.is_finite(), "{k} of {r:?}");
+        }
+        if !model.pyramid {
             assert_eq!(setup, 0.0, "{r:?}");
         }
         let rmse: f64 = col(&header, r, "rmse").parse().unwrap();
@@ -230,14 +237,24 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     // The cone curves: every point of each model, cone shadows on (hard shadows and
     // stochastic points keep them off), the knob in its column; on the GPU the pyramid
     // build is timed and counted.
-    let cones: Vec<&ablate::Row> = report.rows.iter().filter(|r| r.cone_shadows).collect();
+    let setting = |r: &ablate::Row, key: &str| {
+        r.model_settings
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|&(_, v)| v)
+    };
+    let cones: Vec<&ablate::Row> = report
+        .rows
+        .iter()
+        .filter(|r| r.shadow_model == "cone")
+        .collect();
     assert_eq!(cones.len(), 4);
     assert!(
         report
             .rows
             .iter()
             .filter(|r| r.model.starts_with("hard") || r.knob == "spp")
-            .all(|r| !r.cone_shadows)
+            .all(|r| r.shadow_model != "cone")
     );
     let steps: Vec<&ablate::Row> = cones
         .iter()
@@ -245,11 +262,18 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         .filter(|r| r.knob == "step_factor")
         .collect();
     assert_eq!(steps.len(), 2);
-    assert_eq!(steps[0].cone_step_factor, Some(0.5));
-    assert_eq!(steps[1].cone_step_factor, Some(2.0));
+    assert_eq!(setting(steps[0], "cones.step_factor"), Some(0.5));
+    assert_eq!(setting(steps[1], "cones.step_factor"), Some(2.0));
     assert!(steps.iter().all(|r| !r.lights_as_points));
-    // The tiny rect light (4x4 at about 10 voxels) subtends some tens of degrees.
-    let subtended = steps[0].cone_aperture_deg.unwrap();
+    // The tiny rect light (4x4 at about 10 voxels) subtends some tens of degrees: the
+    // cone model says so of the point.
+    let note = steps[0].model_note.clone().unwrap();
+    let subtended: f64 = note
+        .split("subtends ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("{note}"));
     assert!((5.0..90.0).contains(&subtended), "{subtended}");
     let apertures: Vec<&ablate::Row> = cones
         .iter()
@@ -257,13 +281,9 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         .filter(|r| r.knob == "aperture_deg")
         .collect();
     assert_eq!(apertures.len(), 2);
-    assert_eq!(apertures[0].cone_aperture_deg, Some(10.0));
-    assert_eq!(apertures[1].cone_aperture_deg, Some(40.0));
-    assert!(
-        apertures
-            .iter()
-            .all(|r| r.lights_as_points && !r.area_lights)
-    );
+    assert_eq!(setting(apertures[0], "cones.aperture_deg"), Some(10.0));
+    assert_eq!(setting(apertures[1], "cones.aperture_deg"), Some(40.0));
+    assert!(apertures.iter().all(|r| r.lights_as_points));
     for r in &cones {
         assert!(r.rmse.is_finite() && r.rmse > 0.0 && r.flip_mean.is_finite());
         assert!(r.frame.all_finite());

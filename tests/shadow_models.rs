@@ -81,6 +81,13 @@ fn declarations_are_sound() {
             m.name
         );
         assert!(!m.ablate.is_empty(), "{}: no ablation curve", m.name);
+        for k in m.shared_settings {
+            assert!(
+                technique::get_shared(&RenderSettings::default(), k).is_some(),
+                "{}: reports cannot read its shared setting {k}",
+                m.name
+            );
+        }
         for curve in m.ablate {
             match curve.knob {
                 technique::Knob::Own(key) => assert!(

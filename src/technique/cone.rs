@@ -46,6 +46,7 @@ pub const MODEL: ShadowModel = ShadowModel {
                 default: &[0.25, 0.5, 1.0, 2.0],
             },
             lights_as_points: false,
+            about: "an area light's cone has the angle it subtends, over the step factor.",
         },
         AblateCurve {
             label: "cone at set aperture",
@@ -55,8 +56,12 @@ pub const MODEL: ShadowModel = ShadowModel {
                 default: &[4.0, 8.0, 16.0, 32.0, 64.0],
             },
             lights_as_points: true,
+            about: "each area light replaced by a point light at its centre (the cone model \
+                    shades it there anyway), over the cone aperture, at the experiment's \
+                    step factor.",
         },
     ],
+    describe: Some(describe),
     label: "CONE_SHADOWS",
     switch: Some("cone_shadows"),
     shared_settings: &[
@@ -95,6 +100,29 @@ pub fn light_tan_half(light: &Light, radius_voxels: f64, dist: f64, point_tan_ha
         }
         _ => point_tan_half,
     }
+}
+
+/// The aperture of the first area light's cone at the grid's centre, for reports.
+fn describe(scene: &Scene, settings: &RenderSettings) -> Option<String> {
+    let what = "Cone shadows replace the shadow rays and the area samples with one cone per \
+                light and pixel";
+    Some(match light_aperture_deg(scene) {
+        Some(a) => {
+            format!("{what}; an area light's cone subtends {a:.1} deg at the grid's centre.")
+        }
+        None => format!("{what}, of {} deg.", settings.cones.aperture_deg),
+    })
+}
+
+/// The full angle (degrees) the first area light subtends at the grid's centre, the
+/// aperture its shadow cones have there ([`light_tan_half`]).
+pub fn light_aperture_deg(scene: &Scene) -> Option<f64> {
+    let light = scene.lights.iter().find(|l| l.is_area())?;
+    let g = &scene.grid;
+    let centre = g.to_world(g.dims().as_dvec3() * 0.5);
+    let dist = (light.position() - centre).length();
+    let r = light_radius(light);
+    (dist > 0.0).then(|| 2.0 * (r / dist).atan().to_degrees())
 }
 
 struct Cone;

@@ -260,6 +260,9 @@ pub struct ShadowModel {
     pub cpu: fn(&Scene, &RenderSettings) -> Box<dyn CpuShadow>,
     /// The curves `voxlab ablate` draws of it (error against time), in order.
     pub ablate: &'static [AblateCurve],
+    /// What reports say of it for a scene, beyond its settings (the cone model: the
+    /// aperture an area light's cone has); `None`: nothing.
+    pub describe: Option<fn(&Scene, &RenderSettings) -> Option<String>>,
     /// How printed plans name it (`AREA_LIGHTS`, `SHADOW_MODEL(sdf)`); empty for the
     /// default, which the baseline's plans do not name.
     pub label: &'static str,
@@ -329,6 +332,8 @@ pub struct AblateCurve {
     /// Every area light replaced by a point light at its centre, of the same colour and
     /// intensity (to sweep what a point light's model does with them).
     pub lights_as_points: bool,
+    /// What the report says of the curve, one sentence (empty: nothing).
+    pub about: &'static str,
 }
 
 /// The shadow model whose converged image is `voxlab ablate`'s reference: sampled area
@@ -344,10 +349,17 @@ pub fn shared_setting(key: &str) -> Option<&'static Setting> {
     Some(&c.setting)
 }
 
-/// The value of the shared setting `key` in `settings`.
+/// The value of the shared setting `key` in `settings`: a `[cones]` key, or the
+/// `[render]` sample counts models read.
 pub fn get_shared(settings: &RenderSettings, key: &str) -> Option<f64> {
-    let c = cones::cone_setting(key.strip_prefix("cones.")?)?;
-    Some((c.get)(&settings.cones))
+    match key {
+        "render.light_samples" => Some(f64::from(settings.light_samples)),
+        "render.spp" => Some(f64::from(settings.spp)),
+        _ => {
+            let c = cones::cone_setting(key.strip_prefix("cones.")?)?;
+            Some((c.get)(&settings.cones))
+        }
+    }
 }
 
 /// Sets the shared setting `key` in `settings` (checked by the caller); false for an
