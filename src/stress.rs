@@ -374,7 +374,8 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
             st,
         ));
     }
-    // Soft shadows: a rectangle light, stratified samples over two frames, beer-lambert.
+    // Soft shadows: a rectangle light under the reference shadow model (sampled area
+    // lights), stratified samples over two frames, beer-lambert.
     let mut s = seed16();
     s.lights.push(Light::Area(AreaLight {
         shape: AreaShape::Rect {
@@ -388,16 +389,12 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         intensity: 300.0,
     }));
     let mut st = settings(48, 48);
-    st.features.shadow_model = &crate::technique::area::MODEL;
-    st.features.transmittance = crate::technique::beer_lambert::ID;
+    st.features.shadow_model = crate::technique::reference_shadow_model();
+    st.features.transmittance =
+        crate::render::Transmittance(crate::technique::TRANSMITTANCES.last().unwrap());
     st.light_samples = 4;
     st.spp = 2;
-    out.push(case(
-        "area-light",
-        "rect area light, 4 samples x 2 frames, beer-lambert",
-        s.clone(),
-        st.clone(),
-    ));
+    // (Each shadow model on this scene, the reference among them, is a case below.)
     // Every transmittance model (crate::technique::TRANSMITTANCES) on the same scene.
     for &m in crate::technique::TRANSMITTANCES {
         let mut st = st.clone();
@@ -471,7 +468,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
             }));
         }
         let mut st = settings(side, side);
-        st.features.shadow_model = &crate::technique::area::MODEL;
+        st.features.shadow_model = crate::technique::reference_shadow_model();
         st.light_samples = samples;
         st.spp = spp;
         let per_dispatch = crate::gpu::frames_per_dispatch((side * side) as u64, spp);
@@ -486,11 +483,25 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         ));
     }
     // Cone tracing on odd, tiny and far-away grids: pyramids of odd sizes, a one-level
-    // pyramid, a vanishing aperture, AO with a range past the grid, and indirect light.
+    // pyramid, a vanishing aperture, hemisphere cones with a range past the grid. Every
+    // technique that reads the pyramids: the first such shadow model and every such
+    // lighting term.
+    let pyramid_model = crate::technique::SHADOW_MODELS
+        .iter()
+        .copied()
+        .find(|m| m.pyramid)
+        .expect("a shadow model reads the cone pyramids");
+    let pyramid_terms = || {
+        crate::technique::LIGHTING_TERMS
+            .iter()
+            .copied()
+            .filter(|t| t.pyramid)
+    };
     let all_cones = |st: &mut RenderSettings| {
-        st.features.shadow_model = &crate::technique::cone::MODEL;
-        st.features.set_term("ambient_occlusion", true);
-        st.features.set_term("indirect", true);
+        st.features.shadow_model = pyramid_model;
+        for t in pyramid_terms() {
+            st.features.set_term(t.name, true);
+        }
     };
     let mut st = settings(48, 48);
     all_cones(&mut st);
@@ -509,7 +520,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         st,
     ));
     let mut st = settings(48, 48);
-    st.features.shadow_model = &crate::technique::cone::MODEL;
+    st.features.shadow_model = pyramid_model;
     st.cones.aperture_deg = 1e-3;
     st.cones.step_factor = 0.05;
     out.push(case(
@@ -519,7 +530,9 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         st,
     ));
     let mut st = settings(48, 48);
-    st.features.set_term("ambient_occlusion", true);
+    for t in pyramid_terms().filter(|t| !t.radiance_pyramid) {
+        st.features.set_term(t.name, true);
+    }
     st.cones.ao_range = 1e4;
     st.cones.start_offset = 0.0;
     out.push(case(
