@@ -38,14 +38,10 @@ pub const TERM: LightingTerm = LightingTerm {
 };
 
 fn term(at: &TermQuery) -> DVec3 {
-    let m = at.material;
-    if m.kd <= 0.0 {
+    let Some((c, pl)) = at.diffuse_cone_hit() else {
         return DVec3::ZERO;
-    }
-    let c = at
-        .cones
-        .expect("the plan builds the pyramids for ambient occlusion");
-    let pl = at.scene.grid.to_local(at.p);
+    };
+    let m = at.material;
     let ao = crate::cpu::cone::ambient_occlusion(
         &c.pyramid, &c.params, pl, at.n, c.ao_cones, c.ao_range,
     );

@@ -38,14 +38,10 @@ pub const TERM: LightingTerm = LightingTerm {
 };
 
 fn term(at: &TermQuery) -> DVec3 {
-    let m = at.material;
-    if m.kd <= 0.0 {
+    let Some((c, pl)) = at.diffuse_cone_hit() else {
         return DVec3::ZERO;
-    }
-    let c = at
-        .cones
-        .expect("the plan builds the pyramids for indirect light");
-    let pl = at.scene.grid.to_local(at.p);
+    };
+    let m = at.material;
     let range = crate::cpu::cone::indirect_range(&c.pyramid.layout);
     let l = crate::cpu::cone::indirect(&c.pyramid, &c.params, pl, at.n, c.ao_cones, range);
     c.indirect_strength * m.albedo * m.kd * l

@@ -345,8 +345,12 @@ pub fn reference_shadow_model() -> &'static ShadowModel {
 /// The declaration of a shared table's setting by `table.key` (`cones.step_factor`),
 /// where one is declared ([`cones`]).
 pub fn shared_setting(key: &str) -> Option<&'static Setting> {
-    let c = cones::cone_setting(key.strip_prefix("cones.")?)?;
-    Some(&c.setting)
+    cone_key(key).map(|c| &c.setting)
+}
+
+/// The `[cones]` setting `cones.<key>`.
+fn cone_key(key: &str) -> Option<&'static cones::ConeSetting> {
+    cones::cone_setting(key.strip_prefix("cones.")?)
 }
 
 /// The value of the shared setting `key` in `settings`: a `[cones]` key, or the
@@ -355,17 +359,14 @@ pub fn get_shared(settings: &RenderSettings, key: &str) -> Option<f64> {
     match key {
         "render.light_samples" => Some(f64::from(settings.light_samples)),
         "render.spp" => Some(f64::from(settings.spp)),
-        _ => {
-            let c = cones::cone_setting(key.strip_prefix("cones.")?)?;
-            Some((c.get)(&settings.cones))
-        }
+        _ => cone_key(key).map(|c| (c.get)(&settings.cones)),
     }
 }
 
 /// Sets the shared setting `key` in `settings` (checked by the caller); false for an
 /// unknown key.
 pub fn set_shared(settings: &mut RenderSettings, key: &str, v: f64) -> bool {
-    match key.strip_prefix("cones.").and_then(cones::cone_setting) {
+    match cone_key(key) {
         Some(c) => {
             (c.set)(&mut settings.cones, v);
             true
@@ -470,6 +471,21 @@ pub struct TermQuery<'a> {
     pub n: DVec3,
     /// The cone pyramids, when the plan built them (for a term with `pyramid`).
     pub cones: Option<&'a crate::cpu::cone::ConeScene>,
+}
+
+impl<'a> TermQuery<'a> {
+    /// For a term gathered by hemisphere cones from diffuse hits: the pyramids and the
+    /// grid-local hit point, or `None` where the material is not diffuse (the term adds
+    /// nothing there). The plan builds the pyramids for every term with `pyramid`.
+    pub fn diffuse_cone_hit(&self) -> Option<(&'a crate::cpu::cone::ConeScene, DVec3)> {
+        if self.material.kd <= 0.0 {
+            return None;
+        }
+        let cones = self
+            .cones
+            .expect("the plan builds the pyramids for cone terms");
+        Some((cones, self.scene.grid.to_local(self.p)))
+    }
 }
 
 /// A lighting term: radiance added at every hit on top of the local light, everything
@@ -655,10 +671,7 @@ pub fn listing_text() -> String {
                 let k = key.strip_prefix(&format!("techniques.{}.", m.name))?;
                 Some((format!("[techniques.{}]", m.name), m.setting(k)?))
             });
-            let declared = own.or_else(|| {
-                let c = cones::cone_setting(key.strip_prefix("cones.")?)?;
-                Some(("[cones]".to_string(), &c.setting))
-            });
+            let declared = own.or_else(|| Some(("[cones]".to_string(), shared_setting(key)?)));
             out += &match declared {
                 Some((table, s)) => format!(
                     "  {table} {} = {} ({}; {})\n",
