@@ -4,10 +4,10 @@
 // f64, so both must change together.
 #define_import_path voxlab::traversal
 
-#import voxlab::types::{BIG, RULES_CONSISTENT}
-#import voxlab::bindings::{params, voxel_material, voxel_inside}
+#import voxlab::types::{BIG, RULES_CONSISTENT, Region}
+#import voxlab::bindings::{params, voxel_inside}
 #import voxlab::counters::{count_step, loop_cut}
-#import voxlab::sparse::{Region, ROOT_SHIFT, region_below}
+#import voxlab::regions::{RegionCursor, REGIONS_ARE_VOXELS, region_cursor, region_at}
 #import voxlab::triangles::{is_cell, cell_range, watertight_ray, next_transition, transition_normals}
 
 struct Hit {
@@ -40,12 +40,8 @@ struct Dda {
     // The ray, so tMax can be taken from the next boundary plane at every step.
     origin: vec3<f32>,
     dir: vec3<f32>,
-    // SPARSE: the tree node the last region was found under, its children's shift and
-    // its cube (voxel >> (shift + 2)); the next look-up starts there when the voxel is in
-    // that cube, as most steps near surfaces are, instead of at the root.
-    tree_node: u32,
-    tree_shift: u32,
-    tree_key: vec3<u32>,
+    // What the traversal (voxlab::regions) keeps between region look-ups.
+    cursor: RegionCursor,
     // TRIANGLES: the walk stopped at a cell entered at cell_t. A step only stops there;
     // the loop around the steps tests the cell's triangles, so that code is written
     // once, not once per unrolled step (the software driver's code grows with each
@@ -116,10 +112,7 @@ fn dda_init(o: vec3<f32>, d: vec3<f32>, v: vec3<i32>) -> Dda {
     s.voxel = v;
     s.origin = o;
     s.dir = d;
-    // The root's cube holds every voxel of the grid.
-    s.tree_node = 0u;
-    s.tree_shift = ROOT_SHIFT;
-    s.tree_key = vec3<u32>(0u);
+    s.cursor = region_cursor();
     s.at_cell = false;
     s.cell_t = 0.0;
     // Per axis as the contract says, on whole vectors (no loop: see enter).
@@ -158,27 +151,17 @@ fn dda_advance(s: ptr<function, Dda>, a: i32) {
     count_step();
 }
 
-// The uniform region of the walk's current voxel. With SPARSE it is looked up in the
-// tree, from the node of the previous look-up when the voxel lies in its cube; without
-// it the region is the voxel, read from the grid. Every walk reads its voxels through
-// this and dda_skip, so the dense and sparse walks are one code.
+// The uniform region of the walk's current voxel, as the planned traversal finds it
+// (voxlab::regions: the voxel itself for the dense walk, the tree's region for the
+// sparse one). Every walk reads its voxels through this and dda_skip, so all
+// traversals share one walk.
 fn dda_region(s: ptr<function, Dda>) -> Region {
-#ifndef SPARSE
-    return Region(voxel_material((*s).voxel), (*s).voxel, (*s).voxel + vec3<i32>(1));
-#else
-    let u = vec3<u32>((*s).voxel);
-    var node = 0u;
-    var shift = ROOT_SHIFT;
-    if all((u >> vec3<u32>((*s).tree_shift + 2u)) == (*s).tree_key) {
-        node = (*s).tree_node;
-        shift = (*s).tree_shift;
-    }
-    let f = region_below((*s).voxel, node, shift);
-    (*s).tree_node = f.node;
-    (*s).tree_shift = f.shift;
-    (*s).tree_key = u >> vec3<u32>(f.shift + 2u);
-    return f.region;
-#endif
+    // Through a local: naga's SPIR-V writer cannot pass a pointer to a member of a
+    // pointed-to struct as an argument ("Expression is not cached").
+    var cursor = (*s).cursor;
+    let r = region_at(&cursor, (*s).voxel);
+    (*s).cursor = cursor;
+    return r;
 }
 
 // Moves the walk to the last voxel of region r (which holds the current voxel) through
@@ -188,11 +171,10 @@ fn dda_region(s: ptr<function, Dda>) -> Region {
 // come before it in that order. As crate::cpu::Dda::skip_region. The estimate from the
 // exit point, moved half a voxel ahead, is the right voxel or the one after it (the
 // point's error is far below half a voxel), so one check of the plane behind it, on
-// whole vectors and without branches, settles every axis. Without SPARSE every region
-// is one voxel and the function is empty.
+// whole vectors and without branches, settles every axis. Where every region is one
+// voxel (the dense walk) the constant condition leaves the rest out of the kernel.
 fn dda_skip(s: ptr<function, Dda>, r: Region) {
-#ifdef SPARSE
-    if all(r.hi - r.lo == vec3<i32>(1)) {
+    if REGIONS_ARE_VOXELS || all(r.hi - r.lo == vec3<i32>(1)) {
         return;
     }
     let step = (*s).step;
@@ -217,7 +199,6 @@ fn dda_skip(s: ptr<function, Dda>, r: Region) {
     (*s).voxel = select(c, v, parallel);
     let t_next = min((vec3<f32>((*s).voxel + ahead) - o) / safe, vec3<f32>(BIG));
     (*s).t_max = select(t_next, vec3<f32>(BIG), parallel);
-#endif
 }
 
 // A ray visits at most nx + ny + nz voxels; the bound only guards against a hang

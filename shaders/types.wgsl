@@ -98,3 +98,12 @@ struct Light {
     axis_n: vec3<f32>,
     pad_d: f32,
 }
+
+// A uniform region of the grid as a traversal (voxlab::regions) finds it around a
+// voxel: its material and its box `[lo, hi)`, clipped to the grid. The dense walk's
+// regions are single voxels.
+struct Region {
+    material: u32,
+    lo: vec3<i32>,
+    hi: vec3<i32>,
+}

@@ -43,10 +43,10 @@ impl Default for BenchOptions {
             gpu_runs: 5,
             cpu_runs: 3,
             cpu: true,
-            traversals: vec![Traversal::Dense, Traversal::Sparse],
+            traversals: Traversal::walks(),
             experiments: Vec::new(),
             scenes: Vec::new(),
-            surfaces: vec![Surface::Voxels],
+            surfaces: vec![Surface::default()],
         }
     }
 }
@@ -58,9 +58,9 @@ pub struct BenchRow {
     pub scene: String,
     pub grid: u32,
     pub backend: &'static str,
-    /// The walk: "dense" or "sparse" (the plan's choice under "auto").
+    /// The traversal's name (the plan's choice under "auto").
     pub traversal: &'static str,
-    /// What rays hit: "voxels", "mesh" or "smooth".
+    /// What rays hit: the surface's name.
     pub surface: &'static str,
     pub median: Duration,
     pub stats: RayStats,
@@ -155,7 +155,7 @@ fn bench_gpu(
         scene: scene_label(name, scene),
         grid: scene.grid.dims().x,
         backend: "gpu",
-        traversal: traversal_name(plan),
+        traversal: plan.name,
         surface: surface.name(),
         median: median(times),
         stats: counted.stats,
@@ -163,13 +163,6 @@ fn bench_gpu(
         build,
         timer: gpu.timer_name(),
     })
-}
-
-fn traversal_name(t: Traversal) -> &'static str {
-    match t {
-        Traversal::Sparse => "sparse",
-        _ => "dense",
-    }
 }
 
 fn bench_cpu(
@@ -185,13 +178,12 @@ fn bench_cpu(
         ..opts.settings.clone()
     };
     let plan = crate::plan::Plan::new(scene, s).traversal;
-    let (bytes_per_voxel, build) = match plan {
-        Traversal::Sparse => {
-            let (tree, stats) =
-                crate::sparse::SparseTree::build_timed(&scene.grid, crate::sparse::GPU_LOG_BRANCH);
-            (tree.bytes_per_voxel(), stats.time)
-        }
-        _ => (1.0, Duration::ZERO),
+    let (bytes_per_voxel, build) = if plan.walks_tree {
+        let (tree, stats) =
+            crate::sparse::SparseTree::build_timed(&scene.grid, crate::sparse::GPU_LOG_BRANCH);
+        (tree.bytes_per_voxel(), stats.time)
+    } else {
+        (1.0, Duration::ZERO)
     };
     let warm = crate::cpu::render(scene, s);
     let mut times = Vec::with_capacity(opts.cpu_runs);
@@ -202,7 +194,7 @@ fn bench_cpu(
         scene: scene_label(name, scene),
         grid: scene.grid.dims().x,
         backend: "cpu",
-        traversal: traversal_name(plan),
+        traversal: plan.name,
         surface: surface.name(),
         median: median(times),
         stats: warm.stats,
@@ -281,7 +273,7 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
                     )
                     .traversal;
                     // A grid held only as its tree has no dense walk: not measured twice.
-                    let follows = t == Traversal::Auto || planned == t;
+                    let follows = t == Traversal::Auto || Traversal::Walk(planned) == t;
                     if !follows {
                         eprintln!(
                             "  {} {}: not measured: the grid is held only as its sparse tree",
@@ -356,12 +348,12 @@ pub fn surface_rows(opts: &BenchOptions) -> Result<Vec<SurfaceRow>> {
     let mut rows = Vec::new();
     // Voxels only: no table, and no scene made a second time (the seed scene at 2048^3
     // takes half a second).
-    if opts.surfaces.iter().all(|&s| s == Surface::Voxels) {
+    if opts.surfaces.iter().all(|s| !s.traces_triangles()) {
         return Ok(rows);
     }
     for scene in scenes(opts) {
         let (name, scene, _) = scene?;
-        for &surface in opts.surfaces.iter().filter(|&&s| s != Surface::Voxels) {
+        for &surface in opts.surfaces.iter().filter(|s| s.traces_triangles()) {
             let probe = RenderSettings {
                 surface,
                 ..opts.settings.clone()
@@ -440,7 +432,7 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
             r.stats.voxel_steps,
             r.stats.voxel_steps as f64 / r.stats.total_rays().max(1) as f64,
             // Counted by the CPU reference only.
-            if r.backend == "cpu" && r.surface != "voxels" {
+            if r.backend == "cpu" && r.surface != crate::technique::default_surface().name {
                 format!(
                     "{:.2}",
                     r.stats.triangle_tests as f64 / r.stats.total_rays().max(1) as f64
@@ -473,22 +465,25 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
             );
         }
     }
-    // Sparse against dense on each backend and scene: time and steps.
-    for s in rows.iter().filter(|r| r.traversal == "sparse") {
-        if let Some(d) = partner(s, s.backend, "dense", s.surface) {
+    // Each traversal against the default one on each backend and scene: time and steps.
+    let default = crate::technique::default_traversal().name;
+    for s in rows.iter().filter(|r| r.traversal != default) {
+        if let Some(d) = partner(s, s.backend, default, s.surface) {
             ratios += &format!(
-                "{} {} {}: sparse is {:.2}x dense's speed, with {:.2}x fewer steps per ray\n",
+                "{} {} {}: {} is {:.2}x {default}'s speed, with {:.2}x fewer steps per ray\n",
                 s.scene,
                 s.surface,
                 s.backend,
+                s.traversal,
                 d.median.as_secs_f64() / s.median.as_secs_f64(),
                 d.stats.voxel_steps as f64 / s.stats.voxel_steps.max(1) as f64
             );
         }
     }
     // Triangles against the voxel image of the same scene, backend and walk.
-    for t in rows.iter().filter(|r| r.surface != "voxels") {
-        if let Some(v) = partner(t, t.backend, t.traversal, "voxels") {
+    let voxels = crate::technique::default_surface().name;
+    for t in rows.iter().filter(|r| r.surface != voxels) {
+        if let Some(v) = partner(t, t.backend, t.traversal, voxels) {
             ratios += &format!(
                 "{} {} {} {}: {:.2}x the voxel image's time per frame\n",
                 t.scene,

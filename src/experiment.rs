@@ -1151,7 +1151,7 @@ fn build(
             "render.traversal",
             r.traversal.as_deref(),
             d.traversal,
-            &crate::render::Traversal::ALL,
+            &crate::render::Traversal::all(),
             crate::render::Traversal::name,
         )?,
         surface: choice(
@@ -1159,7 +1159,7 @@ fn build(
             "render.surface",
             r.surface.as_deref(),
             d.surface,
-            &crate::render::Surface::ALL,
+            &crate::render::Surface::all(),
             crate::render::Surface::name,
         )?,
         filter_width: r.filter_width.map_or(Ok(d.filter_width), |v| {

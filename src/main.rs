@@ -294,10 +294,10 @@ struct BenchArgs {
     /// at each of --sizes: nodes, bytes per voxel, build time, steps per ray.
     #[arg(long)]
     trees: bool,
-    /// The walks to compare at each size: dense, sparse, or auto (the plan's choice).
-    #[arg(long, value_delimiter = ',', default_values_t = ["dense".to_string(), "sparse".to_string()],
-          value_parser = ["auto", "dense", "sparse"])]
-    traversal: Vec<String>,
+    /// The walks to compare at each size: traversals by name (`voxlab techniques`), or
+    /// auto (the plan's choice). Default: every traversal.
+    #[arg(long, value_delimiter = ',', value_parser = parse_traversal)]
+    traversal: Vec<voxlab::render::Traversal>,
     /// Benchmark mesh voxelization instead: this mesh and a 50,000-triangle torus, each
     /// at --voxelize-resolution.
     #[arg(long, value_name = "MESH", num_args = 0..=1,
@@ -321,11 +321,11 @@ struct BenchArgs {
     /// and settings in each) instead of the table.
     #[arg(long)]
     json: bool,
-    /// The surfaces to compare on each scene (`render.surface`): voxels, mesh (scenes
-    /// made from a mesh), smooth. Adds a table of the surfaces' sizes.
-    #[arg(long, value_delimiter = ',', default_values_t = ["voxels".to_string()],
-          value_parser = ["voxels", "mesh", "smooth"])]
-    surfaces: Vec<String>,
+    /// The surfaces to compare on each scene (`render.surface`, names as `voxlab
+    /// techniques` lists them; a surface a scene cannot have is left out of its rows).
+    /// Adds a table of the surfaces' sizes. Default: the voxels only.
+    #[arg(long, value_delimiter = ',', value_parser = parse_surface)]
+    surfaces: Vec<voxlab::render::Surface>,
     /// Add a generated closed torus of about this many triangles (solid, seed lights
     /// and camera), voxelized at --torus-resolution: a large mesh.
     #[arg(long, value_name = "TRIANGLES",
@@ -461,6 +461,28 @@ fn quiet_wayland_probe() {
             unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
         }
     }
+}
+
+/// A `--traversal` value: `auto` or a registered traversal's name.
+fn parse_traversal(s: &str) -> Result<voxlab::render::Traversal, String> {
+    voxlab::render::Traversal::named(s).ok_or_else(|| {
+        let names: Vec<_> = voxlab::render::Traversal::all()
+            .into_iter()
+            .map(|t| t.name())
+            .collect();
+        format!("must be one of {}", names.join(", "))
+    })
+}
+
+/// A `--surfaces` value: a registered surface's name.
+fn parse_surface(s: &str) -> Result<voxlab::render::Surface, String> {
+    voxlab::render::Surface::named(s).ok_or_else(|| {
+        let names: Vec<_> = voxlab::render::Surface::all()
+            .into_iter()
+            .map(|t| t.name())
+            .collect();
+        format!("must be one of {}", names.join(", "))
+    })
 }
 
 fn main() -> ExitCode {
@@ -735,31 +757,21 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         gpu_runs: a.gpu_runs as usize,
         cpu_runs: a.cpu_runs as usize,
         cpu: !a.no_cpu,
-        traversals: a
-            .traversal
-            .iter()
-            .map(|name| {
-                voxlab::render::Traversal::ALL
-                    .into_iter()
-                    .find(|t| t.name() == name)
-                    .expect("clap checked the name")
-            })
-            .collect(),
+        traversals: if a.traversal.is_empty() {
+            voxlab::render::Traversal::walks()
+        } else {
+            a.traversal.clone()
+        },
         experiments: a
             .experiments
             .iter()
             .map(|f| Experiment::load_with(f, &a.set).map_err(anyhow::Error::from))
             .collect::<Result<Vec<_>>>()?,
-        surfaces: a
-            .surfaces
-            .iter()
-            .map(|name| {
-                voxlab::render::Surface::ALL
-                    .into_iter()
-                    .find(|s| s.name() == name)
-                    .expect("clap checked the name")
-            })
-            .collect(),
+        surfaces: if a.surfaces.is_empty() {
+            vec![voxlab::render::Surface::default()]
+        } else {
+            a.surfaces.clone()
+        },
         ..Default::default()
     };
     if let Some(n) = a.torus {

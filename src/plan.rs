@@ -26,7 +26,7 @@ use crate::cpu::pyramid::{PyramidLayout, memory_line};
 use crate::render::RenderSettings;
 pub use crate::render::{Surface, Traversal};
 use crate::scene::{Material, Scene, VOID};
-use crate::technique::{LightingTerm, ShadowModel, TransmittanceModel};
+use crate::technique::{LightingTerm, ShadowModel, TRAVERSALS, TransmittanceModel, TraversalModel};
 
 /// Shader defs of one kernel variant, ordered so they can key a pipeline cache.
 pub type ShaderDefs = BTreeMap<String, ShaderDefValue>;
@@ -78,11 +78,11 @@ pub struct Plan {
     /// only how often a loop takes its back edge, which Mesa's software driver limits
     /// (shaders/counters.wgsl).
     pub dda_unroll: u32,
-    /// How rays walk the grid: [`Traversal::Dense`] or [`Traversal::Sparse`], never
-    /// `Auto` (`SPARSE`, with `SPARSE_LEVELS` the tree's depth). Only the sparse walk's
-    /// tree is built and uploaded, only the dense walk's voxel buffer.
-    pub traversal: Traversal,
-    /// Levels of the sparse tree's nodes (0 with the dense walk).
+    /// How rays walk the grid: the traversal whose module `voxlab::regions` is composed
+    /// in (`TRAVERSAL_ID`, with `TREE_LEVELS` the tree's depth for one that walks the
+    /// tree). Only the data it walks is built and uploaded: the tree, or the voxel buffer.
+    pub traversal: &'static TraversalModel,
+    /// Levels of the sparse tree's nodes (0 for a traversal that does not walk it).
     pub tree_levels: u32,
     /// Why this traversal, in plain words.
     pub traversal_reason: String,
@@ -95,87 +95,84 @@ pub struct Plan {
     pub reasons: Vec<String>,
 }
 
-/// The grid side from which `render.traversal = "auto"` walks the sparse tree. Below it
-/// the dense walk's one load per step costs less than the tree's descent and region
-/// skip per step, for all the steps the tree saves: on lavapipe the seed scene renders
-/// at 0.80x the dense walk's speed with the tree at 256^3 and at 2.03x at 512^3, the
-/// bunny voxelized at 512 at 2.11x (`voxlab bench --sizes 256,512 --experiments
-/// experiments/bunny_512.toml`, README "Sparse traversal"). A grid larger than the
-/// device binds as one buffer is walked sparse whatever its side (`crate::gpu`).
-pub const SPARSE_FROM_SIDE: u32 = 512;
-
-/// The traversal of `scene` under `settings`, and why.
-fn choose_traversal(scene: &Scene, settings: &RenderSettings) -> (Traversal, String) {
-    let side = scene.grid.dims().max_element();
-    if scene.grid.is_sparse() {
-        let asked = match settings.traversal {
-            Traversal::Dense => " (render.traversal = \"dense\" cannot be followed)",
-            _ => "",
-        };
-        return (
-            Traversal::Sparse,
-            format!("the grid is held only as its sparse tree{asked}"),
-        );
-    }
+/// The traversal of `scene` under `settings`, and why: the one asked for when it can
+/// walk the scene (its plan rule), else the `auto` choice, with the reason.
+fn choose_traversal(scene: &Scene, settings: &RenderSettings) -> (&'static TraversalModel, String) {
     match settings.traversal {
-        Traversal::Dense => (Traversal::Dense, "render.traversal = \"dense\"".into()),
-        Traversal::Sparse => (Traversal::Sparse, "render.traversal = \"sparse\"".into()),
-        Traversal::Auto if side >= SPARSE_FROM_SIDE => (
-            Traversal::Sparse,
-            format!("auto: the grid's largest side {side} is {SPARSE_FROM_SIDE} or more"),
-        ),
-        Traversal::Auto => (
-            Traversal::Dense,
-            format!("auto: the grid's largest side {side} is below {SPARSE_FROM_SIDE}"),
-        ),
+        Traversal::Walk(t) => match (t.plan)(scene, settings) {
+            Ok(()) => (t, format!("render.traversal = \"{}\"", t.name)),
+            Err(why) => {
+                let (chosen, reason) = auto_traversal(scene, settings);
+                (
+                    chosen,
+                    format!(
+                        "{reason} (render.traversal = \"{}\" cannot be followed: {why})",
+                        t.name
+                    ),
+                )
+            }
+        },
+        Traversal::Auto => auto_traversal(scene, settings),
     }
 }
 
-/// The surface `settings` ask for, when `scene` can have it: a mesh scene's triangles, or
-/// a grid small enough to extract a smooth surface from; and at most 255 materials, so
-/// that the cells' tag is free (`crate::triangles`). Why not, otherwise.
+/// `render.traversal = "auto"`: of the traversals that can walk the scene, the last one
+/// that claims it, else the first (the default when it can).
+fn auto_traversal(scene: &Scene, settings: &RenderSettings) -> (&'static TraversalModel, String) {
+    let able: Vec<_> = TRAVERSALS
+        .iter()
+        .copied()
+        .filter(|t| (t.plan)(scene, settings).is_ok())
+        .collect();
+    let mut declined = Vec::new();
+    for t in able.iter().rev() {
+        match t.auto.map(|claim| claim(scene)) {
+            Some(Ok(why)) => return (t, format!("auto: {why}")),
+            Some(Err(why)) => declined.push(why),
+            None => {}
+        }
+    }
+    let chosen = *able
+        .first()
+        .expect("some traversal walks every scene (the sparse one)");
+    let why = if declined.is_empty() {
+        "the default".to_string()
+    } else {
+        declined.join("; ")
+    };
+    (chosen, format!("auto: {why}"))
+}
+
+/// The surface `settings` ask for, when `scene` can have it: its own plan rule, and
+/// for a triangle surface the limits every one shares: at most 255 materials, so that
+/// the cells' tag is free (`crate::triangles`), a dense grid of at most 2^32 voxels.
+/// Why not, otherwise.
 pub fn check_surface(scene: &Scene, settings: &RenderSettings) -> Result<(), String> {
     use crate::triangles::SURFACE_TAG;
-    let name = settings.surface.name();
-    if settings.surface != Surface::Voxels && scene.materials.len() > SURFACE_TAG as usize {
-        return Err(format!(
-            "render.surface = \"{name}\" needs material index {SURFACE_TAG} free; the scene \
-             defines {} materials",
-            scene.materials.len()
-        ));
+    let surface = settings.surface;
+    let name = surface.name;
+    if surface.traces_triangles() {
+        if scene.materials.len() > SURFACE_TAG as usize {
+            return Err(format!(
+                "render.surface = \"{name}\" needs material index {SURFACE_TAG} free; the \
+                 scene defines {} materials",
+                scene.materials.len()
+            ));
+        }
+        if scene.grid.is_sparse() {
+            return Err(format!(
+                "render.surface = \"{name}\": the grid is held only as its sparse tree, and \
+                 triangle cells are listed in a dense grid"
+            ));
+        }
+        let voxels = scene.grid.voxel_count() as u64;
+        if voxels > u32::MAX as u64 {
+            return Err(format!(
+                "render.surface = \"{name}\": the grid has {voxels} voxels, more than 2^32"
+            ));
+        }
     }
-    if settings.surface != Surface::Voxels && scene.grid.is_sparse() {
-        return Err(format!(
-            "render.surface = \"{name}\": the grid is held only as its sparse tree, and \
-             triangle cells are listed in a dense grid"
-        ));
-    }
-    let voxels = scene.grid.voxel_count() as u64;
-    if settings.surface != Surface::Voxels && voxels > u32::MAX as u64 {
-        return Err(format!(
-            "render.surface = \"{name}\": the grid has {voxels} voxels, more than 2^32"
-        ));
-    }
-    match settings.surface {
-        Surface::Voxels => Ok(()),
-        Surface::Mesh => match &scene.mesh {
-            None => Err("render.surface = \"mesh\" needs a scene made from a mesh \
-                 (scene.mesh)"
-                .into()),
-            Some(m) if m.triangles.len() > crate::triangles::MAX_TRIANGLES => Err(format!(
-                "render.surface = \"mesh\": the mesh has {} triangles, at most {} are traced",
-                m.triangles.len(),
-                crate::triangles::MAX_TRIANGLES
-            )),
-            Some(_) => Ok(()),
-        },
-        Surface::Smooth if voxels > crate::surface::MAX_SURFACE_VOXELS => Err(format!(
-            "render.surface = \"smooth\": the grid has {voxels} voxels; smooth surfaces are \
-             extracted from at most {} (surface::MAX_SURFACE_VOXELS)",
-            crate::surface::MAX_SURFACE_VOXELS
-        )),
-        Surface::Smooth => Ok(()),
-    }
+    (surface.plan)(scene, settings)
 }
 
 /// What `settings` ask of a grid held only as its sparse tree that needs the dense grid:
@@ -197,10 +194,21 @@ pub fn check_sparse_grid(
         d.z,
         crate::scene::DENSE_MAX_VOXELS
     );
-    if settings.traversal == Traversal::Dense {
+    if let Traversal::Walk(t) = settings.traversal
+        && let Err(why) = (t.plan)(scene, settings)
+    {
+        let others: Vec<String> = Traversal::all()
+            .into_iter()
+            .filter(|o| *o != settings.traversal)
+            .map(|o| format!("\"{}\"", o.name()))
+            .collect();
         return Err((
             "render.traversal",
-            format!("\"dense\" walks the dense grid, and {held}: use \"sparse\" or \"auto\""),
+            format!(
+                "\"{}\" cannot walk this scene: {why}; use {}",
+                t.name,
+                others.join(" or ")
+            ),
         ));
     }
     let f = &settings.features;
@@ -432,9 +440,9 @@ impl Plan {
         let (traversal, traversal_reason) = choose_traversal(scene, settings);
         let (surface, surface_reason) = match check_surface(scene, settings) {
             Ok(()) => (settings.surface, String::new()),
-            Err(why) => (Surface::Voxels, format!("{why}; voxels instead")),
+            Err(why) => (Surface::default(), format!("{why}; voxels instead")),
         };
-        let tree_levels = if traversal == Traversal::Sparse {
+        let tree_levels = if traversal.walks_tree {
             crate::sparse::levels_for(scene.grid.dims(), crate::sparse::GPU_LOG_BRANCH)
         } else {
             0
@@ -563,10 +571,10 @@ impl Plan {
                     count_rays: false,
                     ray_stack_size,
                     dda_unroll: 1,
-                    traversal: Traversal::Dense,
+                    traversal: crate::technique::default_traversal(),
                     tree_levels: 0,
                     traversal_reason: String::new(),
-                    surface: Surface::Voxels,
+                    surface: Surface::default(),
                     surface_reason: String::new(),
                     reasons: Vec::new(),
                 };
@@ -623,14 +631,21 @@ impl Plan {
                 ShaderDefValue::UInt(self.terms.iter().map(|t| 1 << t.index()).sum()),
             );
         }
-        if self.traversal == Traversal::Sparse {
-            defs.insert("SPARSE".to_string(), ShaderDefValue::Bool(true));
+        // The traversal's module is composed in; one other than the default keys the
+        // cache by its index, a tree walk by the tree's depth too.
+        if self.traversal.index() != 0 {
             defs.insert(
-                "SPARSE_LEVELS".to_string(),
+                "TRAVERSAL_ID".to_string(),
+                ShaderDefValue::UInt(self.traversal.index()),
+            );
+        }
+        if self.traversal.walks_tree {
+            defs.insert(
+                "TREE_LEVELS".to_string(),
                 ShaderDefValue::UInt(self.tree_levels),
             );
         }
-        if self.surface != Surface::Voxels {
+        if self.surface.traces_triangles() {
             defs.insert("TRIANGLES".to_string(), ShaderDefValue::Bool(true));
         }
         defs.insert(
@@ -659,27 +674,23 @@ impl fmt::Display for Plan {
             },
             self.ray_stack_size
         )?;
-        match self.traversal {
-            Traversal::Sparse => write!(
-                f,
-                "\n  traversal: sparse 64-tree, {} levels ({})",
-                self.tree_levels, self.traversal_reason
-            )?,
-            _ => write!(f, "\n  traversal: dense DDA ({})", self.traversal_reason)?,
+        write!(f, "\n  traversal: {}", self.traversal.label)?;
+        if self.traversal.walks_tree {
+            write!(f, ", {} levels", self.tree_levels)?;
         }
-        match self.surface {
-            Surface::Voxels if self.surface_reason.is_empty() => {}
-            Surface::Voxels => write!(f, "\n  surface: voxels ({})", self.surface_reason)?,
-            s => write!(
+        write!(f, " ({})", self.traversal_reason)?;
+        if self.surface.traces_triangles() {
+            write!(
                 f,
-                "\n  surface: triangles of the {} (render.surface = \"{}\")",
-                if s == Surface::Mesh {
-                    "scene's mesh"
-                } else {
-                    "grid's smooth surface"
-                },
-                s.name()
-            )?,
+                "\n  surface: {} (render.surface = \"{}\")",
+                self.surface.label, self.surface.name
+            )?;
+        } else if !self.surface_reason.is_empty() {
+            write!(
+                f,
+                "\n  surface: {} ({})",
+                self.surface.label, self.surface_reason
+            )?;
         }
         if let Some(layout) = &self.pyramid {
             write!(f, "\n  {}", memory_line(layout, self.radiance_pyramid()))?;

@@ -79,53 +79,81 @@ pub enum PixelFilter {
     Gaussian,
 }
 
-/// How rays walk the grid (`render.traversal`): the dense DDA voxel by voxel, or the
-/// sparse tree that skips uniform regions whole (`crate::sparse`), or the plan's choice.
-/// Both give the same hits; only the time differs.
+/// How rays walk the grid (`render.traversal`): a registered traversal by name
+/// (`crate::technique::TRAVERSALS`), or the plan's choice. All give the same hits; only
+/// the time and the memory differ.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Traversal {
     /// The plan chooses by the grid (`crate::plan::Plan::traversal`).
     #[default]
     Auto,
-    Dense,
-    Sparse,
+    Walk(&'static crate::technique::TraversalModel),
 }
 
 impl Traversal {
-    pub const ALL: [Traversal; 3] = [Traversal::Auto, Traversal::Dense, Traversal::Sparse];
+    /// `auto`, then every registered traversal.
+    pub fn all() -> Vec<Traversal> {
+        std::iter::once(Traversal::Auto)
+            .chain(Self::walks())
+            .collect()
+    }
+
+    /// Every registered traversal, by name (no `auto`).
+    pub fn walks() -> Vec<Traversal> {
+        crate::technique::TRAVERSALS
+            .iter()
+            .map(|t| Traversal::Walk(t))
+            .collect()
+    }
 
     pub fn name(self) -> &'static str {
         match self {
             Traversal::Auto => "auto",
-            Traversal::Dense => "dense",
-            Traversal::Sparse => "sparse",
+            Traversal::Walk(t) => t.name,
         }
+    }
+
+    /// The choice called `name` (`auto` or a traversal's name).
+    pub fn named(name: &str) -> Option<Traversal> {
+        Traversal::all().into_iter().find(|t| t.name() == name)
     }
 }
 
-/// What a ray hits (`render.surface`): the voxels' faces (the baseline), the triangles
-/// of the mesh the scene was voxelized from, or a smooth surface extracted from the
-/// grid; triangles are found through the voxels they overlap (`crate::triangles`, the
-/// seed's O6).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Surface {
-    #[default]
-    Voxels,
-    /// The scene's own mesh (`scene.mesh`): O6 (b).
-    Mesh,
-    /// Surface nets of every material (`crate::surface`), traced as triangles: O6 (a).
-    Smooth,
+/// What a ray hits (`render.surface`): a registered surface
+/// (`crate::technique::SURFACES`): the voxels' faces (the baseline), or triangles found
+/// through the voxels they overlap (`crate::triangles`, the seed's O6).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Surface(pub &'static crate::technique::SurfaceModel);
+
+impl Default for Surface {
+    fn default() -> Self {
+        Surface(crate::technique::default_surface())
+    }
+}
+
+impl std::ops::Deref for Surface {
+    type Target = crate::technique::SurfaceModel;
+    fn deref(&self) -> &Self::Target {
+        self.0
+    }
 }
 
 impl Surface {
-    pub const ALL: [Surface; 3] = [Surface::Voxels, Surface::Mesh, Surface::Smooth];
+    /// Every registered surface.
+    pub fn all() -> Vec<Surface> {
+        crate::technique::SURFACES
+            .iter()
+            .map(|s| Surface(s))
+            .collect()
+    }
 
     pub fn name(self) -> &'static str {
-        match self {
-            Surface::Voxels => "voxels",
-            Surface::Mesh => "mesh",
-            Surface::Smooth => "smooth",
-        }
+        self.0.name
+    }
+
+    /// The surface called `name`.
+    pub fn named(name: &str) -> Option<Surface> {
+        crate::technique::surface(name).map(Surface)
     }
 }
 
@@ -351,7 +379,7 @@ impl Default for RenderSettings {
             pixel_filter: PixelFilter::None,
             filter_width: 0.5,
             traversal: Traversal::Auto,
-            surface: Surface::Voxels,
+            surface: Surface::default(),
         }
     }
 }

@@ -36,7 +36,7 @@ pub const HEADER_WORDS: usize = 4;
 /// The branching of the GPU kernel's tree: 4x4x4 children (a 64-tree).
 pub const GPU_LOG_BRANCH: u32 = 2;
 
-/// Deepest tree the GPU kernel descends (shaders/sparse.wgsl unrolls its levels):
+/// Deepest tree the GPU kernel descends (shaders/traversal_sparse.wgsl unrolls its levels):
 /// 4^8 = 65536 voxels a side, beyond any grid voxlab accepts.
 pub const MAX_GPU_LEVELS: u32 = 8;
 

@@ -82,18 +82,10 @@ pub fn surface_trace(
     scene: &Scene,
     surface: crate::render::Surface,
 ) -> Result<Option<SurfaceTrace>, TriangleError> {
-    use crate::render::Surface;
-    let mesh = match surface {
-        Surface::Voxels => return Ok(None),
-        Surface::Mesh => match &scene.mesh {
-            Some(m) => std::borrow::Cow::Borrowed(m.as_ref()),
-            None => return Ok(None),
-        },
-        Surface::Smooth => std::borrow::Cow::Owned(
-            crate::surface::extract_solid(&scene.grid, crate::surface::DEFAULT_RELAX)
-                .map_err(|e| TriangleError::Extract(e.to_string()))?,
-        ),
+    let Some(triangles) = surface.triangles else {
+        return Ok(None);
     };
+    let mesh = triangles(scene).map_err(TriangleError::Extract)?;
     SurfaceTrace::build(&scene.grid, scene.materials.len(), &mesh).map(Some)
 }
 

@@ -20,6 +20,9 @@ use voxlab::render::{RenderSettings, Rules, Transmittance, Traversal};
 use voxlab::scene::seed::seed_camera;
 use voxlab::scene::{AreaLight, AreaShape, Grid, Light, PointLight, Scene, seed_palette};
 
+const DENSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
+
 /// A random scene of `dims`: glass, semi-solid and solid voxels (boxes, so there are
 /// faces to shade and shadows to cast) on a solid floor, with `lights` lights of
 /// rotating kinds (point, rectangle, disk, sphere) around the grid.
@@ -134,7 +137,7 @@ fn run(i: usize, case: &Case, rng: &mut StdRng, gpu: &mut voxlab::gpu::GpuTracer
     settings.features.shadow_model = &voxlab::technique::area::MODEL;
     settings.features.transmittance = case.transmittance;
     // Both walks: the dense grid and the sparse tree.
-    for traversal in [Traversal::Dense, Traversal::Sparse] {
+    for traversal in Traversal::walks() {
         settings.traversal = traversal;
         run_walk(i, case, dims, &scene, &settings, gpu);
     }
@@ -149,7 +152,10 @@ fn run_walk(
     gpu: &mut voxlab::gpu::GpuTracer,
 ) {
     let g = gpu.render(scene, settings).expect("GPU render");
-    assert_eq!(gpu.last_plan().unwrap().traversal, settings.traversal);
+    assert_eq!(
+        Traversal::Walk(gpu.last_plan().unwrap().traversal),
+        settings.traversal
+    );
     let c = voxlab::cpu::render(scene, settings);
     let pixels = (case.side * case.side) as u64;
     let per_dispatch = voxlab::gpu::frames_per_dispatch(pixels, case.spp);
@@ -265,7 +271,7 @@ fn steps_per_loop_iteration_change_nothing() {
         };
         settings.features.shadow_model = &voxlab::technique::area::MODEL;
         settings.features.transmittance = model;
-        for traversal in [Traversal::Dense, Traversal::Sparse] {
+        for traversal in Traversal::walks() {
             settings.traversal = traversal;
             let mut images = Vec::new();
             for n in [1, 2, 4, 8] {
@@ -297,7 +303,7 @@ fn a_cut_render_is_rendered_again_with_more_steps_per_iteration() {
     let settings = RenderSettings {
         width: 32,
         height: 32,
-        traversal: voxlab::render::Traversal::Dense,
+        traversal: DENSE_WALK,
         ..Default::default()
     };
     let mut gpu = tracer();

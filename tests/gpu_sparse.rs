@@ -1,4 +1,4 @@
-//! The sparse walk on the GPU (`render.traversal = "sparse"`, shaders/sparse.wgsl):
+//! The sparse walk on the GPU (`render.traversal = "sparse"`, shaders/traversal_sparse.wgsl):
 //! the golden baseline images with the tree forced on; GPU against the f64 reference
 //! and against the GPU's own dense walk over generated scenes that vary every parameter
 //! that changes how the kernel runs (grid sizes from 1 to 100 a side, so tree depths 1 to
@@ -17,6 +17,11 @@ use voxlab::scene::{
     AreaLight, AreaShape, Grid, Light, Scene, seed_ids, seed_scene, seed_scene_dims,
 };
 
+const DENSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
+const SPARSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
+
 #[test]
 fn golden_baseline_images_with_the_tree_forced_on() {
     let mut gpu = tracer();
@@ -30,10 +35,10 @@ fn golden_baseline_images_with_the_tree_forced_on() {
         e.settings.height = h;
         e.settings.max_reflection_depth = refl;
         e.settings.max_refraction_depth = refr;
-        e.settings.traversal = Traversal::Sparse;
+        e.settings.traversal = SPARSE_WALK;
         let frame = gpu.render(&e.scene, &e.settings).unwrap().frame;
         let plan = gpu.last_plan().unwrap();
-        assert_eq!(plan.traversal, Traversal::Sparse, "{plan}");
+        assert_eq!(plan.traversal.name, "sparse", "{plan}");
         assert_matches_golden(name, &frame, &format!("{name}.png"));
     }
 }
@@ -108,7 +113,7 @@ fn generated_scenes_agree_with_the_cpu_and_the_dense_walk() {
     ];
     for (i, (dims, w, h, depth)) in cases.into_iter().enumerate() {
         let mut scene = random_scene(&mut rng, UVec3::from_array(dims));
-        let mut s = settings(w, h, depth, Traversal::Sparse);
+        let mut s = settings(w, h, depth, SPARSE_WALK);
         if i % 2 == 1 {
             // Beer-Lambert: a region's length counts at once.
             s.features.transmittance = voxlab::technique::beer_lambert::ID;
@@ -121,16 +126,12 @@ fn generated_scenes_agree_with_the_cpu_and_the_dense_walk() {
             s.features.transmittance
         );
         let sparse = gpu.render(&scene, &s).unwrap();
-        assert_eq!(
-            gpu.last_plan().unwrap().traversal,
-            Traversal::Sparse,
-            "{name}"
-        );
+        assert_eq!(gpu.last_plan().unwrap().traversal.name, "sparse", "{name}");
         let dense = gpu
             .render(
                 &scene,
                 &RenderSettings {
-                    traversal: Traversal::Dense,
+                    traversal: DENSE_WALK,
                     ..s.clone()
                 },
             )
@@ -167,7 +168,7 @@ fn sampled_area_lights_over_many_frames_per_dispatch() {
         color: DVec3::ONE,
         intensity: 2500.0,
     })];
-    let mut s = settings(32, 32, 2, Traversal::Sparse);
+    let mut s = settings(32, 32, 2, SPARSE_WALK);
     s.features.shadow_model = &voxlab::technique::area::MODEL;
     s.light_samples = 2;
     s.spp = 24;
@@ -181,10 +182,10 @@ fn sampled_area_lights_over_many_frames_per_dispatch() {
 fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
     let scene = seed_scene(64).unwrap();
     let mut gpu = tracer();
-    gpu.render(&scene, &settings(16, 16, 1, Traversal::Sparse))
+    gpu.render(&scene, &settings(16, 16, 1, SPARSE_WALK))
         .unwrap();
     let sparse = gpu.last_memory().unwrap();
-    gpu.render(&scene, &settings(16, 16, 1, Traversal::Dense))
+    gpu.render(&scene, &settings(16, 16, 1, DENSE_WALK))
         .unwrap();
     let dense = gpu.last_memory().unwrap();
     assert_eq!(dense.grid, 64 * 64 * 64, "the voxel buffer");
@@ -193,12 +194,12 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
     assert!(sparse.tree > 0 && sparse.tree < dense.grid, "{sparse:?}");
     // Auto: dense below SPARSE_FROM_SIDE, sparse from it on; the plan says why.
     for (n, want) in [
-        (voxlab::plan::SPARSE_FROM_SIDE - 1, Traversal::Dense),
-        (voxlab::plan::SPARSE_FROM_SIDE, Traversal::Sparse),
+        (voxlab::technique::sparse::SPARSE_FROM_SIDE - 1, DENSE_WALK),
+        (voxlab::technique::sparse::SPARSE_FROM_SIDE, SPARSE_WALK),
     ] {
         let scene = seed_scene_dims(UVec3::new(n, 3, 2)).unwrap();
         let plan = voxlab::plan::Plan::new(&scene, &settings(8, 8, 1, Traversal::Auto));
-        assert_eq!(plan.traversal, want, "{plan}");
+        assert_eq!(Traversal::Walk(plan.traversal), want, "{plan}");
         assert!(plan.to_string().contains("traversal:"), "{plan}");
     }
 }
@@ -218,7 +219,7 @@ fn a_grid_held_sparse_renders_as_its_dense_twin() {
     ] {
         let dims = UVec3::from_array(dims);
         let mut scene = seed_scene_dims(dims).unwrap();
-        let s = settings(w, h, depth, Traversal::Sparse);
+        let s = settings(w, h, depth, SPARSE_WALK);
         let dense = gpu.render(&scene, &s).unwrap();
         scene.grid = seed_grid_as(dims, 1.0, DVec3::ZERO, Storage::Sparse).unwrap();
         let held = gpu.render(&scene, &s).unwrap();

@@ -9,8 +9,20 @@ mod common;
 
 use common::{assert_agree, experiment, icosphere, mesh_scene, tracer};
 use glam::DVec3;
-use voxlab::render::{RenderSettings, Surface, Traversal};
+use voxlab::render::RenderSettings;
 use voxlab::scene::{AreaLight, AreaShape, Light, seed_ids, seed_palette};
+
+const VOXELS_SURFACE: voxlab::render::Surface =
+    voxlab::render::Surface(&voxlab::technique::voxels::SURFACE);
+const MESH_SURFACE: voxlab::render::Surface =
+    voxlab::render::Surface(&voxlab::technique::mesh::SURFACE);
+const SMOOTH_SURFACE: voxlab::render::Surface =
+    voxlab::render::Surface(&voxlab::technique::smooth::SURFACE);
+
+const DENSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
+const SPARSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
 
 /// A 6 x 4 rect light above and in front of the scene's grid, facing it.
 fn add_area_light(scene: &mut voxlab::scene::Scene) {
@@ -49,12 +61,8 @@ fn generated_spheres_agree_with_the_cpu_at_every_setting() {
             height: h,
             max_reflection_depth: refl,
             max_refraction_depth: refr,
-            surface: Surface::Mesh,
-            traversal: if i % 2 == 0 {
-                Traversal::Dense
-            } else {
-                Traversal::Sparse
-            },
+            surface: MESH_SURFACE,
+            traversal: if i % 2 == 0 { DENSE_WALK } else { SPARSE_WALK },
             features: voxlab::Features {
                 transmittance: if i % 4 == 1 {
                     voxlab::technique::beer_lambert::ID
@@ -69,7 +77,7 @@ fn generated_spheres_agree_with_the_cpu_at_every_setting() {
             .render(&scene, &s)
             .unwrap_or_else(|e| panic!("case {i}: {e:#}"));
         let plan = gpu.last_plan().unwrap();
-        assert_eq!(plan.surface, Surface::Mesh, "{plan}");
+        assert_eq!(plan.surface, MESH_SURFACE, "{plan}");
         let c = voxlab::cpu::render(&scene, &s);
         assert_agree(
             &format!(
@@ -86,8 +94,8 @@ fn generated_spheres_agree_with_the_cpu_at_every_setting() {
 fn the_bunny_mesh_and_the_smooth_deer_under_area_lights_over_many_frames() {
     let mut gpu = tracer();
     for (file, surface) in [
-        ("bunny_glass.toml", Surface::Mesh),
-        ("deer_area_light.toml", Surface::Smooth),
+        ("bunny_glass.toml", MESH_SURFACE),
+        ("deer_area_light.toml", SMOOTH_SURFACE),
     ] {
         let mut e = experiment(file);
         add_area_light(&mut e.scene);
@@ -115,11 +123,11 @@ fn the_surfaces_are_on_the_device_only_while_a_plan_traces_them() {
     let mut s = e.settings.clone();
     s.width = 16;
     s.height = 16;
-    s.surface = Surface::Mesh;
+    s.surface = MESH_SURFACE;
     gpu.render(&e.scene, &s).unwrap();
     let with = gpu.last_memory().unwrap();
     assert!(with.surfaces > 0, "{with}");
-    s.surface = Surface::Voxels;
+    s.surface = VOXELS_SURFACE;
     let off = gpu.render(&e.scene, &s).unwrap();
     let without = gpu.last_memory().unwrap();
     assert_eq!(without.surfaces, 0, "{without}");
@@ -138,7 +146,7 @@ fn every_unroll_of_the_walks_gives_the_same_image_through_many_cells() {
     let mut s = e.settings.clone();
     s.width = 40;
     s.height = 40;
-    s.surface = Surface::Smooth;
+    s.surface = SMOOTH_SURFACE;
     let cpu = voxlab::cpu::render(&e.scene, &s);
     for unroll in [1, 2, 4, 8] {
         let mut gpu = tracer();
@@ -162,7 +170,7 @@ fn every_shadow_model_and_lighting_term_shades_triangles_alike_on_both_tracers()
     let mut base = e.settings.clone();
     base.width = 20;
     base.height = 20;
-    base.surface = Surface::Mesh;
+    base.surface = MESH_SURFACE;
     base.light_samples = 1;
     base.spp = 2;
     let mut variants: Vec<(String, RenderSettings)> = Vec::new();
@@ -182,7 +190,7 @@ fn every_shadow_model_and_lighting_term_shades_triangles_alike_on_both_tracers()
             .render(&e.scene, &s)
             .unwrap_or_else(|err| panic!("{name}: {err:#}"));
         let plan = gpu.last_plan().unwrap();
-        assert_eq!(plan.surface, Surface::Mesh, "{name}: {plan}");
+        assert_eq!(plan.surface, MESH_SURFACE, "{name}: {plan}");
         let cpu = voxlab::cpu::render(&e.scene, &s);
         assert_agree(&format!("bunny mesh, {name}"), &g.frame, &cpu.frame);
         eprintln!("  {name}: {:.1} s", start.elapsed().as_secs_f64());

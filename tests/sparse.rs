@@ -14,6 +14,11 @@ use voxlab::render::{RenderSettings, Traversal};
 use voxlab::scene::{Grid, Material, Scene, seed_scene};
 use voxlab::sparse::SparseTree;
 
+const DENSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
+const SPARSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
+
 /// A grid of `dims` that is mostly uniform: a few boxes of random materials (some
 /// large, some one voxel), over a background that is void or, half the time, one
 /// material, so regions of every material and size occur.
@@ -323,8 +328,8 @@ fn cpu_images_over_the_tree_are_the_dense_images() {
             };
             voxlab::cpu::render(&scene, &settings)
         };
-        let dense = render(Traversal::Dense);
-        let sparse = render(Traversal::Sparse);
+        let dense = render(DENSE_WALK);
+        let sparse = render(SPARSE_WALK);
         assert_eq!(
             dense.frame.pixels, sparse.frame.pixels,
             "seed scene at {size}^3"
@@ -341,7 +346,7 @@ fn cpu_images_over_the_tree_are_the_dense_images() {
 #[test]
 fn the_experiment_file_names_the_traversal() {
     use voxlab::experiment::Experiment;
-    for t in Traversal::ALL {
+    for t in Traversal::all() {
         let text = format!("[render]\ntraversal = \"{}\"\n", t.name());
         let e = Experiment::from_str(&text, "x.toml").unwrap();
         assert_eq!(e.settings.traversal, t);
@@ -378,4 +383,34 @@ fn building_from_a_vox_model_gives_the_tree_of_its_grid() {
         }
     }
     assert!(t.bytes_per_voxel() < 1.0, "{}", t.bytes_per_voxel());
+}
+
+/// Every registered traversal is listed, chosen by name, printed by its label, and
+/// composes into the kernel; `auto` follows the claims: the default below the sparse
+/// walk's side, the claimant from it on, and the tree for a grid held only as its tree.
+#[test]
+fn every_traversal_is_a_registered_slot() {
+    use voxlab::plan::Plan;
+    use voxlab::technique::{Slot, TRAVERSALS, listing};
+    let rows = listing();
+    let scene = seed_scene(16).unwrap();
+    for t in TRAVERSALS {
+        assert!(
+            rows.iter()
+                .any(|r| r.name == t.name && r.slot == Slot::Traversal),
+            "{} is not listed",
+            t.name
+        );
+        let settings = RenderSettings {
+            traversal: Traversal::Walk(t),
+            ..Default::default()
+        };
+        let plan = Plan::new(&scene, &settings);
+        assert_eq!(plan.traversal, *t, "{plan}");
+        assert!(plan.to_string().contains(t.label), "{plan}");
+        assert_eq!(plan.tree_levels > 0, t.walks_tree, "{plan}");
+    }
+    let auto = Plan::new(&scene, &RenderSettings::default());
+    assert_eq!(auto.traversal, voxlab::technique::default_traversal());
+    assert!(auto.traversal_reason.starts_with("auto: "), "{auto}");
 }

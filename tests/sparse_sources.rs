@@ -11,13 +11,18 @@ use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use voxlab::experiment::Experiment;
-use voxlab::render::{RenderSettings, Traversal};
+use voxlab::render::RenderSettings;
 use voxlab::scene::seed::{SeedSource, seed_grid_as};
 use voxlab::scene::{
     DENSE_MAX_VOXELS, Grid, MAX_SPARSE_SIDE, Storage, load_vox_as, seed_ids, seed_palette,
     write_vox,
 };
 use voxlab::sparse::{BoxOverlay, BrickSource, SparseTree, VoxelSource};
+
+const DENSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
+const SPARSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
 
 /// Dimensions that vary what the builder meets: one voxel, sides below, at and past a
 /// node's, non-cubic, odd and power-of-two grids.
@@ -265,7 +270,7 @@ fn experiments_hold_large_grids_sparse_and_say_what_needs_them_dense() {
     let tree = e.scene.grid.sparse_tree().unwrap();
     assert!(tree.bytes_per_voxel() < 0.02, "{}", tree.bytes_per_voxel());
     let plan = voxlab::plan::Plan::new(&e.scene, &e.settings);
-    assert_eq!(plan.traversal, Traversal::Sparse);
+    assert_eq!(plan.traversal.name, "sparse");
     assert!(plan.traversal_reason.contains("sparse tree"), "{plan}");
 
     let msg = load("[scene]\nsize = 1024\n\n[render]\ntraversal = \"dense\"\n")
@@ -322,14 +327,14 @@ fn a_grid_held_sparse_renders_as_its_dense_twin_on_the_cpu() {
             height: 20,
             max_reflection_depth: depth,
             max_refraction_depth: depth,
-            traversal: Traversal::Sparse,
+            traversal: SPARSE_WALK,
             ..Default::default()
         };
         let dense = voxlab::cpu::render(&scene, &settings);
         scene.grid = seed_grid_as(dims, 1.0, DVec3::ZERO, Storage::Sparse).unwrap();
         // "dense" cannot be followed for a grid held sparse: the plan walks the tree.
         let forced = RenderSettings {
-            traversal: Traversal::Dense,
+            traversal: DENSE_WALK,
             ..settings.clone()
         };
         for s in [&settings, &forced] {

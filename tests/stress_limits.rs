@@ -39,10 +39,7 @@ fn one_past_the_texture_limit_renders_on_both_walks() {
     let mut gpu = tracer();
     let side = gpu.max_grid_side();
     let scene = seed_scene_dims(UVec3::new(side + 1, 2, 3)).unwrap();
-    for traversal in [
-        voxlab::render::Traversal::Dense,
-        voxlab::render::Traversal::Sparse,
-    ] {
+    for traversal in voxlab::render::Traversal::walks() {
         let settings = RenderSettings {
             width: 24,
             height: 16,
@@ -51,7 +48,11 @@ fn one_past_the_texture_limit_renders_on_both_walks() {
         };
         let g = gpu.render(&scene, &settings).unwrap();
         let plan = gpu.last_plan().unwrap();
-        assert_eq!(plan.traversal, traversal, "{plan}");
+        assert_eq!(
+            voxlab::render::Traversal::Walk(plan.traversal),
+            traversal,
+            "{plan}"
+        );
         let c = voxlab::cpu::render(&scene, &settings);
         common::assert_agree("one past the texture limit", &g.frame, &c.frame);
     }

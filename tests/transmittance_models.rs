@@ -16,10 +16,18 @@ use rand::{RngExt, SeedableRng};
 use voxlab::RayStats;
 use voxlab::cpu::shadow_transmittance_over;
 use voxlab::experiment::{Experiment, write};
-use voxlab::render::{RenderSettings, Surface, Transmittance, Traversal};
+use voxlab::render::{RenderSettings, Transmittance};
 use voxlab::scene::{AreaLight, AreaShape, Grid, Light, seed_ids, seed_scene, seed_scene_dims};
 use voxlab::sparse::SparseTree;
 use voxlab::technique::{self, Slot, TRANSMITTANCES};
+
+const SMOOTH_SURFACE: voxlab::render::Surface =
+    voxlab::render::Surface(&voxlab::technique::smooth::SURFACE);
+
+const DENSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
+const SPARSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
 
 fn every_model() -> impl Iterator<Item = Transmittance> {
     TRANSMITTANCES.iter().map(|&m| Transmittance(m))
@@ -177,9 +185,9 @@ fn every_model_gpu_equals_cpu() {
     let mut gpu = tracer();
     for t in every_model() {
         for (i, (n, w, h, depth, traversal)) in [
-            (16, 40, 24, 4, Traversal::Dense),
-            (20, 24, 40, 2, Traversal::Sparse),
-            (9, 32, 32, 0, Traversal::Dense),
+            (16, 40, 24, 4, DENSE_WALK),
+            (20, 24, 40, 2, SPARSE_WALK),
+            (9, 32, 32, 0, DENSE_WALK),
         ]
         .into_iter()
         .enumerate()
@@ -230,7 +238,7 @@ fn every_model_gpu_equals_cpu() {
             height: 24,
             max_reflection_depth: 2,
             max_refraction_depth: 2,
-            surface: Surface::Smooth,
+            surface: SMOOTH_SURFACE,
             ..Default::default()
         };
         s.features.transmittance = t;

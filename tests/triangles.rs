@@ -15,11 +15,21 @@ use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use voxlab::cpu::{Hit, ShadowWalk, cast_through, shadow_transmittance, unshadowed};
 use voxlab::experiment::Experiment;
-use voxlab::render::{RayStats, RenderSettings, Surface, Traversal};
+use voxlab::render::{RayStats, RenderSettings};
 use voxlab::scene::{Light, Material, PointLight, Scene, VOID, seed_palette};
 use voxlab::sparse::SparseTree;
 use voxlab::surface::{DEFAULT_RELAX, extract_solid};
 use voxlab::triangles::{SURFACE_TAG, SurfaceTrace};
+
+const VOXELS_SURFACE: voxlab::render::Surface =
+    voxlab::render::Surface(&voxlab::technique::voxels::SURFACE);
+const MESH_SURFACE: voxlab::render::Surface =
+    voxlab::render::Surface(&voxlab::technique::mesh::SURFACE);
+
+const DENSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
+const SPARSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
 
 fn trace_of(scene: &Scene) -> SurfaceTrace {
     SurfaceTrace::build(
@@ -386,7 +396,7 @@ fn the_bunny_through_its_triangles_equals_a_brute_force_caster_pixel_for_pixel()
         .map(|t| t.map(|i| mesh.positions[i as usize]))
         .collect();
     let settings = e.settings.clone();
-    assert_eq!(settings.surface, Surface::Mesh);
+    assert_eq!(settings.surface, MESH_SURFACE);
     let out = voxlab::cpu::render(&scene, &settings);
     let eps = settings.ray_offset * scene.grid.voxel_size();
     assert_eq!(mesh.materials().len(), 1);
@@ -463,7 +473,7 @@ fn the_key_the_plan_and_off_is_the_baseline() {
     let mut settings = e.settings.clone();
     settings.width = 24;
     settings.height = 24;
-    assert_eq!(settings.surface, Surface::Voxels);
+    assert_eq!(settings.surface, VOXELS_SURFACE);
     let plan = voxlab::plan::Plan::new(&e.scene, &settings);
     assert!(!plan.shader_defs().contains_key("TRIANGLES"), "{plan}");
     let off = voxlab::cpu::render(&e.scene, &settings).frame;
@@ -476,7 +486,7 @@ fn the_key_the_plan_and_off_is_the_baseline() {
         voxlab::cpu::render(&bare, &settings).frame.pixels,
         off.pixels
     );
-    for s in [Surface::Mesh, Surface::Smooth] {
+    for s in triangle_surfaces() {
         let on = RenderSettings {
             surface: s,
             ..settings.clone()
@@ -488,25 +498,25 @@ fn the_key_the_plan_and_off_is_the_baseline() {
     }
     // Asked of a scene without a mesh through the API, the plan falls back and says so.
     let on = RenderSettings {
-        surface: Surface::Mesh,
+        surface: MESH_SURFACE,
         ..settings.clone()
     };
     let plan = voxlab::plan::Plan::new(&bare, &on);
-    assert_eq!(plan.surface, Surface::Voxels);
+    assert_eq!(plan.surface, VOXELS_SURFACE);
     assert!(plan.to_string().contains("voxels instead"), "{plan}");
 }
 
 #[test]
 fn the_sparse_walk_gives_the_dense_walks_images_through_triangles() {
     let e = common::experiment("bunny_glass.toml");
-    for s in [Surface::Mesh, Surface::Smooth] {
+    for s in triangle_surfaces() {
         let mut settings = e.settings.clone();
         settings.width = 32;
         settings.height = 32;
         settings.surface = s;
-        settings.traversal = Traversal::Dense;
+        settings.traversal = DENSE_WALK;
         let dense = voxlab::cpu::render(&e.scene, &settings).frame;
-        settings.traversal = Traversal::Sparse;
+        settings.traversal = SPARSE_WALK;
         let sparse = voxlab::cpu::render(&e.scene, &settings).frame;
         assert_eq!(dense.pixels, sparse.pixels, "{s:?}");
     }
@@ -550,4 +560,40 @@ fn a_files_vertex_normals_are_the_shading_normals() {
     let w = [0.6, 0.2, 0.2];
     let n = (w[0] * given + w[1] * DVec3::Y + w[2] * DVec3::X).normalize();
     assert!((h.normal - n).length() < 1e-9, "{} vs {n}", h.normal);
+}
+
+/// Every registered surface that traces triangles: what the tests above run each on.
+fn triangle_surfaces() -> Vec<voxlab::render::Surface> {
+    voxlab::render::Surface::all()
+        .into_iter()
+        .filter(|s| s.traces_triangles())
+        .collect()
+}
+
+/// Every registered surface is listed and chosen by name; the default is the voxels'
+/// faces, whose plan composes no triangle code.
+#[test]
+fn every_surface_is_a_registered_slot() {
+    use voxlab::technique::{SURFACES, Slot, listing};
+    let rows = listing();
+    for s in SURFACES {
+        assert!(
+            rows.iter()
+                .any(|r| r.name == s.name && r.slot == Slot::Surface),
+            "{} is not listed",
+            s.name
+        );
+        assert_eq!(
+            voxlab::render::Surface::named(s.name).map(|x| x.0),
+            Some(*s)
+        );
+        let text = format!("[render]\nsurface = \"{}\"\n", s.name);
+        // The seed scene has no mesh: only the parser's acceptance of the name is
+        // checked here (the loader may refuse the surface for this scene).
+        if let Err(e) = voxlab::experiment::Experiment::from_str(&text, "x.toml") {
+            assert!(!e.to_string().contains("must be"), "{}: {e}", s.name);
+        }
+    }
+    assert!(!voxlab::technique::default_surface().traces_triangles());
+    assert!(triangle_surfaces().len() >= 2);
 }

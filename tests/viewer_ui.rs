@@ -1054,6 +1054,12 @@ fn an_edit_drops_the_comparison_with_the_old_reference() {
 
 use voxlab::viewer::display::{ViewMode, Zoom};
 
+const SMOOTH_SURFACE: voxlab::render::Surface =
+    voxlab::render::Surface(&voxlab::technique::smooth::SURFACE);
+
+const SPARSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
+
 #[test]
 fn view_modes_compare_the_same_pixels_and_b_flips_the_sides() {
     let mut rig = Rig::new(small_area_lights(), false);
@@ -1304,19 +1310,13 @@ fn the_walk_and_the_surface_are_chosen_in_the_render_panel() {
     rig.harness.get_by_label("sparse").click();
     rig.harness.run_steps(2);
     let settings = &rig.state().base.settings;
-    assert_eq!(settings.surface, voxlab::render::Surface::Smooth);
-    assert_eq!(settings.traversal, voxlab::render::Traversal::Sparse);
+    assert_eq!(settings.surface, SMOOTH_SURFACE);
+    assert_eq!(settings.traversal, SPARSE_WALK);
     for side in Side::BOTH {
         let jobs = rig.take_side_jobs(side);
         let job = jobs.last().expect("both sides restart");
-        assert_eq!(
-            job.experiment.settings.surface,
-            voxlab::render::Surface::Smooth
-        );
-        assert_eq!(
-            job.experiment.settings.traversal,
-            voxlab::render::Traversal::Sparse
-        );
+        assert_eq!(job.experiment.settings.surface, SMOOTH_SURFACE);
+        assert_eq!(job.experiment.settings.traversal, SPARSE_WALK);
     }
 }
 

@@ -14,7 +14,7 @@ use rayon::prelude::*;
 
 pub use dda::{Dda, Hit, Visit, cast, cast_over, cast_through, cast_with};
 
-use crate::plan::{Plan, Traversal};
+use crate::plan::Plan;
 use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Rules, Transmittance};
 use crate::scene::{Material, Scene};
 use crate::sparse::SparseTree;
@@ -184,7 +184,9 @@ impl Prepared {
             cones: cone::ConeScene::new(scene, settings, plan),
             shadow_model: (plan.shadow_model.cpu)(scene, settings),
             terms: plan.terms.clone(),
-            tree: (plan.traversal == Traversal::Sparse)
+            tree: plan
+                .traversal
+                .walks_tree
                 .then(|| grid.tree(crate::sparse::GPU_LOG_BRANCH)),
             surfaces,
         }

@@ -34,10 +34,6 @@ const MODULES: &[(&str, &str)] = &[
         include_str!("../../shaders/sampling.wgsl"),
     ),
     (
-        "shaders/sparse.wgsl",
-        include_str!("../../shaders/sparse.wgsl"),
-    ),
-    (
         "shaders/triangles.wgsl",
         include_str!("../../shaders/triangles.wgsl"),
     ),
@@ -162,12 +158,11 @@ fn lighting_terms_module(plan: &Plan) -> String {
 
 /// Composes and validates the tracer kernel for `plan`. Pure CPU: no device needed.
 pub fn compose_shader(plan: &Plan) -> Result<naga::Module, ShaderError> {
-    let mut defs: HashMap<_, _> = plan.shader_defs().into_iter().collect();
-    // shaders/sparse.wgsl is resolved in every variant, and naga_oil substitutes its
-    // level count even where `#ifdef SPARSE` leaves the code out.
-    defs.entry("SPARSE_LEVELS".to_string())
-        .or_insert(ShaderDefValue::UInt(1));
+    let defs: HashMap<_, _> = plan.shader_defs().into_iter().collect();
     let mut modules = MODULES.to_vec();
+    // The traversal's regions, which the walks (shaders/traversal.wgsl, the last of
+    // MODULES) import.
+    modules.insert(modules.len() - 1, plan.traversal.wgsl);
     modules.push(plan.transmittance.wgsl);
     modules.extend_from_slice(SHADOW_MODULES);
     modules.push(plan.shadow_model.wgsl);
@@ -197,15 +192,30 @@ pub fn validate(module: &naga::Module) -> Result<naga::valid::ModuleInfo, String
 mod tests {
     use super::*;
 
+    /// Composes `plan`'s kernel and writes it as SPIR-V, as wgpu's Vulkan backend does
+    /// when it makes the pipeline: naga's SPIR-V writer refuses (panics on) some IR its
+    /// validator accepts, such as a pointer to a struct member passed as an argument.
+    fn compose_to_spirv(plan: &Plan) -> naga::Module {
+        let module = compose_shader(plan).unwrap_or_else(|e| panic!("{e}"));
+        let info = validate(&module).unwrap();
+        naga::back::spv::write_vec(&module, &info, &naga::back::spv::Options::default(), None)
+            .unwrap_or_else(|e| panic!("SPIR-V of {plan}: {e}"));
+        module
+    }
+
     #[test]
     fn every_plan_variant_composes_and_validates() {
         for stack in [1, 9] {
-            for plan in Plan::all_variants(stack) {
-                let module = compose_shader(&plan).unwrap_or_else(|e| panic!("{e}"));
-                assert!(
-                    module.entry_points.iter().any(|e| e.name == ENTRY_POINT),
-                    "no entry point for {plan}"
-                );
+            for mut plan in Plan::all_variants(stack) {
+                for traversal in crate::technique::TRAVERSALS {
+                    plan.traversal = traversal;
+                    plan.tree_levels = if traversal.walks_tree { 3 } else { 0 };
+                    let module = compose_to_spirv(&plan);
+                    assert!(
+                        module.entry_points.iter().any(|e| e.name == ENTRY_POINT),
+                        "no entry point for {plan}"
+                    );
+                }
             }
         }
     }
@@ -217,9 +227,9 @@ mod tests {
                 Plan::all_variants(9).pop().unwrap(),
                 Plan::all_variants(1)[0].clone(),
             ] {
-                plan.traversal = crate::plan::Traversal::Sparse;
+                plan.traversal = crate::technique::traversal("sparse").unwrap();
                 plan.tree_levels = levels;
-                compose_shader(&plan).unwrap_or_else(|e| panic!("{levels} levels: {e}"));
+                compose_to_spirv(&plan);
             }
         }
     }

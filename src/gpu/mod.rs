@@ -787,7 +787,7 @@ impl GpuTracer {
 
     /// Whether a render of `plan` reads the voxel buffer: the dense walk does.
     fn reads_voxel_buffer(plan: &Plan) -> bool {
-        plan.traversal != crate::plan::Traversal::Sparse
+        !plan.traversal.walks_tree
     }
 
     /// Bytes of the voxel buffer of a grid of `dims` (a whole number of vec4<u32>).
@@ -938,8 +938,7 @@ impl GpuTracer {
         scene: &Scene,
         plan: &Plan,
     ) -> Result<Option<std::sync::Arc<crate::triangles::SurfaceTrace>>> {
-        use crate::render::Surface;
-        if plan.surface == Surface::Voxels {
+        if !plan.surface.traces_triangles() {
             self.surfaces = None;
             return Ok(None);
         }
@@ -953,11 +952,7 @@ impl GpuTracer {
             Some(u) => h.update(u.hash.as_bytes()),
             None => h.update(g.content_hash().as_bytes()),
         };
-        if plan.surface == Surface::Mesh
-            && let Some(m) = &scene.mesh
-        {
-            m.hash_into(&mut h);
-        }
+        (plan.surface.hash_inputs)(scene, &mut h);
         let key = h.finalize();
         if let Some(u) = self.surfaces.as_ref().filter(|u| u.key == key) {
             return Ok(Some(u.trace.clone()));
@@ -1394,12 +1389,17 @@ impl GpuTracer {
         let mut plan = plan;
         plan.dda_unroll = self.dda_unroll;
         let voxel_bytes = Self::voxel_buffer_bytes(scene.grid.dims());
-        if settings.traversal == crate::render::Traversal::Auto
-            && plan.traversal != crate::plan::Traversal::Sparse
+        let tree_walk = crate::technique::TRAVERSALS
+            .iter()
+            .copied()
+            .find(|t| t.walks_tree);
+        if let Some(tree_walk) = tree_walk
+            && settings.traversal == crate::render::Traversal::Auto
+            && Self::reads_voxel_buffer(&plan)
             && voxel_bytes > self.max_voxel_buffer_bytes()
         {
-            // The device cannot bind the dense grid: the tree is the only way.
-            plan.traversal = crate::plan::Traversal::Sparse;
+            // The device cannot bind the dense grid: a walk over the tree is the only way.
+            plan.traversal = tree_walk;
             plan.tree_levels =
                 crate::sparse::levels_for(scene.grid.dims(), crate::sparse::GPU_LOG_BRANCH);
             plan.traversal_reason = format!(
@@ -1440,7 +1440,7 @@ impl GpuTracer {
             // Dropped while renders walk the tree.
             g.voxels = None;
         }
-        let (tree_bytes, tree_time) = if plan.traversal == crate::plan::Traversal::Sparse {
+        let (tree_bytes, tree_time) = if plan.traversal.walks_tree {
             let start = Instant::now();
             (self.upload_tree(walk_grid, walk_hash)?, start.elapsed())
         } else {

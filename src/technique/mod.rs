@@ -27,17 +27,35 @@
 //! `voxlab::lighting_terms` composed for the plan, `crate::gpu::compose`). The cone
 //! techniques share the march and the pyramids (`crate::cpu::cone`,
 //! `shaders/cone.wgsl`) and the `[cones]` settings, declared in [`cones`].
+//!
+//! A traversal is one [`TraversalModel`] value in its own file (name, summary, plan
+//! rule, its claim under `render.traversal = "auto"`, WGSL module `voxlab::regions`, and
+//! the data it walks), registered with one line in [`TRAVERSALS`]: the seed's `dense`
+//! DDA ([`dense`]) and the `sparse` 64-tree ([`sparse`], the seed's O2). Every walk, on
+//! both backends, is the one DDA of `shaders/traversal.wgsl` and `crate::cpu::dda` over
+//! the regions the traversal finds; all give the same visits.
+//!
+//! A surface is one [`SurfaceModel`] value in its own file (name, summary, plan rule,
+//! and where its triangles come from), registered with one line in [`SURFACES`]: the
+//! seed's `voxels` ([`voxels`]), the scene's `mesh` ([`mesh`]) and the grid's `smooth`
+//! surface ([`smooth`]), the seed's O6. Triangle surfaces share the cell lists and the
+//! watertight test (`crate::triangles`, `shaders/triangles.wgsl`).
 
 pub mod ambient_occlusion;
 pub mod area;
 pub mod beer_lambert;
 pub mod cone;
 pub mod cones;
+pub mod dense;
 pub mod hard;
 pub mod indirect;
+pub mod mesh;
 pub mod min_kt;
 pub mod ratio;
 pub mod sdf;
+pub mod smooth;
+pub mod sparse;
+pub mod voxels;
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -65,6 +83,14 @@ pub const LIGHTING_TERMS: &[&LightingTerm] = &[&ambient_occlusion::TERM, &indire
 /// default (the baseline's). One line each.
 pub const TRANSMITTANCES: &[&TransmittanceModel] = &[&min_kt::MODEL, &beer_lambert::MODEL];
 
+/// Traversals, in the order they are listed and offered; the first is the default (the
+/// baseline's), which `auto` takes unless another claims the scene. One line each.
+pub const TRAVERSALS: &[&TraversalModel] = &[&dense::TRAVERSAL, &sparse::TRAVERSAL];
+
+/// Surfaces, in the order they are listed and offered; the first is the default (the
+/// baseline's voxel faces). One line each.
+pub const SURFACES: &[&SurfaceModel] = &[&voxels::SURFACE, &mesh::SURFACE, &smooth::SURFACE];
+
 /// A part of the model with several implementations.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Slot {
@@ -74,6 +100,10 @@ pub enum Slot {
     Transmittance,
     /// Terms added to the local light at every diffuse hit.
     Lighting,
+    /// How rays walk the grid to the voxels they visit.
+    Traversal,
+    /// What rays hit: voxel faces or triangles.
+    Surface,
 }
 
 impl Slot {
@@ -82,15 +112,19 @@ impl Slot {
             Slot::Shadow => "shadow model",
             Slot::Transmittance => "transmittance",
             Slot::Lighting => "lighting term",
+            Slot::Traversal => "traversal",
+            Slot::Surface => "surface",
         }
     }
 
-    /// The `[features]` key that chooses the slot's technique.
+    /// The experiment key that chooses the slot's technique.
     pub fn key(self) -> &'static str {
         match self {
             Slot::Shadow => "features.shadow_model",
             Slot::Transmittance => "features.transmittance",
             Slot::Lighting => "features.<name> = true",
+            Slot::Traversal => "render.traversal",
+            Slot::Surface => "render.surface",
         }
     }
 }
@@ -582,6 +616,134 @@ pub fn default_shadow_model() -> &'static ShadowModel {
     SHADOW_MODELS[0]
 }
 
+/// A traversal's claim on a scene under `render.traversal = "auto"`: `Ok(why)` or
+/// `Err(why not)`.
+pub type AutoClaim = fn(&Scene) -> Result<String, String>;
+
+/// A traversal: how rays walk the grid, everything about it in one value. Every
+/// traversal gives the dense DDA's visits (voxels, distances, faces), so images do not
+/// depend on it; only the time and the memory do. A walk asks it for the uniform region
+/// around the voxel it is in and leaves a region of the ray's medium whole
+/// (`shaders/traversal.wgsl`'s `dda_region`/`dda_skip`, `crate::cpu::Dda`).
+pub struct TraversalModel {
+    /// Its name in experiment files (`render.traversal`) and lists.
+    pub name: &'static str,
+    /// What it is, one line, with the paper or section it follows.
+    pub summary: &'static str,
+    /// How printed plans describe it (`dense DDA`).
+    pub label: &'static str,
+    /// Whether it can walk this scene: `Err(reason)` when not (the experiment loader
+    /// refuses it when asked for by name; `auto` passes it by).
+    pub plan: fn(&Scene, &RenderSettings) -> Result<(), String>,
+    /// Its claim under `render.traversal = "auto"`: `Ok(why)` when it should walk this
+    /// scene, `Err(why not)`; `None` for the default, which walks what no other claims.
+    /// Of several claims the last registered wins.
+    pub auto: Option<AutoClaim>,
+    /// Its WGSL module (path, source): `#define_import_path voxlab::regions` with `const
+    /// REGIONS_ARE_VOXELS: bool`, `struct RegionCursor` (what it keeps between look-ups),
+    /// `fn region_cursor() -> RegionCursor` and `fn region_at(c: ptr<function,
+    /// RegionCursor>, v: vec3<i32>) -> Region` (shaders/types.wgsl), the region around
+    /// voxel `v`.
+    pub wgsl: (&'static str, &'static str),
+    /// Whether it walks the grid's sparse tree (`crate::sparse`, `TREE_LEVELS` levels,
+    /// bound as `tree`; on the CPU `SparseTree::region`) rather than the dense grid's
+    /// voxel buffer (one voxel a region). Only the data it walks is made and uploaded.
+    pub walks_tree: bool,
+}
+
+// A traversal is its name, as a shadow model is.
+impl PartialEq for TraversalModel {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+    }
+}
+
+impl Eq for TraversalModel {}
+
+impl fmt::Debug for TraversalModel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "TraversalModel({})", self.name)
+    }
+}
+
+impl TraversalModel {
+    /// Its index in [`TRAVERSALS`] (keys the kernel variant).
+    pub fn index(&self) -> u32 {
+        TRAVERSALS
+            .iter()
+            .position(|t| t.name == self.name)
+            .expect("registered") as u32
+    }
+}
+
+/// The traversal called `name`.
+pub fn traversal(name: &str) -> Option<&'static TraversalModel> {
+    TRAVERSALS.iter().copied().find(|t| t.name == name)
+}
+
+/// The default traversal: the baseline's.
+pub fn default_traversal() -> &'static TraversalModel {
+    TRAVERSALS[0]
+}
+
+/// Where a triangle surface's triangles come from, in world coordinates.
+pub type SurfaceTriangles =
+    fn(&Scene) -> Result<std::borrow::Cow<'_, crate::surface::SurfaceMesh>, String>;
+
+/// A surface: what rays hit, everything about it in one value. The default hits the
+/// voxels' faces; the others trace triangles found through the voxels they overlap
+/// (`crate::triangles`, `shaders/triangles.wgsl`, `TRIANGLES`) and differ only in where
+/// the triangles come from.
+pub struct SurfaceModel {
+    /// Its name in experiment files (`render.surface`) and lists.
+    pub name: &'static str,
+    /// What it is, one line, with the paper or section it follows.
+    pub summary: &'static str,
+    /// How printed plans describe it (`triangles of the scene's mesh`).
+    pub label: &'static str,
+    /// Its own plan rule, beside the limits every triangle surface shares
+    /// (`crate::plan::check_surface`): `Err(reason)` gives voxels instead (the
+    /// experiment loader refuses it).
+    pub plan: fn(&Scene, &RenderSettings) -> Result<(), String>,
+    /// Its triangles; `None` for the voxels' faces.
+    pub triangles: Option<SurfaceTriangles>,
+    /// What its triangles depend on beyond the grid (the scene's mesh), hashed into the
+    /// device's cache key.
+    pub hash_inputs: fn(&Scene, &mut blake3::Hasher),
+}
+
+// A surface is its name, as a shadow model is.
+impl PartialEq for SurfaceModel {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+    }
+}
+
+impl Eq for SurfaceModel {}
+
+impl fmt::Debug for SurfaceModel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "SurfaceModel({})", self.name)
+    }
+}
+
+impl SurfaceModel {
+    /// Whether rays hit triangles (not the voxels' faces).
+    pub fn traces_triangles(&self) -> bool {
+        self.triangles.is_some()
+    }
+}
+
+/// The surface called `name`.
+pub fn surface(name: &str) -> Option<&'static SurfaceModel> {
+    SURFACES.iter().copied().find(|t| t.name == name)
+}
+
+/// The default surface: the baseline's voxel faces.
+pub fn default_surface() -> &'static SurfaceModel {
+    SURFACES[0]
+}
+
 /// One row of the listing: name, slot, how it is switched on, settings, summary.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ListingRow {
@@ -597,7 +759,7 @@ pub fn listing() -> Vec<ListingRow> {
     let shadow = SHADOW_MODELS.iter().map(|m| ListingRow {
         name: m.name,
         slot: Slot::Shadow,
-        switch: format!("shadow_model = \"{}\"", m.name),
+        switch: format!("features.shadow_model = \"{}\"", m.name),
         settings: m
             .shared_settings
             .iter()
@@ -613,25 +775,44 @@ pub fn listing() -> Vec<ListingRow> {
     let transmittances = TRANSMITTANCES.iter().map(|m| ListingRow {
         name: m.name,
         slot: Slot::Transmittance,
-        switch: format!("transmittance = \"{}\"", m.name),
+        switch: format!("features.transmittance = \"{}\"", m.name),
         settings: m.settings.iter().map(|s| s.to_string()).collect(),
         summary: m.summary,
     });
     let terms = LIGHTING_TERMS.iter().map(|t| ListingRow {
         name: t.name,
         slot: Slot::Lighting,
-        switch: format!("{} = true", t.name),
+        switch: format!("features.{} = true", t.name),
         settings: t.shared_settings.iter().map(|s| s.to_string()).collect(),
         summary: t.summary,
     });
-    shadow.chain(transmittances).chain(terms).collect()
+    let traversals = TRAVERSALS.iter().map(|t| ListingRow {
+        name: t.name,
+        slot: Slot::Traversal,
+        switch: format!("render.traversal = \"{}\"", t.name),
+        settings: Vec::new(),
+        summary: t.summary,
+    });
+    let surfaces = SURFACES.iter().map(|t| ListingRow {
+        name: t.name,
+        slot: Slot::Surface,
+        switch: format!("render.surface = \"{}\"", t.name),
+        settings: Vec::new(),
+        summary: t.summary,
+    });
+    shadow
+        .chain(transmittances)
+        .chain(terms)
+        .chain(traversals)
+        .chain(surfaces)
+        .collect()
 }
 
 /// The listing as a markdown table (what `voxlab techniques --markdown` prints and the
 /// README's table must equal).
 pub fn listing_markdown() -> String {
     let mut out = String::from(
-        "| technique | slot | `[features]` | settings | what it is |\n|---|---|---|---|---|\n",
+        "| technique | slot | switch | settings | what it is |\n|---|---|---|---|---|\n",
     );
     for r in listing() {
         let settings = if r.settings.is_empty() {

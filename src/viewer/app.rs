@@ -1139,14 +1139,14 @@ impl ViewerApp {
                         ui,
                         "traversal",
                         &mut settings.traversal,
-                        &crate::render::Traversal::ALL,
+                        &crate::render::Traversal::all(),
                         crate::render::Traversal::name,
                     );
                     changed |= choice_row(
                         ui,
                         "surface",
                         &mut settings.surface,
-                        &crate::render::Surface::ALL,
+                        &crate::render::Surface::all(),
                         crate::render::Surface::name,
                     );
                 });

@@ -1,22 +1,20 @@
-// The sparse 64-tree of uniform regions (SPARSE; src/sparse.rs builds it and documents
-// its layout): the region around a voxel, found by descending from the root. The walks
-// (traversal.wgsl, shadow.wgsl, shadow_surface.wgsl) leave a region whole with
-// dda_skip; the f64 reference does the same with crate::sparse::SparseTree::region.
-#define_import_path voxlab::sparse
+// The sparse traversal (src/technique/sparse.rs): the grid's 64-tree of uniform regions
+// (src/sparse.rs builds it and documents its layout). The region around a voxel is
+// found by descending from the root, or from the node of the previous look-up when the
+// voxel lies in its cube, as most steps near surfaces do; the walks (traversal.wgsl)
+// leave a region whole with dda_skip. The f64 reference does the same with
+// crate::sparse::SparseTree::region and crate::cpu::Dda::skip_region.
+#define_import_path voxlab::regions
 
-#import voxlab::bindings::{params, tree, voxel_material}
+#import voxlab::types::Region
+#import voxlab::bindings::{params, tree}
 
-#ifdef SPARSE
+// Regions are the tree's uniform children: traversal.wgsl's dda_skip leaves them whole.
+const REGIONS_ARE_VOXELS: bool = false;
+
 // The tree as vec4s: the header, then 5 per node: (mask of child nodes, low and high
 // 32 children; index of the first child node; 0), then 16 words of materials.
 const NODE_VEC4S: u32 = 5u;
-
-// A uniform region: its material and its cube `lo + [0, size)^3`, clipped to the grid.
-struct Region {
-    material: u32,
-    lo: vec3<i32>,
-    hi: vec3<i32>,
-}
 
 // The descent's state: the node, the shift of its children's side (2 per level), and
 // the material once a uniform child holds the voxel.
@@ -28,7 +26,7 @@ struct Descent {
 }
 
 // One level: the child of the current node that holds v is either uniform (found) or
-// the node to descend into. Written once and repeated SPARSE_LEVELS times in
+// the node to descend into. Written once and repeated TREE_LEVELS times in
 // region_below rather than looped: Mesa's software driver limits back edges, not work
 // (shaders/counters.wgsl).
 fn descend(v: vec3<u32>, d: ptr<function, Descent>) {
@@ -50,8 +48,8 @@ fn descend(v: vec3<u32>, d: ptr<function, Descent>) {
     (*d).shift -= 2u;
 }
 
-// The shift of the root's children: the root's cube is 4^SPARSE_LEVELS a side.
-const ROOT_SHIFT: u32 = 2u * (#{SPARSE_LEVELS}u - 1u);
+// The shift of the root's children: the root's cube is 4^TREE_LEVELS a side.
+const ROOT_SHIFT: u32 = 2u * (#{TREE_LEVELS}u - 1u);
 
 // What a descent found: the region, and the node and children's shift it ended at (the
 // start of the next descent when the next voxel lies in that node's cube).
@@ -70,25 +68,25 @@ fn region_below(v: vec3<i32>, node: u32, shift: u32) -> Found {
     d.shift = shift;
     d.found = false;
     descend(u, &d);
-#if SPARSE_LEVELS >= 2
+#if TREE_LEVELS >= 2
     if !d.found { descend(u, &d); }
 #endif
-#if SPARSE_LEVELS >= 3
+#if TREE_LEVELS >= 3
     if !d.found { descend(u, &d); }
 #endif
-#if SPARSE_LEVELS >= 4
+#if TREE_LEVELS >= 4
     if !d.found { descend(u, &d); }
 #endif
-#if SPARSE_LEVELS >= 5
+#if TREE_LEVELS >= 5
     if !d.found { descend(u, &d); }
 #endif
-#if SPARSE_LEVELS >= 6
+#if TREE_LEVELS >= 6
     if !d.found { descend(u, &d); }
 #endif
-#if SPARSE_LEVELS >= 7
+#if TREE_LEVELS >= 7
     if !d.found { descend(u, &d); }
 #endif
-#if SPARSE_LEVELS >= 8
+#if TREE_LEVELS >= 8
     if !d.found { descend(u, &d); }
 #endif
     var f: Found;
@@ -100,32 +98,31 @@ fn region_below(v: vec3<i32>, node: u32, shift: u32) -> Found {
     return f;
 }
 
-// The uniform region holding voxel v, from the root.
-fn voxel_region(v: vec3<i32>) -> Region {
-    return region_below(v, 0u, ROOT_SHIFT).region;
-}
-#else
-// Without SPARSE nothing calls it (naga_oil still resolves the module): the dense
-// grid's region of a voxel is the voxel.
-struct Region {
-    material: u32,
-    lo: vec3<i32>,
-    hi: vec3<i32>,
-}
-
-fn voxel_region(v: vec3<i32>) -> Region {
-    return Region(voxel_material(v), v, v + vec3<i32>(1));
-}
-
-const ROOT_SHIFT: u32 = 0u;
-
-struct Found {
-    region: Region,
+// The node the last region was found under, its children's shift and its cube
+// (voxel >> (shift + 2)): where the next look-up starts when its voxel is in that cube.
+struct RegionCursor {
     node: u32,
     shift: u32,
+    key: vec3<u32>,
 }
 
-fn region_below(v: vec3<i32>, node: u32, shift: u32) -> Found {
-    return Found(voxel_region(v), node, shift);
+// The root's cube holds every voxel of the grid.
+fn region_cursor() -> RegionCursor {
+    return RegionCursor(0u, ROOT_SHIFT, vec3<u32>(0u));
 }
-#endif
+
+// The uniform region holding voxel v (inside the grid).
+fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
+    let u = vec3<u32>(v);
+    var node = 0u;
+    var shift = ROOT_SHIFT;
+    if all((u >> vec3<u32>((*c).shift + 2u)) == (*c).key) {
+        node = (*c).node;
+        shift = (*c).shift;
+    }
+    let f = region_below(v, node, shift);
+    (*c).node = f.node;
+    (*c).shift = f.shift;
+    (*c).key = u >> vec3<u32>(f.shift + 2u);
+    return f.region;
+}

@@ -1,0 +1,36 @@
+//! The dense traversal, the seed's and the default: the 3D DDA of J. Amanatides and A.
+//! Woo, "A Fast Voxel Traversal Algorithm for Ray Tracing" (Eurographics 1987), voxel by
+//! voxel through the grid held as one byte a voxel.
+//!
+//! Contract: `src/trace_contract.md`, "cast"; every region is one voxel, so the walk
+//! never skips. It cannot walk a grid held only as its sparse tree (a loaded scene too
+//! large for the dense grid, `crate::scene::DENSE_MAX_VOXELS`).
+
+use super::TraversalModel;
+
+pub const TRAVERSAL: TraversalModel = TraversalModel {
+    name: "dense",
+    summary: "the 3D DDA voxel by voxel over the dense grid (the seed's; Amanatides and \
+              Woo 1987)",
+    label: "dense DDA",
+    plan: |scene, _| {
+        if scene.grid.is_sparse() {
+            let d = scene.grid.dims();
+            return Err(format!(
+                "it walks the dense grid, and this {}x{}x{} grid is held only as its sparse \
+                 tree (more than {} voxels)",
+                d.x,
+                d.y,
+                d.z,
+                crate::scene::DENSE_MAX_VOXELS
+            ));
+        }
+        Ok(())
+    },
+    auto: None,
+    wgsl: (
+        "shaders/traversal_dense.wgsl",
+        include_str!("../../shaders/traversal_dense.wgsl"),
+    ),
+    walks_tree: false,
+};
