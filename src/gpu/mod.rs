@@ -713,6 +713,24 @@ impl GpuTracer {
                 self.max_voxel_buffer_bytes()
             );
         }
+        if Self::reads_grid_texture(plan) && self.adapter.get_info().backend == wgpu::Backend::Gl {
+            // Measured with WGPU_BACKEND=gl on Mesa's llvmpipe: the main kernel agrees
+            // with the reference, but the device builds that read the grid texture do
+            // not (tests/cone_pyramid.rs and tests/sdf_shadows.rs fail: empty pyramids,
+            // a different field). Refused rather than rendered wrong.
+            bail!(
+                "{} builds its data on the device from the grid's 3D texture, which \
+                 wgpu's OpenGL backend ({}) does not read as the reference does; install a \
+                 Vulkan driver (Mesa's lavapipe: Debian package mesa-vulkan-drivers) or \
+                 render with --backend cpu",
+                if plan.pyramid.is_some() {
+                    "cone tracing"
+                } else {
+                    "the shadow model"
+                },
+                self.adapter.get_info().name
+            );
+        }
         let side = self.max_grid_side();
         if Self::reads_grid_texture(plan) && dims.max_element() > side {
             bail!(
