@@ -44,7 +44,7 @@ use crate::gpu::GpuTracer;
 use crate::metrics::{Domain, compare};
 use crate::output::{read_exr, write_frame};
 use crate::plan::Plan;
-use crate::render::{ConeSettings, Features, Frame, MAX_SAMPLES, RenderSettings, Transmittance};
+use crate::render::{Features, Frame, MAX_SAMPLES, RenderSettings, Transmittance};
 use crate::scene::{Light, PointLight, Scene};
 use crate::technique::Knob;
 
@@ -903,19 +903,22 @@ pub struct Reference {
 /// Settings of the reference's two halves.
 fn reference_halves(e: &Experiment, c: &AblateConfig) -> [RenderSettings; 2] {
     let features = reference_features(e);
-    // The cone knobs change the reference only through AO or indirect light; left at
-    // their defaults otherwise, so sweeping them keeps the cached reference.
-    let cones = if features.cones() {
-        e.settings.cones.clone()
-    } else {
-        ConeSettings::default()
-    };
-    let half = |k: usize, spp: u32| RenderSettings {
-        features: features.clone(),
-        spp,
-        seed: e.settings.seed.wrapping_add(REFERENCE_SEED_OFFSETS[k]),
-        cones: cones.clone(),
-        ..e.settings.clone()
+    // A shared group's knobs (the cone knobs) change the reference only where its
+    // features read them (AO, indirect light); left at their defaults otherwise, so
+    // sweeping them keeps the cached reference.
+    let half = |k: usize, spp: u32| {
+        let mut s = RenderSettings {
+            features: features.clone(),
+            spp,
+            seed: e.settings.seed.wrapping_add(REFERENCE_SEED_OFFSETS[k]),
+            ..e.settings.clone()
+        };
+        for g in crate::technique::SETTING_GROUPS {
+            if !(g.used)(&features) {
+                g.reset(&mut s);
+            }
+        }
+        s
     };
     let a = c.reference_spp / 2;
     [half(0, a), half(1, c.reference_spp - a)]
@@ -1738,7 +1741,9 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
     let mut render = write::render_table(s, e.scene.ambient);
     render.remove("spp");
     doc.insert("render".into(), render.into());
-    doc.insert("cones".into(), write::cones_table(&s.cones).into());
+    for g in crate::technique::SETTING_GROUPS {
+        doc.insert(g.table.into(), write::group_table(g, s).into());
+    }
     let mut ablate = Table::new();
     ablate.insert("reference_spp".into(), i64::from(c.reference_spp).into());
     ablate.insert(

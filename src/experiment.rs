@@ -25,9 +25,7 @@ use serde::Deserialize;
 
 use crate::surface::SurfaceMesh;
 
-use crate::render::{
-    ConeSettings, Features, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, RenderSettings,
-};
+use crate::render::{Features, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, RenderSettings};
 use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
 use crate::scene::{
     AreaLight, AreaShape, DENSE_MAX_VOXELS, Grid, Light, MAX_SPARSE_SIDE, MAX_VOXEL_SIZE,
@@ -157,7 +155,9 @@ struct RawExperiment {
     render: RawRender,
     /// `[features]`: checked against the declarations of `crate::technique`.
     features: Option<toml::Table>,
-    /// `[cones]`: checked against `crate::technique::cones::CONE_SETTINGS`.
+    /// The tables of the shared setting groups (`crate::technique::SETTING_GROUPS`),
+    /// each checked against its declarations (`apply_groups`); serde takes each table
+    /// as a field.
     cones: Option<toml::Table>,
     /// `[techniques.<name>]`: settings of plug-in techniques, checked against their
     /// declarations (`crate::technique`).
@@ -1079,7 +1079,7 @@ fn build(
     let d = RenderSettings::default();
     let side = 1..=MAX_IMAGE_SIDE as i64;
     let depth = 0..=MAX_DEPTH_LIMIT as i64;
-    let settings = RenderSettings {
+    let mut settings = RenderSettings {
         width: r.width.map_or(Ok(d.width), |v| {
             int_in(ctx, "render.width", v, side.clone())
         })?,
@@ -1128,7 +1128,8 @@ fn build(
         })?,
         features: build_features(raw.features.as_ref(), ctx)?,
         technique_params: build_technique_params(raw.techniques.as_ref(), ctx)?,
-        cones: build_cones(raw.cones.as_ref(), ctx)?,
+        // The shared groups' fields: their defaults here, the file's by apply_groups.
+        cones: d.cones.clone(),
         light_samples: r.light_samples.map_or(Ok(d.light_samples), |v| {
             int_in(ctx, "render.light_samples", v, 1..=MAX_SAMPLES as i64)
         })?,
@@ -1172,6 +1173,8 @@ fn build(
             )
         })?,
     };
+    // serde takes each group's table as a field of RawExperiment.
+    apply_groups(&[("cones", raw.cones.as_ref())], &mut settings, ctx)?;
     let ambient = match r.ambient {
         Some(a) => vec3_where(ctx, "render.ambient", a, |x| x >= 0.0, ">= 0")?,
         None => SEED_AMBIENT,
@@ -1421,21 +1424,32 @@ fn build_technique_params(
     Ok(params)
 }
 
-/// `[cones]`, each key checked against its declaration; keys left out keep the
-/// defaults.
-fn build_cones(t: Option<&toml::Table>, ctx: &Ctx) -> Result<ConeSettings, ExperimentError> {
-    use crate::technique::cones::{CONE_SETTINGS, cone_setting};
-    let mut cones = ConeSettings::default();
-    let Some(t) = t else {
-        return Ok(cones);
-    };
-    let declared: Vec<&crate::technique::Setting> =
-        CONE_SETTINGS.iter().map(|c| &c.setting).collect();
-    for (setting, v) in declared_values(t, "cones", &declared, ctx)? {
-        let c = cone_setting(setting.key).expect("declared");
-        (c.set)(&mut cones, v);
+/// The shared groups' tables (`tables`: each group's table name and the file's table,
+/// if given) into `settings`, each key checked against its declaration; keys left out
+/// keep the defaults.
+fn apply_groups(
+    tables: &[(&str, Option<&toml::Table>)],
+    settings: &mut RenderSettings,
+    ctx: &Ctx,
+) -> Result<(), ExperimentError> {
+    for g in crate::technique::SETTING_GROUPS {
+        let given = tables.iter().find(|(name, _)| *name == g.table);
+        debug_assert!(
+            given.is_some(),
+            "RawExperiment has no field for [{}]",
+            g.table
+        );
+        let Some(t) = given.and_then(|(_, t)| *t) else {
+            continue;
+        };
+        let declared: Vec<&crate::technique::Setting> =
+            g.settings.iter().map(|c| &c.setting).collect();
+        for (setting, v) in declared_values(t, g.table, &declared, ctx)? {
+            let c = g.setting(setting.key).expect("declared");
+            (c.set)(settings, v);
+        }
     }
-    Ok(cones)
+    Ok(())
 }
 
 /// The values of a table of declared settings (`[cones]`, `[techniques.<name>]`):

@@ -21,7 +21,7 @@ use glam::DVec3;
 use toml::{Table, Value};
 
 use super::{Ctx, Experiment, ExperimentError};
-use crate::render::{ConeSettings, Features, RenderSettings};
+use crate::render::{Features, RenderSettings};
 use crate::scene::{AreaShape, Light, Material, OrbitCamera};
 
 /// Why an experiment cannot be written as a file that parses back to it.
@@ -335,11 +335,12 @@ pub fn techniques_table(p: &crate::technique::TechniqueParams) -> Option<Table> 
     (!t.is_empty()).then_some(t)
 }
 
-/// `[cones]`: every knob, each in its declared type (`crate::technique::cones`).
-pub fn cones_table(c: &ConeSettings) -> Table {
-    crate::technique::cones::CONE_SETTINGS
+/// A shared group's table (`crate::technique::SETTING_GROUPS`): every setting, each in
+/// its declared type.
+pub fn group_table(g: &crate::technique::SettingGroup, s: &RenderSettings) -> Table {
+    g.settings
         .iter()
-        .map(|k| (k.setting.key.to_string(), k.setting.toml_value((k.get)(c))))
+        .map(|k| (k.setting.key.to_string(), k.setting.toml_value((k.get)(s))))
         .collect()
 }
 
@@ -453,15 +454,14 @@ pub fn to_toml(e: &Experiment, scene_source: &Table) -> Result<String, WriteErro
         &features,
         &crate::technique::feature_keys(),
     )?;
-    section(
-        "[cones]",
-        "cones",
-        &cones_table(&e.settings.cones),
-        &crate::technique::cones::CONE_SETTINGS
-            .iter()
-            .map(|c| c.setting.key)
-            .collect::<Vec<_>>(),
-    )?;
+    for g in crate::technique::SETTING_GROUPS {
+        section(
+            &format!("[{}]", g.table),
+            g.table,
+            &group_table(g, &e.settings),
+            &g.settings.iter().map(|c| c.setting.key).collect::<Vec<_>>(),
+        )?;
+    }
     if let Some(t) = techniques_table(&e.settings.technique_params) {
         for (name, v) in &t {
             if let Value::Table(table) = v {

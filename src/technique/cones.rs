@@ -1,18 +1,19 @@
 //! The settings of voxel cone tracing (`[cones]`), declared once: cone shadows, ambient
 //! occlusion and indirect light share the pyramid and the march (C. Crassin et al.,
 //! "Interactive Indirect Illumination Using Voxel Cone Tracing", CGF 30(7), 2011).
-//! The parser, the writer, the viewer's cone knobs, `ConeSettings::default` and the
-//! listing take the type, default and range from here.
+//! The parser, the writer, the viewer's cone knobs, `voxlab ablate`, `ConeSettings::
+//! default` and the listing take the type, default and range from here, through
+//! [`GROUP`] (registered in `SETTING_GROUPS`).
 
-use super::{Kind, Setting};
-use crate::render::ConeSettings;
+use super::{GroupSetting, Kind, Setting, SettingGroup};
 
-/// A `[cones]` setting and the field of `ConeSettings` it is.
-pub struct ConeSetting {
-    pub setting: Setting,
-    pub get: fn(&ConeSettings) -> f64,
-    pub set: fn(&mut ConeSettings, f64),
-}
+/// The `[cones]` table: read by every technique that reads the pyramids.
+pub const GROUP: SettingGroup = SettingGroup {
+    table: "cones",
+    title: "cone knobs",
+    settings: CONE_SETTINGS,
+    used: |f| f.cones(),
+};
 
 const fn float(
     key: &'static str,
@@ -32,8 +33,8 @@ const fn float(
 }
 
 /// Every `[cones]` key, in the order the file lists them.
-pub const CONE_SETTINGS: &[ConeSetting] = &[
-    ConeSetting {
+pub const CONE_SETTINGS: &[GroupSetting] = &[
+    GroupSetting {
         setting: Setting {
             key: "levels",
             kind: Kind::Int {
@@ -44,10 +45,10 @@ pub const CONE_SETTINGS: &[ConeSetting] = &[
             doc: "pyramid levels; 0 chooses automatically",
             sweep: &[],
         },
-        get: |c| c.levels as f64,
-        set: |c, v| c.levels = v as u32,
+        get: |s| s.cones.levels as f64,
+        set: |s, v| s.cones.levels = v as u32,
     },
-    ConeSetting {
+    GroupSetting {
         setting: float(
             "step_factor",
             0.0,
@@ -56,10 +57,10 @@ pub const CONE_SETTINGS: &[ConeSetting] = &[
             0.5,
             "step length in footprints, dt = step_factor d",
         ),
-        get: |c| c.step_factor,
-        set: |c, v| c.step_factor = v,
+        get: |s| s.cones.step_factor,
+        set: |s, v| s.cones.step_factor = v,
     },
-    ConeSetting {
+    GroupSetting {
         setting: float(
             "aperture_deg",
             0.0,
@@ -68,10 +69,10 @@ pub const CONE_SETTINGS: &[ConeSetting] = &[
             5.0,
             "shadow-cone aperture for point lights, degrees",
         ),
-        get: |c| c.aperture_deg,
-        set: |c, v| c.aperture_deg = v,
+        get: |s| s.cones.aperture_deg,
+        set: |s, v| s.cones.aperture_deg = v,
     },
-    ConeSetting {
+    GroupSetting {
         setting: float(
             "start_offset",
             0.0,
@@ -80,10 +81,10 @@ pub const CONE_SETTINGS: &[ConeSetting] = &[
             1.0,
             "cone apex offset along the normal, voxels",
         ),
-        get: |c| c.start_offset,
-        set: |c, v| c.start_offset = v,
+        get: |s| s.cones.start_offset,
+        set: |s, v| s.cones.start_offset = v,
     },
-    ConeSetting {
+    GroupSetting {
         setting: Setting {
             key: "ao_cones",
             kind: Kind::Int { min: 1, max: 64 },
@@ -91,10 +92,10 @@ pub const CONE_SETTINGS: &[ConeSetting] = &[
             doc: "hemisphere cones for ambient occlusion and indirect light",
             sweep: &[],
         },
-        get: |c| c.ao_cones as f64,
-        set: |c, v| c.ao_cones = v as u32,
+        get: |s| s.cones.ao_cones as f64,
+        set: |s, v| s.cones.ao_cones = v as u32,
     },
-    ConeSetting {
+    GroupSetting {
         setting: float(
             "ao_range",
             0.0,
@@ -103,10 +104,10 @@ pub const CONE_SETTINGS: &[ConeSetting] = &[
             6.0,
             "range of the AO cones, voxels",
         ),
-        get: |c| c.ao_range,
-        set: |c, v| c.ao_range = v,
+        get: |s| s.cones.ao_range,
+        set: |s, v| s.cones.ao_range = v,
     },
-    ConeSetting {
+    GroupSetting {
         setting: float(
             "indirect_strength",
             0.0,
@@ -115,13 +116,13 @@ pub const CONE_SETTINGS: &[ConeSetting] = &[
             1.0,
             "scale of the one-bounce indirect term",
         ),
-        get: |c| c.indirect_strength,
-        set: |c, v| c.indirect_strength = v,
+        get: |s| s.cones.indirect_strength,
+        set: |s, v| s.cones.indirect_strength = v,
     },
 ];
 
 /// The declaration of `[cones] key`.
-pub fn cone_setting(key: &str) -> Option<&'static ConeSetting> {
+pub fn cone_setting(key: &str) -> Option<&'static GroupSetting> {
     CONE_SETTINGS.iter().find(|c| c.setting.key == key)
 }
 

@@ -91,6 +91,46 @@ pub const TRAVERSALS: &[&TraversalModel] = &[&dense::TRAVERSAL, &sparse::TRAVERS
 /// baseline's voxel faces). One line each.
 pub const SURFACES: &[&SurfaceModel] = &[&voxels::SURFACE, &mesh::SURFACE, &smooth::SURFACE];
 
+/// Tables of settings several techniques share, in the order files list them. One line
+/// each.
+pub const SETTING_GROUPS: &[&SettingGroup] = &[&cones::GROUP];
+
+/// A table of settings several techniques share (`[cones]`: the cone techniques' march
+/// and pyramids), declared once. The parser, the writer, the viewer's panels and `voxlab
+/// ablate` go through [`SETTING_GROUPS`] and name no group.
+pub struct SettingGroup {
+    /// Its table in experiment files, and the prefix of its keys (`cones.levels`).
+    pub table: &'static str,
+    /// The title of its panel in the viewer.
+    pub title: &'static str,
+    /// Its settings, in the order files list them.
+    pub settings: &'static [GroupSetting],
+    /// Whether a render with these features reads it: the viewer shows its panel then,
+    /// and `voxlab ablate`'s reference keeps the experiment's values only then.
+    pub used: fn(&crate::render::Features) -> bool,
+}
+
+/// One setting of a [`SettingGroup`] and the field of `RenderSettings` it is.
+pub struct GroupSetting {
+    pub setting: Setting,
+    pub get: fn(&RenderSettings) -> f64,
+    pub set: fn(&mut RenderSettings, f64),
+}
+
+impl SettingGroup {
+    /// Its setting `key` (without the table's prefix).
+    pub fn setting(&self, key: &str) -> Option<&'static GroupSetting> {
+        self.settings.iter().find(|g| g.setting.key == key)
+    }
+
+    /// Sets every one of its settings in `settings` to the declared default.
+    pub fn reset(&self, settings: &mut RenderSettings) {
+        for g in self.settings {
+            (g.set)(settings, g.setting.default);
+        }
+    }
+}
+
 /// A part of the model with several implementations.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Slot {
@@ -379,30 +419,34 @@ pub fn reference_shadow_model() -> &'static ShadowModel {
 /// The declaration of a shared table's setting by `table.key` (`cones.step_factor`),
 /// where one is declared ([`cones`]).
 pub fn shared_setting(key: &str) -> Option<&'static Setting> {
-    cone_key(key).map(|c| &c.setting)
+    group_key(key).map(|c| &c.setting)
 }
 
-/// The `[cones]` setting `cones.<key>`.
-fn cone_key(key: &str) -> Option<&'static cones::ConeSetting> {
-    cones::cone_setting(key.strip_prefix("cones.")?)
+/// The group setting `<table>.<key>`.
+fn group_key(key: &str) -> Option<&'static GroupSetting> {
+    let (table, key) = key.split_once('.')?;
+    SETTING_GROUPS
+        .iter()
+        .find(|g| g.table == table)?
+        .setting(key)
 }
 
-/// The value of the shared setting `key` in `settings`: a `[cones]` key, or the
+/// The value of the shared setting `key` in `settings`: a group's key, or the
 /// `[render]` sample counts models read.
 pub fn get_shared(settings: &RenderSettings, key: &str) -> Option<f64> {
     match key {
         "render.light_samples" => Some(f64::from(settings.light_samples)),
         "render.spp" => Some(f64::from(settings.spp)),
-        _ => cone_key(key).map(|c| (c.get)(&settings.cones)),
+        _ => group_key(key).map(|c| (c.get)(settings)),
     }
 }
 
 /// Sets the shared setting `key` in `settings` (checked by the caller); false for an
 /// unknown key.
 pub fn set_shared(settings: &mut RenderSettings, key: &str, v: f64) -> bool {
-    match cone_key(key) {
+    match group_key(key) {
         Some(c) => {
-            (c.set)(&mut settings.cones, v);
+            (c.set)(settings, v);
             true
         }
         None => false,
@@ -852,7 +896,10 @@ pub fn listing_text() -> String {
                 let k = key.strip_prefix(&format!("techniques.{}.", m.name))?;
                 Some((format!("[techniques.{}]", m.name), m.setting(k)?))
             });
-            let declared = own.or_else(|| Some(("[cones]".to_string(), shared_setting(key)?)));
+            let declared = own.or_else(|| {
+                let (table, _) = key.split_once('.')?;
+                Some((format!("[{table}]"), shared_setting(key)?))
+            });
             out += &match declared {
                 Some((table, s)) => format!(
                     "  {table} {} = {} ({}; {})\n",

@@ -1355,15 +1355,19 @@ impl ViewerApp {
                 );
             }
         });
-        if s.features.cones() {
-            egui::CollapsingHeader::new("cone knobs")
-                .id_salt(("cones", i))
+        // The shared groups' panels, where the side's features read them.
+        for g in crate::technique::SETTING_GROUPS
+            .iter()
+            .filter(|g| (g.used)(&s.features))
+        {
+            egui::CollapsingHeader::new(g.title)
+                .id_salt((g.table, i))
                 .show(ui, |ui| {
-                    egui::Grid::new(("cone-grid", i)).show(ui, |ui| {
-                        for c in crate::technique::cones::CONE_SETTINGS {
-                            let mut v = (c.get)(&s.cones);
+                    egui::Grid::new((g.table, "grid", i)).show(ui, |ui| {
+                        for c in g.settings {
+                            let mut v = (c.get)(&s.groups);
                             if setting_row(ui, &c.setting, &mut v) {
-                                (c.set)(&mut s.cones, v);
+                                (c.set)(&mut s.groups, v);
                                 changed = true;
                             }
                         }
@@ -1405,7 +1409,7 @@ impl ViewerApp {
                 if u.total > 1 {
                     let per_frame = self.state.rendered(side).settings.light_samples;
                     ui.label(format!(
-                        "{} samples per pixel and area light",
+                        "{} light samples per pixel and light",
                         u64::from(u.frames) * u64::from(per_frame)
                     ));
                 }
@@ -1447,10 +1451,11 @@ impl ViewerApp {
             );
         if ui
             .button("Error vs reference")
-            .on_hover_text(
-                "Renders each side's converged reference (area lights sampled, no cones, \
-                 an independent seed) and compares: RMSE and PSNR live, FLIP now",
-            )
+            .on_hover_text(format!(
+                "Renders each side's converged reference (shadow model {}, an independent \
+                 seed) and compares: RMSE and PSNR live, FLIP now",
+                crate::technique::reference_shadow_model().title
+            ))
             .clicked()
         {
             self.request_error();

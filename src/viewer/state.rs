@@ -15,7 +15,7 @@ use anyhow::{Result, anyhow};
 
 use crate::experiment::write::{relocate_scene_source, to_toml};
 use crate::experiment::{Experiment, SceneCache};
-use crate::render::{ConeSettings, Features, RenderSettings};
+use crate::render::{Features, RenderSettings};
 use crate::scene::{Light, OrbitCamera};
 
 /// The two halves of the split view.
@@ -76,7 +76,9 @@ impl ShadowModel {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SideSettings {
     pub features: Features,
-    pub cones: ConeSettings,
+    /// The side's values of the shared setting groups (`[cones]`,
+    /// `crate::technique::SETTING_GROUPS`): only those fields are read.
+    pub groups: RenderSettings,
     /// Settings of plug-in techniques (`[techniques.<name>]`).
     pub technique_params: crate::technique::TechniqueParams,
     /// Light samples per pixel, light and frame (`render.light_samples`).
@@ -89,7 +91,7 @@ impl SideSettings {
     pub fn from_settings(s: &RenderSettings, max_spp: u32) -> Self {
         Self {
             features: s.features.clone(),
-            cones: s.cones.clone(),
+            groups: s.clone(),
             technique_params: s.technique_params.clone(),
             light_samples: s.light_samples,
             max_spp,
@@ -247,7 +249,11 @@ impl ViewerState {
         let s = &self.sides[side.index()];
         let mut e = self.base.clone();
         e.settings.features = s.features.clone();
-        e.settings.cones = s.cones.clone();
+        for g in crate::technique::SETTING_GROUPS {
+            for c in g.settings {
+                (c.set)(&mut e.settings, (c.get)(&s.groups));
+            }
+        }
         e.settings.technique_params = s.technique_params.clone();
         e.settings.light_samples = s.light_samples;
         e.settings.spp = spp.max(1);
