@@ -794,6 +794,7 @@ pub fn bench_trees(name: &str, scene: &Scene, size: u32) -> Vec<TreeRow> {
             let (t, s) = SparseTree::build_timed(&scene.grid, b);
             (Some(t), s.time)
         };
+        let regions = tree.as_ref().map(|t| t as &dyn crate::sparse::Regions);
         let start = std::time::Instant::now();
         let mut stats = RayStats::default();
         let mut rays = 0u64;
@@ -801,13 +802,13 @@ pub fn bench_trees(name: &str, scene: &Scene, size: u32) -> Vec<TreeRow> {
             for i in 0..size {
                 let d = cam.primary_dir(i, j, size, size);
                 let medium = scene.medium_at(cam.eye);
-                let (hit, steps) = cast_over(&scene.grid, tree.as_ref(), cam.eye, d, medium, true);
+                let (hit, steps) = cast_over(&scene.grid, regions, cam.eye, d, medium, true);
                 stats.voxel_steps += steps;
                 rays += 1;
                 if let Some(h) = hit {
                     let q = cam.eye + h.t * d + 1e-3 * scene.grid.voxel_size() * h.normal;
                     for l in &scene.lights {
-                        shadow_min_kt_over(scene, tree.as_ref(), q, l.position(), &mut stats);
+                        shadow_min_kt_over(scene, regions, q, l.position(), &mut stats);
                         rays += 1;
                     }
                 }

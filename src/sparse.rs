@@ -363,6 +363,21 @@ impl Region {
     }
 }
 
+/// The uniform regions of a grid as a traversal finds them on the CPU (the f64 twin of
+/// its WGSL `region_at`, `crate::technique::TraversalModel::cpu`): the walks
+/// (`crate::cpu::Dda`) leave a region of the ray's medium whole. Without one every
+/// region is a voxel, read from the grid.
+pub trait Regions: Send + Sync {
+    /// The uniform region holding voxel `v` (inside the grid).
+    fn region(&self, v: IVec3) -> Region;
+}
+
+impl Regions for SparseTree {
+    fn region(&self, v: IVec3) -> Region {
+        SparseTree::region(self, v)
+    }
+}
+
 /// A sparse hierarchical grid: see the module documentation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SparseTree {

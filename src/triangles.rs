@@ -34,7 +34,7 @@ use crate::cpu::{Dda, Hit};
 use crate::render::{RayStats, Transmittance};
 use crate::scene::voxelize::tri_box_overlap;
 use crate::scene::{Grid, Material, Scene, VOID};
-use crate::sparse::SparseTree;
+use crate::sparse::Regions;
 use crate::surface::SurfaceMesh;
 
 /// The material index the walks read for a cell; no scene with triangle surfaces may
@@ -436,7 +436,7 @@ impl SurfaceTrace {
     pub fn transmittance(
         &self,
         scene: &Scene,
-        tree: Option<&SparseTree>,
+        regions: Option<&dyn Regions>,
         model: Transmittance,
         q: DVec3,
         light: DVec3,
@@ -462,7 +462,7 @@ impl SurfaceTrace {
         if walk.pass(0.0, medium) {
             return DVec3::ZERO;
         }
-        let mut dda = Dda::over(&self.tagged, tree, q, dir, len);
+        let mut dda = Dda::over(&self.tagged, regions, q, dir, len);
         let ray = WatertightRay::new(q, dir);
         let mut tests = 0;
         let mut after = 0.0;

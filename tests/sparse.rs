@@ -12,7 +12,7 @@ use voxlab::RayStats;
 use voxlab::cpu::{Dda, cast_over, shadow_beer_lambert_over, shadow_min_kt_over};
 use voxlab::render::{RenderSettings, Traversal};
 use voxlab::scene::{Grid, Material, Scene, seed_scene};
-use voxlab::sparse::SparseTree;
+use voxlab::sparse::{Regions, SparseTree};
 
 const DENSE_WALK: voxlab::render::Traversal =
     voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
@@ -88,7 +88,7 @@ fn transitions(
     o: DVec3,
     d: DVec3,
 ) -> (Vec<(IVec3, f64, DVec3, u8)>, u64) {
-    let mut dda = Dda::over(g, tree, o, d, f64::INFINITY);
+    let mut dda = Dda::over(g, tree.map(|t| t as &dyn Regions), o, d, f64::INFINITY);
     let mut out = Vec::new();
     let mut medium = None;
     while let Some(v) = dda.next() {
@@ -256,7 +256,7 @@ fn casts_in_every_medium_hit_what_the_dense_cast_hits() {
             for medium in 0..4 {
                 for exit_hits in [true, false] {
                     let (want, _) = cast_over(&g, None, o, d, medium, exit_hits);
-                    let (got, _) = cast_over(&g, Some(&t), o, d, medium, exit_hits);
+                    let (got, _) = cast_over(&g, Some(&t as &dyn Regions), o, d, medium, exit_hits);
                     assert_eq!(got, want, "medium {medium}, ray {o} + t {d}");
                 }
             }
@@ -302,10 +302,11 @@ fn shadow_transmittances_equal_the_dense_walks() {
             let light = q + len * d;
             let mut stats = RayStats::default();
             let want = shadow_min_kt_over(&scene, None, q, light, &mut stats);
-            let got = shadow_min_kt_over(&scene, Some(&t), q, light, &mut stats);
+            let got = shadow_min_kt_over(&scene, Some(&t as &dyn Regions), q, light, &mut stats);
             assert_eq!(got, want, "min-kt, {q} to {light}");
             let want = shadow_beer_lambert_over(&scene, None, q, light, &mut stats);
-            let got = shadow_beer_lambert_over(&scene, Some(&t), q, light, &mut stats);
+            let got =
+                shadow_beer_lambert_over(&scene, Some(&t as &dyn Regions), q, light, &mut stats);
             // The per-voxel lengths telescope to the region's: equal up to rounding.
             assert!(
                 (got - want).abs().max_element() <= 1e-12 * want.max_element().max(1e-300),

@@ -112,7 +112,7 @@ fn clear_and_opaque_materials_give_exactly_one_or_zero_in_every_model() {
         let (q, l) = (point(&mut rng), point(&mut rng));
         let mut values = Vec::new();
         for t in every_model() {
-            for tr in [None, Some(&tree)] {
+            for tr in [None, Some(&tree as &dyn voxlab::sparse::Regions)] {
                 let v = shadow_transmittance_over(&scene, tr, t, q, l, &mut RayStats::default());
                 assert!(
                     v == DVec3::ONE || v == DVec3::ZERO,
@@ -167,8 +167,14 @@ fn the_tree_walk_is_the_dense_walk_in_every_model() {
             };
             let (q, l) = (p(&mut rng), p(&mut rng));
             let dense = shadow_transmittance_over(&scene, None, t, q, l, &mut RayStats::default());
-            let sparse =
-                shadow_transmittance_over(&scene, Some(&tree), t, q, l, &mut RayStats::default());
+            let sparse = shadow_transmittance_over(
+                &scene,
+                Some(&tree as &dyn voxlab::sparse::Regions),
+                t,
+                q,
+                l,
+                &mut RayStats::default(),
+            );
             assert!(
                 (dense - sparse).abs().max_element() < 1e-12,
                 "{}: {dense} against {sparse}",

@@ -47,7 +47,17 @@ fn cast(
     d: DVec3,
     medium: u8,
 ) -> Option<Hit> {
-    cast_through(&trace.tagged, tree, Some(trace), o, d, medium, true, &mut 0).0
+    cast_through(
+        &trace.tagged,
+        tree.map(|t| t as &dyn voxlab::sparse::Regions),
+        Some(trace),
+        o,
+        d,
+        medium,
+        true,
+        &mut 0,
+    )
+    .0
 }
 
 /// Whether the ray touches the soup's silhouette: it meets a triangle on an edge or
@@ -251,7 +261,7 @@ fn first_hits_and_chords_equal_brute_force_through_vertices_and_edges() {
                 through += 1;
                 let chord = want[1] - want[0];
                 let walk = ShadowWalk {
-                    tree: None,
+                    regions: None,
                     surfaces: Some(&trace),
                     medium: VOID,
                 };

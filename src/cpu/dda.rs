@@ -7,7 +7,7 @@
 use glam::{DVec3, IVec3};
 
 use crate::scene::Grid;
-use crate::sparse::{Region, SparseTree};
+use crate::sparse::{Region, Regions};
 use crate::triangles::{SURFACE_TAG, SurfaceTrace, WatertightRay};
 
 /// One voxel on a ray's path.
@@ -27,9 +27,9 @@ pub struct Visit {
 /// `steps` counts moves from one voxel to the next (the "voxel steps" of the benchmarks).
 pub struct Dda<'a> {
     grid: &'a Grid,
-    /// With a tree, [`Dda::skip_region`] leaves a uniform region at once.
-    tree: Option<&'a SparseTree>,
-    /// The uniform region of the voxel last visited (that voxel alone without a tree).
+    /// The traversal's regions: [`Dda::skip_region`] leaves one at once.
+    regions: Option<&'a dyn Regions>,
+    /// The uniform region of the voxel last visited (that voxel alone without regions).
     region: Region,
     origin: DVec3,
     dir: DVec3,
@@ -89,18 +89,19 @@ impl<'a> Dda<'a> {
         Self::over(grid, None, origin, dir, t_limit)
     }
 
-    /// [`Dda::new`] over `grid` as `tree` holds it (the same voxels), so that
-    /// [`Dda::skip_region`] can leave a uniform region at once. Without a tree it is `new`.
+    /// [`Dda::new`] over `grid` as a traversal's `regions` hold it (the same voxels), so
+    /// that [`Dda::skip_region`] can leave a uniform region at once. Without regions it
+    /// is `new`.
     pub fn over(
         grid: &'a Grid,
-        tree: Option<&'a SparseTree>,
+        regions: Option<&'a dyn Regions>,
         origin: DVec3,
         dir: DVec3,
         t_limit: f64,
     ) -> Self {
         let mut dda = Self {
             grid,
-            tree,
+            regions,
             region: Region {
                 material: crate::scene::VOID,
                 lo: IVec3::ZERO,
@@ -206,8 +207,8 @@ impl Dda<'_> {
 
     /// The material of `v` (inside the grid), and its region for [`Dda::skip_region`].
     fn look_up(&mut self, v: IVec3) -> u8 {
-        self.region = match self.tree {
-            Some(tree) => tree.region(v),
+        self.region = match self.regions {
+            Some(r) => r.region(v),
             None => Region {
                 material: self.grid.get(v),
                 lo: v,
@@ -222,7 +223,7 @@ impl Dda<'_> {
     /// next visit is the first voxel past the region, with the distance and face the
     /// dense walk gives it. The dense walk leaves a box at its earliest exit plane `(t*,
     /// a*)`, ties to the lowest axis; every plane of another axis that comes before it
-    /// in that order has been crossed by then. A no-op without a tree or in a region of
+    /// in that order has been crossed by then. A no-op without regions or in a region of
     /// one voxel.
     pub fn skip_region(&mut self) {
         if self.done || self.region.is_voxel() {
@@ -337,17 +338,17 @@ pub fn cast_with(
     cast_over(grid, None, origin, dir, medium, exit_hits)
 }
 
-/// [`cast_with`] over `grid` as `tree` holds it: regions of the ray's medium are left
+/// [`cast_with`] over `grid` as `regions` hold it: regions of the ray's medium are left
 /// whole (the same hit; the steps count the moves made).
 pub fn cast_over(
     grid: &Grid,
-    tree: Option<&SparseTree>,
+    regions: Option<&dyn Regions>,
     origin: DVec3,
     dir: DVec3,
     medium: u8,
     exit_hits: bool,
 ) -> (Option<Hit>, u64) {
-    cast_through(grid, tree, None, origin, dir, medium, exit_hits, &mut 0)
+    cast_through(grid, regions, None, origin, dir, medium, exit_hits, &mut 0)
 }
 
 /// [`cast_over`] with triangle surfaces (`crate::triangles`): `grid` is then their
@@ -356,7 +357,7 @@ pub fn cast_over(
 #[allow(clippy::too_many_arguments)]
 pub fn cast_through(
     grid: &Grid,
-    tree: Option<&SparseTree>,
+    regions: Option<&dyn Regions>,
     surfaces: Option<&SurfaceTrace>,
     origin: DVec3,
     dir: DVec3,
@@ -364,7 +365,7 @@ pub fn cast_through(
     exit_hits: bool,
     tests: &mut u64,
 ) -> (Option<Hit>, u64) {
-    let mut dda = Dda::over(grid, tree, origin, dir, f64::INFINITY);
+    let mut dda = Dda::over(grid, regions, origin, dir, f64::INFINITY);
     let ray = surfaces.map(|_| WatertightRay::new(origin, dir));
     let mut hit = None;
     while let Some(v) = dda.next() {

@@ -17,7 +17,7 @@ pub use dda::{Dda, Hit, Visit, cast, cast_over, cast_through, cast_with};
 use crate::plan::Plan;
 use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Rules, Transmittance};
 use crate::scene::{Material, Scene};
-use crate::sparse::SparseTree;
+use crate::sparse::Regions;
 use crate::triangles::SurfaceTrace;
 
 /// What the CPU backend is, for printing next to a GPU adapter's name.
@@ -162,8 +162,9 @@ pub struct Prepared {
     pub shadow_model: Box<dyn crate::technique::CpuShadow>,
     /// The plan's lighting terms.
     pub terms: Vec<&'static crate::technique::LightingTerm>,
-    /// The sparse tree of the grid the walks read, when the plan traverses it.
-    pub tree: Option<std::sync::Arc<SparseTree>>,
+    /// The planned traversal's regions of the grid the walks read (its `cpu`), when it
+    /// has any (the dense walk reads the grid's voxels).
+    pub regions: Option<std::sync::Arc<dyn Regions>>,
     /// The triangle surfaces, when the plan traces them.
     pub surfaces: Option<SurfaceTrace>,
 }
@@ -184,10 +185,7 @@ impl Prepared {
             cones: cone::ConeScene::new(scene, settings, plan),
             shadow_model: (plan.shadow_model.cpu)(scene, settings),
             terms: plan.terms.clone(),
-            tree: plan
-                .traversal
-                .walks_tree
-                .then(|| grid.tree(crate::sparse::GPU_LOG_BRANCH)),
+            regions: plan.traversal.cpu.map(|regions| regions(grid)),
             surfaces,
         }
     }
@@ -203,7 +201,7 @@ impl Prepared {
 /// which only the triangle walk needs: the voxel walk reads it from the grid).
 #[derive(Clone, Copy, Default)]
 pub struct ShadowWalk<'a> {
-    pub tree: Option<&'a SparseTree>,
+    pub regions: Option<&'a dyn Regions>,
     pub surfaces: Option<&'a SurfaceTrace>,
     pub medium: u8,
 }
@@ -212,7 +210,7 @@ impl<'a> ShadowWalk<'a> {
     /// The walk of `prepared`'s structures from a point in `medium`.
     pub fn new(prepared: &'a Prepared, medium: u8) -> Self {
         Self {
-            tree: prepared.tree.as_deref(),
+            regions: prepared.regions.as_deref(),
             surfaces: prepared.surfaces.as_ref(),
             medium,
         }
@@ -263,7 +261,7 @@ pub fn trace_ray_with(
         let exit_hits = settings.rules == Rules::Consistent;
         let (hit, steps) = cast_through(
             walk_grid,
-            prepared.tree.as_deref(),
+            prepared.regions.as_deref(),
             prepared.surfaces.as_ref(),
             ray.origin,
             ray.dir,
@@ -480,11 +478,11 @@ pub fn shadow_transmittance(
     light: DVec3,
     stats: &mut RayStats,
 ) -> DVec3 {
-    let tree = walk.tree;
+    let regions = walk.regions;
     if let Some(s) = walk.surfaces {
-        return s.transmittance(scene, tree, model, q, light, walk.medium, stats);
+        return s.transmittance(scene, regions, model, q, light, walk.medium, stats);
     }
-    shadow_transmittance_over(scene, tree, model, q, light, stats)
+    shadow_transmittance_over(scene, regions, model, q, light, stats)
 }
 
 /// The transmittance of the segment from `q` to `light` over the voxels, as `tree`
@@ -492,7 +490,7 @@ pub fn shadow_transmittance(
 /// start voxel included, passes to `model` in order; nothing outside the grid absorbs.
 pub fn shadow_transmittance_over(
     scene: &Scene,
-    tree: Option<&SparseTree>,
+    regions: Option<&dyn Regions>,
     model: Transmittance,
     q: DVec3,
     light: DVec3,
@@ -506,7 +504,7 @@ pub fn shadow_transmittance_over(
     let m = model.model();
     let grid = &scene.grid;
     let vs = grid.voxel_size();
-    let mut dda = Dda::over(grid, tree, q, to_light / len, len);
+    let mut dda = Dda::over(grid, regions, q, to_light / len, len);
     let mut state = (m.start)();
     let mut opaque = false;
     while let Some(v) = dda.next() {

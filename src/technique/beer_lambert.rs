@@ -94,10 +94,10 @@ pub fn shadow_beer_lambert(
 /// counts at once (the per-voxel lengths telescope to it).
 pub fn shadow_beer_lambert_over(
     scene: &Scene,
-    tree: Option<&crate::sparse::SparseTree>,
+    regions: Option<&dyn crate::sparse::Regions>,
     q: DVec3,
     light: DVec3,
     stats: &mut crate::render::RayStats,
 ) -> DVec3 {
-    crate::cpu::shadow_transmittance_over(scene, tree, ID, q, light, stats)
+    crate::cpu::shadow_transmittance_over(scene, regions, ID, q, light, stats)
 }

@@ -33,4 +33,5 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
         include_str!("../../shaders/traversal_dense.wgsl"),
     ),
     walks_tree: false,
+    cpu: None,
 };

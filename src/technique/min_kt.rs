@@ -52,10 +52,10 @@ pub fn shadow_min_kt(
 /// [`shadow_min_kt`] over the grid as `tree` holds it: a uniform region counts once.
 pub fn shadow_min_kt_over(
     scene: &crate::scene::Scene,
-    tree: Option<&crate::sparse::SparseTree>,
+    regions: Option<&dyn crate::sparse::Regions>,
     q: DVec3,
     light: DVec3,
     stats: &mut crate::render::RayStats,
 ) -> f64 {
-    crate::cpu::shadow_transmittance_over(scene, tree, ID, q, light, stats).x
+    crate::cpu::shadow_transmittance_over(scene, regions, ID, q, light, stats).x
 }

@@ -660,6 +660,9 @@ pub fn default_shadow_model() -> &'static ShadowModel {
     SHADOW_MODELS[0]
 }
 
+/// A traversal's f64 regions of a grid.
+pub type CpuRegions = fn(&crate::scene::Grid) -> std::sync::Arc<dyn crate::sparse::Regions>;
+
 /// A traversal's claim on a scene under `render.traversal = "auto"`: `Ok(why)` or
 /// `Err(why not)`.
 pub type AutoClaim = fn(&Scene) -> Result<String, String>;
@@ -689,10 +692,13 @@ pub struct TraversalModel {
     /// RegionCursor>, v: vec3<i32>) -> Region` (shaders/types.wgsl), the region around
     /// voxel `v`.
     pub wgsl: (&'static str, &'static str),
-    /// Whether it walks the grid's sparse tree (`crate::sparse`, `TREE_LEVELS` levels,
-    /// bound as `tree`; on the CPU `SparseTree::region`) rather than the dense grid's
-    /// voxel buffer (one voxel a region). Only the data it walks is made and uploaded.
+    /// Whether the kernel walks the grid's sparse tree (`crate::sparse`, `TREE_LEVELS`
+    /// levels, bound as `tree`) rather than the dense grid's voxel buffer (one voxel a
+    /// region). Only the data it walks is made and uploaded.
     pub walks_tree: bool,
+    /// Its f64 regions of a grid, built once per render (`crate::sparse::Regions`, the
+    /// twin of its `region_at`); `None`: the grid's voxels, one a region.
+    pub cpu: Option<CpuRegions>,
 }
 
 // A traversal is its name, as a shadow model is.
