@@ -463,26 +463,24 @@ fn quiet_wayland_probe() {
     }
 }
 
-/// A `--traversal` value: `auto` or a registered traversal's name.
-fn parse_traversal(s: &str) -> Result<voxlab::render::Traversal, String> {
-    voxlab::render::Traversal::named(s).ok_or_else(|| {
-        let names: Vec<_> = voxlab::render::Traversal::all()
-            .into_iter()
-            .map(|t| t.name())
-            .collect();
+/// A value of an option that takes a name `voxlab techniques` lists: one of `all`.
+fn parse_named<T: Copy>(s: &str, all: Vec<T>, name: fn(T) -> &'static str) -> Result<T, String> {
+    all.iter().copied().find(|&t| name(t) == s).ok_or_else(|| {
+        let names: Vec<_> = all.iter().map(|&t| name(t)).collect();
         format!("must be one of {}", names.join(", "))
     })
 }
 
+/// A `--traversal` value: `auto` or a registered traversal's name.
+fn parse_traversal(s: &str) -> Result<voxlab::render::Traversal, String> {
+    use voxlab::render::Traversal;
+    parse_named(s, Traversal::all(), Traversal::name)
+}
+
 /// A `--surfaces` value: a registered surface's name.
 fn parse_surface(s: &str) -> Result<voxlab::render::Surface, String> {
-    voxlab::render::Surface::named(s).ok_or_else(|| {
-        let names: Vec<_> = voxlab::render::Surface::all()
-            .into_iter()
-            .map(|t| t.name())
-            .collect();
-        format!("must be one of {}", names.join(", "))
-    })
+    use voxlab::render::Surface;
+    parse_named(s, Surface::all(), Surface::name)
 }
 
 fn main() -> ExitCode {

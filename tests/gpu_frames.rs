@@ -12,6 +12,7 @@
 
 mod common;
 
+use common::DENSE_WALK;
 use common::{assert_agree, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
@@ -19,9 +20,6 @@ use rand::{RngExt, SeedableRng};
 use voxlab::render::{RenderSettings, Rules, Transmittance, Traversal};
 use voxlab::scene::seed::seed_camera;
 use voxlab::scene::{AreaLight, AreaShape, Grid, Light, PointLight, Scene, seed_palette};
-
-const DENSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
 
 /// A random scene of `dims`: glass, semi-solid and solid voxels (boxes, so there are
 /// faces to shade and shadows to cast) on a solid floor, with `lights` lights of

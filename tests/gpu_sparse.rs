@@ -8,6 +8,7 @@
 
 mod common;
 
+use common::{DENSE_WALK, SPARSE_WALK};
 use common::{assert_agree, assert_matches_golden, experiment, linear, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
@@ -16,11 +17,6 @@ use voxlab::render::{RenderSettings, Traversal};
 use voxlab::scene::{
     AreaLight, AreaShape, Grid, Light, Scene, seed_ids, seed_scene, seed_scene_dims,
 };
-
-const DENSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
-const SPARSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
 
 #[test]
 fn golden_baseline_images_with_the_tree_forced_on() {

@@ -7,22 +7,11 @@
 
 mod common;
 
+use common::{DENSE_WALK, MESH_SURFACE, SMOOTH_SURFACE, SPARSE_WALK, VOXELS_SURFACE};
 use common::{assert_agree, experiment, icosphere, mesh_scene, tracer};
 use glam::DVec3;
 use voxlab::render::RenderSettings;
 use voxlab::scene::{AreaLight, AreaShape, Light, seed_ids, seed_palette};
-
-const VOXELS_SURFACE: voxlab::render::Surface =
-    voxlab::render::Surface(&voxlab::technique::voxels::SURFACE);
-const MESH_SURFACE: voxlab::render::Surface =
-    voxlab::render::Surface(&voxlab::technique::mesh::SURFACE);
-const SMOOTH_SURFACE: voxlab::render::Surface =
-    voxlab::render::Surface(&voxlab::technique::smooth::SURFACE);
-
-const DENSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
-const SPARSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
 
 /// A 6 x 4 rect light above and in front of the scene's grid, facing it.
 fn add_area_light(scene: &mut voxlab::scene::Scene) {

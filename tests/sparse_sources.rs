@@ -7,6 +7,7 @@
 
 mod common;
 
+use common::{DENSE_WALK, SPARSE_WALK};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -18,11 +19,6 @@ use voxlab::scene::{
     write_vox,
 };
 use voxlab::sparse::{BoxOverlay, BrickSource, SparseTree, VoxelSource};
-
-const DENSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
-const SPARSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
 
 /// Dimensions that vary what the builder meets: one voxel, sides below, at and past a
 /// node's, non-cubic, odd and power-of-two grids.

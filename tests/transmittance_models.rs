@@ -9,6 +9,7 @@
 
 mod common;
 
+use common::{DENSE_WALK, SMOOTH_SURFACE, SPARSE_WALK};
 use common::{assert_agree, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
@@ -20,14 +21,6 @@ use voxlab::render::{RenderSettings, Transmittance};
 use voxlab::scene::{AreaLight, AreaShape, Grid, Light, seed_ids, seed_scene, seed_scene_dims};
 use voxlab::sparse::SparseTree;
 use voxlab::technique::{self, Slot, TRANSMITTANCES};
-
-const SMOOTH_SURFACE: voxlab::render::Surface =
-    voxlab::render::Surface(&voxlab::technique::smooth::SURFACE);
-
-const DENSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
-const SPARSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
 
 fn every_model() -> impl Iterator<Item = Transmittance> {
     TRANSMITTANCES.iter().map(|&m| Transmittance(m))

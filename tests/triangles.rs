@@ -10,6 +10,7 @@ mod common;
 
 use common::{icosphere, mesh_scene};
 
+use common::{DENSE_WALK, MESH_SURFACE, SPARSE_WALK, VOXELS_SURFACE};
 use glam::{DVec3, IVec3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -20,16 +21,6 @@ use voxlab::scene::{Light, Material, PointLight, Scene, VOID, seed_palette};
 use voxlab::sparse::SparseTree;
 use voxlab::surface::{DEFAULT_RELAX, extract_solid};
 use voxlab::triangles::{SURFACE_TAG, SurfaceTrace};
-
-const VOXELS_SURFACE: voxlab::render::Surface =
-    voxlab::render::Surface(&voxlab::technique::voxels::SURFACE);
-const MESH_SURFACE: voxlab::render::Surface =
-    voxlab::render::Surface(&voxlab::technique::mesh::SURFACE);
-
-const DENSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
-const SPARSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
 
 fn trace_of(scene: &Scene) -> SurfaceTrace {
     SurfaceTrace::build(

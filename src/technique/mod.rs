@@ -367,14 +367,6 @@ impl ShadowModel {
             .unwrap_or_else(|| panic!("{} has no setting {key}", self.name));
         settings.technique_params.get(self.name, s)
     }
-
-    /// Its index in [`SHADOW_MODELS`] (keys the kernel variant).
-    pub fn index(&self) -> u32 {
-        SHADOW_MODELS
-            .iter()
-            .position(|m| m.name == self.name)
-            .expect("registered") as u32
-    }
 }
 
 /// What a curve of `voxlab ablate` sweeps.
@@ -453,20 +445,44 @@ pub fn set_shared(settings: &mut RenderSettings, key: &str, v: f64) -> bool {
     }
 }
 
-// A model is its name: the registry holds one value per name.
-impl PartialEq for ShadowModel {
-    fn eq(&self, other: &Self) -> bool {
-        self.name == other.name
-    }
+/// A technique is its name: each registry holds one value per name, so two values are
+/// the same technique when their names are, and print as their name. Its index in its
+/// registry keys the kernel variant (a lighting term's is its bit in the key).
+macro_rules! named_by_name {
+    ($($t:ident in $registry:ident),*) => {$(
+        impl $t {
+            /// Its index in its registry.
+            pub fn index(&self) -> u32 {
+                $registry
+                    .iter()
+                    .position(|m| m.name == self.name)
+                    .expect("registered") as u32
+            }
+        }
+
+        impl PartialEq for $t {
+            fn eq(&self, other: &Self) -> bool {
+                self.name == other.name
+            }
+        }
+
+        impl Eq for $t {}
+
+        impl fmt::Debug for $t {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(f, concat!(stringify!($t), "({})"), self.name)
+            }
+        }
+    )*};
 }
 
-impl Eq for ShadowModel {}
-
-impl fmt::Debug for ShadowModel {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "ShadowModel({})", self.name)
-    }
-}
+named_by_name!(
+    ShadowModel in SHADOW_MODELS,
+    TransmittanceModel in TRANSMITTANCES,
+    LightingTerm in LIGHTING_TERMS,
+    TraversalModel in TRAVERSALS,
+    SurfaceModel in SURFACES
+);
 
 /// The plug-in shadow model called `name`.
 pub fn shadow_model(name: &str) -> Option<&'static ShadowModel> {
@@ -511,31 +527,6 @@ pub struct TransmittanceModel {
     /// The transmittance across one voxel of a material, for the cone pyramids'
     /// opacity `1 - T` (`crate::cpu::pyramid::material_alpha`).
     pub voxel_transmittance: fn(&Material, voxel_size: f64) -> f64,
-}
-
-// A model is its name, as a shadow model is.
-impl PartialEq for TransmittanceModel {
-    fn eq(&self, other: &Self) -> bool {
-        self.name == other.name
-    }
-}
-
-impl Eq for TransmittanceModel {}
-
-impl fmt::Debug for TransmittanceModel {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "TransmittanceModel({})", self.name)
-    }
-}
-
-impl TransmittanceModel {
-    /// Its index in [`TRANSMITTANCES`] (keys the kernel variant).
-    pub fn index(&self) -> u32 {
-        TRANSMITTANCES
-            .iter()
-            .position(|m| m.name == self.name)
-            .expect("registered") as u32
-    }
 }
 
 /// What a lighting term's CPU implementation is asked at one diffuse-or-not hit.
@@ -591,31 +582,6 @@ pub struct LightingTerm {
     pub wgsl: (&'static str, &'static str),
     /// Its f64 reference: the radiance it adds at the hit, before throughput.
     pub cpu: fn(&TermQuery) -> DVec3,
-}
-
-// A term is its name, as a shadow model is.
-impl PartialEq for LightingTerm {
-    fn eq(&self, other: &Self) -> bool {
-        self.name == other.name
-    }
-}
-
-impl Eq for LightingTerm {}
-
-impl fmt::Debug for LightingTerm {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "LightingTerm({})", self.name)
-    }
-}
-
-impl LightingTerm {
-    /// Its index in [`LIGHTING_TERMS`] (its bit in the kernel variant's key).
-    pub fn index(&self) -> u32 {
-        LIGHTING_TERMS
-            .iter()
-            .position(|t| t.name == self.name)
-            .expect("registered") as u32
-    }
 }
 
 /// The lighting term called `name` (or its short name).
@@ -701,31 +667,6 @@ pub struct TraversalModel {
     pub cpu: Option<CpuRegions>,
 }
 
-// A traversal is its name, as a shadow model is.
-impl PartialEq for TraversalModel {
-    fn eq(&self, other: &Self) -> bool {
-        self.name == other.name
-    }
-}
-
-impl Eq for TraversalModel {}
-
-impl fmt::Debug for TraversalModel {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "TraversalModel({})", self.name)
-    }
-}
-
-impl TraversalModel {
-    /// Its index in [`TRAVERSALS`] (keys the kernel variant).
-    pub fn index(&self) -> u32 {
-        TRAVERSALS
-            .iter()
-            .position(|t| t.name == self.name)
-            .expect("registered") as u32
-    }
-}
-
 /// The traversal called `name`.
 pub fn traversal(name: &str) -> Option<&'static TraversalModel> {
     TRAVERSALS.iter().copied().find(|t| t.name == name)
@@ -760,21 +701,6 @@ pub struct SurfaceModel {
     /// What its triangles depend on beyond the grid (the scene's mesh), hashed into the
     /// device's cache key.
     pub hash_inputs: fn(&Scene, &mut blake3::Hasher),
-}
-
-// A surface is its name, as a shadow model is.
-impl PartialEq for SurfaceModel {
-    fn eq(&self, other: &Self) -> bool {
-        self.name == other.name
-    }
-}
-
-impl Eq for SurfaceModel {}
-
-impl fmt::Debug for SurfaceModel {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "SurfaceModel({})", self.name)
-    }
 }
 
 impl SurfaceModel {

@@ -209,3 +209,15 @@ pub fn mesh_scene(
     };
     voxlab::scene::mesh::seed_lit_scene(&mesh, resolution, m).unwrap()
 }
+
+/// The registered traversals and surfaces the tests name.
+pub const DENSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
+pub const SPARSE_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
+pub const VOXELS_SURFACE: voxlab::render::Surface =
+    voxlab::render::Surface(&voxlab::technique::voxels::SURFACE);
+pub const MESH_SURFACE: voxlab::render::Surface =
+    voxlab::render::Surface(&voxlab::technique::mesh::SURFACE);
+pub const SMOOTH_SURFACE: voxlab::render::Surface =
+    voxlab::render::Surface(&voxlab::technique::smooth::SURFACE);
