@@ -1259,6 +1259,8 @@ fn build(
     // (a future generator using more materials than are defined).
     scene.validate().map_err(|e| ctx.invalid("scene", e))?;
     crate::plan::check_surface(&scene, &settings).map_err(|e| ctx.invalid("render.surface", e))?;
+    crate::plan::check_traversal(&scene, &settings)
+        .map_err(|e| ctx.invalid("render.traversal", e))?;
     crate::plan::check_sparse_grid(&scene, &settings).map_err(|(k, e)| ctx.invalid(k, e))?;
     // Cone pyramids scale with the grid: estimated before any render builds them.
     let plan = crate::plan::Plan::new(&scene, &settings);

@@ -175,8 +175,39 @@ pub fn check_surface(scene: &Scene, settings: &RenderSettings) -> Result<(), Str
     (surface.plan)(scene, settings)
 }
 
+/// The traversal `settings` name, when it can walk `scene` (its plan rule); the
+/// reason otherwise, for the experiment loader (the plan itself walks the scene with the
+/// `auto` choice and says why).
+pub fn check_traversal(scene: &Scene, settings: &RenderSettings) -> Result<(), String> {
+    let Traversal::Walk(t) = settings.traversal else {
+        return Ok(());
+    };
+    (t.plan)(scene, settings).map_err(|why| {
+        let others: Vec<String> = Traversal::all()
+            .into_iter()
+            .filter(|o| *o != settings.traversal)
+            .map(|o| format!("\"{}\"", o.name()))
+            .collect();
+        format!(
+            "\"{}\" cannot walk this scene: {why}; use {}",
+            t.name,
+            others.join(" or ")
+        )
+    })
+}
+
+/// The levels of the sparse tree `traversal` walks on a grid of `dims`; 0 for one that
+/// walks no tree.
+pub fn tree_levels(traversal: &TraversalModel, dims: glam::UVec3) -> u32 {
+    if traversal.walks_tree {
+        crate::sparse::levels_for(dims, crate::sparse::GPU_LOG_BRANCH)
+    } else {
+        0
+    }
+}
+
 /// What `settings` ask of a grid held only as its sparse tree that needs the dense grid:
-/// the dense walk, and the cone features (their pyramids are built from the dense grid).
+/// the cone features (their pyramids are built from the dense grid).
 /// The key that asks for it and why, for the experiment loader; the plan itself walks
 /// the tree and leaves the cone features out.
 pub fn check_sparse_grid(
@@ -194,23 +225,6 @@ pub fn check_sparse_grid(
         d.z,
         crate::scene::DENSE_MAX_VOXELS
     );
-    if let Traversal::Walk(t) = settings.traversal
-        && let Err(why) = (t.plan)(scene, settings)
-    {
-        let others: Vec<String> = Traversal::all()
-            .into_iter()
-            .filter(|o| *o != settings.traversal)
-            .map(|o| format!("\"{}\"", o.name()))
-            .collect();
-        return Err((
-            "render.traversal",
-            format!(
-                "\"{}\" cannot walk this scene: {why}; use {}",
-                t.name,
-                others.join(" or ")
-            ),
-        ));
-    }
     let f = &settings.features;
     let asked: Vec<String> = f
         .shadow_model
@@ -442,11 +456,7 @@ impl Plan {
             Ok(()) => (settings.surface, String::new()),
             Err(why) => (Surface::default(), format!("{why}; voxels instead")),
         };
-        let tree_levels = if traversal.walks_tree {
-            crate::sparse::levels_for(scene.grid.dims(), crate::sparse::GPU_LOG_BRANCH)
-        } else {
-            0
-        };
+        let tree_levels = tree_levels(traversal, scene.grid.dims());
 
         Self {
             traversal,

@@ -1418,8 +1418,7 @@ impl GpuTracer {
         {
             // The device cannot bind the dense grid: a walk over the tree is the only way.
             plan.traversal = tree_walk;
-            plan.tree_levels =
-                crate::sparse::levels_for(scene.grid.dims(), crate::sparse::GPU_LOG_BRANCH);
+            plan.tree_levels = crate::plan::tree_levels(tree_walk, scene.grid.dims());
             plan.traversal_reason = format!(
                 "auto: the dense grid's {voxel_bytes} bytes are more than this device binds \
                  ({}, max_storage_buffer_binding_size)",
