@@ -24,8 +24,9 @@ pub struct BenchOptions {
     pub cpu: bool,
     /// The walks compared at each size (`render.traversal`).
     pub traversals: Vec<Traversal>,
-    /// Experiments benchmarked after the seed scene, each with its own scene and its
-    /// camera, lights and materials, at the options' image size and depth limits.
+    /// Experiments benchmarked after the seed scene, each with its own scene, camera,
+    /// lights, materials and render settings (rules, depth limits, techniques), at the
+    /// options' image size and one sample per pixel: a row's time is one frame's.
     pub experiments: Vec<crate::experiment::Experiment>,
     /// Generated scenes benchmarked after the experiments (a large mesh, say).
     pub scenes: Vec<(String, Scene)>,
@@ -128,14 +129,14 @@ fn bench_gpu(
     gpu: &mut GpuTracer,
     name: &str,
     scene: &Scene,
-    opts: &BenchOptions,
+    (settings, runs): (&RenderSettings, usize),
     traversal: Traversal,
     surface: Surface,
 ) -> Result<BenchRow> {
     let s = &RenderSettings {
         traversal,
         surface,
-        ..opts.settings.clone()
+        ..settings.clone()
     };
     // The counted frame doubles as warm-up: it uploads the grid and builds the counting
     // pipeline; the first plain frame builds the timed pipeline and is discarded.
@@ -146,8 +147,8 @@ fn bench_gpu(
     // where nothing else is set up (no cone feature in the benchmark's settings).
     let build = gpu.last_setup_time();
     gpu.render(scene, s)?;
-    let mut times = Vec::with_capacity(opts.gpu_runs);
-    for _ in 0..opts.gpu_runs.max(1) {
+    let mut times = Vec::with_capacity(runs);
+    for _ in 0..runs.max(1) {
         let out = gpu.render(scene, s)?;
         times.push(gpu.last_gpu_time().unwrap_or(out.trace_time));
     }
@@ -168,14 +169,14 @@ fn bench_gpu(
 fn bench_cpu(
     name: &str,
     scene: &Scene,
-    opts: &BenchOptions,
+    (settings, runs): (&RenderSettings, usize),
     traversal: Traversal,
     surface: Surface,
 ) -> BenchRow {
     let s = &RenderSettings {
         traversal,
         surface,
-        ..opts.settings.clone()
+        ..settings.clone()
     };
     let plan = crate::plan::Plan::new(scene, s).traversal;
     let (bytes_per_voxel, build) = if plan.walks_tree {
@@ -186,8 +187,8 @@ fn bench_cpu(
         (1.0, Duration::ZERO)
     };
     let warm = crate::cpu::render(scene, s);
-    let mut times = Vec::with_capacity(opts.cpu_runs);
-    for _ in 0..opts.cpu_runs.max(1) {
+    let mut times = Vec::with_capacity(runs);
+    for _ in 0..runs.max(1) {
         times.push(crate::cpu::render(scene, s).trace_time);
     }
     BenchRow {
@@ -204,10 +205,10 @@ fn bench_cpu(
     }
 }
 
-/// A scene of the run: its name, the scene, and for a grid held only as its sparse tree
-/// the time that tree took to build from its source (the rows' build time; rebuilding
-/// it from itself would say nothing).
-type BenchScene = (String, Scene, Option<Duration>);
+/// A scene of the run: its name, the scene, the settings it renders with, and for a
+/// grid held only as its sparse tree the time that tree took to build from its source
+/// (the rows' build time; rebuilding it from itself would say nothing).
+type BenchScene = (String, Scene, RenderSettings, Option<Duration>);
 
 /// The scenes of `opts`, in order: the seed scene at each size, the experiments', the
 /// generated ones; each made when it is reached.
@@ -225,16 +226,24 @@ fn scenes(opts: &BenchOptions) -> impl Iterator<Item = Result<BenchScene>> + '_ 
             );
         }
         let held = scene.grid.is_sparse().then(|| start.elapsed());
-        Ok(("seed".to_string(), scene, held))
+        Ok(("seed".to_string(), scene, opts.settings.clone(), held))
     });
-    let experiments = opts
-        .experiments
-        .iter()
-        .map(|e| -> Result<BenchScene> { Ok((e.name.clone(), e.scene.clone(), None)) });
+    let experiments = opts.experiments.iter().map(|e| -> Result<BenchScene> {
+        // The experiment's own rules and techniques are what its rows measure (a
+        // `rules = "seed"` experiment is the like-for-like comparison with the seed's
+        // tracer); only the image size is the run's, and one frame is timed.
+        let settings = RenderSettings {
+            width: opts.settings.width,
+            height: opts.settings.height,
+            spp: 1,
+            ..e.settings.clone()
+        };
+        Ok((e.name.clone(), e.scene.clone(), settings, None))
+    });
     let generated = opts
         .scenes
         .iter()
-        .map(|(n, s)| Ok((n.clone(), s.clone(), None)));
+        .map(|(n, s)| Ok((n.clone(), s.clone(), opts.settings.clone(), None)));
     seeds.chain(experiments).chain(generated)
 }
 
@@ -244,7 +253,7 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
     let mut gpu = GpuTracer::new()?;
     let mut rows = Vec::new();
     for scene in scenes(opts) {
-        let (name, scene, held) = scene?;
+        let (name, scene, settings, held) = scene?;
         let held_build = |mut row: BenchRow| {
             if let Some(b) = held {
                 row.build = b;
@@ -254,7 +263,7 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
         for &surface in &opts.surfaces {
             let probe = RenderSettings {
                 surface,
-                ..opts.settings.clone()
+                ..settings.clone()
             };
             if crate::plan::check_surface(&scene, &probe).is_err() {
                 continue;
@@ -287,7 +296,7 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
             for &t in &walks {
                 // A row the device cannot render (the software driver's loop limit,
                 // its memory) is said and left out; the others are still measured.
-                match bench_gpu(&mut gpu, &name, &scene, opts, t, surface).map(held_build) {
+                match bench_gpu(&mut gpu, &name, &scene, (&settings, opts.gpu_runs), t, surface).map(held_build) {
                     Ok(row) => {
                         progress(&row);
                         rows.push(row);
@@ -302,7 +311,7 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
             }
             if opts.cpu {
                 for &t in &walks {
-                    let row = held_build(bench_cpu(&name, &scene, opts, t, surface));
+                    let row = held_build(bench_cpu(&name, &scene, (&settings, opts.cpu_runs), t, surface));
                     progress(&row);
                     rows.push(row);
                 }
@@ -352,11 +361,11 @@ pub fn surface_rows(opts: &BenchOptions) -> Result<Vec<SurfaceRow>> {
         return Ok(rows);
     }
     for scene in scenes(opts) {
-        let (name, scene, _) = scene?;
+        let (name, scene, settings, _) = scene?;
         for &surface in opts.surfaces.iter().filter(|s| s.traces_triangles()) {
             let probe = RenderSettings {
                 surface,
-                ..opts.settings.clone()
+                ..settings.clone()
             };
             if crate::plan::check_surface(&scene, &probe).is_err() {
                 continue;
@@ -405,7 +414,7 @@ pub fn surface_table(rows: &[SurfaceRow]) -> String {
 /// The table the README quotes: one line per grid size and backend, then the ratio.
 pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> String {
     let mut out = format!(
-        "{}x{}, depth {}/{}; GPU: {adapter}; CPU: {}\n\n\
+        "{}x{}, depth {}/{} (experiments: their own render settings, one frame); GPU: {adapter}; CPU: {}\n\n\
          | scene | surface | backend | walk | median ms/frame | timer | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | steps/ray | triangle tests/ray | bytes/voxel | build ms |\n\
          |---:|---|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         settings.width,
