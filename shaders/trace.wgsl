@@ -173,8 +173,28 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
 // One invocation per pixel and frame: the frames of a dispatch are its z, never a loop
 // in one invocation, so what one invocation does (and what the driver's loop limit sees,
 // shaders/counters.wgsl) is one frame's ray tree however many frames a dispatch holds.
+//
+// Which pixel an invocation traces. Workgroup (x, y) is the 8x8 tile x * groups.y + y of
+// the image's raster order: the host dispatches the tiles in stripes so that the
+// software driver's threads, each handed a contiguous run of workgroups, get equal
+// shares of the image (DISPATCH_STRIPES, src/gpu/mod.rs). In a tile, each run of 8
+// invocations (the software driver's SIMD vector, filled in local index order) is a
+// 4x2 block rather than a row of 8: nearer rays take more alike paths, and a vector
+// runs until its slowest lane is done.
 @compute @workgroup_size(8, 8, 1)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let tiles_x = (params.width + 7u) / 8u;
+    let tile = wid.x * groups.y + wid.y;
+    let block = li / 8u;
+    let gid = vec3<u32>(
+        (tile % tiles_x) * 8u + (block % 2u) * 4u + li % 4u,
+        (tile / tiles_x) * 8u + (block / 2u) * 2u + (li % 8u) / 4u,
+        wid.z,
+    );
     if gid.x >= params.width || gid.y >= params.height || gid.z >= params.frame_count {
         return;
     }

@@ -26,6 +26,26 @@ use util::{buffer, buffer_entry, extent, readback, storage_entry, uniform_entry}
 /// Side of the square workgroup (`@workgroup_size(8, 8, 1)` in `shaders/trace.wgsl`).
 const WORKGROUP: u32 = 8;
 
+/// Stripes of the trace dispatch: its x. Mesa's software driver hands each of its
+/// threads one contiguous run of a dispatch's workgroups (`lp_cs_tpool_queue_task`:
+/// `iter_per_thread = num_iters / num_threads`, in x-fastest order), so with the image's
+/// tiles in raster order one core traced the top half and the other the bottom, and the
+/// cheaper half's core sat idle (1.61 of 2 cores busy on the seed scene). The kernel
+/// reads workgroup (x, y) as tile x * groups.y + y of the image's raster order, so a
+/// run of workgroups is a run of y within every one of these stripes: each thread gets
+/// the same share of each 1/STRIPES band of the image. Hardware schedules workgroups
+/// dynamically and sees only another order.
+const DISPATCH_STRIPES: u32 = 128;
+
+/// The trace dispatch's workgroups per frame for a `width` x `height` image (see
+/// `DISPATCH_STRIPES`; `shaders/trace.wgsl`'s `main` maps them back to tiles). Some
+/// workgroups of the last stripe may lie past the image's tiles: they return at once.
+fn trace_workgroups(width: u32, height: u32) -> (u32, u32) {
+    let tiles = width.div_ceil(WORKGROUP) * height.div_ceil(WORKGROUP);
+    let stripes = tiles.clamp(1, DISPATCH_STRIPES);
+    (stripes, tiles.div_ceil(stripes))
+}
+
 /// `Params` of `shaders/types.wgsl`, in WGSL uniform layout (vec3 aligned to 16 bytes,
 /// a scalar filling its fourth lane).
 #[repr(C)]
@@ -742,7 +762,8 @@ impl GpuTracer {
                 self.adapter.get_info().name
             );
         }
-        let groups = w.div_ceil(WORKGROUP).max(h.div_ceil(WORKGROUP));
+        let (stripes, per_stripe) = trace_workgroups(w, h);
+        let groups = stripes.max(per_stripe);
         if groups > limits.max_compute_workgroups_per_dimension {
             bail!(
                 "image {w}x{h} needs {groups} workgroups per dimension; the device allows {} \
@@ -767,12 +788,25 @@ impl GpuTracer {
         let key = plan.shader_defs();
         if !self.pipelines.contains_key(&key) {
             let module = compose_shader(plan)?;
-            let shader = self
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("voxlab trace"),
-                    source: wgpu::ShaderSource::Naga(Cow::Owned(module)),
-                });
+            // wgpu adds a 64-bit counter to every loop, which breaks out of a loop that
+            // would never end, so that a driver may not assume it ends. Every loop of
+            // the tracer has its own bound (the walks' max_steps, the stack's depth
+            // limits, the light and sample counts), so the counter is only cost: 3 to
+            // 4 % of a frame of the seed scene on lavapipe. Bounds checks stay.
+            let mut checks = wgpu::ShaderRuntimeChecks::checked();
+            checks.force_loop_bounding = false;
+            // SAFETY: the module is the tracer's own WGSL, composed and validated by
+            // naga; wgpu's documented requirement for dropping the loop counter is that
+            // no loop runs forever, which the bounds above give.
+            let shader = unsafe {
+                self.device.create_shader_module_trusted(
+                    wgpu::ShaderModuleDescriptor {
+                        label: Some("voxlab trace"),
+                        source: wgpu::ShaderSource::Naga(Cow::Owned(module)),
+                    },
+                    checks,
+                )
+            };
             let pipeline = self
                 .device
                 .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -1666,10 +1700,12 @@ impl GpuTracer {
                 if let Some(g) = &cone_group {
                     pass.set_bind_group(1, g, &[]);
                 }
-                // One invocation per pixel and frame (frames along z).
+                // One invocation per pixel and frame (frames along z), the tiles in
+                // stripes (DISPATCH_STRIPES).
+                let (stripes, per_stripe) = trace_workgroups(settings.width, settings.height);
                 pass.dispatch_workgroups(
-                    settings.width.div_ceil(WORKGROUP),
-                    settings.height.div_ceil(WORKGROUP),
+                    stripes,
+                    per_stripe,
                     if plan.accumulate { count } else { 1 },
                 );
             }
