@@ -22,9 +22,10 @@
 // What a plug-in technique reads (src/technique/, `ShadowModel::gpu_data`): made on the
 // host when the plan uses the technique, a placeholder otherwise.
 @group(0) @binding(6) var<storage, read> technique_data: array<f32>;
-// The sparse tree of the grid (the sparse traversal, shaders/traversal_sparse.wgsl;
-// src/sparse.rs), a placeholder otherwise.
-@group(0) @binding(7) var<storage, read> tree: array<vec4<u32>>;
+// What a traversal with data of its own walks in place of the voxel buffer
+// (src/technique/, `TraversalModel::data`): the sparse tree (shaders/
+// traversal_sparse.wgsl, src/sparse.rs), say; a placeholder otherwise.
+@group(0) @binding(7) var<storage, read> walk_data: array<vec4<u32>>;
 // The triangle surfaces (TRIANGLES; src/triangles.rs, shaders/triangles.wgsl), a
 // placeholder otherwise.
 @group(0) @binding(8) var<storage, read> surface: array<vec4<u32>>;

@@ -7,7 +7,7 @@
 #define_import_path voxlab::regions
 
 #import voxlab::types::Region
-#import voxlab::bindings::{params, tree}
+#import voxlab::bindings::{params, walk_data}
 
 // Regions are the tree's uniform children: traversal.wgsl's dda_skip leaves them whole.
 const REGIONS_ARE_VOXELS: bool = false;
@@ -34,12 +34,12 @@ fn descend(v: vec3<u32>, d: ptr<function, Descent>) {
     let i = c.x | (c.y << 2u) | (c.z << 4u);
     let base = 1u + (*d).node * NODE_VEC4S;
     // Mask and first child in one load.
-    let head = tree[base];
+    let head = walk_data[base];
     let word = select(head.x, head.y, i >= 32u);
     let bit = 1u << (i & 31u);
     if (word & bit) == 0u {
         (*d).found = true;
-        let m = tree[base + 1u + (i >> 4u)][(i >> 2u) & 3u];
+        let m = walk_data[base + 1u + (i >> 4u)][(i >> 2u) & 3u];
         (*d).material = (m >> (8u * (i & 3u))) & 255u;
         return;
     }

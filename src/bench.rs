@@ -160,7 +160,7 @@ fn bench_gpu(
         surface: surface.name(),
         median: median(times),
         stats: counted.stats,
-        bytes_per_voxel: (memory.grid + memory.tree) as f64 / scene.grid.voxel_count() as f64,
+        bytes_per_voxel: (memory.grid + memory.walk_data) as f64 / scene.grid.voxel_count() as f64,
         build,
         timer: gpu.timer_name(),
     })
@@ -179,12 +179,19 @@ fn bench_cpu(
         ..settings.clone()
     };
     let plan = crate::plan::Plan::new(scene, s).traversal;
-    let (bytes_per_voxel, build) = if plan.walks_tree {
-        let (tree, stats) =
-            crate::sparse::SparseTree::build_timed(&scene.grid, crate::sparse::GPU_LOG_BRANCH);
-        (tree.bytes_per_voxel(), stats.time)
-    } else {
-        (1.0, Duration::ZERO)
+    // The walk's own data (the sparse tree, say), built as a render
+    // builds it; the dense grid's one byte a voxel otherwise.
+    let (bytes_per_voxel, build) = match plan.data {
+        Some(data) => {
+            let start = Instant::now();
+            let data = data(&scene.grid);
+            let bytes = data.device_words().len() * 4;
+            (
+                bytes as f64 / scene.grid.voxel_count() as f64,
+                start.elapsed(),
+            )
+        }
+        None => (1.0, Duration::ZERO),
     };
     let warm = crate::cpu::render(scene, s);
     let mut times = Vec::with_capacity(runs);
@@ -296,7 +303,16 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
             for &t in &walks {
                 // A row the device cannot render (the software driver's loop limit,
                 // its memory) is said and left out; the others are still measured.
-                match bench_gpu(&mut gpu, &name, &scene, (&settings, opts.gpu_runs), t, surface).map(held_build) {
+                match bench_gpu(
+                    &mut gpu,
+                    &name,
+                    &scene,
+                    (&settings, opts.gpu_runs),
+                    t,
+                    surface,
+                )
+                .map(held_build)
+                {
                     Ok(row) => {
                         progress(&row);
                         rows.push(row);
@@ -311,7 +327,13 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
             }
             if opts.cpu {
                 for &t in &walks {
-                    let row = held_build(bench_cpu(&name, &scene, (&settings, opts.cpu_runs), t, surface));
+                    let row = held_build(bench_cpu(
+                        &name,
+                        &scene,
+                        (&settings, opts.cpu_runs),
+                        t,
+                        surface,
+                    ));
                     progress(&row);
                     rows.push(row);
                 }

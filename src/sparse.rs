@@ -370,11 +370,17 @@ impl Region {
 pub trait Regions: Send + Sync {
     /// The uniform region holding voxel `v` (inside the grid).
     fn region(&self, v: IVec3) -> Region;
+    /// The words the traversal's WGSL module reads (`walk_data`, shaders/bindings.wgsl).
+    fn device_words(&self) -> &[u32];
 }
 
 impl Regions for SparseTree {
     fn region(&self, v: IVec3) -> Region {
         SparseTree::region(self, v)
+    }
+
+    fn device_words(&self) -> &[u32] {
+        self.words()
     }
 }
 

@@ -385,10 +385,20 @@ fn bench_json_prints_one_object_per_row() {
         .lines()
         .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
         .collect();
-    assert_eq!(rows.len(), 8, "two sizes, two backends, two walks: {out}");
-    for walk in ["dense", "sparse"] {
+    // Every registered walk, by default.
+    let walks: Vec<&str> = voxlab::technique::TRAVERSALS
+        .iter()
+        .map(|t| t.name)
+        .collect();
+    let n = walks.len();
+    assert_eq!(
+        rows.len(),
+        4 * n,
+        "two sizes, two backends, every walk: {out}"
+    );
+    for walk in &walks {
         assert_eq!(
-            rows.iter().filter(|r| r["traversal"] == walk).count(),
+            rows.iter().filter(|r| r["traversal"] == *walk).count(),
             4,
             "{out}"
         );
@@ -400,19 +410,20 @@ fn bench_json_prints_one_object_per_row() {
         assert!(r["adapter"].as_str().is_some_and(|a| !a.is_empty()), "{r}");
         assert!(r["steps_per_ray"].as_f64().unwrap() > 0.0, "{r}");
     }
-    // Per size: the GPU's two walks, then the CPU's; both tracers and both walks count
-    // the same rays (steps may differ by the few rays f32 and f64 walk differently).
-    for size in rows.chunks(4) {
+    // Per size: the GPU's walks, then the CPU's; both tracers and every walk count the
+    // same rays (steps may differ by the few rays f32 and f64 walk differently).
+    for size in rows.chunks(2 * n) {
         let backends: Vec<_> = size
             .iter()
             .map(|r| r["backend"].as_str().unwrap())
             .collect();
-        assert_eq!(backends, ["gpu", "gpu", "cpu", "cpu"], "{size:?}");
+        assert_eq!(backends[..n], vec!["gpu"; n], "{size:?}");
+        assert_eq!(backends[n..], vec!["cpu"; n], "{size:?}");
         for r in &size[1..] {
             assert_eq!(r["rays"], size[0]["rays"], "{size:?}");
         }
-        for (g, c) in [(0, 2), (1, 3)] {
-            assert_eq!(size[g]["traversal"], size[c]["traversal"]);
+        for g in 0..n {
+            assert_eq!(size[g]["traversal"], size[n + g]["traversal"]);
         }
     }
 }

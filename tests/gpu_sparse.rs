@@ -1,5 +1,6 @@
-//! The sparse walk on the GPU (`render.traversal = "sparse"`, shaders/traversal_sparse.wgsl):
-//! the golden baseline images with the tree forced on; GPU against the f64 reference
+//! The sparse walk on the GPU (`render.traversal = "sparse"`, shaders/traversal_sparse.wgsl),
+//! and every other walk that skips regions: the golden baseline
+//! images with each forced on; GPU against the f64 reference
 //! and against the GPU's own dense walk over generated scenes that vary every parameter
 //! that changes how the kernel runs (grid sizes from 1 to 100 a side, so tree depths 1 to
 //! 4; image sizes; depth limits; both transmittances; sampled area lights over several
@@ -18,24 +19,38 @@ use voxlab::scene::{
     AreaLight, AreaShape, Grid, Light, Scene, seed_ids, seed_scene, seed_scene_dims,
 };
 
+/// Every registered walk but the dense one: those that skip regions.
+fn skipping_walks() -> Vec<Traversal> {
+    Traversal::walks()
+        .into_iter()
+        .filter(|&t| t != DENSE_WALK)
+        .collect()
+}
+
 #[test]
 fn golden_baseline_images_with_the_tree_forced_on() {
     let mut gpu = tracer();
-    for (name, w, h, refl, refr) in [
-        ("baseline_160", 160, 160, 4, 4),
-        ("baseline_200x120", 200, 120, 4, 4),
-        ("baseline_depth0_128", 128, 128, 0, 0),
-    ] {
-        let mut e = experiment("baseline.toml");
-        e.settings.width = w;
-        e.settings.height = h;
-        e.settings.max_reflection_depth = refl;
-        e.settings.max_refraction_depth = refr;
-        e.settings.traversal = SPARSE_WALK;
-        let frame = gpu.render(&e.scene, &e.settings).unwrap().frame;
-        let plan = gpu.last_plan().unwrap();
-        assert_eq!(plan.traversal.name, "sparse", "{plan}");
-        assert_matches_golden(name, &frame, &format!("{name}.png"));
+    for walk in skipping_walks() {
+        for (name, w, h, refl, refr) in [
+            ("baseline_160", 160, 160, 4, 4),
+            ("baseline_200x120", 200, 120, 4, 4),
+            ("baseline_depth0_128", 128, 128, 0, 0),
+        ] {
+            let mut e = experiment("baseline.toml");
+            e.settings.width = w;
+            e.settings.height = h;
+            e.settings.max_reflection_depth = refl;
+            e.settings.max_refraction_depth = refr;
+            e.settings.traversal = walk;
+            let frame = gpu.render(&e.scene, &e.settings).unwrap().frame;
+            let plan = gpu.last_plan().unwrap();
+            assert_eq!(Traversal::Walk(plan.traversal), walk, "{plan}");
+            assert_matches_golden(
+                &format!("{name} {}", walk.name()),
+                &frame,
+                &format!("{name}.png"),
+            );
+        }
     }
 }
 
@@ -109,43 +124,50 @@ fn generated_scenes_agree_with_the_cpu_and_the_dense_walk() {
     ];
     for (i, (dims, w, h, depth)) in cases.into_iter().enumerate() {
         let mut scene = random_scene(&mut rng, UVec3::from_array(dims));
-        let mut s = settings(w, h, depth, SPARSE_WALK);
-        if i % 2 == 1 {
-            // Beer-Lambert: a region's length counts at once.
-            s.features.transmittance = voxlab::technique::beer_lambert::ID;
-            for m in &mut scene.materials[1..] {
-                m.sigma = Some(DVec3::new(0.2, 0.05, 0.6));
+        for walk in skipping_walks() {
+            let mut s = settings(w, h, depth, walk);
+            if i % 2 == 1 {
+                // Beer-Lambert: a region's length counts at once.
+                s.features.transmittance = voxlab::technique::beer_lambert::ID;
+                for m in &mut scene.materials[1..] {
+                    m.sigma = Some(DVec3::new(0.2, 0.05, 0.6));
+                }
             }
+            let name = format!(
+                "{} walk, {dims:?} {w}x{h} depth {depth} {:?}",
+                walk.name(),
+                s.features.transmittance
+            );
+            let sparse = gpu.render(&scene, &s).unwrap();
+            assert_eq!(
+                Traversal::Walk(gpu.last_plan().unwrap().traversal),
+                walk,
+                "{name}"
+            );
+            let dense = gpu
+                .render(
+                    &scene,
+                    &RenderSettings {
+                        traversal: DENSE_WALK,
+                        ..s.clone()
+                    },
+                )
+                .unwrap();
+            let cpu = voxlab::cpu::render(&scene, &s);
+            assert_agree(
+                &format!("{name} sparse GPU vs CPU"),
+                &sparse.frame,
+                &cpu.frame,
+            );
+            // The same voxels, hits and arithmetic of shading: the two GPU walks agree
+            // closely (f32 may break an exact tie of planes differently at a region's exit
+            // only where the ray grazes an edge).
+            let d = linear(&sparse.frame, &dense.frame, 1e-4);
+            assert!(
+                d.fraction_over() < 0.005,
+                "{name}: this and the dense GPU walk differ: {d}"
+            );
         }
-        let name = format!(
-            "{dims:?} {w}x{h} depth {depth} {:?}",
-            s.features.transmittance
-        );
-        let sparse = gpu.render(&scene, &s).unwrap();
-        assert_eq!(gpu.last_plan().unwrap().traversal.name, "sparse", "{name}");
-        let dense = gpu
-            .render(
-                &scene,
-                &RenderSettings {
-                    traversal: DENSE_WALK,
-                    ..s.clone()
-                },
-            )
-            .unwrap();
-        let cpu = voxlab::cpu::render(&scene, &s);
-        assert_agree(
-            &format!("{name} sparse GPU vs CPU"),
-            &sparse.frame,
-            &cpu.frame,
-        );
-        // The same voxels, hits and arithmetic of shading: the two GPU walks agree
-        // closely (f32 may break an exact tie of planes differently at a region's exit
-        // only where the ray grazes an edge).
-        let d = linear(&sparse.frame, &dense.frame, 1e-4);
-        assert!(
-            d.fraction_over() < 0.005,
-            "{name}: sparse and dense GPU walks differ: {d}"
-        );
     }
 }
 
@@ -185,9 +207,12 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
         .unwrap();
     let dense = gpu.last_memory().unwrap();
     assert_eq!(dense.grid, 64 * 64 * 64, "the voxel buffer");
-    assert_eq!(dense.tree, 0);
+    assert_eq!(dense.walk_data, 0);
     assert_eq!(sparse.grid, 0, "neither the voxel buffer nor the texture");
-    assert!(sparse.tree > 0 && sparse.tree < dense.grid, "{sparse:?}");
+    assert!(
+        sparse.walk_data > 0 && sparse.walk_data < dense.grid,
+        "{sparse:?}"
+    );
     // Auto: dense below SPARSE_FROM_SIDE, sparse from it on; the plan says why.
     for (n, want) in [
         (voxlab::technique::sparse::SPARSE_FROM_SIDE - 1, DENSE_WALK),
@@ -221,7 +246,7 @@ fn a_grid_held_sparse_renders_as_its_dense_twin() {
         let held = gpu.render(&scene, &s).unwrap();
         let memory = gpu.last_memory().unwrap();
         assert_eq!(memory.grid, 0, "{dims}: {memory:?}");
-        assert!(memory.tree > 0, "{dims}");
+        assert!(memory.walk_data > 0, "{dims}");
         assert!(
             held.frame.pixels == dense.frame.pixels,
             "{dims}: the grid held sparse renders differently"
@@ -245,9 +270,9 @@ fn the_seed_scene_at_2048_renders_through_its_tree() {
     println!("seed 2048^3 on the device: {memory:?}");
     assert_eq!(memory.grid, 0);
     assert!(
-        memory.tree > 0 && memory.tree < 256 << 20,
+        memory.walk_data > 0 && memory.walk_data < 256 << 20,
         "{} bytes",
-        memory.tree
+        memory.walk_data
     );
     let c = voxlab::cpu::render(&e.scene, &e.settings);
     assert_agree("seed 2048^3", &g.frame, &c.frame);

@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{DENSE_WALK, MESH_SURFACE, SMOOTH_SURFACE, SPARSE_WALK, VOXELS_SURFACE};
+use common::{MESH_SURFACE, SMOOTH_SURFACE, VOXELS_SURFACE};
 use common::{assert_agree, experiment, icosphere, mesh_scene, tracer};
 use glam::DVec3;
 use voxlab::render::RenderSettings;
@@ -36,6 +36,7 @@ fn generated_spheres_agree_with_the_cpu_at_every_setting() {
     let resolutions = [3, 8, 20, 48];
     let sizes = [(33, 21), (48, 48), (17, 40)];
     let depths = [(0, 0), (2, 1), (4, 4)];
+    let walks = voxlab::render::Traversal::walks();
     for i in 0..12usize {
         let mut m = seed_palette()[materials[i % 3] as usize].clone();
         if i % 4 == 1 {
@@ -51,7 +52,8 @@ fn generated_spheres_agree_with_the_cpu_at_every_setting() {
             max_reflection_depth: refl,
             max_refraction_depth: refr,
             surface: MESH_SURFACE,
-            traversal: if i % 2 == 0 { DENSE_WALK } else { SPARSE_WALK },
+            // Every registered walk in turn.
+            traversal: walks[i % walks.len()],
             features: voxlab::Features {
                 transmittance: if i % 4 == 1 {
                     voxlab::technique::beer_lambert::ID

@@ -1,9 +1,11 @@
-//! The sparse tree (the seed's O2) against the dense grid it is built from: every voxel's
-//! material, and along many thousands of random rays in random sparse grids the same
-//! hit sequence (voxel, distance, face, material, bit for bit) as the dense DDA, for
-//! octrees, 64-trees and 512-trees; the same shadow transmittances; the same CPU
-//! images. Rays start on node boundaries, run along axes, and start inside uniform
-//! regions of any material (a ray inside a glass block skips the block too).
+//! The sparse tree (the seed's O2), and every registered traversal with data of its own
+//! (the tree, say), against the dense grid it is built from: every
+//! voxel's region uniform and holding it, and along many thousands of random rays in
+//! random sparse grids the same hit sequence (voxel, distance, face, material, bit for
+//! bit) as the dense DDA, for octrees, 64-trees and 512-trees; the same shadow
+//! transmittances; the same CPU images. Rays start on node boundaries, run along axes,
+//! and start inside uniform regions of any material (a ray inside a glass block skips
+//! the block too).
 
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
@@ -16,8 +18,14 @@ use voxlab::sparse::{Regions, SparseTree};
 
 const DENSE_WALK: voxlab::render::Traversal =
     voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
-const SPARSE_WALK: voxlab::render::Traversal =
-    voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
+
+/// Every registered traversal's data of `g` (those that skip regions), by name.
+fn walk_data(g: &Grid) -> Vec<(&'static str, std::sync::Arc<dyn Regions>)> {
+    voxlab::technique::TRAVERSALS
+        .iter()
+        .filter_map(|t| t.data.map(|data| (t.name, data(g))))
+        .collect()
+}
 
 /// A grid of `dims` that is mostly uniform: a few boxes of random materials (some
 /// large, some one voxel), over a background that is void or, half the time, one
@@ -84,11 +92,11 @@ fn random_sparse_grid(rng: &mut StdRng, dims: UVec3, materials: u8) -> Grid {
 /// material is left whole.
 fn transitions(
     g: &Grid,
-    tree: Option<&SparseTree>,
+    regions: Option<&dyn Regions>,
     o: DVec3,
     d: DVec3,
 ) -> (Vec<(IVec3, f64, DVec3, u8)>, u64) {
-    let mut dda = Dda::over(g, tree.map(|t| t as &dyn Regions), o, d, f64::INFINITY);
+    let mut dda = Dda::over(g, regions, o, d, f64::INFINITY);
     let mut out = Vec::new();
     let mut medium = None;
     while let Some(v) = dda.next() {
@@ -209,6 +217,44 @@ fn the_tree_holds_every_voxel_of_the_grid() {
 }
 
 #[test]
+fn every_traversals_regions_are_uniform_and_hold_their_voxel() {
+    let mut rng = StdRng::seed_from_u64(11);
+    for dims in SIZES {
+        let g = random_sparse_grid(&mut rng, UVec3::from_array(dims), 5);
+        for (name, data) in walk_data(&g) {
+            for z in 0..dims[2] as i32 {
+                for y in 0..dims[1] as i32 {
+                    for x in 0..dims[0] as i32 {
+                        let v = IVec3::new(x, y, z);
+                        let r = data.region(v);
+                        assert_eq!(r.material, g.get(v), "{name}, {dims:?} at {v}");
+                        assert!(v.cmpge(r.lo).all() && v.cmplt(r.hi).all());
+                        assert!(r.lo.cmpge(IVec3::ZERO).all());
+                        assert!(r.hi.as_uvec3().cmple(g.dims()).all());
+                        // Every voxel of the region, on the small grids; its corners
+                        // on the others.
+                        if g.voxel_count() <= 4096 {
+                            for zz in r.lo.z..r.hi.z {
+                                for yy in r.lo.y..r.hi.y {
+                                    for xx in r.lo.x..r.hi.x {
+                                        let u = IVec3::new(xx, yy, zz);
+                                        assert_eq!(g.get(u), r.material, "{name}, {v}: {u}");
+                                    }
+                                }
+                            }
+                        } else {
+                            for p in [r.lo, r.hi - IVec3::ONE] {
+                                assert_eq!(g.get(p), r.material, "{name}, {v}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
 fn random_rays_meet_the_same_transitions_as_the_dense_dda() {
     let mut rng = StdRng::seed_from_u64(2);
     let mut rays = 0;
@@ -217,10 +263,15 @@ fn random_rays_meet_the_same_transitions_as_the_dense_dda() {
         let dims = SIZES[round % SIZES.len()];
         let g = random_sparse_grid(&mut rng, UVec3::from_array(dims), 4);
         let trees: Vec<SparseTree> = (1..=3).map(|b| SparseTree::build(&g, b)).collect();
+        let data = walk_data(&g);
         for _ in 0..200 {
             let (o, d) = random_ray(&mut rng, &g);
             let (want, steps) = transitions(&g, None, o, d);
             dense_steps += steps;
+            for (name, data) in &data {
+                let (got, _) = transitions(&g, Some(data.as_ref()), o, d);
+                assert_eq!(got, want, "grid {dims:?}, {name}, ray {o} + t {d}");
+            }
             for t in &trees {
                 let (got, steps) = transitions(&g, Some(t), o, d);
                 assert_eq!(
@@ -250,14 +301,16 @@ fn casts_in_every_medium_hit_what_the_dense_cast_hits() {
     for round in 0..40 {
         let dims = SIZES[round % SIZES.len()];
         let g = random_sparse_grid(&mut rng, UVec3::from_array(dims), 4);
-        let t = SparseTree::build(&g, 2);
+        let data = walk_data(&g);
         for _ in 0..200 {
             let (o, d) = random_ray(&mut rng, &g);
             for medium in 0..4 {
                 for exit_hits in [true, false] {
                     let (want, _) = cast_over(&g, None, o, d, medium, exit_hits);
-                    let (got, _) = cast_over(&g, Some(&t as &dyn Regions), o, d, medium, exit_hits);
-                    assert_eq!(got, want, "medium {medium}, ray {o} + t {d}");
+                    for (name, data) in &data {
+                        let (got, _) = cast_over(&g, Some(data.as_ref()), o, d, medium, exit_hits);
+                        assert_eq!(got, want, "{name}, medium {medium}, ray {o} + t {d}");
+                    }
                 }
             }
         }
@@ -295,23 +348,25 @@ fn shadow_transmittances_equal_the_dense_walks() {
     for round in 0..30 {
         let dims = SIZES[round % SIZES.len()];
         let scene = scene_over(random_sparse_grid(&mut rng, UVec3::from_array(dims), 4));
-        let t = SparseTree::build(&scene.grid, 2);
+        let data = walk_data(&scene.grid);
         for _ in 0..200 {
             let (q, d) = random_ray(&mut rng, &scene.grid);
             let len = rng.random_range(0.0..2.0) * scene.grid.width();
             let light = q + len * d;
             let mut stats = RayStats::default();
-            let want = shadow_min_kt_over(&scene, None, q, light, &mut stats);
-            let got = shadow_min_kt_over(&scene, Some(&t as &dyn Regions), q, light, &mut stats);
-            assert_eq!(got, want, "min-kt, {q} to {light}");
-            let want = shadow_beer_lambert_over(&scene, None, q, light, &mut stats);
-            let got =
-                shadow_beer_lambert_over(&scene, Some(&t as &dyn Regions), q, light, &mut stats);
-            // The per-voxel lengths telescope to the region's: equal up to rounding.
-            assert!(
-                (got - want).abs().max_element() <= 1e-12 * want.max_element().max(1e-300),
-                "beer-lambert {got} vs {want}, {q} to {light}"
-            );
+            for (name, data) in &data {
+                let t = Some(data.as_ref());
+                let want = shadow_min_kt_over(&scene, None, q, light, &mut stats);
+                let got = shadow_min_kt_over(&scene, t, q, light, &mut stats);
+                assert_eq!(got, want, "{name}, min-kt, {q} to {light}");
+                let want = shadow_beer_lambert_over(&scene, None, q, light, &mut stats);
+                let got = shadow_beer_lambert_over(&scene, t, q, light, &mut stats);
+                // The per-voxel lengths telescope to the region's: equal up to rounding.
+                assert!(
+                    (got - want).abs().max_element() <= 1e-12 * want.max_element().max(1e-300),
+                    "{name}, beer-lambert {got} vs {want}, {q} to {light}"
+                );
+            }
         }
     }
 }
@@ -330,17 +385,22 @@ fn cpu_images_over_the_tree_are_the_dense_images() {
             voxlab::cpu::render(&scene, &settings)
         };
         let dense = render(DENSE_WALK);
-        let sparse = render(SPARSE_WALK);
-        assert_eq!(
-            dense.frame.pixels, sparse.frame.pixels,
-            "seed scene at {size}^3"
-        );
-        assert!(
-            sparse.stats.voxel_steps < dense.stats.voxel_steps,
-            "{} vs {}",
-            sparse.stats.voxel_steps,
-            dense.stats.voxel_steps
-        );
+        for walk in Traversal::walks().into_iter().filter(|&w| w != DENSE_WALK) {
+            let other = render(walk);
+            assert_eq!(
+                dense.frame.pixels,
+                other.frame.pixels,
+                "{} walk, seed scene at {size}^3",
+                walk.name()
+            );
+            assert!(
+                other.stats.voxel_steps < dense.stats.voxel_steps,
+                "{}: {} vs {}",
+                walk.name(),
+                other.stats.voxel_steps,
+                dense.stats.voxel_steps
+            );
+        }
     }
 }
 
@@ -361,7 +421,9 @@ fn the_experiment_file_names_the_traversal() {
     assert!(
         err.starts_with("x.toml:3:")
             && err.contains("render.traversal")
-            && err.contains("\"auto\", \"dense\" or \"sparse\""),
+            && Traversal::all()
+                .iter()
+                .all(|t| err.contains(&format!("\"{}\"", t.name()))),
         "{err}"
     );
 }

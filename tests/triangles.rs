@@ -10,7 +10,7 @@ mod common;
 
 use common::{icosphere, mesh_scene};
 
-use common::{DENSE_WALK, MESH_SURFACE, SPARSE_WALK, VOXELS_SURFACE};
+use common::{DENSE_WALK, MESH_SURFACE, VOXELS_SURFACE};
 use glam::{DVec3, IVec3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -508,7 +508,7 @@ fn the_key_the_plan_and_off_is_the_baseline() {
 }
 
 #[test]
-fn the_sparse_walk_gives_the_dense_walks_images_through_triangles() {
+fn every_walk_gives_the_dense_walks_images_through_triangles() {
     let e = common::experiment("bunny_glass.toml");
     for s in triangle_surfaces() {
         let mut settings = e.settings.clone();
@@ -517,9 +517,11 @@ fn the_sparse_walk_gives_the_dense_walks_images_through_triangles() {
         settings.surface = s;
         settings.traversal = DENSE_WALK;
         let dense = voxlab::cpu::render(&e.scene, &settings).frame;
-        settings.traversal = SPARSE_WALK;
-        let sparse = voxlab::cpu::render(&e.scene, &settings).frame;
-        assert_eq!(dense.pixels, sparse.pixels, "{s:?}");
+        for walk in voxlab::render::Traversal::walks() {
+            settings.traversal = walk;
+            let other = voxlab::cpu::render(&e.scene, &settings).frame;
+            assert_eq!(dense.pixels, other.pixels, "{s:?}, {} walk", walk.name());
+        }
     }
 }
 

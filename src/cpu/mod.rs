@@ -162,7 +162,7 @@ pub struct Prepared {
     pub shadow_model: Box<dyn crate::technique::CpuShadow>,
     /// The plan's lighting terms.
     pub terms: Vec<&'static crate::technique::LightingTerm>,
-    /// The planned traversal's regions of the grid the walks read (its `cpu`), when it
+    /// The planned traversal's regions of the grid the walks read (its `data`), when it
     /// has any (the dense walk reads the grid's voxels).
     pub regions: Option<std::sync::Arc<dyn Regions>>,
     /// The triangle surfaces, when the plan traces them.
@@ -185,7 +185,7 @@ impl Prepared {
             cones: cone::ConeScene::new(scene, settings, plan),
             shadow_model: (plan.shadow_model.cpu)(scene, settings),
             terms: plan.terms.clone(),
-            regions: plan.traversal.cpu.map(|regions| regions(grid)),
+            regions: plan.traversal.data.map(|data| data(grid)),
             surfaces,
         }
     }

@@ -301,11 +301,15 @@ pub struct GpuTracer {
     /// and what it was made from; kept while renders need the same.
     technique_data: Option<(blake3::Hash, wgpu::Buffer)>,
     /// Bound as `technique_data` when the plan needs none (a binding needs a buffer),
-    /// and as `tree` when the plan walks the dense grid.
+    /// and as `walk_data` when the plan walks the voxel buffer.
     no_technique_data: wgpu::Buffer,
-    /// The sparse tree of the voxels the walks read (by their hash), while renders walk
-    /// it.
-    tree: Option<(blake3::Hash, wgpu::Buffer)>,
+    /// The planned traversal's own data of the voxels the walks read (which traversal,
+    /// the voxels' hash, the buffer: the sparse tree, say), while renders walk it.
+    walk_data: Option<(
+        &'static crate::technique::TraversalModel,
+        blake3::Hash,
+        wgpu::Buffer,
+    )>,
     /// The triangle surfaces of the latest render that traced them: what they were made
     /// from (a hash), the cells, the hash of their tagged grid and their buffer
     /// (`surface` of shaders/bindings.wgsl).
@@ -325,8 +329,9 @@ struct SurfaceUpload {
 pub struct GpuMemory {
     /// The voxel grid texture (1 byte per voxel), when the plan reads it.
     pub grid: u64,
-    /// The sparse tree, when the plan walks it.
-    pub tree: u64,
+    /// The traversal's own data (the sparse tree, say), when the plan
+    /// walks it.
+    pub walk_data: u64,
     /// Triangles, cells and their references, when the plan traces triangle surfaces.
     pub surfaces: u64,
     /// Materials, lights, parameters and ray counters.
@@ -344,7 +349,7 @@ pub struct GpuMemory {
 impl GpuMemory {
     pub fn total(&self) -> u64 {
         self.grid
-            + self.tree
+            + self.walk_data
             + self.surfaces
             + self.scene
             + self.image
@@ -359,11 +364,11 @@ impl std::fmt::Display for GpuMemory {
         let mib = |b: u64| b as f64 / 1048576.0;
         write!(
             f,
-            "{:.2} MiB (grid {:.2}, tree {:.2}, surfaces {:.2}, scene {:.3}, image {:.2}, \
+            "{:.2} MiB (grid {:.2}, walk data {:.2}, surfaces {:.2}, scene {:.3}, image {:.2}, \
              accumulation {:.2}, pyramids {:.2}, technique data {:.2})",
             mib(self.total()),
             mib(self.grid),
-            mib(self.tree),
+            mib(self.walk_data),
             mib(self.surfaces),
             mib(self.scene),
             mib(self.image),
@@ -601,7 +606,7 @@ impl GpuTracer {
             dda_unroll,
             technique_data: None,
             no_technique_data,
-            tree: None,
+            walk_data: None,
             surfaces: None,
         })
     }
@@ -720,15 +725,17 @@ impl GpuTracer {
         }
         let limits = self.device.limits();
         let dims = scene.grid.dims();
-        let voxel_bytes = Self::voxel_buffer_bytes(dims);
-        if Self::reads_voxel_buffer(plan) && voxel_bytes > self.max_voxel_buffer_bytes() {
+        if let Some(bytes) = plan.traversal.device_bytes.map(|b| b(dims))
+            && bytes > self.max_voxel_buffer_bytes()
+        {
             bail!(
-                "grid {}x{}x{} needs a {voxel_bytes}-byte voxel buffer for the dense walk; {} \
-                 binds at most {} (max_storage_buffer_binding_size); render.traversal = \
-                 \"sparse\" walks the tree instead",
+                "grid {}x{}x{} needs {bytes} bytes for the {} walk; {} binds at most {} \
+                 (max_storage_buffer_binding_size); render.traversal = \"sparse\" walks \
+                 the tree instead",
                 dims.x,
                 dims.y,
                 dims.z,
+                plan.traversal.name,
                 self.adapter.get_info().name,
                 self.max_voxel_buffer_bytes()
             );
@@ -837,9 +844,10 @@ impl GpuTracer {
             )
     }
 
-    /// Whether a render of `plan` reads the voxel buffer: the dense walk does.
+    /// Whether a render of `plan` reads the voxel buffer: a walk without data of its
+    /// own (the dense walk) does.
     fn reads_voxel_buffer(plan: &Plan) -> bool {
-        !plan.traversal.walks_tree
+        plan.traversal.data.is_none()
     }
 
     /// Bytes of the voxel buffer of a grid of `dims` (a whole number of vec4<u32>).
@@ -949,23 +957,35 @@ impl GpuTracer {
         });
     }
 
-    /// Builds and uploads the sparse tree of `grid` (whose voxels hash to `hash`) unless
-    /// the device holds it already; returns its bytes.
-    fn upload_tree(&mut self, grid: &crate::scene::Grid, hash: blake3::Hash) -> Result<u64> {
-        if let Some((h, b)) = &self.tree
+    /// Builds and uploads the data `traversal` walks in `grid` (whose voxels hash to
+    /// `hash`: the sparse tree, say) unless the device holds it already; returns its
+    /// bytes.
+    fn upload_walk_data(
+        &mut self,
+        traversal: &'static crate::technique::TraversalModel,
+        grid: &crate::scene::Grid,
+        hash: blake3::Hash,
+    ) -> Result<u64> {
+        let build = traversal
+            .data
+            .expect("only a traversal with data of its own uploads it");
+        if let Some((t, h, b)) = &self.walk_data
             && *h == hash
+            && std::ptr::eq(*t, traversal)
         {
             return Ok(b.size());
         }
-        self.tree = None;
-        let tree = grid.tree(crate::sparse::GPU_LOG_BRANCH);
-        let bytes = tree.bytes() as u64;
+        self.walk_data = None;
+        let data = build(grid);
+        let words = data.device_words();
+        let bytes = (words.len() * 4).next_multiple_of(16) as u64;
         let max = self.max_voxel_buffer_bytes();
         if bytes > max {
             bail!(
-                "the sparse tree of grid {}x{}x{} needs {bytes} bytes; the device allows {max} \
-                 (max_storage_buffer_binding_size); render.traversal = \"dense\" walks the \
-                 voxel buffer instead",
+                "the {} traversal's data of grid {}x{}x{} needs {bytes} bytes; the device \
+                 allows {max} (max_storage_buffer_binding_size); render.traversal = \"dense\" \
+                 walks the voxel buffer instead",
+                traversal.name,
                 grid.dims().x,
                 grid.dims().y,
                 grid.dims().z
@@ -973,13 +993,13 @@ impl GpuTracer {
         }
         let buf = buffer(
             &self.device,
-            "sparse tree",
+            traversal.label,
             bytes,
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         );
         self.queue
-            .write_buffer(&buf, 0, bytemuck::cast_slice(tree.words()));
-        self.tree = Some((hash, buf));
+            .write_buffer(&buf, 0, bytemuck::cast_slice(words));
+        self.walk_data = Some((traversal, hash, buf));
         Ok(bytes)
     }
 
@@ -1440,24 +1460,26 @@ impl GpuTracer {
     ) -> Result<RenderOutput> {
         let mut plan = plan;
         plan.dda_unroll = self.dda_unroll;
-        let voxel_bytes = Self::voxel_buffer_bytes(scene.grid.dims());
+        let walk_bytes = plan.traversal.device_bytes.map(|b| b(scene.grid.dims()));
         let tree_walk = crate::technique::TRAVERSALS
             .iter()
             .copied()
             .find(|t| t.walks_tree);
         if let Some(tree_walk) = tree_walk
+            && let Some(walk_bytes) = walk_bytes
             && settings.traversal == crate::render::Traversal::Auto
-            && Self::reads_voxel_buffer(&plan)
-            && voxel_bytes > self.max_voxel_buffer_bytes()
+            && walk_bytes > self.max_voxel_buffer_bytes()
         {
-            // The device cannot bind the dense grid: a walk over the tree is the only way.
-            plan.traversal = tree_walk;
-            plan.tree_levels = crate::plan::tree_levels(tree_walk, scene.grid.dims());
+            // The device cannot bind what the planned walk reads (the dense grid, the
+            // traversal's own data): a walk over the tree is the only way.
             plan.traversal_reason = format!(
-                "auto: the dense grid's {voxel_bytes} bytes are more than this device binds \
+                "auto: the {} walk's {walk_bytes} bytes are more than this device binds \
                  ({}, max_storage_buffer_binding_size)",
+                plan.traversal.name,
                 self.max_voxel_buffer_bytes()
             );
+            plan.traversal = tree_walk;
+            plan.tree_levels = crate::plan::tree_levels(tree_walk, scene.grid.dims());
         }
         let count = plan.count_rays;
         self.check(scene, settings, &plan)?;
@@ -1491,12 +1513,15 @@ impl GpuTracer {
             // Dropped while renders walk the tree.
             g.voxels = None;
         }
-        let (tree_bytes, tree_time) = if plan.traversal.walks_tree {
+        let (walk_bytes, walk_time) = if plan.traversal.data.is_some() {
             let start = Instant::now();
-            (self.upload_tree(walk_grid, walk_hash)?, start.elapsed())
+            (
+                self.upload_walk_data(plan.traversal, walk_grid, walk_hash)?,
+                start.elapsed(),
+            )
         } else {
             // Dropped while renders walk the grid: nothing holds it on the device.
-            self.tree = None;
+            self.walk_data = None;
             (0, Duration::ZERO)
         };
         let key = continuable.then(|| AccumulationKey::new(scene, settings, &plan));
@@ -1582,7 +1607,9 @@ impl GpuTracer {
                 buffer_entry(6, technique_data),
                 buffer_entry(
                     7,
-                    self.tree.as_ref().map_or(&self.no_technique_data, |t| &t.1),
+                    self.walk_data
+                        .as_ref()
+                        .map_or(&self.no_technique_data, |t| &t.2),
                 ),
                 buffer_entry(
                     8,
@@ -1610,7 +1637,7 @@ impl GpuTracer {
             }
             None => None,
         };
-        self.last_setup_time = tree_time
+        self.last_setup_time = walk_time
             + surface_time
             + if plan.pyramid.is_some() {
                 setup.elapsed()
@@ -1631,7 +1658,7 @@ impl GpuTracer {
             self.frame_slices = None;
             self.pyramid = None;
             self.technique_data = None;
-            self.tree = None;
+            self.walk_data = None;
             self.surfaces = None;
             let d = scene.grid.dims();
             bail!(
@@ -1834,7 +1861,7 @@ impl GpuTracer {
             } else {
                 0
             },
-            tree: tree_bytes,
+            walk_data: walk_bytes,
             surfaces: self.surfaces.as_ref().map_or(0, |u| u.buffer.size()),
             scene: mat_buf.size() + light_buf.size() + self.params.size() + 2 * COUNTER_BYTES,
             image: output.size() + readback.size(),

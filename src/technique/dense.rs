@@ -33,5 +33,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
         include_str!("../../shaders/traversal_dense.wgsl"),
     ),
     walks_tree: false,
-    cpu: None,
+    data: None,
+    // One byte a voxel, in whole vec4<u32>s.
+    device_bytes: Some(|dims| dims.as_u64vec3().element_product().next_multiple_of(16)),
 };

@@ -626,8 +626,9 @@ pub fn default_shadow_model() -> &'static ShadowModel {
     SHADOW_MODELS[0]
 }
 
-/// A traversal's f64 regions of a grid.
-pub type CpuRegions = fn(&crate::scene::Grid) -> std::sync::Arc<dyn crate::sparse::Regions>;
+/// A traversal's data of a grid: its regions for the f64 walks, its words for the
+/// kernel.
+pub type WalkData = fn(&crate::scene::Grid) -> std::sync::Arc<dyn crate::sparse::Regions>;
 
 /// A traversal's claim on a scene under `render.traversal = "auto"`: `Ok(why)` or
 /// `Err(why not)`.
@@ -658,13 +659,20 @@ pub struct TraversalModel {
     /// RegionCursor>, v: vec3<i32>) -> Region` (shaders/types.wgsl), the region around
     /// voxel `v`.
     pub wgsl: (&'static str, &'static str),
-    /// Whether the kernel walks the grid's sparse tree (`crate::sparse`, `TREE_LEVELS`
-    /// levels, bound as `tree`) rather than the dense grid's voxel buffer (one voxel a
-    /// region). Only the data it walks is made and uploaded.
+    /// Whether it walks the grid's sparse tree (`crate::sparse`): its module is
+    /// composed with `TREE_LEVELS`, and it walks grids held only as their tree.
     pub walks_tree: bool,
-    /// Its f64 regions of a grid, built once per render (`crate::sparse::Regions`, the
-    /// twin of its `region_at`); `None`: the grid's voxels, one a region.
-    pub cpu: Option<CpuRegions>,
+    /// Its data of a grid, built once per render and in place of the dense grid's
+    /// voxel buffer: the f64 walks ask it for regions (`crate::sparse::Regions`, the
+    /// twin of its `region_at`), the kernel reads its words (`Regions::device_words`,
+    /// bound as `walk_data`). `None`: the voxel buffer, one voxel a region. Only the
+    /// data the plan's traversal walks is made and uploaded.
+    pub data: Option<WalkData>,
+    /// The bytes the kernel binds for a grid of these dims, where the voxels do not
+    /// change them (the voxel buffer, a field per voxel); `None` where they do (the
+    /// tree). Under `"auto"` a walk whose bytes the device cannot bind gives way to the
+    /// tree walk (`crate::gpu`).
+    pub device_bytes: Option<fn(glam::UVec3) -> u64>,
 }
 
 /// The traversal called `name`.

@@ -43,5 +43,6 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
         include_str!("../../shaders/traversal_sparse.wgsl"),
     ),
     walks_tree: true,
-    cpu: Some(|grid| grid.tree(crate::sparse::GPU_LOG_BRANCH)),
+    data: Some(|grid| grid.tree(crate::sparse::GPU_LOG_BRANCH)),
+    device_bytes: None,
 };
