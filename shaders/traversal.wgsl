@@ -37,6 +37,8 @@ struct Dda {
     step: vec3<i32>,
     t_max: vec3<f32>,
     t_delta: vec3<f32>,
+    // 1 / dir, 1 on axes the ray does not move along (their planes are never taken).
+    inv_dir: vec3<f32>,
     // The ray, so tMax can be taken from the next boundary plane at every step.
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -121,8 +123,9 @@ fn dda_init(o: vec3<f32>, d: vec3<f32>, v: vec3<i32>) -> Dda {
     let safe = select(d, vec3<f32>(1.0), parallel);
     s.step = select(select(vec3<i32>(-1), vec3<i32>(1), positive), vec3<i32>(0), parallel);
     let boundary = vec3<f32>(v + select(vec3<i32>(0), vec3<i32>(1), positive));
-    s.t_max = select(min((boundary - o) / safe, vec3<f32>(BIG)), vec3<f32>(BIG), parallel);
-    s.t_delta = select(min(1.0 / abs(safe), vec3<f32>(BIG)), vec3<f32>(BIG), parallel);
+    s.inv_dir = 1.0 / safe;
+    s.t_max = select(min((boundary - o) * s.inv_dir, vec3<f32>(BIG)), vec3<f32>(BIG), parallel);
+    s.t_delta = select(min(abs(s.inv_dir), vec3<f32>(BIG)), vec3<f32>(BIG), parallel);
     return s;
 }
 
@@ -142,12 +145,18 @@ fn dda_axis(t_max: vec3<f32>) -> i32 {
 // drifts by about one ulp of t per step (0.03 voxels after 500 steps at t ~ 1000),
 // more than the ray offset, so hits on large grids landed off their faces and their
 // secondary rays started on the wrong side (seed scene at 256^3: 4 % of pixels off).
-// Mathematically the same tMax; the f64 reference's sum drifts by ~1e-13 only.
+// Mathematically the same tMax; the f64 reference's sum drifts by ~1e-13 only. The
+// division is a product with 1 / d, computed once (Dda::inv_dir), here, in dda_init and
+// in dda_skip alike: every plane distance of a walk is rounded the same way, so a skip
+// and the voxel steps it stands for break ties alike, and dda_skip's nine divisions
+// become products (on lavapipe, seed scene at 256x256, two runs each alternating: the
+// proximity walk 1.10x as fast at 64^3 and 1.03x at 256^3, the sparse walk 1.06x and
+// 1.11x; the dense walk unchanged).
 fn dda_advance(s: ptr<function, Dda>, a: i32) {
     let step = (*s).step[a];
     (*s).voxel[a] += step;
     let boundary = f32((*s).voxel[a] + select(0, 1, step > 0));
-    (*s).t_max[a] = min((boundary - (*s).origin[a]) / (*s).dir[a], BIG);
+    (*s).t_max[a] = min((boundary - (*s).origin[a]) * (*s).inv_dir[a], BIG);
     count_step();
 }
 
@@ -180,10 +189,10 @@ fn dda_skip(s: ptr<function, Dda>, r: Region) {
     let step = (*s).step;
     let positive = step > vec3<i32>(0);
     let parallel = step == vec3<i32>(0);
-    let safe = select((*s).dir, vec3<f32>(1.0), parallel);
+    let inv = (*s).inv_dir;
     let o = (*s).origin;
     let edge = select(r.lo, r.hi, positive);
-    let t_exit = select(min((vec3<f32>(edge) - o) / safe, vec3<f32>(BIG)), vec3<f32>(BIG), parallel);
+    let t_exit = select(min((vec3<f32>(edge) - o) * inv, vec3<f32>(BIG)), vec3<f32>(BIG), parallel);
     let a_star = dda_axis(t_exit);
     let t_star = t_exit[a_star];
     let p = o + t_star * (*s).dir + 0.5 * vec3<f32>(step);
@@ -192,12 +201,12 @@ fn dda_skip(s: ptr<function, Dda>, r: Region) {
     let ahead = select(vec3<i32>(0), vec3<i32>(1), positive);
     var c = clamp(vec3<i32>(floor(p)), min(v, last), max(v, last));
     // The plane into c: crossed before (t*, a*) in the walk's order, or c is one too far.
-    let t_in = min((vec3<f32>(c - step + ahead) - o) / safe, vec3<f32>(BIG));
+    let t_in = min((vec3<f32>(c - step + ahead) - o) * inv, vec3<f32>(BIG));
     let axis = vec3<i32>(0, 1, 2);
     let crossed = (t_in < vec3<f32>(t_star)) | ((t_in == vec3<f32>(t_star)) & (axis < vec3<i32>(a_star)));
     c = select(c, c - step, (c != v) & !crossed);
     (*s).voxel = select(c, v, parallel);
-    let t_next = min((vec3<f32>((*s).voxel + ahead) - o) / safe, vec3<f32>(BIG));
+    let t_next = min((vec3<f32>((*s).voxel + ahead) - o) * inv, vec3<f32>(BIG));
     (*s).t_max = select(t_next, vec3<f32>(BIG), parallel);
 }
 

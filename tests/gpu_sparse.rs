@@ -1,5 +1,5 @@
 //! The sparse walk on the GPU (`render.traversal = "sparse"`, shaders/traversal_sparse.wgsl),
-//! and every other walk that skips regions: the golden baseline
+//! and every other walk that skips regions (the proximity field): the golden baseline
 //! images with each forced on; GPU against the f64 reference
 //! and against the GPU's own dense walk over generated scenes that vary every parameter
 //! that changes how the kernel runs (grid sizes from 1 to 100 a side, so tree depths 1 to
@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{DENSE_WALK, SPARSE_WALK};
+use common::{DENSE_WALK, PROXIMITY_WALK, SPARSE_WALK};
 use common::{assert_agree, assert_matches_golden, experiment, linear, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
@@ -213,10 +213,20 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
         sparse.walk_data > 0 && sparse.walk_data < dense.grid,
         "{sparse:?}"
     );
-    // Auto: dense below SPARSE_FROM_SIDE, sparse from it on; the plan says why.
+    // The proximity walk: two bytes a voxel of its own, no voxel buffer.
+    gpu.render(&scene, &settings(16, 16, 1, PROXIMITY_WALK))
+        .unwrap();
+    let proximity = gpu.last_memory().unwrap();
+    assert_eq!(proximity.grid, 0, "{proximity:?}");
+    assert_eq!(proximity.walk_data, 2 * 64 * 64 * 64, "{proximity:?}");
+    // Auto: dense below PROXIMITY_FROM_SIDE, the proximity walk from it on, sparse from
+    // SPARSE_FROM_SIDE on; the plan says why.
+    use voxlab::technique::{proximity::PROXIMITY_FROM_SIDE, sparse::SPARSE_FROM_SIDE};
     for (n, want) in [
-        (voxlab::technique::sparse::SPARSE_FROM_SIDE - 1, DENSE_WALK),
-        (voxlab::technique::sparse::SPARSE_FROM_SIDE, SPARSE_WALK),
+        (PROXIMITY_FROM_SIDE - 1, DENSE_WALK),
+        (PROXIMITY_FROM_SIDE, PROXIMITY_WALK),
+        (SPARSE_FROM_SIDE - 1, PROXIMITY_WALK),
+        (SPARSE_FROM_SIDE, SPARSE_WALK),
     ] {
         let scene = seed_scene_dims(UVec3::new(n, 3, 2)).unwrap();
         let plan = voxlab::plan::Plan::new(&scene, &settings(8, 8, 1, Traversal::Auto));

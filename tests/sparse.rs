@@ -1,5 +1,5 @@
 //! The sparse tree (the seed's O2), and every registered traversal with data of its own
-//! (the tree, say), against the dense grid it is built from: every
+//! (the tree, the proximity field), against the dense grid it is built from: every
 //! voxel's region uniform and holding it, and along many thousands of random rays in
 //! random sparse grids the same hit sequence (voxel, distance, face, material, bit for
 //! bit) as the dense DDA, for octrees, 64-trees and 512-trees; the same shadow

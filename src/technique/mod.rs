@@ -31,7 +31,8 @@
 //! A traversal is one [`TraversalModel`] value in its own file (name, summary, plan
 //! rule, its claim under `render.traversal = "auto"`, WGSL module `voxlab::regions`, and
 //! the data it walks), registered with one line in [`TRAVERSALS`]: the seed's `dense`
-//! DDA ([`dense`]) and the `sparse` 64-tree ([`sparse`], the seed's O2). Every walk, on
+//! DDA ([`dense`]), the `proximity` clouds ([`proximity`], a radius beside each voxel)
+//! and the `sparse` 64-tree ([`sparse`], the seed's O2). Every walk, on
 //! both backends, is the one DDA of `shaders/traversal.wgsl` and `crate::cpu::dda` over
 //! the regions the traversal finds; all give the same visits.
 //!
@@ -51,6 +52,7 @@ pub mod hard;
 pub mod indirect;
 pub mod mesh;
 pub mod min_kt;
+pub mod proximity;
 pub mod ratio;
 pub mod sdf;
 pub mod smooth;
@@ -85,7 +87,8 @@ pub const TRANSMITTANCES: &[&TransmittanceModel] = &[&min_kt::MODEL, &beer_lambe
 
 /// Traversals, in the order they are listed and offered; the first is the default (the
 /// baseline's), which `auto` takes unless another claims the scene. One line each.
-pub const TRAVERSALS: &[&TraversalModel] = &[&dense::TRAVERSAL, &sparse::TRAVERSAL];
+pub const TRAVERSALS: &[&TraversalModel] =
+    &[&dense::TRAVERSAL, &proximity::TRAVERSAL, &sparse::TRAVERSAL];
 
 /// Surfaces, in the order they are listed and offered; the first is the default (the
 /// baseline's voxel faces). One line each.

@@ -1,0 +1,123 @@
+//! The proximity traversal's field (src/technique/proximity.rs): every voxel's radius is
+//! its exact Chebyshev distance to the nearest voxel with a neighbour of another
+//! material (the two chamfer passes against brute force), and the cube of that radius
+//! holds the voxel's material only; the largest such cube, so the field skips as far as
+//! the rule allows.
+
+use glam::{IVec3, UVec3};
+use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
+use voxlab::scene::Grid;
+use voxlab::technique::proximity::{MAX_RADIUS, ProximityField, radii};
+
+/// A grid of `dims` with a few boxes of `materials` materials over a background of one.
+fn boxes(rng: &mut StdRng, dims: UVec3, materials: u8, count: usize) -> Grid {
+    let mut g = Grid::new(dims, 1.0, glam::DVec3::ZERO).unwrap();
+    let background = rng.random_range(0..materials);
+    g.data_mut().fill(background);
+    for _ in 0..count {
+        let lo = IVec3::new(
+            rng.random_range(0..dims.x as i32),
+            rng.random_range(0..dims.y as i32),
+            rng.random_range(0..dims.z as i32),
+        );
+        let size = IVec3::new(
+            rng.random_range(1..=dims.x as i32),
+            rng.random_range(1..=dims.y as i32),
+            rng.random_range(1..=dims.z as i32),
+        ) / rng.random_range(1..4);
+        let m = rng.random_range(0..materials);
+        let hi = (lo + size.max(IVec3::ONE)).min(dims.as_ivec3());
+        for z in lo.z..hi.z {
+            for y in lo.y..hi.y {
+                for x in lo.x..hi.x {
+                    g.set(IVec3::new(x, y, z), m);
+                }
+            }
+        }
+    }
+    g
+}
+
+fn all_voxels(dims: UVec3) -> impl Iterator<Item = IVec3> {
+    let d = dims.as_ivec3();
+    (0..d.z)
+        .flat_map(move |z| (0..d.y).flat_map(move |y| (0..d.x).map(move |x| IVec3::new(x, y, z))))
+}
+
+/// Whether every voxel of the cube of radius `r` around `v`, clipped to the grid, has
+/// `v`'s material.
+fn uniform(g: &Grid, v: IVec3, r: i32) -> bool {
+    let lo = (v - r).max(IVec3::ZERO);
+    let hi = (v + r + 1).min(g.dims().as_ivec3());
+    let m = g.get(v);
+    (lo.z..hi.z)
+        .all(|z| (lo.y..hi.y).all(|y| (lo.x..hi.x).all(|x| g.get(IVec3::new(x, y, z)) == m)))
+}
+
+#[test]
+fn radii_are_the_exact_chebyshev_distances() {
+    let mut rng = StdRng::seed_from_u64(7);
+    for round in 0..40 {
+        let dims = UVec3::new(
+            rng.random_range(1..24),
+            rng.random_range(1..24),
+            rng.random_range(1..24),
+        );
+        let count = rng.random_range(0..6);
+        let g = boxes(&mut rng, dims, 1 + round as u8 % 4, count);
+        let r = radii(g.data(), dims);
+        // The seeds by brute force: a neighbour inside the grid of another material.
+        let seeds: Vec<IVec3> = all_voxels(dims).filter(|&v| !uniform(&g, v, 1)).collect();
+        for (i, v) in all_voxels(dims).enumerate() {
+            let want = seeds
+                .iter()
+                .map(|s| (*s - v).abs().max_element())
+                .min()
+                .map_or(MAX_RADIUS, |d| d.min(MAX_RADIUS as i32) as u8);
+            assert_eq!(r[i], want, "grid {dims}, voxel {v}");
+        }
+    }
+}
+
+#[test]
+fn each_cube_is_the_largest_of_one_material() {
+    let mut rng = StdRng::seed_from_u64(8);
+    for round in 0..40 {
+        let dims = UVec3::new(
+            rng.random_range(1..20),
+            rng.random_range(1..20),
+            rng.random_range(1..20),
+        );
+        let count = rng.random_range(1..5);
+        let g = boxes(&mut rng, dims, 2 + round as u8 % 3, count);
+        let field = ProximityField::build(&g);
+        for v in all_voxels(dims) {
+            let r = field.radius(v) as i32;
+            assert!(uniform(&g, v, r), "grid {dims}, voxel {v}, radius {r}");
+            // One more would take in another material, unless the cube already
+            // covers the grid.
+            let covers =
+                (v - r).cmple(IVec3::ZERO).all() && (v + r + 1).cmpge(dims.as_ivec3()).all();
+            if !covers && r < MAX_RADIUS as i32 {
+                assert!(!uniform(&g, v, r + 1), "grid {dims}, voxel {v}, radius {r}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_uniform_grid_is_one_cube_and_radii_cap_at_one_byte() {
+    // One material: no seeds, every radius the cap, every cube the whole grid.
+    let g = Grid::new(UVec3::new(300, 2, 3), 1.0, glam::DVec3::ZERO).unwrap();
+    let field = ProximityField::build(&g);
+    assert_eq!(field.radius(IVec3::new(299, 1, 2)), MAX_RADIUS);
+    // A voxel of another material at one end: the far end is 298 away, past the cap.
+    let mut g = g;
+    g.set(IVec3::ZERO, 3);
+    let field = ProximityField::build(&g);
+    assert_eq!(field.radius(IVec3::new(299, 0, 0)), MAX_RADIUS);
+    assert_eq!(field.radius(IVec3::new(200, 0, 0)), 199);
+    assert_eq!(field.radius(IVec3::new(1, 1, 1)), 0);
+    assert_eq!(field.bytes_per_voxel(), 2.0);
+}
