@@ -265,10 +265,10 @@ fn scenes(opts: &BenchOptions) -> impl Iterator<Item = Result<BenchScene>> + '_ 
 pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<Vec<BenchRow>> {
     let mut gpu = GpuTracer::new()?;
     // A render that runs into the software driver's loop limit is rendered again with
-    // more steps per loop iteration, which the tracer keeps (crate::gpu): every row
-    // starts from the device's own choice, or each row after a large grid's would be
-    // measured with the large grid's setting (the seed's rules at 16^3: 112 ms per frame
-    // alone, 172 ms after the seed scene at 256^3).
+    // more steps per loop iteration, which the tracer keeps for that grid's dims and
+    // walk (crate::gpu): every row starts from the device's own choice, so that no row
+    // is measured with another's setting (the seed's rules at 16^3: 112 ms per frame
+    // alone, 172 ms with the seed scene at 256^3's).
     let device_unroll = gpu.dda_unroll();
     let mut rows = Vec::new();
     for scene in scenes(opts) {

@@ -296,8 +296,7 @@ fn steps_per_loop_iteration_change_nothing() {
 #[test]
 fn a_cut_render_is_rendered_again_with_more_steps_per_iteration() {
     let scene = voxlab::scene::seed_scene(256).unwrap();
-    // The dense walk: the sparse one (auto's choice at this size) takes few enough steps
-    // that nothing is cut.
+    // The dense walk: the walks that skip take few enough steps that nothing is cut.
     let settings = RenderSettings {
         width: 32,
         height: 32,
@@ -317,5 +316,14 @@ fn a_cut_render_is_rendered_again_with_more_steps_per_iteration() {
             8,
             "lavapipe cuts this scene at one step per iteration"
         );
+        // Kept for this grid's walk, not for another grid: a small scene after it
+        // starts again from the device's choice.
+        gpu.render(&scene, &settings).unwrap();
+        assert_eq!(gpu.dda_unroll(), 8);
+        let small = voxlab::scene::seed_scene(16).unwrap();
+        gpu.render(&small, &settings).unwrap();
+        assert_eq!(gpu.dda_unroll(), 1, "the small scene's walks need one step");
+        gpu.render(&scene, &settings).unwrap();
+        assert_eq!(gpu.dda_unroll(), 8, "raised again for the large one");
     }
 }
