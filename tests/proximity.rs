@@ -39,6 +39,15 @@ fn boxes(rng: &mut StdRng, dims: UVec3, materials: u8, count: usize) -> Grid {
     g
 }
 
+/// Dims of sides 1 to `below - 1`.
+fn random_dims(rng: &mut StdRng, below: u32) -> UVec3 {
+    UVec3::new(
+        rng.random_range(1..below),
+        rng.random_range(1..below),
+        rng.random_range(1..below),
+    )
+}
+
 fn all_voxels(dims: UVec3) -> impl Iterator<Item = IVec3> {
     let d = dims.as_ivec3();
     (0..d.z)
@@ -59,11 +68,7 @@ fn uniform(g: &Grid, v: IVec3, r: i32) -> bool {
 fn radii_are_the_exact_chebyshev_distances() {
     let mut rng = StdRng::seed_from_u64(7);
     for round in 0..40 {
-        let dims = UVec3::new(
-            rng.random_range(1..24),
-            rng.random_range(1..24),
-            rng.random_range(1..24),
-        );
+        let dims = random_dims(&mut rng, 24);
         let count = rng.random_range(0..6);
         let g = boxes(&mut rng, dims, 1 + round as u8 % 4, count);
         let r = radii(g.data(), dims);
@@ -84,11 +89,7 @@ fn radii_are_the_exact_chebyshev_distances() {
 fn each_cube_is_the_largest_of_one_material() {
     let mut rng = StdRng::seed_from_u64(8);
     for round in 0..40 {
-        let dims = UVec3::new(
-            rng.random_range(1..20),
-            rng.random_range(1..20),
-            rng.random_range(1..20),
-        );
+        let dims = random_dims(&mut rng, 20);
         let count = rng.random_range(1..5);
         let g = boxes(&mut rng, dims, 2 + round as u8 % 3, count);
         let field = ProximityField::build(&g);

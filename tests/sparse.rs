@@ -190,6 +190,39 @@ const SIZES: [[u32; 3]; 6] = [
     [1, 1, 1],
 ];
 
+/// Every voxel of `g` lies in its region (found by `name`), of its material and inside
+/// the grid; the region is uniform: every voxel of it on small grids, its corners on
+/// the others.
+fn assert_regions_hold_the_grid(g: &Grid, regions: &dyn Regions, name: &str) {
+    let dims = g.dims().as_ivec3();
+    for z in 0..dims.z {
+        for y in 0..dims.y {
+            for x in 0..dims.x {
+                let v = IVec3::new(x, y, z);
+                let r = regions.region(v);
+                assert_eq!(r.material, g.get(v), "{name}, {dims} at {v}");
+                assert!(v.cmpge(r.lo).all() && v.cmplt(r.hi).all());
+                assert!(r.lo.cmpge(IVec3::ZERO).all());
+                assert!(r.hi.as_uvec3().cmple(g.dims()).all());
+                if g.voxel_count() <= 4096 {
+                    for zz in r.lo.z..r.hi.z {
+                        for yy in r.lo.y..r.hi.y {
+                            for xx in r.lo.x..r.hi.x {
+                                let u = IVec3::new(xx, yy, zz);
+                                assert_eq!(g.get(u), r.material, "{name}, {v}: {u}");
+                            }
+                        }
+                    }
+                } else {
+                    for p in [r.lo, r.hi - IVec3::ONE] {
+                        assert_eq!(g.get(p), r.material, "{name}, {v}");
+                    }
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn the_tree_holds_every_voxel_of_the_grid() {
     let mut rng = StdRng::seed_from_u64(1);
@@ -197,21 +230,7 @@ fn the_tree_holds_every_voxel_of_the_grid() {
         let g = random_sparse_grid(&mut rng, UVec3::from_array(dims), 5);
         for b in 1..=3 {
             let t = SparseTree::build(&g, b);
-            for z in 0..dims[2] as i32 {
-                for y in 0..dims[1] as i32 {
-                    for x in 0..dims[0] as i32 {
-                        let v = IVec3::new(x, y, z);
-                        let r = t.region(v);
-                        assert_eq!(r.material, g.get(v), "{dims:?} branch 2^{b} at {v}");
-                        assert!(v.cmpge(r.lo).all() && v.cmplt(r.hi).all());
-                        // A region is uniform and inside the grid.
-                        assert!(r.hi.as_uvec3().cmple(g.dims()).all());
-                        for p in [r.lo, r.hi - IVec3::ONE] {
-                            assert_eq!(g.get(p), r.material);
-                        }
-                    }
-                }
-            }
+            assert_regions_hold_the_grid(&g, &t, &format!("branch 2^{b}"));
         }
     }
 }
@@ -222,34 +241,7 @@ fn every_traversals_regions_are_uniform_and_hold_their_voxel() {
     for dims in SIZES {
         let g = random_sparse_grid(&mut rng, UVec3::from_array(dims), 5);
         for (name, data) in walk_data(&g) {
-            for z in 0..dims[2] as i32 {
-                for y in 0..dims[1] as i32 {
-                    for x in 0..dims[0] as i32 {
-                        let v = IVec3::new(x, y, z);
-                        let r = data.region(v);
-                        assert_eq!(r.material, g.get(v), "{name}, {dims:?} at {v}");
-                        assert!(v.cmpge(r.lo).all() && v.cmplt(r.hi).all());
-                        assert!(r.lo.cmpge(IVec3::ZERO).all());
-                        assert!(r.hi.as_uvec3().cmple(g.dims()).all());
-                        // Every voxel of the region, on the small grids; its corners
-                        // on the others.
-                        if g.voxel_count() <= 4096 {
-                            for zz in r.lo.z..r.hi.z {
-                                for yy in r.lo.y..r.hi.y {
-                                    for xx in r.lo.x..r.hi.x {
-                                        let u = IVec3::new(xx, yy, zz);
-                                        assert_eq!(g.get(u), r.material, "{name}, {v}: {u}");
-                                    }
-                                }
-                            }
-                        } else {
-                            for p in [r.lo, r.hi - IVec3::ONE] {
-                                assert_eq!(g.get(p), r.material, "{name}, {v}");
-                            }
-                        }
-                    }
-                }
-            }
+            assert_regions_hold_the_grid(&g, data.as_ref(), name);
         }
     }
 }

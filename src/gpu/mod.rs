@@ -860,11 +860,6 @@ impl GpuTracer {
         plan.traversal.data.is_none()
     }
 
-    /// Bytes of the voxel buffer of a grid of `dims` (a whole number of vec4<u32>).
-    fn voxel_buffer_bytes(dims: glam::UVec3) -> u64 {
-        (dims.x as u64 * dims.y as u64 * dims.z as u64).next_multiple_of(16)
-    }
-
     /// The largest storage buffer this device binds: the largest dense grid's voxel
     /// buffer, and the largest sparse tree.
     pub fn max_voxel_buffer_bytes(&self) -> u64 {
@@ -883,7 +878,7 @@ impl GpuTracer {
         if g.voxels.as_ref().is_some_and(|v| v.0 == hash) {
             return;
         }
-        let bytes = Self::voxel_buffer_bytes(g.dims);
+        let bytes = crate::technique::dense::voxel_buffer_bytes(g.dims);
         let buf = buffer(
             &self.device,
             "voxels",
@@ -1477,20 +1472,20 @@ impl GpuTracer {
     ) -> Result<RenderOutput> {
         let mut plan = plan;
         plan.dda_unroll = self.dda_unroll;
-        let walk_bytes = plan.traversal.device_bytes.map(|b| b(scene.grid.dims()));
+        let bound_bytes = plan.traversal.device_bytes.map(|b| b(scene.grid.dims()));
         let tree_walk = crate::technique::TRAVERSALS
             .iter()
             .copied()
             .find(|t| t.walks_tree);
         if let Some(tree_walk) = tree_walk
-            && let Some(walk_bytes) = walk_bytes
+            && let Some(bound_bytes) = bound_bytes
             && settings.traversal == crate::render::Traversal::Auto
-            && walk_bytes > self.max_voxel_buffer_bytes()
+            && bound_bytes > self.max_voxel_buffer_bytes()
         {
             // The device cannot bind what the planned walk reads (the dense grid, the
             // traversal's own data): a walk over the tree is the only way.
             plan.traversal_reason = format!(
-                "auto: the {} walk's {walk_bytes} bytes are more than this device binds \
+                "auto: the {} walk's {bound_bytes} bytes are more than this device binds \
                  ({}, max_storage_buffer_binding_size)",
                 plan.traversal.name,
                 self.max_voxel_buffer_bytes()
@@ -1874,7 +1869,7 @@ impl GpuTracer {
             } else {
                 0
             } + if Self::reads_voxel_buffer(&plan) {
-                Self::voxel_buffer_bytes(scene.grid.dims())
+                crate::technique::dense::voxel_buffer_bytes(scene.grid.dims())
             } else {
                 0
             },

@@ -8,25 +8,18 @@
 
 use super::TraversalModel;
 
+/// Bytes of the voxel buffer the dense walk reads for a grid of `dims`: one a voxel, in
+/// whole vec4<u32>s.
+pub fn voxel_buffer_bytes(dims: glam::UVec3) -> u64 {
+    dims.as_u64vec3().element_product().next_multiple_of(16)
+}
+
 pub const TRAVERSAL: TraversalModel = TraversalModel {
     name: "dense",
     summary: "the 3D DDA voxel by voxel over the dense grid (the seed's; Amanatides and \
               Woo 1987)",
     label: "dense DDA",
-    plan: |scene, _| {
-        if scene.grid.is_sparse() {
-            let d = scene.grid.dims();
-            return Err(format!(
-                "it walks the dense grid, and this {}x{}x{} grid is held only as its sparse \
-                 tree (more than {} voxels)",
-                d.x,
-                d.y,
-                d.z,
-                crate::scene::DENSE_MAX_VOXELS
-            ));
-        }
-        Ok(())
-    },
+    plan: |scene, _| super::dense_grid_only(scene, "the dense grid"),
     auto: None,
     wgsl: (
         "shaders/traversal_dense.wgsl",
@@ -34,6 +27,5 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
     ),
     walks_tree: false,
     data: None,
-    // One byte a voxel, in whole vec4<u32>s.
-    device_bytes: Some(|dims| dims.as_u64vec3().element_product().next_multiple_of(16)),
+    device_bytes: Some(voxel_buffer_bytes),
 };

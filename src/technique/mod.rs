@@ -637,6 +637,33 @@ pub type WalkData = fn(&crate::scene::Grid) -> std::sync::Arc<dyn crate::sparse:
 /// `Err(why not)`.
 pub type AutoClaim = fn(&Scene) -> Result<String, String>;
 
+/// The plan rule of a traversal that walks the dense grid (`what` it reads, for the
+/// reason): no grid held only as its sparse tree.
+pub fn dense_grid_only(scene: &Scene, what: &str) -> Result<(), String> {
+    if !scene.grid.is_sparse() {
+        return Ok(());
+    }
+    let d = scene.grid.dims();
+    Err(format!(
+        "it reads {what}, and this {}x{}x{} grid is held only as its sparse tree (more than \
+         {} voxels)",
+        d.x,
+        d.y,
+        d.z,
+        crate::scene::DENSE_MAX_VOXELS
+    ))
+}
+
+/// The claim on grids whose largest side is `from` or more, with its reason.
+pub fn claim_from_side(scene: &Scene, from: u32) -> Result<String, String> {
+    let side = scene.grid.dims().max_element();
+    if side >= from {
+        Ok(format!("the grid's largest side {side} is {from} or more"))
+    } else {
+        Err(format!("the grid's largest side {side} is below {from}"))
+    }
+}
+
 /// A traversal: how rays walk the grid, everything about it in one value. Every
 /// traversal gives the dense DDA's visits (voxels, distances, faces), so images do not
 /// depend on it; only the time and the memory do. A walk asks it for the uniform region

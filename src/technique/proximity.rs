@@ -50,33 +50,11 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
               Cohen and Sheffer 1994)",
     label: "proximity clouds",
     plan: |scene, _| {
-        if scene.grid.is_sparse() {
-            let d = scene.grid.dims();
-            return Err(format!(
-                "it reads the dense grid with a radius beside each voxel, and this \
-                 {}x{}x{} grid is held only as its sparse tree (more than {} voxels)",
-                d.x,
-                d.y,
-                d.z,
-                crate::scene::DENSE_MAX_VOXELS
-            ));
-        }
-        Ok(())
+        super::dense_grid_only(scene, "the dense grid with a radius beside each voxel")
     },
     auto: Some(|scene| {
-        if scene.grid.is_sparse() {
-            return Err("the grid is held only as its sparse tree".into());
-        }
-        let side = scene.grid.dims().max_element();
-        if side >= PROXIMITY_FROM_SIDE {
-            Ok(format!(
-                "the grid's largest side {side} is {PROXIMITY_FROM_SIDE} or more"
-            ))
-        } else {
-            Err(format!(
-                "the grid's largest side {side} is below {PROXIMITY_FROM_SIDE}"
-            ))
-        }
+        super::dense_grid_only(scene, "the dense grid")?;
+        super::claim_from_side(scene, PROXIMITY_FROM_SIDE)
     }),
     wgsl: (
         "shaders/traversal_proximity.wgsl",
@@ -118,10 +96,6 @@ impl ProximityField {
             }
         });
         Self { dims, words }
-    }
-
-    pub fn dims(&self) -> UVec3 {
-        self.dims
     }
 
     fn voxel(&self, v: IVec3) -> (u8, u8) {

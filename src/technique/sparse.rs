@@ -27,16 +27,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
         if scene.grid.is_sparse() {
             return Ok("the grid is held only as its sparse tree".into());
         }
-        let side = scene.grid.dims().max_element();
-        if side >= SPARSE_FROM_SIDE {
-            Ok(format!(
-                "the grid's largest side {side} is {SPARSE_FROM_SIDE} or more"
-            ))
-        } else {
-            Err(format!(
-                "the grid's largest side {side} is below {SPARSE_FROM_SIDE}"
-            ))
-        }
+        super::claim_from_side(scene, SPARSE_FROM_SIDE)
     }),
     wgsl: (
         "shaders/traversal_sparse.wgsl",
