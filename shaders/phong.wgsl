@@ -41,12 +41,14 @@ fn point_contribution(
     radiance: vec3<f32>,
     s: Material,
 ) -> vec3<f32> {
-    count_shadow();
-    let vis = shadow_to(q, x);
-    if all(vis == vec3<f32>(0.0)) {
-        return vec3<f32>(0.0);
+    // No shadow ray where nothing it could let through is seen (a light behind the
+    // surface, say): V multiplies zero there. Contract: "Shading a hit".
+    let lit = unshadowed(p, n, d, x, radiance, s);
+    if all(lit == vec3<f32>(0.0)) {
+        return lit;
     }
-    return vis * unshadowed(p, n, d, x, radiance, s);
+    count_shadow();
+    return shadow_to(q, x) * lit;
 }
 
 // E (kd diffuse + ks specular) of a point emitter at x seen from p, before visibility

@@ -118,20 +118,23 @@ fn lit_unoccluded_point_equals_closed_form_phong() {
 }
 
 #[test]
-fn occluded_light_gives_ambient_only() {
-    // The light is under the floor: the shadow ray is blocked by the opaque voxel.
+fn light_behind_the_surface_gives_ambient_only_and_no_shadow_ray() {
+    // The light is under the floor, behind the face the camera sees: n.l < 0, so the
+    // face's Phong term is zero and no shadow ray is cast (contract, "Shading a hit").
     let scene = floor_scene(DVec3::new(0.4, -1.7, -0.3));
     let frame = scene.camera.frame();
     let d = (DVec3::new(0.31, 0.0, 0.17) - frame.eye).normalize();
+    let mut stats = RayStats::default();
     let c = trace_ray(
         &scene,
         &RenderSettings::default(),
         SampleKey::default(),
         frame.eye,
         d,
-        &mut RayStats::default(),
+        &mut stats,
     );
     assert_eq!(c, scene.ambient);
+    assert_eq!((stats.primary, stats.shadow, stats.secondary), (1, 0, 0));
 }
 
 #[test]

@@ -63,6 +63,55 @@ fn seed_counts_match_the_cpu() {
     close("voxel steps", g.voxel_steps, c.voxel_steps, 0.005);
 }
 
+/// A shadow ray is cast only towards a light that can light the hit (contract,
+/// "Shading a hit"): a light behind every lit face casts none, on both tracers, and one
+/// in front casts one per hit. A floor of one solid layer under a camera above it; the
+/// floor's faces are axis-aligned and the lights far from their planes, so f32 and f64
+/// agree on every sign and the counts are exact.
+#[test]
+fn only_a_light_in_front_of_a_surface_casts_shadow_rays() {
+    let mut scene = seed_scene(8).unwrap();
+    scene.grid.data_mut().fill(0);
+    for z in 0..8 {
+        for x in 0..8 {
+            scene.grid.set(IVec3::new(x, 0, z), seed_ids::SOLID);
+        }
+    }
+    scene.camera.pitch = 1.2;
+    let settings = RenderSettings {
+        max_reflection_depth: 0,
+        max_refraction_depth: 0,
+        ..small(24, 24)
+    };
+    let mut gpu = tracer();
+    for (y, lit) in [(-6.0, false), (9.0, true)] {
+        let light = voxlab::scene::PointLight {
+            position: DVec3::new(4.0, y, 4.0),
+            color: DVec3::ONE,
+            intensity: 50.0,
+        };
+        scene.lights = vec![voxlab::scene::Light::Point(light)];
+        let g = gpu.render_counted(&scene, &settings).unwrap().stats;
+        let c = voxlab::cpu::render(&scene, &settings);
+        println!("light at y {y}: GPU {g:?}, CPU {:?}", c.stats);
+        // The pixels the light lights: with nothing to cast a shadow, those of the
+        // faces it is in front of.
+        let lit_pixels = c
+            .frame
+            .pixels
+            .iter()
+            .filter(|p| p[0] != scene.ambient.x as f32)
+            .count() as u64;
+        assert_eq!(g.shadow, c.stats.shadow, "light at y {y}");
+        if lit {
+            assert!(lit_pixels > 100, "the floor must fill much of the image");
+            assert_eq!(c.stats.shadow, lit_pixels);
+        } else {
+            assert_eq!((lit_pixels, c.stats.shadow), (0, 0));
+        }
+    }
+}
+
 #[test]
 fn one_voxel_and_non_power_of_two_grids() {
     let mut gpu = tracer();

@@ -421,12 +421,14 @@ pub fn point_contribution(
     radiance: DVec3,
     stats: &mut RayStats,
 ) -> DVec3 {
-    stats.shadow += 1;
-    let v = shadow_transmittance(scene, walk, settings.features.transmittance, q, x, stats);
-    if v == DVec3::ZERO {
-        return DVec3::ZERO;
+    // No shadow ray where nothing it could let through is seen (a light behind the
+    // surface, say): `V` multiplies zero there. Contract: "Shading a hit".
+    let lit = unshadowed(settings, m, p, n, d, x, radiance);
+    if lit == DVec3::ZERO {
+        return lit;
     }
-    v * unshadowed(settings, m, p, n, d, x, radiance)
+    stats.shadow += 1;
+    shadow_transmittance(scene, walk, settings.features.transmittance, q, x, stats) * lit
 }
 
 /// `E (kd diffuse + ks specular)` of a point emitter at `x` seen from `p`, before
