@@ -540,7 +540,7 @@ impl GpuTracer {
             entries: &[
                 uniform_entry(0),
                 storage_entry(1, true),
-                storage_entry(2, true),
+                uniform_entry(2),
                 storage_entry(3, true),
                 storage_entry(4, false),
                 storage_entry(5, false),
@@ -1115,8 +1115,16 @@ impl GpuTracer {
     /// Writes the materials and lights into their buffers (grown when too small) and
     /// returns those.
     fn upload_scene(&mut self, scene: &Scene) -> (wgpu::Buffer, wgpu::Buffer) {
-        let (materials, lights) = Self::scene_data(scene);
-        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        let (mut materials, lights) = Self::scene_data(scene);
+        // The tracer declares the whole table (`shaders/bindings.wgsl`): a uniform array
+        // has a fixed length. The cone injection binds the same buffer as storage.
+        materials.resize(
+            materials.len().max(crate::scene::MAX_MATERIALS),
+            GpuMaterial::zeroed(),
+        );
+        let usage = wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::UNIFORM
+            | wgpu::BufferUsages::COPY_DST;
         let upload = |slot: &mut Option<(u64, wgpu::Buffer)>, bytes: &[u8], label| {
             let b = Self::grow(&self.device, slot, bytes.len() as u64, label, usage);
             self.queue.write_buffer(&b, 0, bytes);

@@ -22,6 +22,9 @@ pub use vox::{LoadError, LoadErrorKind, VoxScene, load_vox, load_vox_as, write_v
 
 use glam::DVec3;
 
+/// The most materials a scene defines: a voxel holds its material's index in one byte.
+pub const MAX_MATERIALS: usize = 256;
+
 /// A scene error in plain words; the experiment loader adds file, line and key.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("{0}")]
@@ -59,9 +62,9 @@ impl Scene {
                 self.materials.len().saturating_sub(1)
             )));
         }
-        if self.materials.len() > 256 {
+        if self.materials.len() > MAX_MATERIALS {
             return Err(SceneError::new(format!(
-                "{} materials defined; at most 256 (u8 indices)",
+                "{} materials defined; at most {MAX_MATERIALS} (u8 indices)",
                 self.materials.len()
             )));
         }
