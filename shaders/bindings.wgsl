@@ -10,11 +10,11 @@
 // texture: on Mesa's llvmpipe the seed scene renders 1.18x (16^3) to 1.77x (256^3) as
 // fast (README "Sparse traversal").
 @group(0) @binding(1) var<storage, read> voxels: array<u32>;
-// The whole material table (scene::MAX_MATERIALS entries, unused ones zero) in a
-// uniform buffer: Mesa's llvmpipe reads a storage buffer at a per-lane index in a loop
-// over the lanes with a branch each, a uniform buffer by an unrolled gather (its JIT
-// code under perf), and the shadow walk reads a material every step (seed_rules 16^3 at
-// 512x512: 106 to 100 ms per frame, 64^3: 266 to 246).
+// The whole material table (scene::MAX_MATERIALS entries, unused ones zero; a test in
+// src/gpu/compose.rs keeps the length) in a uniform buffer: Mesa's llvmpipe reads a
+// storage buffer at a per-lane index in a loop over the lanes with a branch each, a
+// uniform buffer by an unrolled gather (its JIT code under perf), and the shadow walk
+// reads a material every step (README "Where a step's time goes on lavapipe").
 @group(0) @binding(2) var<uniform> materials: array<Material, 256>;
 @group(0) @binding(3) var<storage, read> lights: array<Light>;
 // Linear radiance per pixel, rows from the top; w is unused. With ACCUMULATE, one such

@@ -220,6 +220,32 @@ mod tests {
         }
     }
 
+    /// The kernel's uniform material table holds every material a scene may define:
+    /// the host pads its upload to that length (`GpuTracer::upload_scene`).
+    #[test]
+    fn the_material_table_has_a_slot_for_every_material() {
+        let plan = Plan::all_variants(9).pop().unwrap();
+        let module = compose_shader(&plan).unwrap_or_else(|e| panic!("{e}"));
+        let (_, materials) = module
+            .global_variables
+            .iter()
+            // naga_oil decorates an imported name with its module's.
+            .find(|(_, g)| {
+                g.name
+                    .as_deref()
+                    .is_some_and(|n| n.starts_with("materials"))
+            })
+            .expect("the kernel reads the materials");
+        assert_eq!(materials.space, naga::AddressSpace::Uniform);
+        let naga::TypeInner::Array { size, .. } = module.types[materials.ty].inner else {
+            panic!("materials is an array");
+        };
+        let naga::ArraySize::Constant(n) = size else {
+            panic!("a uniform array has a fixed length");
+        };
+        assert_eq!(n.get() as usize, crate::scene::MAX_MATERIALS);
+    }
+
     #[test]
     fn sparse_variants_compose_at_every_depth() {
         for levels in 1..=crate::sparse::MAX_GPU_LEVELS {
