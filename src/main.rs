@@ -1170,19 +1170,18 @@ fn render_one(
         trace_ms,
         wall.as_secs_f64() * 1e3
     );
-    if let Renderer::Gpu(t) = &*renderer {
-        // The pyramids are built before the trace, so the trace time leaves them out.
-        let setup = t.last_setup_time();
-        if !setup.is_zero() {
-            say!(
-                opts,
-                "setup:      {:.3} ms (sparse tree, triangle surfaces, cone pyramids: not in the trace time)",
-                setup.as_secs_f64() * 1e3
-            );
-        }
-        if let Some(m) = t.last_memory() {
-            say!(opts, "memory:     {m} on the device");
-        }
+    // What the trace reads is prepared before it, so the trace time leaves it out.
+    if !result.setup_time.is_zero() {
+        say!(
+            opts,
+            "setup:      {:.3} ms (walk data, triangle surfaces, cone pyramids: not in the trace time)",
+            result.setup_time.as_secs_f64() * 1e3
+        );
+    }
+    if let Renderer::Gpu(t) = &*renderer
+        && let Some(m) = t.last_memory()
+    {
+        say!(opts, "memory:     {m} on the device");
     }
     let s = result.stats;
     if s.total_rays() > 0 {

@@ -537,6 +537,12 @@ impl std::ops::AddAssign for RayStats {
 pub struct RenderOutput {
     pub frame: Frame,
     pub stats: RayStats,
-    /// Time of the trace alone (uploads and readback excluded where the backend can tell).
+    /// Time of the trace alone (uploads and readback excluded where the backend can tell,
+    /// and the preparation always: `setup_time`).
     pub trace_time: Duration,
+    /// Time spent before the trace preparing what it reads: the walk's own data (sparse
+    /// tree, proximity field), triangle surfaces, cone pyramids, a shadow model's data.
+    /// Both backends keep it out of `trace_time`, so a frame's time is comparable
+    /// whichever backend traced it and however the preparation was cached.
+    pub setup_time: Duration,
 }

@@ -72,13 +72,15 @@ fn render_region_with_progress(
 ) -> RenderOutput {
     let rows_done = std::sync::atomic::AtomicU64::new(0);
     let row_count = rows.len() as u64;
-    let start = Instant::now();
+    let setup = Instant::now();
     let frame_cam = scene.camera.frame();
     let (w, h) = (settings.width, settings.height);
     let plan = Plan::new(scene, settings);
     let frames = plan.frames(settings);
     // Pyramids (and a plug-in model's data) once per render, only when planned.
     let prepared = Prepared::new(scene, settings, &plan);
+    let setup_time = setup.elapsed();
+    let start = Instant::now();
     let out: Vec<(Vec<[f32; 3]>, RayStats)> = rows
         .clone()
         .into_par_iter()
@@ -133,6 +135,7 @@ fn render_region_with_progress(
         frame,
         stats,
         trace_time: start.elapsed(),
+        setup_time,
     }
 }
 

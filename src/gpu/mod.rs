@@ -1906,6 +1906,7 @@ impl GpuTracer {
             frame,
             stats,
             trace_time,
+            setup_time: self.last_setup_time,
         })
     }
 
