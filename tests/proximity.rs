@@ -122,3 +122,37 @@ fn a_uniform_grid_is_one_cube_and_radii_cap_at_one_byte() {
     assert_eq!(field.radius(IVec3::new(1, 1, 1)), 0);
     assert_eq!(field.bytes_per_voxel(), 2.0);
 }
+
+#[test]
+fn radii_past_the_cap_are_exact_along_every_axis() {
+    // Lines longer than the one-byte cap, along each axis in turn, with a few voxels of
+    // another material: the capped passes give the capped brute-force distance.
+    let mut rng = StdRng::seed_from_u64(9);
+    for axis in 0..3 {
+        for _ in 0..3 {
+            let mut d = [rng.random_range(1..5u32), rng.random_range(1..5u32), 0];
+            d[2] = rng.random_range(260..700);
+            d.rotate_right(2 - axis);
+            let dims = UVec3::from_array(d);
+            let mut g = Grid::new(dims, 1.0, glam::DVec3::ZERO).unwrap();
+            for _ in 0..rng.random_range(0..4) {
+                let v = IVec3::new(
+                    rng.random_range(0..dims.x as i32),
+                    rng.random_range(0..dims.y as i32),
+                    rng.random_range(0..dims.z as i32),
+                );
+                g.set(v, 2);
+            }
+            let r = radii(g.data(), dims);
+            let seeds: Vec<IVec3> = all_voxels(dims).filter(|&v| !uniform(&g, v, 1)).collect();
+            for (i, v) in all_voxels(dims).enumerate() {
+                let want = seeds
+                    .iter()
+                    .map(|s| (*s - v).abs().max_element())
+                    .min()
+                    .map_or(MAX_RADIUS, |d| d.min(MAX_RADIUS as i32) as u8);
+                assert_eq!(r[i], want, "grid {dims}, voxel {v}");
+            }
+        }
+    }
+}

@@ -17,10 +17,9 @@
 //! voxel `b` at distance `r` makes every voxel nearer than `r` of `v`'s material, so the
 //! cube of radius `r` holds only that material: the nearest voxel of another material
 //! lies at `r + 1`, and the voxel before it on the way has it as a neighbour. The
-//! distances come from the two raster passes of a chamfer transform with unit weights
-//! over the 26-neighbourhood, exact for the Chebyshev metric (G. Borgefors, "Distance
-//! transformations in digital images", CVGIP 34, 1986; `tests/proximity.rs` checks it
-//! against brute force).
+//! distances come from three 1D passes, one per axis, of Meijster, Roerdink and
+//! Hesselink's linear-time transform (the Chebyshev distance is separable), each line
+//! on a thread of its own (`tests/proximity.rs` checks them against brute force).
 
 use std::sync::Arc;
 
@@ -133,85 +132,195 @@ impl Regions for ProximityField {
     }
 }
 
+/// What the 1D pass keeps between lines: the lower envelope's indices and where each
+/// starts, and the line's input.
+#[derive(Default)]
+struct LineScratch {
+    input: Vec<u8>,
+    at: Vec<i32>,
+    from: Vec<i32>,
+}
+
+impl LineScratch {
+    /// `line[x] = min over i of max(|x - i|, line[i])`: the Chebyshev distance along one
+    /// axis, given the distances over the other axes already taken, by the lower-envelope
+    /// scan of A. Meijster, J. Roerdink and W. Hesselink, "A general algorithm for
+    /// computing distance transforms in linear time" (Mathematical Morphology and its
+    /// Applications to Image and Signal Processing, 2000), with its Sep for the
+    /// chessboard metric: the last x at which i's function is at most u's (i < u).
+    /// Values stay capped at [`MAX_RADIUS`], exactly: min(., cap) commutes with the pass.
+    fn pass(&mut self, line: &mut [u8]) {
+        let n = line.len() as i32;
+        // A line without a seed within the cap stays as it is (most lines of empty space).
+        if line.iter().all(|&d| d == MAX_RADIUS) {
+            return;
+        }
+        self.input.clear();
+        self.input.extend_from_slice(line);
+        let h = |i: i32| i32::from(self.input[i as usize]);
+        let f = |x: i32, i: i32| (x - i).abs().max(h(i));
+        let sep = |i: i32, u: i32| {
+            if h(i) <= h(u) {
+                (i + h(u)).max((i + u) / 2)
+            } else {
+                (u - h(i)).min((i + u) / 2)
+            }
+        };
+        let (at, from) = (&mut self.at, &mut self.from);
+        at.clear();
+        from.clear();
+        at.push(0);
+        from.push(0);
+        for u in 1..n {
+            while let (Some(&i), Some(&t)) = (at.last(), from.last()) {
+                if f(t, i) > f(t, u) {
+                    at.pop();
+                    from.pop();
+                } else {
+                    break;
+                }
+            }
+            match at.last() {
+                None => {
+                    at.push(u);
+                    from.push(0);
+                }
+                Some(&i) => {
+                    let w = 1 + sep(i, u);
+                    if w < n {
+                        at.push(u);
+                        from.push(w);
+                    }
+                }
+            }
+        }
+        let mut q = at.len() - 1;
+        for x in (0..n).rev() {
+            line[x as usize] = f(x, at[q]).min(i32::from(MAX_RADIUS)) as u8;
+            if x == from[q] && q > 0 {
+                q -= 1;
+            }
+        }
+    }
+}
+
 /// Each voxel's Chebyshev distance to the nearest voxel with a 26-neighbour of another
 /// material, capped at [`MAX_RADIUS`] (see the module documentation).
 pub fn radii(voxels: &[u8], dims: UVec3) -> Vec<u8> {
     let (nx, ny, nz) = (dims.x as usize, dims.y as usize, dims.z as usize);
     let slice = nx * ny;
-    let mut r = vec![MAX_RADIUS; voxels.len()];
     // Seeds: the voxels with a neighbour of another material (outside the grid is no
-    // neighbour: the walks end there by their own test).
-    r.par_chunks_mut(slice.max(1))
-        .enumerate()
-        .for_each(|(z, out)| {
+    // neighbour: the walks end there by their own test). Whether a voxel's 3x3x3 block
+    // holds its material only is separable too: its row of three along x does, then
+    // the three such rows along y, then the three such planes along z (each pass with
+    // the neighbours' materials, which must be the voxel's). `r` holds the rows' flags,
+    // `block` the planes', and then `r` the seeds.
+    let mut r = vec![0u8; voxels.len()];
+    let mut block = vec![0u8; voxels.len()];
+    r.par_chunks_mut(nx.max(1))
+        .zip(voxels.par_chunks(nx.max(1)))
+        .for_each(|(out, row)| {
+            for x in 0..nx {
+                let m = row[x];
+                let uniform = (x == 0 || row[x - 1] == m) && (x + 1 == nx || row[x + 1] == m);
+                out[x] = u8::from(uniform);
+            }
+        });
+    block
+        .par_chunks_mut(slice.max(1))
+        .zip(r.par_chunks(slice.max(1)))
+        .zip(voxels.par_chunks(slice.max(1)))
+        .for_each(|((out, rows), plane)| {
             for y in 0..ny {
                 for x in 0..nx {
-                    let m = voxels[x + nx * (y + ny * z)];
-                    let mut seed = false;
-                    'n: for zz in z.saturating_sub(1)..(z + 2).min(nz) {
-                        for yy in y.saturating_sub(1)..(y + 2).min(ny) {
-                            let row = nx * (yy + ny * zz);
-                            for xx in x.saturating_sub(1)..(x + 2).min(nx) {
-                                if voxels[row + xx] != m {
-                                    seed = true;
-                                    break 'n;
-                                }
-                            }
-                        }
-                    }
-                    if seed {
-                        out[x + nx * y] = 0;
-                    }
+                    let i = x + nx * y;
+                    let m = plane[i];
+                    let near = |j: usize| rows[j] == 1 && plane[j] == m;
+                    out[i] = u8::from(
+                        near(i) && (y == 0 || near(i - nx)) && (y + 1 == ny || near(i + nx)),
+                    );
                 }
             }
         });
-    // The forward pass takes the 13 neighbours before a voxel in raster order, the
-    // backward pass the 13 after it. Voxels off the grid's faces read them by index
-    // offset; those on a face check each neighbour.
-    let before: Vec<IVec3> = (-1..=1)
-        .flat_map(|z| (-1..=1).flat_map(move |y| (-1..=1).map(move |x| IVec3::new(x, y, z))))
-        .filter(|o| (o.z, o.y, o.x) < (0, 0, 0))
-        .collect();
-    let size = IVec3::new(nx as i32, ny as i32, nz as i32);
-    for sign in [1, -1] {
-        let offsets: Vec<IVec3> = before.iter().map(|o| *o * sign).collect();
-        let steps: Vec<isize> = offsets
-            .iter()
-            .map(|o| o.x as isize + nx as isize * (o.y as isize + ny as isize * o.z as isize))
-            .collect();
-        let order = |n: usize| -> Box<dyn Iterator<Item = usize>> {
-            if sign > 0 {
-                Box::new(0..n)
-            } else {
-                Box::new((0..n).rev())
+    r.par_chunks_mut(slice.max(1))
+        .enumerate()
+        .for_each(|(z, out)| {
+            for (k, o) in out.iter_mut().enumerate() {
+                let i = k + slice * z;
+                let m = voxels[i];
+                let near = |j: usize| block[j] == 1 && voxels[j] == m;
+                let uniform =
+                    near(i) && (z == 0 || near(i - slice)) && (z + 1 == nz || near(i + slice));
+                *o = if uniform { MAX_RADIUS } else { 0 };
             }
-        };
-        for z in order(nz) {
-            for y in order(ny) {
-                let inner_row = z > 0 && z + 1 < nz && y > 0 && y + 1 < ny;
-                for x in order(nx) {
-                    let i = x + nx * (y + ny * z);
-                    if r[i] == 0 {
-                        continue;
-                    }
-                    let mut best = r[i];
-                    if inner_row && x > 0 && x + 1 < nx {
-                        for &step in &steps {
-                            best = best.min(r[(i as isize + step) as usize].saturating_add(1));
-                        }
-                    } else {
-                        let v = IVec3::new(x as i32, y as i32, z as i32);
-                        for (o, &step) in offsets.iter().zip(&steps) {
-                            let u = v + *o;
-                            if u.cmpge(IVec3::ZERO).all() && u.cmplt(size).all() {
-                                best = best.min(r[(i as isize + step) as usize].saturating_add(1));
-                            }
-                        }
-                    }
-                    r[i] = best;
+        });
+    // The distance to the nearest seed is separable (Chebyshev: the largest of the
+    // three axis distances), so three passes of a 1D transform, one axis after the
+    // other, each line independent of the others and the lines spread over the threads.
+    // With the seeds found by the separable test above, the seed scene's 256^3 field
+    // builds in 307 ms instead of 676 on two cores (`voxlab bench --sizes 256 --size 64
+    // --no-cpu --traversal proximity`, build ms), where the chamfer transform's two
+    // raster passes and a 27-voxel test per voxel ran before.
+    // Along x every distance is 0 or the cap, so each is the distance to the nearest
+    // seed of its row: one sweep each way (what the general pass gives, faster).
+    r.par_chunks_mut(nx.max(1)).for_each(|row| {
+        let mut d = MAX_RADIUS;
+        for v in row.iter_mut() {
+            d = if *v == 0 { 0 } else { d.saturating_add(1) };
+            *v = d;
+        }
+        let mut d = MAX_RADIUS;
+        for v in row.iter_mut().rev() {
+            d = if *v == 0 {
+                0
+            } else {
+                d.saturating_add(1).min(*v)
+            };
+            *v = d;
+        }
+    });
+    r.par_chunks_mut(slice.max(1))
+        .for_each_init(LineScratch::default, |scratch, plane| {
+            let mut line = vec![0u8; ny];
+            for x in 0..nx {
+                for (y, l) in line.iter_mut().enumerate() {
+                    *l = plane[x + nx * y];
+                }
+                scratch.pass(&mut line);
+                for (y, l) in line.iter().enumerate() {
+                    plane[x + nx * y] = *l;
                 }
             }
-        }
-    }
+        });
+    // Along z through a copy of the grid in (x, z, y) order: a y's rows are read whole
+    // and its lines along z passed in a block of their own, then written back row by row.
+    let mut lines = block;
+    lines
+        .par_chunks_mut((nx * nz).max(1))
+        .enumerate()
+        .for_each_init(LineScratch::default, |scratch, (y, plane)| {
+            for z in 0..nz {
+                let row = nx * (y + ny * z);
+                plane[nx * z..nx * (z + 1)].copy_from_slice(&r[row..row + nx]);
+            }
+            let mut line = vec![0u8; nz];
+            for x in 0..nx {
+                for (z, l) in line.iter_mut().enumerate() {
+                    *l = plane[x + nx * z];
+                }
+                scratch.pass(&mut line);
+                for (z, l) in line.iter().enumerate() {
+                    plane[x + nx * z] = *l;
+                }
+            }
+        });
+    r.par_chunks_mut(slice.max(1))
+        .enumerate()
+        .for_each(|(z, plane)| {
+            for y in 0..ny {
+                let from = nx * (z + nz * y);
+                plane[nx * y..nx * (y + 1)].copy_from_slice(&lines[from..from + nx]);
+            }
+        });
     r
 }
