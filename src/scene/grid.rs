@@ -73,13 +73,30 @@ pub struct Grid {
 
 #[derive(Clone, Debug, PartialEq)]
 enum Voxels {
-    Dense(Vec<u8>),
+    /// The voxels and their hash once asked for (every render asks, a 512^3 grid's
+    /// 128 MiB take tens of milliseconds to hash); forgotten on every mutable borrow.
+    Dense(Vec<u8>, HashCache),
     /// The tree and its hash, taken once: the device caches key every render by it, and
     /// the tree never changes (a 2048^3 scene's is 104 MiB).
     Sparse(Arc<SparseTree>, blake3::Hash),
 }
 
+/// A hash taken when first asked for. Two grids compare by their voxels, never by
+/// whether their hash was taken.
+#[derive(Clone, Debug, Default)]
+struct HashCache(std::sync::OnceLock<blake3::Hash>);
+
+impl PartialEq for HashCache {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
 impl Voxels {
+    fn dense(voxels: Vec<u8>) -> Self {
+        Voxels::Dense(voxels, HashCache::default())
+    }
+
     fn sparse(tree: SparseTree) -> Self {
         let mut h = blake3::Hasher::new();
         h.update(b"sparse");
@@ -109,7 +126,7 @@ impl Grid {
             dims,
             voxel_size,
             origin,
-            voxels: Voxels::Dense(vec![VOID; count as usize]),
+            voxels: Voxels::dense(vec![VOID; count as usize]),
         })
     }
 
@@ -180,7 +197,10 @@ impl Grid {
     pub fn map_materials(&mut self, map: impl Fn(u8) -> u8) {
         let table: [u8; 256] = std::array::from_fn(|m| map(m as u8));
         match &mut self.voxels {
-            Voxels::Dense(d) => d.iter_mut().for_each(|m| *m = table[*m as usize]),
+            Voxels::Dense(d, hash) => {
+                hash.0.take();
+                d.iter_mut().for_each(|m| *m = table[*m as usize]);
+            }
             Voxels::Sparse(t, _) => {
                 assert_eq!(
                     table[VOID as usize], VOID,
@@ -204,7 +224,7 @@ impl Grid {
     pub fn sparse_tree(&self) -> Option<&Arc<SparseTree>> {
         match &self.voxels {
             Voxels::Sparse(t, _) => Some(t),
-            Voxels::Dense(_) => None,
+            Voxels::Dense(..) => None,
         }
     }
 
@@ -214,14 +234,14 @@ impl Grid {
         match &self.voxels {
             Voxels::Sparse(t, _) if t.log_branch() == log_branch => t.clone(),
             Voxels::Sparse(t, _) => Arc::new(SparseTree::build(t.as_ref(), log_branch)),
-            Voxels::Dense(_) => Arc::new(SparseTree::build(self, log_branch)),
+            Voxels::Dense(..) => Arc::new(SparseTree::build(self, log_branch)),
         }
     }
 
     /// A hash of the voxels (not of the placement): what device caches key uploads by.
     pub fn content_hash(&self) -> blake3::Hash {
         match &self.voxels {
-            Voxels::Dense(d) => blake3::hash(d),
+            Voxels::Dense(d, hash) => *hash.0.get_or_init(|| blake3::hash(d)),
             Voxels::Sparse(_, hash) => *hash,
         }
     }
@@ -229,7 +249,7 @@ impl Grid {
     /// The bytes the host holds for the voxels.
     pub fn host_bytes(&self) -> usize {
         match &self.voxels {
-            Voxels::Dense(d) => d.len(),
+            Voxels::Dense(d, _) => d.len(),
             Voxels::Sparse(t, _) => t.bytes(),
         }
     }
@@ -249,7 +269,7 @@ impl Grid {
     /// Material indices, x-fastest, of a dense grid (`None` for a sparse one).
     pub fn dense(&self) -> Option<&[u8]> {
         match &self.voxels {
-            Voxels::Dense(d) => Some(d),
+            Voxels::Dense(d, _) => Some(d),
             Voxels::Sparse(..) => None,
         }
     }
@@ -263,7 +283,10 @@ impl Grid {
     /// Dense grids only, as [`Grid::data`].
     pub fn data_mut(&mut self) -> &mut [u8] {
         match &mut self.voxels {
-            Voxels::Dense(d) => d,
+            Voxels::Dense(d, hash) => {
+                hash.0.take();
+                d
+            }
             Voxels::Sparse(..) => panic!("Grid::data_mut on a sparse grid"),
         }
     }
@@ -287,7 +310,7 @@ impl Grid {
             return VOID;
         }
         match &self.voxels {
-            Voxels::Dense(d) => d[self.index(v)],
+            Voxels::Dense(d, _) => d[self.index(v)],
             Voxels::Sparse(t, _) => t.region(v).material,
         }
     }
@@ -352,7 +375,7 @@ impl Grid {
     /// Which material indices occur in the grid.
     pub fn materials_used(&self) -> [bool; 256] {
         match &self.voxels {
-            Voxels::Dense(d) => {
+            Voxels::Dense(d, _) => {
                 let mut used = [false; 256];
                 for &m in d {
                     used[m as usize] = true;
@@ -366,7 +389,7 @@ impl Grid {
     /// How many voxels hold each material index.
     pub fn material_counts(&self) -> [u64; 256] {
         match &self.voxels {
-            Voxels::Dense(d) => {
+            Voxels::Dense(d, _) => {
                 let mut counts = [0u64; 256];
                 for &m in d {
                     counts[m as usize] += 1;
@@ -392,4 +415,40 @@ fn check_placement(voxel_size: f64, origin: DVec3) -> Result<(), SceneError> {
         )));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid() -> Grid {
+        Grid::new(UVec3::new(5, 3, 4), 1.0, DVec3::ZERO).unwrap()
+    }
+
+    #[test]
+    fn the_cached_hash_follows_every_change_and_never_decides_equality() {
+        let mut g = grid();
+        let empty = g.content_hash();
+        g.set(IVec3::new(1, 2, 3), 7);
+        let one = g.content_hash();
+        assert_ne!(one, empty, "set after a hash was taken");
+        assert_eq!(one, blake3::hash(g.data()));
+        g.data_mut()[0] = 2;
+        assert_ne!(g.content_hash(), one, "data_mut after a hash was taken");
+        let before = g.content_hash();
+        g.map_materials(|m| if m == 7 { 9 } else { m });
+        assert_ne!(
+            g.content_hash(),
+            before,
+            "map_materials after a hash was taken"
+        );
+        assert_eq!(g.content_hash(), blake3::hash(g.data()));
+        // Equal voxels are equal grids, whether or not either hash was taken.
+        let mut fresh = grid();
+        fresh.data_mut().copy_from_slice(g.data());
+        assert_eq!(fresh, g);
+        assert_eq!(fresh.content_hash(), g.content_hash());
+        let cloned = g.clone();
+        assert_eq!(cloned.content_hash(), g.content_hash());
+    }
 }
