@@ -449,7 +449,7 @@ pub fn surface_table(rows: &[SurfaceRow]) -> String {
 /// The table the README quotes: one line per grid size and backend, then the ratio.
 pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> String {
     let mut out = format!(
-        "{}x{}, depth {}/{} (experiments: their own render settings, one frame); GPU: {adapter}; CPU: {}\n\n\
+        "{}x{}, depth {}/{} (experiments: their own render settings, one frame); GPU: {adapter}; CPU: {}; host: {}\n\n\
          | scene | surface | backend | walk | median ms/frame | timer | steps/iteration | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | steps/ray | triangle tests/ray | bytes/voxel | build ms |\n\
          |---:|---|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         settings.width,
@@ -457,6 +457,7 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
         settings.max_reflection_depth,
         settings.max_refraction_depth,
         crate::cpu::backend_summary(),
+        crate::cpu::host_summary(),
     );
     for r in rows {
         out += &format!(

@@ -789,7 +789,11 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
     let adapter = GpuTracer::new()
         .context("the benchmark compares GPU and CPU and needs a GPU adapter")?
         .adapter_summary();
-    eprintln!("GPU: {adapter}\nCPU: {}", voxlab::cpu::backend_summary());
+    eprintln!(
+        "GPU: {adapter}\nCPU: {}\nhost: {}",
+        voxlab::cpu::backend_summary(),
+        voxlab::cpu::host_summary()
+    );
     let rows = voxlab::bench::run(&opts, |r| {
         eprintln!(
             "  {} {} {} {}: {:.1} ms/frame, {:.2} Mrays/s, {:.1} Msteps/s",
@@ -806,6 +810,7 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
     if a.json {
         let mut head = bench_head("seed", Some(&adapter), a);
         head["cpu"] = voxlab::cpu::backend_summary().into();
+        head["host"] = voxlab::cpu::host_summary().into();
         print_json_rows(&head, rows.iter().map(|r| r.json()))?;
         let head = bench_head("surfaces", None, a);
         return print_json_rows(&head, surfaces.iter().map(|r| r.json()));

@@ -408,6 +408,13 @@ fn bench_json_prints_one_object_per_row() {
         assert_eq!(r["image_side"], 16);
         assert!(r["ms_per_frame"].as_f64().unwrap() > 0.0, "{r}");
         assert!(r["adapter"].as_str().is_some_and(|a| !a.is_empty()), "{r}");
+        // The processor the figures come from (a software adapter runs on it too).
+        assert!(
+            r["host"]
+                .as_str()
+                .is_some_and(|h| h.contains("hardware threads")),
+            "{r}"
+        );
         assert!(r["steps_per_ray"].as_f64().unwrap() > 0.0, "{r}");
     }
     // Per size: the GPU's walks, then the CPU's; both tracers and every walk count the

@@ -28,6 +28,42 @@ pub fn backend_summary() -> String {
     )
 }
 
+/// The machine's processor, for benchmark headers: a software GPU (lavapipe) runs on it
+/// too, and the code its LLVM makes differs with the vector extensions it finds, so
+/// figures from two hosts compare only with this beside them.
+pub fn host_summary() -> String {
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let field = |key: &str| {
+        cpuinfo.lines().find_map(|l| {
+            let (k, v) = l.split_once(':')?;
+            (k.trim() == key).then(|| v.trim().to_string())
+        })
+    };
+    let model = field("model name").unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    let id = match (field("cpu family"), field("model")) {
+        (Some(f), Some(m)) => format!(" (family {f}, model {m})"),
+        _ => String::new(),
+    };
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    format!("{model}{id}, {threads} hardware threads{}", simd_summary())
+}
+
+#[cfg(target_arch = "x86_64")]
+fn simd_summary() -> &'static str {
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        ", AVX-512"
+    } else if std::arch::is_x86_feature_detected!("avx2") {
+        ", AVX2"
+    } else {
+        ""
+    }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn simd_summary() -> &'static str {
+    ""
+}
+
 /// Renders the scene: `settings.spp` frames, each tracing every pixel independently
 /// (so the image does not depend on the thread count), averaged in f64 so accumulation
 /// never drifts. When nothing is sampled every frame is the same image, so one is
