@@ -769,6 +769,9 @@ struct Rendered {
     plan: Plan,
     /// GPU points: `time` comes from timestamp queries (else wall time).
     timestamps: bool,
+    /// CPU points: what the render prepared before its trace (the cone pyramids, a
+    /// walk's data), outside `time` (`RenderOutput::setup_time`).
+    cpu_setup: Duration,
 }
 
 impl Tracers {
@@ -830,6 +833,7 @@ impl Tracers {
                         fallback: None,
                         plan,
                         timestamps: gpu.last_gpu_time().is_some(),
+                        cpu_setup: Duration::ZERO,
                     });
                 }
                 Err(e) if choice == BackendChoice::Auto => Some(format!("{e:#}")),
@@ -852,6 +856,7 @@ impl Tracers {
             fallback: gpu_reason,
             plan: Plan::new(scene, s),
             timestamps: false,
+            cpu_setup: out.setup_time,
         })
     }
 
@@ -859,20 +864,22 @@ impl Tracers {
     /// full build of the cone pyramids on the GPU (outside the timed trace; the tracer
     /// caches them between renders of an unchanged scene, so they are built here afresh,
     /// as a changing scene would need), timed through a synchronising readback of the
-    /// coarsest level. Zero without a cone feature, and on the CPU, whose trace time
-    /// holds them.
-    fn setup_time(
-        &mut self,
-        backend: &str,
-        plan: &Plan,
-        scene: &Scene,
-        s: &RenderSettings,
-    ) -> Result<Duration> {
-        let (Some(layout), "gpu", Some(gpu)) = (plan.pyramid, backend, self.gpu.as_mut()) else {
+    /// coarsest level. Zero without a cone feature. On the CPU, what the render itself
+    /// prepared before its trace, its pyramids built afresh every render.
+    fn setup_time(&mut self, r: &Rendered, scene: &Scene, s: &RenderSettings) -> Result<Duration> {
+        if r.backend == "cpu" {
+            // As on the GPU, only a render with pyramids counts a setup.
+            return Ok(if r.plan.pyramid.is_some() {
+                r.cpu_setup
+            } else {
+                Duration::ZERO
+            });
+        }
+        let (Some(layout), Some(gpu)) = (r.plan.pyramid, self.gpu.as_mut()) else {
             return Ok(Duration::ZERO);
         };
         let start = std::time::Instant::now();
-        let pyr = gpu.build_pyramid(scene, s, layout, plan.radiance_pyramid())?;
+        let pyr = gpu.build_pyramid(scene, s, layout, r.plan.radiance_pyramid())?;
         gpu.read_pyramid_level(&pyr, false, layout.levels - 1)?;
         Ok(start.elapsed())
     }
@@ -1152,7 +1159,7 @@ fn measure(
     let mut last = None;
     for i in 0..(c.warmup + c.runs) {
         let r = tracers.render(choice, scene, s)?;
-        let setup = tracers.setup_time(r.backend, &r.plan, scene, s)?;
+        let setup = tracers.setup_time(&r, scene, s)?;
         // The first render settles the backend, so later runs do not retry the GPU.
         if choice == BackendChoice::Auto {
             choice = if r.backend == "gpu" {
