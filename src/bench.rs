@@ -129,21 +129,95 @@ fn scene_label(name: &str, scene: &Scene) -> String {
     }
 }
 
+/// Times `walks` on one scene and surface with their timed frames interleaved (a frame
+/// of each walk in turn, `runs` rounds), so that a spell of load on a shared machine
+/// falls on every walk alike rather than on whichever row it met: the seed scene at
+/// 256^3 measured its dense walk at 6.8 s in one run and 9.0 s in another an hour
+/// later with the proximity walk at 2.0 s in both, when each walk's frames ran back
+/// to back. A walk the device cannot render is returned as its error, the others
+/// still measured.
 fn bench_gpu(
     gpu: &mut GpuTracer,
     name: &str,
     scene: &Scene,
     (settings, runs): (&RenderSettings, usize),
-    traversal: Traversal,
+    walks: &[Traversal],
     surface: Surface,
-) -> Result<BenchRow> {
-    let s = &RenderSettings {
-        traversal,
-        surface,
-        ..settings.clone()
-    };
-    // The counted frame doubles as warm-up: it uploads the grid and builds the counting
-    // pipeline; the first plain frame builds the timed pipeline and is discarded.
+) -> Vec<(Traversal, Result<BenchRow>)> {
+    let device_unroll = gpu.dda_unroll();
+    let mut ready = Vec::new();
+    let mut failed = Vec::new();
+    for &traversal in walks {
+        let s = RenderSettings {
+            traversal,
+            surface,
+            ..settings.clone()
+        };
+        match prepare_gpu_row(gpu, name, scene, &s, device_unroll) {
+            Ok((row, unroll)) => ready.push(Timing {
+                traversal,
+                settings: s,
+                row,
+                unroll,
+                times: Vec::new(),
+                error: None,
+            }),
+            Err(e) => failed.push((traversal, Err(e))),
+        }
+    }
+    for _ in 0..runs.max(1) {
+        for w in ready.iter_mut().filter(|w| w.error.is_none()) {
+            // Each walk with the steps per iteration its own first frames settled on.
+            let time = gpu.set_dda_unroll(w.unroll).and_then(|()| {
+                let out = gpu.render(scene, &w.settings)?;
+                Ok(gpu.last_gpu_time().unwrap_or(out.trace_time))
+            });
+            match time {
+                Ok(t) => w.times.push(t),
+                Err(e) => w.error = Some(e.context("a timed frame")),
+            }
+        }
+    }
+    gpu.set_dda_unroll(device_unroll).ok();
+    let mut out: Vec<(Traversal, Result<BenchRow>)> = ready
+        .into_iter()
+        .map(|w| match w.error {
+            Some(e) => (w.traversal, Err(e)),
+            None => (
+                w.traversal,
+                Ok(BenchRow {
+                    median: median(w.times),
+                    ..w.row
+                }),
+            ),
+        })
+        .collect();
+    out.extend(failed);
+    out
+}
+
+/// One walk of [`bench_gpu`] while its frames are timed.
+struct Timing {
+    traversal: Traversal,
+    settings: RenderSettings,
+    row: BenchRow,
+    unroll: u32,
+    times: Vec<Duration>,
+    error: Option<anyhow::Error>,
+}
+
+/// A walk's row before its timing: the counted frame (which doubles as warm-up: it
+/// uploads the grid and builds the counting pipeline) and one plain frame (which
+/// builds the timed pipeline, and raises the steps per iteration if the driver's loop
+/// limit cuts it); with the steps per iteration it settled on.
+fn prepare_gpu_row(
+    gpu: &mut GpuTracer,
+    name: &str,
+    scene: &Scene,
+    s: &RenderSettings,
+    device_unroll: u32,
+) -> Result<(BenchRow, u32)> {
+    gpu.set_dda_unroll(device_unroll)?;
     let counted = gpu.render_counted(scene, s)?;
     let memory = gpu.last_memory().unwrap_or_default();
     let plan = gpu.last_plan().expect("a render was made").traversal;
@@ -151,24 +225,20 @@ fn bench_gpu(
     // where nothing else is set up (no cone feature in the benchmark's settings).
     let build = gpu.last_setup_time();
     gpu.render(scene, s)?;
-    let mut times = Vec::with_capacity(runs);
-    for _ in 0..runs.max(1) {
-        let out = gpu.render(scene, s)?;
-        times.push(gpu.last_gpu_time().unwrap_or(out.trace_time));
-    }
-    Ok(BenchRow {
+    let row = BenchRow {
         scene: scene_label(name, scene),
         grid: scene.grid.dims().x,
         backend: "gpu",
         traversal: plan.name,
-        surface: surface.name(),
-        median: median(times),
+        surface: s.surface.name(),
+        median: Duration::ZERO,
         stats: counted.stats,
         bytes_per_voxel: (memory.grid + memory.walk_data) as f64 / scene.grid.voxel_count() as f64,
         build,
         timer: gpu.timer_name(),
         dda_unroll: gpu.last_plan().map(|p| p.dda_unroll),
-    })
+    };
+    Ok((row, gpu.dda_unroll()))
 }
 
 fn bench_cpu(
@@ -312,21 +382,25 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
                     follows
                 })
                 .collect();
+            // A row the device cannot render (the software driver's loop limit, its
+            // memory) is said and left out; the others are still measured.
+            gpu.set_dda_unroll(device_unroll)?;
+            let measured = bench_gpu(
+                &mut gpu,
+                &name,
+                &scene,
+                (&settings, opts.gpu_runs),
+                &walks,
+                surface,
+            );
+            // In the order asked for.
             for &t in &walks {
-                // A row the device cannot render (the software driver's loop limit,
-                // its memory) is said and left out; the others are still measured.
-                gpu.set_dda_unroll(device_unroll)?;
-                match bench_gpu(
-                    &mut gpu,
-                    &name,
-                    &scene,
-                    (&settings, opts.gpu_runs),
-                    t,
-                    surface,
-                )
-                .map(held_build)
-                {
+                let Some((_, result)) = measured.iter().find(|(w, _)| *w == t) else {
+                    continue;
+                };
+                match result {
                     Ok(row) => {
+                        let row = held_build(row.clone());
                         progress(&row);
                         rows.push(row);
                     }
