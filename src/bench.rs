@@ -1,9 +1,11 @@
 //! The baseline benchmark: the seed scene at several grid sizes, on the GPU and the CPU
 //! reference in one run, so their ratio is measured under the same machine load.
 //!
-//! Times are medians over several frames after a warm-up frame. Ray and voxel-step
-//! counts are counted by the tracers (a separate counted frame on the GPU, so counting
-//! does not slow the timed frames), not estimated.
+//! Times are medians over several frames after a warm-up frame, the walks of a scene
+//! timed in turn, frame by frame, so that load on a shared machine falls on all of
+//! them alike. Ray and voxel-step counts are counted by the tracers (a separate
+//! counted frame on the GPU, so counting does not slow the timed frames), not
+//! estimated.
 
 use std::time::{Duration, Instant};
 
@@ -241,51 +243,67 @@ fn prepare_gpu_row(
     Ok((row, gpu.dda_unroll()))
 }
 
+/// Times `walks` on the CPU reference as [`bench_gpu`] does on the device: each walk's
+/// warm-up frame first, then one timed frame of each walk in turn.
 fn bench_cpu(
     name: &str,
     scene: &Scene,
     (settings, runs): (&RenderSettings, usize),
-    traversal: Traversal,
+    walks: &[Traversal],
     surface: Surface,
-) -> BenchRow {
-    let s = &RenderSettings {
-        traversal,
-        surface,
-        ..settings.clone()
-    };
-    let plan = crate::plan::Plan::new(scene, s).traversal;
-    // The walk's own data (the sparse tree, say), built as a render
-    // builds it; the dense grid's one byte a voxel otherwise.
-    let (bytes_per_voxel, build) = match plan.data {
-        Some(data) => {
-            let start = Instant::now();
-            let data = data(&scene.grid);
-            let bytes = data.device_words().len() * 4;
-            (
-                bytes as f64 / scene.grid.voxel_count() as f64,
-                start.elapsed(),
-            )
-        }
-        None => (1.0, Duration::ZERO),
-    };
-    let warm = crate::cpu::render(scene, s);
-    let mut times = Vec::with_capacity(runs);
+) -> Vec<BenchRow> {
+    let mut timing: Vec<(RenderSettings, BenchRow, Vec<Duration>)> = walks
+        .iter()
+        .map(|&traversal| {
+            let s = RenderSettings {
+                traversal,
+                surface,
+                ..settings.clone()
+            };
+            let plan = crate::plan::Plan::new(scene, &s).traversal;
+            // The walk's own data (the sparse tree, say), built as a render
+            // builds it; the dense grid's one byte a voxel otherwise.
+            let (bytes_per_voxel, build) = match plan.data {
+                Some(data) => {
+                    let start = Instant::now();
+                    let data = data(&scene.grid);
+                    let bytes = data.device_words().len() * 4;
+                    (
+                        bytes as f64 / scene.grid.voxel_count() as f64,
+                        start.elapsed(),
+                    )
+                }
+                None => (1.0, Duration::ZERO),
+            };
+            let warm = crate::cpu::render(scene, &s);
+            let row = BenchRow {
+                scene: scene_label(name, scene),
+                grid: scene.grid.dims().x,
+                backend: "cpu",
+                traversal: plan.name,
+                surface: surface.name(),
+                median: Duration::ZERO,
+                stats: warm.stats,
+                bytes_per_voxel,
+                build,
+                timer: "wall (cpu::render)",
+                dda_unroll: None,
+            };
+            (s, row, Vec::with_capacity(runs))
+        })
+        .collect();
     for _ in 0..runs.max(1) {
-        times.push(crate::cpu::render(scene, s).trace_time);
+        for (s, _, times) in timing.iter_mut() {
+            times.push(crate::cpu::render(scene, s).trace_time);
+        }
     }
-    BenchRow {
-        scene: scene_label(name, scene),
-        grid: scene.grid.dims().x,
-        backend: "cpu",
-        traversal: plan.name,
-        surface: surface.name(),
-        median: median(times),
-        stats: warm.stats,
-        bytes_per_voxel,
-        build,
-        timer: "wall (cpu::render)",
-        dda_unroll: None,
-    }
+    timing
+        .into_iter()
+        .map(|(_, row, times)| BenchRow {
+            median: median(times),
+            ..row
+        })
+        .collect()
 }
 
 /// A scene of the run: its name, the scene, the settings it renders with, and for a
@@ -413,14 +431,8 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
                 }
             }
             if opts.cpu {
-                for &t in &walks {
-                    let row = held_build(bench_cpu(
-                        &name,
-                        &scene,
-                        (&settings, opts.cpu_runs),
-                        t,
-                        surface,
-                    ));
+                for row in bench_cpu(&name, &scene, (&settings, opts.cpu_runs), &walks, surface) {
+                    let row = held_build(row);
                     progress(&row);
                     rows.push(row);
                 }
