@@ -64,6 +64,22 @@ fn uniform(g: &Grid, v: IVec3, r: i32) -> bool {
         .all(|z| (lo.y..hi.y).all(|y| (lo.x..hi.x).all(|x| g.get(IVec3::new(x, y, z)) == m)))
 }
 
+/// `radii` of `g` against brute force: each voxel's Chebyshev distance to the nearest
+/// seed (a voxel with a neighbour inside the grid of another material), capped.
+fn check_radii(g: &Grid) {
+    let dims = g.dims();
+    let r = radii(g.data(), dims);
+    let seeds: Vec<IVec3> = all_voxels(dims).filter(|&v| !uniform(g, v, 1)).collect();
+    for (i, v) in all_voxels(dims).enumerate() {
+        let want = seeds
+            .iter()
+            .map(|s| (*s - v).abs().max_element())
+            .min()
+            .map_or(MAX_RADIUS, |d| d.min(MAX_RADIUS as i32) as u8);
+        assert_eq!(r[i], want, "grid {dims}, voxel {v}");
+    }
+}
+
 #[test]
 fn radii_are_the_exact_chebyshev_distances() {
     let mut rng = StdRng::seed_from_u64(7);
@@ -71,17 +87,7 @@ fn radii_are_the_exact_chebyshev_distances() {
         let dims = random_dims(&mut rng, 24);
         let count = rng.random_range(0..6);
         let g = boxes(&mut rng, dims, 1 + round as u8 % 4, count);
-        let r = radii(g.data(), dims);
-        // The seeds by brute force: a neighbour inside the grid of another material.
-        let seeds: Vec<IVec3> = all_voxels(dims).filter(|&v| !uniform(&g, v, 1)).collect();
-        for (i, v) in all_voxels(dims).enumerate() {
-            let want = seeds
-                .iter()
-                .map(|s| (*s - v).abs().max_element())
-                .min()
-                .map_or(MAX_RADIUS, |d| d.min(MAX_RADIUS as i32) as u8);
-            assert_eq!(r[i], want, "grid {dims}, voxel {v}");
-        }
+        check_radii(&g);
     }
 }
 
@@ -143,16 +149,7 @@ fn radii_past_the_cap_are_exact_along_every_axis() {
                 );
                 g.set(v, 2);
             }
-            let r = radii(g.data(), dims);
-            let seeds: Vec<IVec3> = all_voxels(dims).filter(|&v| !uniform(&g, v, 1)).collect();
-            for (i, v) in all_voxels(dims).enumerate() {
-                let want = seeds
-                    .iter()
-                    .map(|s| (*s - v).abs().max_element())
-                    .min()
-                    .map_or(MAX_RADIUS, |d| d.min(MAX_RADIUS as i32) as u8);
-                assert_eq!(r[i], want, "grid {dims}, voxel {v}");
-            }
+            check_radii(&g);
         }
     }
 }

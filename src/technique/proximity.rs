@@ -133,15 +133,30 @@ impl Regions for ProximityField {
 }
 
 /// What the 1D pass keeps between lines: the lower envelope's indices and where each
-/// starts, and the line's input.
+/// starts, the line's input, and a column gathered from a plane.
 #[derive(Default)]
 struct LineScratch {
     input: Vec<u8>,
     at: Vec<i32>,
     from: Vec<i32>,
+    column: Vec<u8>,
 }
 
 impl LineScratch {
+    /// [`Self::pass`] down each of the `width` columns of `plane` (rows of `width`).
+    fn pass_columns(&mut self, plane: &mut [u8], width: usize) {
+        let mut column = std::mem::take(&mut self.column);
+        for x in 0..width {
+            column.clear();
+            column.extend(plane[x..].iter().step_by(width));
+            self.pass(&mut column);
+            for (out, d) in plane[x..].iter_mut().step_by(width).zip(&column) {
+                *out = *d;
+            }
+        }
+        self.column = column;
+    }
+
     /// `line[x] = min over i of max(|x - i|, line[i])`: the Chebyshev distance along one
     /// axis, given the distances over the other axes already taken, by the lower-envelope
     /// scan of A. Meijster, J. Roerdink and W. Hesselink, "A general algorithm for
@@ -281,16 +296,7 @@ pub fn radii(voxels: &[u8], dims: UVec3) -> Vec<u8> {
     });
     r.par_chunks_mut(slice.max(1))
         .for_each_init(LineScratch::default, |scratch, plane| {
-            let mut line = vec![0u8; ny];
-            for x in 0..nx {
-                for (y, l) in line.iter_mut().enumerate() {
-                    *l = plane[x + nx * y];
-                }
-                scratch.pass(&mut line);
-                for (y, l) in line.iter().enumerate() {
-                    plane[x + nx * y] = *l;
-                }
-            }
+            scratch.pass_columns(plane, nx)
         });
     // Along z through a copy of the grid in (x, z, y) order: a y's rows are read whole
     // and its lines along z passed in a block of their own, then written back row by row.
@@ -303,16 +309,7 @@ pub fn radii(voxels: &[u8], dims: UVec3) -> Vec<u8> {
                 let row = nx * (y + ny * z);
                 plane[nx * z..nx * (z + 1)].copy_from_slice(&r[row..row + nx]);
             }
-            let mut line = vec![0u8; nz];
-            for x in 0..nx {
-                for (z, l) in line.iter_mut().enumerate() {
-                    *l = plane[x + nx * z];
-                }
-                scratch.pass(&mut line);
-                for (z, l) in line.iter().enumerate() {
-                    plane[x + nx * z] = *l;
-                }
-            }
+            scratch.pass_columns(plane, nx);
         });
     r.par_chunks_mut(slice.max(1))
         .enumerate()
