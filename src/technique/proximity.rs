@@ -273,9 +273,9 @@ pub fn radii(voxels: &[u8], dims: UVec3) -> Vec<u8> {
     // three axis distances), so three passes of a 1D transform, one axis after the
     // other, each line independent of the others and the lines spread over the threads.
     // With the seeds found by the separable test above, the seed scene's 256^3 field
-    // builds in 307 to 340 ms instead of 676 on two cores (`voxlab bench --sizes 256 --size 64
-    // --no-cpu --traversal proximity`, build ms), where the chamfer transform's two
-    // raster passes and a 27-voxel test per voxel ran before.
+    // builds in 307 to 340 ms instead of 676 on two cores (`voxlab bench --sizes 256
+    // --size 64 --no-cpu --traversal proximity`, build ms), where the chamfer
+    // transform's two raster passes and a 27-voxel test per voxel ran before.
     // Along x every distance is 0 or the cap, so each is the distance to the nearest
     // seed of its row: one sweep each way (what the general pass gives, faster).
     r.par_chunks_mut(nx.max(1)).for_each(|row| {
