@@ -93,3 +93,53 @@ fn camera_inside_glass_with_non_unit_voxels_off_origin() {
     scene.camera.vfov = 1.2;
     agree("inside glass, voxel 0.37", &scene, 96);
 }
+
+/// The kernel reads the materials from a fixed-length uniform table
+/// (`shaders/bindings.wgsl`): the seed scene with its materials moved to indices across
+/// the whole u8 range (the last one in the first round) and every other slot of the
+/// table holding a different material renders as the CPU does.
+#[test]
+fn materials_anywhere_in_the_table() {
+    use rand::rngs::StdRng;
+    use rand::{RngExt, SeedableRng};
+    let mut rng = StdRng::seed_from_u64(21);
+    for round in 0..3 {
+        let mut scene = seed_scene(16).unwrap();
+        let used = scene.grid.materials_used();
+        let decoy = |rng: &mut StdRng| {
+            let mut m = scene.materials[1].clone();
+            m.albedo = DVec3::new(rng.random(), rng.random(), rng.random());
+            m.kr = rng.random_range(0.0..0.5);
+            m
+        };
+        let mut table: Vec<_> = (0..voxlab::scene::MAX_MATERIALS)
+            .map(|_| decoy(&mut rng))
+            .collect();
+        table[0] = scene.materials[0].clone();
+        let mut map: [u8; 256] = std::array::from_fn(|m| m as u8);
+        let mut taken = [false; 256];
+        taken[0] = true;
+        for m in (1..256).filter(|&m| used[m]) {
+            let to = if round == 0 && !taken[255] {
+                255
+            } else {
+                loop {
+                    let c = rng.random_range(1..256usize);
+                    if !taken[c] {
+                        break c;
+                    }
+                }
+            };
+            taken[to] = true;
+            map[m] = to as u8;
+            table[to] = scene.materials[m].clone();
+        }
+        scene.grid.map_materials(|m| map[m as usize]);
+        scene.materials = table;
+        agree(
+            &format!("seed 16^3, materials moved, round {round}"),
+            &scene,
+            64,
+        );
+    }
+}
