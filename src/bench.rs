@@ -136,76 +136,68 @@ fn scene_label(name: &str, scene: &Scene) -> String {
 /// falls on every walk alike rather than on whichever row it met: the seed scene at
 /// 256^3 measured its dense walk at 6.8 s in one run and 9.0 s in another an hour
 /// later with the proximity walk at 2.0 s in both, when each walk's frames ran back
-/// to back. A walk the device cannot render is returned as its error, the others
-/// still measured.
+/// to back. Each walk starts from the device's own steps per iteration
+/// (`device_unroll`). One result per walk, in their order: a walk the device cannot
+/// render is its error, the others still measured.
 fn bench_gpu(
     gpu: &mut GpuTracer,
+    device_unroll: u32,
     name: &str,
     scene: &Scene,
     (settings, runs): (&RenderSettings, usize),
     walks: &[Traversal],
     surface: Surface,
-) -> Vec<(Traversal, Result<BenchRow>)> {
-    let device_unroll = gpu.dda_unroll();
-    let mut ready = Vec::new();
-    let mut failed = Vec::new();
-    for &traversal in walks {
-        let s = RenderSettings {
-            traversal,
-            surface,
-            ..settings.clone()
-        };
-        match prepare_gpu_row(gpu, name, scene, &s, device_unroll) {
-            Ok((row, unroll)) => ready.push(Timing {
+) -> Vec<Result<BenchRow>> {
+    let mut timing: Vec<Timing> = walks
+        .iter()
+        .map(|&traversal| {
+            let settings = RenderSettings {
                 traversal,
-                settings: s,
-                row,
-                unroll,
+                surface,
+                ..settings.clone()
+            };
+            let state = prepare_gpu_row(gpu, name, scene, &settings, device_unroll);
+            Timing {
+                settings,
+                state,
                 times: Vec::new(),
-                error: None,
-            }),
-            Err(e) => failed.push((traversal, Err(e))),
-        }
-    }
+            }
+        })
+        .collect();
     for _ in 0..runs.max(1) {
-        for w in ready.iter_mut().filter(|w| w.error.is_none()) {
+        for w in timing.iter_mut() {
+            let Ok((_, unroll)) = &w.state else {
+                continue;
+            };
             // Each walk with the steps per iteration its own first frames settled on.
-            let time = gpu.set_dda_unroll(w.unroll).and_then(|()| {
+            let time = gpu.set_dda_unroll(*unroll).and_then(|()| {
                 let out = gpu.render(scene, &w.settings)?;
                 Ok(gpu.last_gpu_time().unwrap_or(out.trace_time))
             });
             match time {
                 Ok(t) => w.times.push(t),
-                Err(e) => w.error = Some(e.context("a timed frame")),
+                Err(e) => w.state = Err(e.context("a timed frame")),
             }
         }
     }
-    gpu.set_dda_unroll(device_unroll).ok();
-    let mut out: Vec<(Traversal, Result<BenchRow>)> = ready
+    timing
         .into_iter()
-        .map(|w| match w.error {
-            Some(e) => (w.traversal, Err(e)),
-            None => (
-                w.traversal,
-                Ok(BenchRow {
-                    median: median(w.times),
-                    ..w.row
-                }),
-            ),
+        .map(|w| {
+            let (row, _) = w.state?;
+            Ok(BenchRow {
+                median: median(w.times),
+                ..row
+            })
         })
-        .collect();
-    out.extend(failed);
-    out
+        .collect()
 }
 
-/// One walk of [`bench_gpu`] while its frames are timed.
+/// One walk of [`bench_gpu`] while its frames are timed: its row and steps per
+/// iteration once prepared (or why it could not be), and its frames' times.
 struct Timing {
-    traversal: Traversal,
     settings: RenderSettings,
-    row: BenchRow,
-    unroll: u32,
+    state: Result<(BenchRow, u32)>,
     times: Vec<Duration>,
-    error: Option<anyhow::Error>,
 }
 
 /// A walk's row before its timing: the counted frame (which doubles as warm-up: it
@@ -244,7 +236,9 @@ fn prepare_gpu_row(
 }
 
 /// Times `walks` on the CPU reference as [`bench_gpu`] does on the device: each walk's
-/// warm-up frame first, then one timed frame of each walk in turn.
+/// warm-up frame first, then one timed frame of each walk in turn. What a render reads
+/// (the walk's data) is prepared once per walk, as the GPU keeps it between frames; its
+/// time is the row's build time.
 fn bench_cpu(
     name: &str,
     scene: &Scene,
@@ -252,7 +246,7 @@ fn bench_cpu(
     walks: &[Traversal],
     surface: Surface,
 ) -> Vec<BenchRow> {
-    let mut timing: Vec<(RenderSettings, BenchRow, Vec<Duration>)> = walks
+    let mut timing: Vec<_> = walks
         .iter()
         .map(|&traversal| {
             let s = RenderSettings {
@@ -260,27 +254,21 @@ fn bench_cpu(
                 surface,
                 ..settings.clone()
             };
-            let plan = crate::plan::Plan::new(scene, &s).traversal;
-            // The walk's own data (the sparse tree, say), built as a render
-            // builds it; the dense grid's one byte a voxel otherwise.
-            let (bytes_per_voxel, build) = match plan.data {
-                Some(data) => {
-                    let start = Instant::now();
-                    let data = data(&scene.grid);
-                    let bytes = data.device_words().len() * 4;
-                    (
-                        bytes as f64 / scene.grid.voxel_count() as f64,
-                        start.elapsed(),
-                    )
-                }
-                None => (1.0, Duration::ZERO),
-            };
-            let warm = crate::cpu::render(scene, &s);
+            let plan = crate::plan::Plan::new(scene, &s);
+            let start = Instant::now();
+            let prepared = crate::cpu::Prepared::new(scene, &s, &plan);
+            let build = start.elapsed();
+            // The walk's own data (the sparse tree, say); the dense grid's one byte a
+            // voxel otherwise.
+            let bytes_per_voxel = prepared.regions.as_ref().map_or(1.0, |r| {
+                (r.device_words().len() * 4) as f64 / scene.grid.voxel_count() as f64
+            });
+            let warm = crate::cpu::render_prepared(scene, &s, &plan, &prepared);
             let row = BenchRow {
                 scene: scene_label(name, scene),
                 grid: scene.grid.dims().x,
                 backend: "cpu",
-                traversal: plan.name,
+                traversal: plan.traversal.name,
                 surface: surface.name(),
                 median: Duration::ZERO,
                 stats: warm.stats,
@@ -289,17 +277,17 @@ fn bench_cpu(
                 timer: "wall (cpu::render)",
                 dda_unroll: None,
             };
-            (s, row, Vec::with_capacity(runs))
+            (s, plan, prepared, row, Vec::with_capacity(runs))
         })
         .collect();
     for _ in 0..runs.max(1) {
-        for (s, _, times) in timing.iter_mut() {
-            times.push(crate::cpu::render(scene, s).trace_time);
+        for (s, plan, prepared, _, times) in timing.iter_mut() {
+            times.push(crate::cpu::render_prepared(scene, s, plan, prepared).trace_time);
         }
     }
     timing
         .into_iter()
-        .map(|(_, row, times)| BenchRow {
+        .map(|(_, _, _, row, times)| BenchRow {
             median: median(times),
             ..row
         })
@@ -402,23 +390,19 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
                 .collect();
             // A row the device cannot render (the software driver's loop limit, its
             // memory) is said and left out; the others are still measured.
-            gpu.set_dda_unroll(device_unroll)?;
             let measured = bench_gpu(
                 &mut gpu,
+                device_unroll,
                 &name,
                 &scene,
                 (&settings, opts.gpu_runs),
                 &walks,
                 surface,
             );
-            // In the order asked for.
-            for &t in &walks {
-                let Some((_, result)) = measured.iter().find(|(w, _)| *w == t) else {
-                    continue;
-                };
+            for (&t, result) in walks.iter().zip(measured) {
                 match result {
                     Ok(row) => {
-                        let row = held_build(row.clone());
+                        let row = held_build(row);
                         progress(&row);
                         rows.push(row);
                     }

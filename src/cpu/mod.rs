@@ -7,7 +7,7 @@ pub mod cone;
 pub mod dda;
 pub mod pyramid;
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -106,16 +106,51 @@ fn render_region_with_progress(
     rows: std::ops::Range<u32>,
     progress: Option<&crate::progress::Progress>,
 ) -> RenderOutput {
-    let rows_done = std::sync::atomic::AtomicU64::new(0);
-    let row_count = rows.len() as u64;
     let setup = Instant::now();
-    let frame_cam = scene.camera.frame();
-    let (w, h) = (settings.width, settings.height);
     let plan = Plan::new(scene, settings);
-    let frames = plan.frames(settings);
     // Pyramids (and a plug-in model's data) once per render, only when planned.
     let prepared = Prepared::new(scene, settings, &plan);
     let setup_time = setup.elapsed();
+    RenderOutput {
+        setup_time,
+        ..trace_region(scene, settings, &plan, &prepared, columns, rows, progress)
+    }
+}
+
+/// [`render`] with what it reads prepared already (`Prepared::new` for the same scene,
+/// settings and plan): what a caller that renders one scene many times calls, so that
+/// its walk's data and pyramids are built once. `setup_time` is zero.
+pub fn render_prepared(
+    scene: &Scene,
+    settings: &RenderSettings,
+    plan: &Plan,
+    prepared: &Prepared,
+) -> RenderOutput {
+    trace_region(
+        scene,
+        settings,
+        plan,
+        prepared,
+        0..settings.width,
+        0..settings.height,
+        None,
+    )
+}
+
+fn trace_region(
+    scene: &Scene,
+    settings: &RenderSettings,
+    plan: &Plan,
+    prepared: &Prepared,
+    columns: std::ops::Range<u32>,
+    rows: std::ops::Range<u32>,
+    progress: Option<&crate::progress::Progress>,
+) -> RenderOutput {
+    let rows_done = std::sync::atomic::AtomicU64::new(0);
+    let row_count = rows.len() as u64;
+    let frame_cam = scene.camera.frame();
+    let (w, h) = (settings.width, settings.height);
+    let frames = plan.frames(settings);
     let start = Instant::now();
     let out: Vec<(Vec<[f32; 3]>, RayStats)> = rows
         .clone()
@@ -141,7 +176,7 @@ fn render_region_with_progress(
                         sum += trace_ray_with(
                             scene,
                             settings,
-                            &prepared,
+                            prepared,
                             key,
                             frame_cam.eye,
                             dir,
@@ -171,7 +206,7 @@ fn render_region_with_progress(
         frame,
         stats,
         trace_time: start.elapsed(),
-        setup_time,
+        setup_time: Duration::ZERO,
     }
 }
 
