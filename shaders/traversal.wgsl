@@ -114,7 +114,6 @@ fn dda_init(o: vec3<f32>, d: vec3<f32>, v: vec3<i32>) -> Dda {
     s.voxel = v;
     s.origin = o;
     s.dir = d;
-    s.cursor = region_cursor();
     s.at_cell = false;
     s.cell_t = 0.0;
     // Per axis as the contract says, on whole vectors (no loop: see enter).
@@ -122,6 +121,7 @@ fn dda_init(o: vec3<f32>, d: vec3<f32>, v: vec3<i32>) -> Dda {
     let positive = d > vec3<f32>(0.0);
     let safe = select(d, vec3<f32>(1.0), parallel);
     s.step = select(select(vec3<i32>(-1), vec3<i32>(1), positive), vec3<i32>(0), parallel);
+    s.cursor = region_cursor(s.step);
     let boundary = vec3<f32>(v + select(vec3<i32>(0), vec3<i32>(1), positive));
     s.inv_dir = 1.0 / safe;
     s.t_max = select(min((boundary - o) * s.inv_dir, vec3<f32>(BIG)), vec3<f32>(BIG), parallel);

@@ -16,7 +16,7 @@ struct RegionCursor {
     unused: u32,
 }
 
-fn region_cursor() -> RegionCursor {
+fn region_cursor(step: vec3<i32>) -> RegionCursor {
     return RegionCursor(0u);
 }
 

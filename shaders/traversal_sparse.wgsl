@@ -107,7 +107,7 @@ struct RegionCursor {
 }
 
 // The root's cube holds every voxel of the grid.
-fn region_cursor() -> RegionCursor {
+fn region_cursor(step: vec3<i32>) -> RegionCursor {
     return RegionCursor(0u, ROOT_SHIFT, vec3<u32>(0u));
 }
 

@@ -368,14 +368,16 @@ impl Region {
 /// (`crate::cpu::Dda`) leave a region of the ray's medium whole. Without one every
 /// region is a voxel, read from the grid.
 pub trait Regions: Send + Sync {
-    /// The uniform region holding voxel `v` (inside the grid).
-    fn region(&self, v: IVec3) -> Region;
+    /// A uniform region holding voxel `v` (inside the grid), for a walk whose step along
+    /// each axis is `step` (-1, 0 or 1): a traversal may give one that reaches only the
+    /// way the ray goes (it must hold `v` along an axis of step 0).
+    fn region(&self, v: IVec3, step: IVec3) -> Region;
     /// The words the traversal's WGSL module reads (`walk_data`, shaders/bindings.wgsl).
     fn device_words(&self) -> &[u32];
 }
 
 impl Regions for SparseTree {
-    fn region(&self, v: IVec3) -> Region {
+    fn region(&self, v: IVec3, _step: IVec3) -> Region {
         SparseTree::region(self, v)
     }
 

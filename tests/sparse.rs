@@ -14,7 +14,7 @@ use voxlab::RayStats;
 use voxlab::cpu::{Dda, cast_over, shadow_beer_lambert_over, shadow_min_kt_over};
 use voxlab::render::{RenderSettings, Traversal};
 use voxlab::scene::{Grid, Material, Scene, seed_scene};
-use voxlab::sparse::{Regions, SparseTree};
+use voxlab::sparse::{Region, Regions, SparseTree};
 
 const DENSE_WALK: voxlab::render::Traversal =
     voxlab::render::Traversal::Walk(&voxlab::technique::dense::TRAVERSAL);
@@ -190,35 +190,46 @@ const SIZES: [[u32; 3]; 6] = [
     [1, 1, 1],
 ];
 
-/// Every voxel of `g` lies in its region (found by `name`), of its material and inside
-/// the grid; the region is uniform: every voxel of it on small grids, its corners on
-/// the others.
+/// Every voxel of `g` lies in its region (found by `name`) for a walk of every step,
+/// of its material and inside the grid; the region is uniform: every voxel of it on
+/// small grids, its corners on the others.
 fn assert_regions_hold_the_grid(g: &Grid, regions: &dyn Regions, name: &str) {
     let dims = g.dims().as_ivec3();
+    let steps: Vec<IVec3> = (0..27)
+        .map(|k| IVec3::new(k % 3 - 1, k / 3 % 3 - 1, k / 9 - 1))
+        .collect();
     for z in 0..dims.z {
         for y in 0..dims.y {
             for x in 0..dims.x {
                 let v = IVec3::new(x, y, z);
-                let r = regions.region(v);
-                assert_eq!(r.material, g.get(v), "{name}, {dims} at {v}");
-                assert!(v.cmpge(r.lo).all() && v.cmplt(r.hi).all());
-                assert!(r.lo.cmpge(IVec3::ZERO).all());
-                assert!(r.hi.as_uvec3().cmple(g.dims()).all());
-                if g.voxel_count() <= 4096 {
-                    for zz in r.lo.z..r.hi.z {
-                        for yy in r.lo.y..r.hi.y {
-                            for xx in r.lo.x..r.hi.x {
-                                let u = IVec3::new(xx, yy, zz);
-                                assert_eq!(g.get(u), r.material, "{name}, {v}: {u}");
-                            }
-                        }
-                    }
-                } else {
-                    for p in [r.lo, r.hi - IVec3::ONE] {
-                        assert_eq!(g.get(p), r.material, "{name}, {v}");
-                    }
+                for &step in &steps {
+                    let r = regions.region(v, step);
+                    assert_eq!(r.material, g.get(v), "{name}, {dims} at {v}, step {step}");
+                    assert!(v.cmpge(r.lo).all() && v.cmplt(r.hi).all());
+                    assert!(r.lo.cmpge(IVec3::ZERO).all());
+                    assert!(r.hi.as_uvec3().cmple(g.dims()).all());
+                    assert_region_uniform(g, r, &format!("{name}, {v}, step {step}"));
                 }
             }
+        }
+    }
+}
+
+/// Every voxel of `r` holds its material on small grids, its two far corners on the
+/// others.
+fn assert_region_uniform(g: &Grid, r: Region, what: &str) {
+    if g.voxel_count() <= 4096 {
+        for zz in r.lo.z..r.hi.z {
+            for yy in r.lo.y..r.hi.y {
+                for xx in r.lo.x..r.hi.x {
+                    let u = IVec3::new(xx, yy, zz);
+                    assert_eq!(g.get(u), r.material, "{what}: {u}");
+                }
+            }
+        }
+    } else {
+        for p in [r.lo, r.hi - IVec3::ONE] {
+            assert_eq!(g.get(p), r.material, "{what}");
         }
     }
 }

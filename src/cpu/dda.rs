@@ -208,7 +208,7 @@ impl Dda<'_> {
     /// The material of `v` (inside the grid), and its region for [`Dda::skip_region`].
     fn look_up(&mut self, v: IVec3) -> u8 {
         self.region = match self.regions {
-            Some(r) => r.region(v),
+            Some(r) => r.region(v, self.step),
             None => Region {
                 material: self.grid.get(v),
                 lo: v,

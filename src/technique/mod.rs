@@ -685,9 +685,9 @@ pub struct TraversalModel {
     pub auto: Option<AutoClaim>,
     /// Its WGSL module (path, source): `#define_import_path voxlab::regions` with `const
     /// REGIONS_ARE_VOXELS: bool`, `struct RegionCursor` (what it keeps between look-ups),
-    /// `fn region_cursor() -> RegionCursor` and `fn region_at(c: ptr<function,
-    /// RegionCursor>, v: vec3<i32>) -> Region` (shaders/types.wgsl), the region around
-    /// voxel `v`.
+    /// `fn region_cursor(step: vec3<i32>) -> RegionCursor` (for a walk of that step) and
+    /// `fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region`
+    /// (shaders/types.wgsl), the region around voxel `v`.
     pub wgsl: (&'static str, &'static str),
     /// Whether it walks the grid's sparse tree (`crate::sparse`): its module is
     /// composed with `TREE_LEVELS`, and it walks grids held only as their tree.

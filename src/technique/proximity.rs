@@ -117,7 +117,7 @@ impl ProximityField {
 }
 
 impl Regions for ProximityField {
-    fn region(&self, v: IVec3) -> Region {
+    fn region(&self, v: IVec3, _step: IVec3) -> Region {
         let (material, r) = self.voxel(v);
         let r = IVec3::splat(r as i32);
         Region {
