@@ -119,28 +119,39 @@ fn choose_traversal(scene: &Scene, settings: &RenderSettings) -> (&'static Trave
 /// `render.traversal = "auto"`: of the traversals that can walk the scene, the last one
 /// that claims it, else the first (the default when it can).
 fn auto_traversal(scene: &Scene, settings: &RenderSettings) -> (&'static TraversalModel, String) {
+    let (t, why) = auto_traversal_within(scene, settings, |_| true);
+    (t, format!("auto: {why}"))
+}
+
+/// [`auto_traversal`] among the traversals `fits` allows (those whose data a device
+/// binds; the tree walk binds any grid), with the reason.
+pub fn auto_traversal_within(
+    scene: &Scene,
+    settings: &RenderSettings,
+    fits: impl Fn(&TraversalModel) -> bool,
+) -> (&'static TraversalModel, String) {
     let able: Vec<_> = TRAVERSALS
         .iter()
         .copied()
-        .filter(|t| (t.plan)(scene, settings).is_ok())
+        .filter(|t| (t.plan)(scene, settings).is_ok() && fits(t))
         .collect();
     let mut declined = Vec::new();
     for t in able.iter().rev() {
         match t.auto.map(|claim| claim(scene)) {
-            Some(Ok(why)) => return (t, format!("auto: {why}")),
+            Some(Ok(why)) => return (t, why),
             Some(Err(why)) => declined.push(why),
             None => {}
         }
     }
     let chosen = *able
         .first()
-        .expect("some traversal walks every scene (the sparse one)");
+        .expect("some traversal walks every scene and fits every device (the sparse one)");
     let why = if declined.is_empty() {
         "the default".to_string()
     } else {
         declined.join("; ")
     };
-    (chosen, format!("auto: {why}"))
+    (chosen, why)
 }
 
 /// The surface `settings` ask for, when `scene` can have it: its own plan rule, and

@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{DENSE_WALK, PROXIMITY_WALK, SPARSE_WALK};
+use common::{DENSE_WALK, OCTANT_WALK, PROXIMITY_WALK, SPARSE_WALK};
 use common::{assert_agree, assert_matches_golden, experiment, linear, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
@@ -219,13 +219,19 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
     let proximity = gpu.last_memory().unwrap();
     assert_eq!(proximity.grid, 0, "{proximity:?}");
     assert_eq!(proximity.walk_data, 2 * 64 * 64 * 64, "{proximity:?}");
-    // Auto: dense below PROXIMITY_FROM_SIDE, the proximity walk from it on, sparse from
+    // The octant walk: a word a voxel.
+    gpu.render(&scene, &settings(16, 16, 1, OCTANT_WALK))
+        .unwrap();
+    let octant = gpu.last_memory().unwrap();
+    assert_eq!(octant.grid, 0, "{octant:?}");
+    assert_eq!(octant.walk_data, 4 * 64 * 64 * 64, "{octant:?}");
+    // Auto: dense below OCTANT_FROM_SIDE, the octant walk from it on, sparse from
     // SPARSE_FROM_SIDE on; the plan says why.
-    use voxlab::technique::{proximity::PROXIMITY_FROM_SIDE, sparse::SPARSE_FROM_SIDE};
+    use voxlab::technique::{octant::OCTANT_FROM_SIDE, sparse::SPARSE_FROM_SIDE};
     for (n, want) in [
-        (PROXIMITY_FROM_SIDE - 1, DENSE_WALK),
-        (PROXIMITY_FROM_SIDE, PROXIMITY_WALK),
-        (SPARSE_FROM_SIDE - 1, PROXIMITY_WALK),
+        (OCTANT_FROM_SIDE - 1, DENSE_WALK),
+        (OCTANT_FROM_SIDE, OCTANT_WALK),
+        (SPARSE_FROM_SIDE - 1, OCTANT_WALK),
         (SPARSE_FROM_SIDE, SPARSE_WALK),
     ] {
         let scene = seed_scene_dims(UVec3::new(n, 3, 2)).unwrap();
@@ -234,6 +240,59 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
         assert!(plan.to_string().contains("traversal:"), "{plan}");
     }
 }
+
+/// Under `"auto"` a walk whose data the device cannot bind gives way to the last walk
+/// that claims the grid and whose data it binds: past the octant field's four bytes a
+/// voxel the proximity field's two, past those the dense grid's one (the tree claims
+/// only from its side), and past all of them the tree.
+#[test]
+fn auto_takes_the_walk_the_device_binds() {
+    use voxlab::technique::TraversalModel;
+    let choose = |dims: UVec3, limit: u64| {
+        let scene = seed_scene_dims(dims).unwrap();
+        let fits = |t: &TraversalModel| t.device_bytes.is_none_or(|b| b(dims) <= limit);
+        let (walk, why) =
+            voxlab::plan::auto_traversal_within(&scene, &settings(8, 8, 1, Traversal::Auto), fits);
+        (Traversal::Walk(walk), why)
+    };
+    let dims = UVec3::splat(64);
+    let voxels = 64 * 64 * 64;
+    for (limit, want) in [
+        (4 * voxels, OCTANT_WALK),
+        (4 * voxels - 1, PROXIMITY_WALK),
+        (2 * voxels - 1, DENSE_WALK),
+        (voxels - 1, SPARSE_WALK),
+    ] {
+        let (walk, why) = choose(dims, limit);
+        assert_eq!(walk, want, "limit {limit}: {why}");
+    }
+    // The tracer itself, with its device's limit: a seed grid of sides below the
+    // tree's whose octant field it cannot bind renders on the proximity walk and says
+    // why. A device that binds more than such a grid's octant field keeps the octant
+    // walk for the largest of them.
+    let mut gpu = tracer();
+    let max = gpu.max_voxel_buffer_bytes();
+    let side = SPARSE_FROM_SIDE_LESS_ONE;
+    let depth = max / (4 * u64::from(side * side)) + 1;
+    if depth < u64::from(side) {
+        let scene = seed_scene_dims(UVec3::new(side, side, depth as u32)).unwrap();
+        gpu.render(&scene, &settings(8, 8, 1, Traversal::Auto))
+            .unwrap();
+        let p = gpu.last_plan().unwrap();
+        assert_eq!(Traversal::Walk(p.traversal), PROXIMITY_WALK, "{p}");
+        assert!(
+            p.traversal_reason.contains("more than this device binds"),
+            "{p}"
+        );
+    } else {
+        eprintln!("the device binds {max} bytes: every grid below the tree's side fits");
+        let (walk, why) = choose(UVec3::splat(side), max);
+        assert_eq!(walk, OCTANT_WALK, "{why}");
+    }
+}
+
+/// The largest side `"auto"` leaves to walks other than the tree.
+const SPARSE_FROM_SIDE_LESS_ONE: u32 = voxlab::technique::sparse::SPARSE_FROM_SIDE - 1;
 
 /// A grid held only as its tree (#16) renders on the GPU exactly as its dense twin
 /// walked through the same tree, and as the CPU reference; nothing dense is on the

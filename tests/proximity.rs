@@ -1,13 +1,17 @@
 //! The proximity traversal's field (src/technique/proximity.rs): every voxel's radius is
 //! its exact Chebyshev distance to the nearest voxel with a neighbour of another
-//! material (the two chamfer passes against brute force), and the cube of that radius
+//! material (the separable passes against brute force), and the cube of that radius
 //! holds the voxel's material only; the largest such cube, so the field skips as far as
-//! the rule allows.
+//! the rule allows. The octant traversal's field (src/technique/octant.rs) likewise:
+//! each octant's radius is the largest cube with the voxel as its corner, and the code
+//! stored is the largest of its radii not above it.
 
 use glam::{IVec3, UVec3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use voxlab::scene::Grid;
+use voxlab::sparse::Regions;
+use voxlab::technique::octant::{OctantField, RADII, octant, octant_radii};
 use voxlab::technique::proximity::{MAX_RADIUS, ProximityField, radii};
 
 /// A grid of `dims` with a few boxes of `materials` materials over a background of one.
@@ -152,4 +156,96 @@ fn radii_past_the_cap_are_exact_along_every_axis() {
             check_radii(&g);
         }
     }
+}
+
+/// The side of the largest cube of `v`'s material with `v` as its corner toward octant
+/// `o`, clipped to the grid, less one; [`MAX_RADIUS`] once the cube reaches the grid's
+/// far side on every axis or passes the cap.
+fn corner_radius(g: &Grid, v: IVec3, o: usize) -> u8 {
+    let s = IVec3::new(
+        1 - 2 * (o & 1) as i32,
+        1 - 2 * (o >> 1 & 1) as i32,
+        1 - 2 * (o >> 2 & 1) as i32,
+    );
+    let dims = g.dims().as_ivec3();
+    let m = g.get(v);
+    for k in 1..=i32::from(MAX_RADIUS) {
+        let far = v + s * k;
+        let inside = far.cmpge(IVec3::ZERO) & far.cmplt(dims);
+        if !inside.any() {
+            return MAX_RADIUS;
+        }
+        // The cube of side k + 1 holds that of side k: only its new shell is read.
+        let (lo, hi) = ((v).min(far).max(IVec3::ZERO), (v).max(far).min(dims - 1));
+        for z in lo.z..=hi.z {
+            for y in lo.y..=hi.y {
+                for x in lo.x..=hi.x {
+                    let u = IVec3::new(x, y, z);
+                    if (u - v).abs().max_element() == k && g.get(u) != m {
+                        return (k - 1) as u8;
+                    }
+                }
+            }
+        }
+    }
+    MAX_RADIUS
+}
+
+fn check_octant_radii(g: &Grid) {
+    let dims = g.dims();
+    let field = OctantField::build(g);
+    for o in 0..8 {
+        let r = octant_radii(g.data(), dims, o);
+        for (i, v) in all_voxels(dims).enumerate() {
+            let want = corner_radius(g, v, o);
+            assert_eq!(r[i], want, "grid {dims}, voxel {v}, octant {o}");
+            let stored = field.radius(v, o);
+            let code = RADII.iter().rposition(|&q| q <= want).unwrap();
+            assert_eq!(stored, RADII[code], "grid {dims}, voxel {v}, octant {o}");
+        }
+    }
+}
+
+#[test]
+fn octant_radii_are_the_largest_corner_cubes() {
+    let mut rng = StdRng::seed_from_u64(10);
+    for round in 0..30 {
+        let dims = random_dims(&mut rng, 18);
+        let count = rng.random_range(0..6);
+        let g = boxes(&mut rng, dims, 1 + round as u8 % 4, count);
+        check_octant_radii(&g);
+    }
+    // Lines past the cap along each axis.
+    for axis in 0..3 {
+        let mut d = [2, 3, 2];
+        d[axis] = 300;
+        let mut g = Grid::new(UVec3::from_array(d), 1.0, glam::DVec3::ZERO).unwrap();
+        let mut far = IVec3::ZERO;
+        far[axis] = 280;
+        g.set(far, 4);
+        check_octant_radii(&g);
+    }
+}
+
+#[test]
+fn a_walk_reads_its_own_octants_cube() {
+    // Void with one solid voxel at (4, 4, 4) in a 9^3 grid: from the voxel at (2, 2, 2)
+    // the cube toward +x+y+z stops short of it, the one toward -x-y-z reaches the corner.
+    let mut g = Grid::new(UVec3::splat(9), 1.0, glam::DVec3::ZERO).unwrap();
+    g.set(IVec3::splat(4), 1);
+    let field = OctantField::build(&g);
+    let v = IVec3::splat(2);
+    let up = field.region(v, IVec3::ONE);
+    assert_eq!((up.lo, up.hi), (v, v + 2), "{up:?}");
+    let down = field.region(v, -IVec3::ONE);
+    assert_eq!((down.lo, down.hi), (IVec3::ZERO, v + 1), "{down:?}");
+    // Step 0 on an axis takes the positive side there: toward +x -y +z the solid voxel
+    // is behind, and the cube reaches the grid's sides.
+    assert_eq!(octant(IVec3::new(0, -1, 0)), 2);
+    let flat = field.region(v, IVec3::new(0, -1, 0));
+    assert_eq!(
+        (flat.lo, flat.hi),
+        (IVec3::new(2, 0, 2), IVec3::new(9, 3, 9)),
+        "{flat:?}"
+    );
 }

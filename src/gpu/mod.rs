@@ -1480,26 +1480,25 @@ impl GpuTracer {
     ) -> Result<RenderOutput> {
         let mut plan = plan;
         plan.dda_unroll = self.dda_unroll;
-        let bound_bytes = plan.traversal.device_bytes.map(|b| b(scene.grid.dims()));
-        let tree_walk = crate::technique::TRAVERSALS
-            .iter()
-            .copied()
-            .find(|t| t.walks_tree);
-        if let Some(tree_walk) = tree_walk
-            && let Some(bound_bytes) = bound_bytes
-            && settings.traversal == crate::render::Traversal::Auto
-            && bound_bytes > self.max_voxel_buffer_bytes()
-        {
+        let dims = scene.grid.dims();
+        let max_bytes = self.max_voxel_buffer_bytes();
+        let fits = |t: &crate::technique::TraversalModel| {
+            t.device_bytes.is_none_or(|b| b(dims) <= max_bytes)
+        };
+        if settings.traversal == crate::render::Traversal::Auto && !fits(plan.traversal) {
             // The device cannot bind what the planned walk reads (the dense grid, the
-            // traversal's own data): a walk over the tree is the only way.
+            // traversal's own data): the auto choice among the walks it can bind (the
+            // tree walk binds any grid).
+            let (walk, why) = crate::plan::auto_traversal_within(scene, settings, fits);
             plan.traversal_reason = format!(
-                "auto: the {} walk's {bound_bytes} bytes are more than this device binds \
-                 ({}, max_storage_buffer_binding_size)",
+                "auto: the {} walk's {} bytes are more than this device binds ({}, \
+                 max_storage_buffer_binding_size); {why}",
                 plan.traversal.name,
-                self.max_voxel_buffer_bytes()
+                plan.traversal.device_bytes.map_or(0, |b| b(dims)),
+                max_bytes
             );
-            plan.traversal = tree_walk;
-            plan.tree_levels = crate::plan::tree_levels(tree_walk, scene.grid.dims());
+            plan.traversal = walk;
+            plan.tree_levels = crate::plan::tree_levels(walk, dims);
         }
         let count = plan.count_rays;
         self.check(scene, settings, &plan)?;

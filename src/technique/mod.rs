@@ -52,6 +52,7 @@ pub mod hard;
 pub mod indirect;
 pub mod mesh;
 pub mod min_kt;
+pub mod octant;
 pub mod proximity;
 pub mod ratio;
 pub mod sdf;
@@ -87,8 +88,12 @@ pub const TRANSMITTANCES: &[&TransmittanceModel] = &[&min_kt::MODEL, &beer_lambe
 
 /// Traversals, in the order they are listed and offered; the first is the default (the
 /// baseline's), which `auto` takes unless another claims the scene. One line each.
-pub const TRAVERSALS: &[&TraversalModel] =
-    &[&dense::TRAVERSAL, &proximity::TRAVERSAL, &sparse::TRAVERSAL];
+pub const TRAVERSALS: &[&TraversalModel] = &[
+    &dense::TRAVERSAL,
+    &proximity::TRAVERSAL,
+    &octant::TRAVERSAL,
+    &sparse::TRAVERSAL,
+];
 
 /// Surfaces, in the order they are listed and offered; the first is the default (the
 /// baseline's voxel faces). One line each.

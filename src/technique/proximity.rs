@@ -34,12 +34,13 @@ use crate::sparse::{Region, Regions};
 pub const MAX_RADIUS: u8 = 255;
 
 /// The grid side from which `render.traversal = "auto"` walks the proximity field
-/// (up to the sparse walk's [`super::sparse::SPARSE_FROM_SIDE`], registered after it,
-/// whose claim wins). On lavapipe the seed scene renders at 0.75x the dense walk's
-/// speed at 16^3, where a walk is a few steps and a skip costs more than a step, at
-/// 1.48x at 64^3 and 3.23x at 256^3 (README "Sparse traversal", "Speed now"). A field
-/// larger than the device binds as one buffer (lavapipe: 128 MiB, 64 M voxels) is
-/// left to the tree under "auto" (`crate::gpu`).
+/// where the octant field ([`super::octant`], registered after it, whose claim wins
+/// where the device binds it) does not fit, up to the sparse walk's
+/// [`super::sparse::SPARSE_FROM_SIDE`]. On lavapipe the seed scene renders at 0.75x the
+/// dense walk's speed at 16^3, where a walk is a few steps and a skip costs more than
+/// a step, at 1.48x at 64^3 and 3.23x at 256^3 (README "Sparse traversal", "Speed
+/// now"). A field larger than the device binds as one buffer (lavapipe: 128 MiB, 64 M
+/// voxels) is left to the tree under "auto" (`crate::gpu`).
 pub const PROXIMITY_FROM_SIDE: u32 = 64;
 
 pub const TRAVERSAL: TraversalModel = TraversalModel {

@@ -217,6 +217,8 @@ pub const SPARSE_WALK: voxlab::render::Traversal =
     voxlab::render::Traversal::Walk(&voxlab::technique::sparse::TRAVERSAL);
 pub const PROXIMITY_WALK: voxlab::render::Traversal =
     voxlab::render::Traversal::Walk(&voxlab::technique::proximity::TRAVERSAL);
+pub const OCTANT_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::octant::TRAVERSAL);
 pub const VOXELS_SURFACE: voxlab::render::Surface =
     voxlab::render::Surface(&voxlab::technique::voxels::SURFACE);
 pub const MESH_SURFACE: voxlab::render::Surface =

@@ -1,0 +1,198 @@
+//! The octant traversal: the proximity walk with one cube per ray octant. Beside each
+//! voxel's material, for each of the eight octants a ray can head into, the largest
+//! cube of the voxel's material that has the voxel as its corner and reaches into that
+//! octant. A ray reads only its own octant's cube: what lies behind it does not shorten
+//! its skip, so a ray leaving a surface skips at once what the centred cubes of
+//! [`super::proximity`] let it leave only step by growing step.
+//!
+//! The cube of voxel `v` toward octant `s` (a sign per axis) of side `k + 1` is `v` and
+//! the cubes of side `k` of its seven neighbours `v + s * e` (`e` in {0, 1}^3, not 0),
+//! so the largest side is one more than the smallest of theirs where all seven hold
+//! `v`'s material (the largest-square recurrence in 3D; neighbours outside the grid do
+//! not count, as the walks end there by their own test).
+
+use std::sync::Arc;
+
+use glam::{IVec3, UVec3};
+use rayon::prelude::*;
+
+use super::TraversalModel;
+use crate::scene::Grid;
+use crate::sparse::{Region, Regions};
+
+/// The radii a cube's three-bit code stands for: each the largest of the table not
+/// above the true radius, so a cube is never larger than its voxels allow.
+pub const RADII: [u8; 8] = [0, 1, 2, 4, 8, 16, 32, 64];
+
+/// The grid side from which `render.traversal = "auto"` walks the octant field (up to
+/// the sparse walk's [`super::sparse::SPARSE_FROM_SIDE`], registered after it, whose
+/// claim wins). On lavapipe, 512x512, the seed's rules: 0.98x the dense walk's speed
+/// at 16^3 (2.55 steps a ray against 11.45: a skip costs about four steps there), 1.28x
+/// at 32^3; the seed scene 1.17x at 24^3, 1.37x at 32^3, where the proximity walk is
+/// 1.00x (`voxlab bench --sizes 24,32 --size 512 --gpu-runs 3 --no-cpu --traversal
+/// dense,proximity,octant --experiments experiments/seed_rules.toml`). Where the device
+/// cannot bind its four bytes a voxel (lavapipe: 128 MiB, 32 M voxels) `"auto"` takes
+/// the next walk that claims the grid and fits (`crate::plan::auto_traversal_within`).
+pub const OCTANT_FROM_SIDE: u32 = 24;
+
+pub const TRAVERSAL: TraversalModel = TraversalModel {
+    name: "octant",
+    summary: "the DDA over the dense grid with each voxel's largest cube of its own \
+              material with the voxel as its corner toward each of the 8 ray octants, \
+              skipping the ray's octant's cube whole (proximity clouds per octant)",
+    label: "octant proximity",
+    plan: |scene, _| super::dense_grid_only(scene, "the dense grid with 8 radii beside each voxel"),
+    auto: Some(|scene| {
+        super::dense_grid_only(scene, "the dense grid")?;
+        super::claim_from_side(scene, OCTANT_FROM_SIDE)
+    }),
+    wgsl: (
+        "shaders/traversal_octant.wgsl",
+        include_str!("../../shaders/traversal_octant.wgsl"),
+    ),
+    walks_tree: false,
+    data: Some(|grid| Arc::new(OctantField::build(grid))),
+    // One word a voxel, in whole vec4<u32>s.
+    device_bytes: Some(|dims| (4 * dims.as_u64vec3().element_product()).next_multiple_of(16)),
+};
+
+/// Every voxel's material and its eight cubes' codes, one word a voxel (x fastest):
+/// material in bits 0..8, octant `o`'s code in bits `8 + 3 o`. Octant `o` has bit `a`
+/// set where it heads down axis `a`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OctantField {
+    dims: UVec3,
+    words: Vec<u32>,
+}
+
+/// The code of radius `r`: the largest entry of [`RADII`] not above it.
+fn code(r: u8) -> u32 {
+    RADII.iter().rposition(|&q| q <= r).unwrap_or(0) as u32
+}
+
+/// The octant a walk of `step` reads (an axis of step 0 takes the positive side).
+pub fn octant(step: IVec3) -> usize {
+    (0..3).map(|a| usize::from(step[a] < 0) << a).sum()
+}
+
+impl OctantField {
+    pub fn build(grid: &Grid) -> Self {
+        let dense = grid
+            .to_dense()
+            .expect("the octant traversal's plan rule keeps it to dense grids");
+        let dims = grid.dims();
+        let voxels = dense.data();
+        let radii: Vec<Vec<u8>> = (0..8)
+            .into_par_iter()
+            .map(|o| octant_radii(voxels, dims, o))
+            .collect();
+        let words = voxels
+            .par_iter()
+            .enumerate()
+            .map(|(i, &m)| (0..8).fold(m as u32, |w, o| w | code(radii[o][i]) << (8 + 3 * o)))
+            .collect();
+        Self { dims, words }
+    }
+
+    fn index(&self, v: IVec3) -> usize {
+        let d = self.dims.as_usizevec3();
+        v.x as usize + d.x * (v.y as usize + d.y * v.z as usize)
+    }
+
+    /// The radius of voxel `v`'s cube toward octant `o`.
+    pub fn radius(&self, v: IVec3, o: usize) -> u8 {
+        let i = self.index(v);
+        RADII[(self.words[i] >> (8 + 3 * o) & 7) as usize]
+    }
+}
+
+impl Regions for OctantField {
+    fn region(&self, v: IVec3, step: IVec3) -> Region {
+        let o = octant(step);
+        let material = self.words[self.index(v)] as u8;
+        let r = self.radius(v, o) as i32;
+        let down = IVec3::new((o & 1) as i32, (o >> 1 & 1) as i32, (o >> 2 & 1) as i32);
+        let reach = IVec3::splat(r);
+        let lo = v - reach * down;
+        let hi = v + IVec3::ONE + reach * (IVec3::ONE - down);
+        Region {
+            material,
+            lo: lo.max(IVec3::ZERO),
+            hi: hi.min(self.dims.as_ivec3()),
+        }
+    }
+
+    fn device_words(&self) -> &[u32] {
+        &self.words
+    }
+}
+
+/// Each voxel's radius toward octant `o`, capped at 255 (see the module documentation),
+/// by the recurrence swept from the octant's far corner a row at a time: first the six
+/// neighbours in the three rows done before (one pass over whole rows, which the
+/// compiler vectorizes), then the one before it in its own row.
+pub fn octant_radii(voxels: &[u8], dims: UVec3, o: usize) -> Vec<u8> {
+    let (nx, ny, nz) = (dims.x as usize, dims.y as usize, dims.z as usize);
+    let down = |a: usize| o >> a & 1 == 1;
+    // The voxels in the order the sweep takes them along an axis, and whether the
+    // neighbour toward the octant of the one at `c` is inside the grid.
+    let order = |n: usize, a: usize| -> Box<dyn Iterator<Item = usize>> {
+        if down(a) {
+            Box::new(0..n)
+        } else {
+            Box::new((0..n).rev())
+        }
+    };
+    let ahead = |c: usize, n: usize, a: usize| {
+        if down(a) {
+            c.checked_sub(1)
+        } else {
+            (c + 1 < n).then_some(c + 1)
+        }
+    };
+    let mut out = vec![0u8; voxels.len()];
+    let mut cross = vec![0u8; nx];
+    for z in order(nz, 2) {
+        for y in order(ny, 1) {
+            let row = nx * (y + ny * z);
+            let mine = &voxels[row..row + nx];
+            cross.fill(u8::MAX);
+            let rows = [
+                ahead(y, ny, 1).map(|y1| (y1, z)),
+                ahead(z, nz, 2).map(|z1| (y, z1)),
+                ahead(y, ny, 1).zip(ahead(z, nz, 2)),
+            ];
+            for (y1, z1) in rows.into_iter().flatten() {
+                let other = nx * (y1 + ny * z1);
+                let (theirs, radii) = (&voxels[other..other + nx], &out[other..other + nx]);
+                fold(&mut cross, mine, theirs, radii);
+                if nx > 1 {
+                    let n = nx - 1;
+                    if down(0) {
+                        fold(&mut cross[1..], &mine[1..], &theirs[..n], &radii[..n]);
+                    } else {
+                        fold(&mut cross[..n], &mine[..n], &theirs[1..], &radii[1..]);
+                    }
+                }
+            }
+            for x in order(nx, 0) {
+                let i = row + x;
+                out[i] = match ahead(x, nx, 0) {
+                    Some(x1) if voxels[row + x1] != voxels[i] => 0,
+                    Some(x1) => cross[x].min(out[row + x1].saturating_add(1)),
+                    None => cross[x],
+                };
+            }
+        }
+    }
+    out
+}
+
+/// `cross[x]` lowered to what neighbour `x` of another row allows: one more than its
+/// radius where it holds `mine[x]`'s material, else 0.
+fn fold(cross: &mut [u8], mine: &[u8], theirs: &[u8], radii: &[u8]) {
+    for (((c, &m), &t), &r) in cross.iter_mut().zip(mine).zip(theirs).zip(radii) {
+        let allowed = if t == m { r.saturating_add(1) } else { 0 };
+        *c = (*c).min(allowed);
+    }
+}
