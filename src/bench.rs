@@ -617,6 +617,45 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     out
 }
 
+/// The rows whose walk counted other rays than the default walk on the same scene,
+/// surface and backend, one line each. Every walk gives the dense walk's visits, so
+/// the same rays and image (`tests/sparse.rs`, `tests/gpu_sparse.rs`): a difference is a
+/// walk that renders wrong, and its figures are not comparable. (The GPU and the CPU
+/// may differ by a few rays through voxel edges: f32 against f64.)
+pub fn walk_disagreements(rows: &[BenchRow]) -> Vec<String> {
+    let default = crate::technique::default_traversal().name;
+    rows.iter()
+        .filter(|r| r.traversal != default)
+        .filter_map(|r| {
+            let d = rows.iter().find(|d| {
+                d.scene == r.scene
+                    && d.backend == r.backend
+                    && d.surface == r.surface
+                    && d.traversal == default
+            })?;
+            let rays = |s: &RayStats| (s.primary, s.secondary, s.shadow);
+            (rays(&d.stats) != rays(&r.stats)).then(|| {
+                format!(
+                    "{} {} {}: the {} walk counted {} rays ({} + {} + {}), the {default} \
+                         walk {} ({} + {} + {}): the walks must trace the same rays",
+                    r.scene,
+                    r.surface,
+                    r.backend,
+                    r.traversal,
+                    r.stats.total_rays(),
+                    r.stats.primary,
+                    r.stats.secondary,
+                    r.stats.shadow,
+                    d.stats.total_rays(),
+                    d.stats.primary,
+                    d.stats.secondary,
+                    d.stats.shadow,
+                )
+            })
+        })
+        .collect()
+}
+
 /// One mesh voxelized at one resolution: the median of several runs.
 #[derive(Clone, Debug)]
 pub struct VoxelizeRow {
@@ -965,4 +1004,48 @@ pub fn trees_table(rows: &[TreeRow]) -> String {
         );
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(backend: &'static str, traversal: &'static str, shadow: u64) -> BenchRow {
+        BenchRow {
+            scene: "seed 16^3".into(),
+            grid: 16,
+            backend,
+            traversal,
+            surface: "voxels",
+            median: Duration::from_millis(1),
+            stats: RayStats {
+                primary: 4,
+                secondary: 2,
+                shadow,
+                ..RayStats::default()
+            },
+            bytes_per_voxel: 1.0,
+            build: Duration::ZERO,
+            timer: "wall",
+            dda_unroll: None,
+        }
+    }
+
+    #[test]
+    fn a_walk_with_other_rays_than_the_default_walks_is_named() {
+        let rows = [
+            row("gpu", "dense", 5),
+            row("gpu", "octant", 5),
+            row("gpu", "proximity", 6),
+            // The CPU's rows compare with the CPU's default walk only.
+            row("cpu", "dense", 7),
+            row("cpu", "octant", 7),
+        ];
+        let wrong = walk_disagreements(&rows);
+        assert_eq!(wrong.len(), 1, "{wrong:?}");
+        assert!(
+            wrong[0].contains("gpu: the proximity walk counted 12 rays"),
+            "{wrong:?}"
+        );
+    }
 }

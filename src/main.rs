@@ -813,11 +813,18 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         head["host"] = voxlab::cpu::host_summary().into();
         print_json_rows(&head, rows.iter().map(|r| r.json()))?;
         let head = bench_head("surfaces", None, a);
-        return print_json_rows(&head, surfaces.iter().map(|r| r.json()));
+        print_json_rows(&head, surfaces.iter().map(|r| r.json()))?;
+    } else {
+        println!("{}", voxlab::bench::table(&rows, &adapter, &opts.settings));
+        if !surfaces.is_empty() {
+            println!("{}", voxlab::bench::surface_table(&surfaces));
+        }
     }
-    println!("{}", voxlab::bench::table(&rows, &adapter, &opts.settings));
-    if !surfaces.is_empty() {
-        println!("{}", voxlab::bench::surface_table(&surfaces));
+    // Figures of a walk that renders another image than the default walk's compare
+    // nothing: printed above, then refused.
+    let wrong = voxlab::bench::walk_disagreements(&rows);
+    if !wrong.is_empty() {
+        bail!("{}", wrong.join("\n"));
     }
     Ok(())
 }
