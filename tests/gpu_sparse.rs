@@ -167,6 +167,9 @@ fn generated_scenes_agree_with_the_cpu_and_the_dense_walk() {
                 d.fraction_over() < 0.005,
                 "{name}: this and the dense GPU walk differ: {d}"
             );
+            // The same rays, as `voxlab bench` requires of every walk.
+            let rays = |s: &voxlab::render::RayStats| (s.primary, s.secondary, s.shadow);
+            assert_eq!(rays(&sparse.stats), rays(&dense.stats), "{name}");
         }
     }
 }
@@ -349,4 +352,50 @@ fn the_seed_scene_at_2048_renders_through_its_tree() {
     assert!(c.stats.voxel_steps > 0);
     let lit = g.frame.pixels.iter().filter(|p| p[0] > 0.2).count();
     assert!(lit > 10, "{lit} lit pixels");
+}
+
+/// Every stress case (DESIGN section 5: eyes on lattice points and grid faces,
+/// axis-parallel and grazing rays, total internal reflection, far origins, extreme
+/// depths, every shadow and transmittance model, the grid at the device's side limit)
+/// rendered on the GPU with each walk that skips regions gives the dense walk's rays
+/// exactly and its image to f32 rounding: the skips' exits are exact at the settings
+/// the suite makes stiff.
+#[test]
+fn every_walk_renders_the_stress_cases_as_the_dense_walk() {
+    let mut gpu = tracer();
+    let opts = voxlab::stress::SuiteOptions {
+        max_grid_side: gpu.max_grid_side(),
+        cube: None,
+    };
+    let cases = voxlab::stress::cases(&opts).unwrap();
+    let mut compared = 0;
+    for case in &cases {
+        let dense_settings = RenderSettings {
+            traversal: DENSE_WALK,
+            ..case.settings.clone()
+        };
+        let dense = gpu.render(&case.scene, &dense_settings).unwrap();
+        for walk in skipping_walks() {
+            let s = RenderSettings {
+                traversal: walk,
+                ..case.settings.clone()
+            };
+            let name = format!("{}, {} walk", case.name, walk.name());
+            let out = gpu.render(&case.scene, &s).unwrap();
+            // A walk the case cannot have (its plan rule) is replaced by the plan's
+            // choice; such a render compares nothing.
+            if Traversal::Walk(gpu.last_plan().unwrap().traversal) != walk {
+                continue;
+            }
+            let rays = |s: &voxlab::render::RayStats| (s.primary, s.secondary, s.shadow);
+            assert_eq!(rays(&out.stats), rays(&dense.stats), "{name}");
+            // The same hits; only Beer-Lambert's sums differ in f32 rounding (a region's
+            // length counts at once where the dense walk adds each voxel's).
+            let d = linear(&out.frame, &dense.frame, 1e-5);
+            assert_eq!(d.fraction_over(), 0.0, "{name}: {d}");
+            compared += 1;
+        }
+    }
+    // Every case with every skipping walk: all of them walk dense grids.
+    assert_eq!(compared, cases.len() * skipping_walks().len());
 }
