@@ -26,14 +26,13 @@ fn region_cursor(step: vec3<i32>) -> RegionCursor {
 
 // The cube of voxel v (inside the grid) toward the walk's octant, clipped to the grid:
 // voxel i (x fastest) is word i, material in its low byte; code k stands for radius 0
-// for k = 0, else 2^(k - 1) (crate::technique::octant::RADII).
+// for k = 0, else 2^(k - 1): (1 << k) >> 1 (crate::technique::octant::RADII).
 fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
     let u = vec3<u32>(v);
     let i = u.x + params.dims.x * (u.y + params.dims.y * u.z);
     let word = walk_data[i >> 2u][i & 3u];
     let k = (word >> (*c).shift) & 7u;
-    let r = select(0, 1 << (k - 1u), k != 0u);
-    let reach = vec3<i32>(r);
+    let reach = vec3<i32>(i32((1u << k) >> 1u));
     let lo = v - reach * (*c).down;
     let hi = v + 1 + reach * (1 - (*c).down);
     return Region(word & 255u, max(lo, vec3<i32>(0)), min(hi, vec3<i32>(params.dims)));
