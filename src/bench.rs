@@ -131,12 +131,12 @@ fn scene_label(name: &str, scene: &Scene) -> String {
     }
 }
 
-/// Times `walks` on one scene and surface with their timed frames interleaved (a frame
-/// of each walk in turn, `runs` rounds), so that a spell of load on a shared machine
-/// falls on every walk alike rather than on whichever row it met: the seed scene at
-/// 256^3 measured its dense walk at 6.8 s in one run and 9.0 s in another an hour
-/// later with the proximity walk at 2.0 s in both, when each walk's frames ran back
-/// to back. Each walk starts from the device's own steps per iteration
+/// Times the walks on one scene and surface (`walks`: each walk's settings) with their
+/// timed frames interleaved (a frame of each walk in turn, `runs` rounds), so that a
+/// spell of load on a shared machine falls on every walk alike rather than on whichever
+/// row it met: the seed scene at 256^3 measured its dense walk at 6.8 s in one run and
+/// 9.0 s in another an hour later with the proximity walk at 2.0 s in both, when each
+/// walk's frames ran back to back. Each walk starts from the device's own steps per iteration
 /// (`device_unroll`). One result per walk, in their order: a walk the device cannot
 /// render is its error, the others still measured.
 fn bench_gpu(
@@ -144,24 +144,15 @@ fn bench_gpu(
     device_unroll: u32,
     name: &str,
     scene: &Scene,
-    (settings, runs): (&RenderSettings, usize),
-    walks: &[Traversal],
-    surface: Surface,
+    walks: &[RenderSettings],
+    runs: usize,
 ) -> Vec<Result<BenchRow>> {
     let mut timing: Vec<Timing> = walks
         .iter()
-        .map(|&traversal| {
-            let settings = RenderSettings {
-                traversal,
-                surface,
-                ..settings.clone()
-            };
-            let state = prepare_gpu_row(gpu, name, scene, &settings, device_unroll);
-            Timing {
-                settings,
-                state,
-                times: Vec::new(),
-            }
+        .map(|settings| Timing {
+            settings,
+            state: prepare_gpu_row(gpu, name, scene, settings, device_unroll),
+            times: Vec::new(),
         })
         .collect();
     for _ in 0..runs.max(1) {
@@ -171,7 +162,7 @@ fn bench_gpu(
             };
             // Each walk with the steps per iteration its own first frames settled on.
             let time = gpu.set_dda_unroll(*unroll).and_then(|()| {
-                let out = gpu.render(scene, &w.settings)?;
+                let out = gpu.render(scene, w.settings)?;
                 Ok(gpu.last_gpu_time().unwrap_or(out.trace_time))
             });
             match time {
@@ -194,8 +185,8 @@ fn bench_gpu(
 
 /// One walk of [`bench_gpu`] while its frames are timed: its row and steps per
 /// iteration once prepared (or why it could not be), and its frames' times.
-struct Timing {
-    settings: RenderSettings,
+struct Timing<'a> {
+    settings: &'a RenderSettings,
     state: Result<(BenchRow, u32)>,
     times: Vec<Duration>,
 }
@@ -235,41 +226,30 @@ fn prepare_gpu_row(
     Ok((row, gpu.dda_unroll()))
 }
 
-/// Times `walks` on the CPU reference as [`bench_gpu`] does on the device: each walk's
-/// warm-up frame first, then one timed frame of each walk in turn. What a render reads
-/// (the walk's data) is prepared once per walk, as the GPU keeps it between frames; its
-/// time is the row's build time.
-fn bench_cpu(
-    name: &str,
-    scene: &Scene,
-    (settings, runs): (&RenderSettings, usize),
-    walks: &[Traversal],
-    surface: Surface,
-) -> Vec<BenchRow> {
+/// Times the walks (`walks`: each walk's settings) on the CPU reference as
+/// [`bench_gpu`] does on the device: each walk's warm-up frame first, then one timed
+/// frame of each walk in turn. What a render reads (the walk's data) is prepared once
+/// per walk, as the GPU keeps it between frames; its time is the row's build time.
+fn bench_cpu(name: &str, scene: &Scene, walks: &[RenderSettings], runs: usize) -> Vec<BenchRow> {
     let mut timing: Vec<_> = walks
         .iter()
-        .map(|&traversal| {
-            let s = RenderSettings {
-                traversal,
-                surface,
-                ..settings.clone()
-            };
-            let plan = crate::plan::Plan::new(scene, &s);
+        .map(|s| {
+            let plan = crate::plan::Plan::new(scene, s);
             let start = Instant::now();
-            let prepared = crate::cpu::Prepared::new(scene, &s, &plan);
+            let prepared = crate::cpu::Prepared::new(scene, s, &plan);
             let build = start.elapsed();
             // The walk's own data (the sparse tree, say); the dense grid's one byte a
             // voxel otherwise.
             let bytes_per_voxel = prepared.regions.as_ref().map_or(1.0, |r| {
                 (r.device_words().len() * 4) as f64 / scene.grid.voxel_count() as f64
             });
-            let warm = crate::cpu::render_prepared(scene, &s, &plan, &prepared);
+            let warm = crate::cpu::render_prepared(scene, s, &plan, &prepared);
             let row = BenchRow {
                 scene: scene_label(name, scene),
                 grid: scene.grid.dims().x,
                 backend: "cpu",
                 traversal: plan.traversal.name,
-                surface: surface.name(),
+                surface: s.surface.name(),
                 median: Duration::ZERO,
                 stats: warm.stats,
                 bytes_per_voxel,
@@ -363,19 +343,17 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
             if crate::plan::check_surface(&scene, &probe).is_err() {
                 continue;
             }
-            let walks: Vec<Traversal> = opts
+            // Each walk's settings: the surface's with the walk.
+            let walks: Vec<RenderSettings> = opts
                 .traversals
                 .iter()
-                .copied()
-                .filter(|&t| {
-                    let planned = crate::plan::Plan::new(
-                        &scene,
-                        &RenderSettings {
-                            traversal: t,
-                            ..probe.clone()
-                        },
-                    )
-                    .traversal;
+                .map(|&traversal| RenderSettings {
+                    traversal,
+                    ..probe.clone()
+                })
+                .filter(|s| {
+                    let t = s.traversal;
+                    let planned = crate::plan::Plan::new(&scene, s).traversal;
                     // A grid held only as its tree has no dense walk: not measured twice.
                     let follows = t == Traversal::Auto || Traversal::Walk(planned) == t;
                     if !follows {
@@ -395,11 +373,10 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
                 device_unroll,
                 &name,
                 &scene,
-                (&settings, opts.gpu_runs),
                 &walks,
-                surface,
+                opts.gpu_runs,
             );
-            for (&t, result) in walks.iter().zip(measured) {
+            for (s, result) in walks.iter().zip(measured) {
                 match result {
                     Ok(row) => {
                         let row = held_build(row);
@@ -410,12 +387,12 @@ pub fn run(opts: &BenchOptions, mut progress: impl FnMut(&BenchRow)) -> Result<V
                         "  {} {} gpu {}: not measured: {e:#}",
                         scene_label(&name, &scene),
                         surface.name(),
-                        t.name()
+                        s.traversal.name()
                     ),
                 }
             }
             if opts.cpu {
-                for row in bench_cpu(&name, &scene, (&settings, opts.cpu_runs), &walks, surface) {
+                for row in bench_cpu(&name, &scene, &walks, opts.cpu_runs) {
                     let row = held_build(row);
                     progress(&row);
                     rows.push(row);
@@ -561,14 +538,7 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
         );
     }
     // Each row against the row of the same scene that differs in one thing only.
-    let partner = |r: &BenchRow, backend: &str, traversal: &str, surface: &str| {
-        rows.iter().find(|p| {
-            p.scene == r.scene
-                && p.backend == backend
-                && p.traversal == traversal
-                && p.surface == surface
-        })
-    };
+    let partner = |r, backend, traversal, surface| partner(rows, r, backend, traversal, surface);
     let mut ratios = String::new();
     for g in rows.iter().filter(|r| r.backend == "gpu") {
         if let Some(c) = partner(g, "cpu", g.traversal, g.surface) {
@@ -617,6 +587,22 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     out
 }
 
+/// The row of `rows` of `r`'s scene on this backend, walk and surface.
+fn partner<'a>(
+    rows: &'a [BenchRow],
+    r: &BenchRow,
+    backend: &str,
+    traversal: &str,
+    surface: &str,
+) -> Option<&'a BenchRow> {
+    rows.iter().find(|p| {
+        p.scene == r.scene
+            && p.backend == backend
+            && p.traversal == traversal
+            && p.surface == surface
+    })
+}
+
 /// The rows whose walk counted other rays than the default walk on the same scene,
 /// surface and backend, one line each. Every walk gives the dense walk's visits, so
 /// the same rays and image (`tests/sparse.rs`, `tests/gpu_sparse.rs`): a difference is a
@@ -627,29 +613,27 @@ pub fn walk_disagreements(rows: &[BenchRow]) -> Vec<String> {
     rows.iter()
         .filter(|r| r.traversal != default)
         .filter_map(|r| {
-            let d = rows.iter().find(|d| {
-                d.scene == r.scene
-                    && d.backend == r.backend
-                    && d.surface == r.surface
-                    && d.traversal == default
-            })?;
+            let d = partner(rows, r, r.backend, default, r.surface)?;
             let rays = |s: &RayStats| (s.primary, s.secondary, s.shadow);
+            let count = |s: &RayStats| {
+                format!(
+                    "{} rays ({} + {} + {})",
+                    s.total_rays(),
+                    s.primary,
+                    s.secondary,
+                    s.shadow
+                )
+            };
             (rays(&d.stats) != rays(&r.stats)).then(|| {
                 format!(
-                    "{} {} {}: the {} walk counted {} rays ({} + {} + {}), the {default} \
-                         walk {} ({} + {} + {}): the walks must trace the same rays",
+                    "{} {} {}: the {} walk counted {}, the {default} walk {}: the walks \
+                     must trace the same rays",
                     r.scene,
                     r.surface,
                     r.backend,
                     r.traversal,
-                    r.stats.total_rays(),
-                    r.stats.primary,
-                    r.stats.secondary,
-                    r.stats.shadow,
-                    d.stats.total_rays(),
-                    d.stats.primary,
-                    d.stats.secondary,
-                    d.stats.shadow,
+                    count(&r.stats),
+                    count(&d.stats),
                 )
             })
         })

@@ -134,7 +134,7 @@ fn run(i: usize, case: &Case, rng: &mut StdRng, gpu: &mut voxlab::gpu::GpuTracer
     };
     settings.features.shadow_model = &voxlab::technique::area::MODEL;
     settings.features.transmittance = case.transmittance;
-    // Both walks: the dense grid and the sparse tree.
+    // Every registered walk.
     for traversal in Traversal::walks() {
         settings.traversal = traversal;
         run_walk(i, case, dims, &scene, &settings, gpu);

@@ -189,14 +189,17 @@ fn sampled_area_lights_over_many_frames_per_dispatch() {
         color: DVec3::ONE,
         intensity: 2500.0,
     })];
-    let mut s = settings(32, 32, 2, SPARSE_WALK);
-    s.features.shadow_model = &voxlab::technique::area::MODEL;
-    s.light_samples = 2;
-    s.spp = 24;
     let mut gpu = tracer();
-    let g = gpu.render(&scene, &s).unwrap();
-    let c = voxlab::cpu::render(&scene, &s);
-    assert_agree("area light, 24 frames, sparse", &g.frame, &c.frame);
+    for walk in skipping_walks() {
+        let mut s = settings(32, 32, 2, walk);
+        s.features.shadow_model = &voxlab::technique::area::MODEL;
+        s.light_samples = 2;
+        s.spp = 24;
+        let g = gpu.render(&scene, &s).unwrap();
+        let c = voxlab::cpu::render(&scene, &s);
+        let name = format!("area light, 24 frames, {} walk", walk.name());
+        assert_agree(&name, &g.frame, &c.frame);
+    }
 }
 
 #[test]
@@ -253,7 +256,7 @@ fn auto_takes_the_walk_the_device_binds() {
     use voxlab::technique::TraversalModel;
     let choose = |dims: UVec3, limit: u64| {
         let scene = seed_scene_dims(dims).unwrap();
-        let fits = |t: &TraversalModel| t.device_bytes.is_none_or(|b| b(dims) <= limit);
+        let fits = |t: &TraversalModel| t.binds_within(dims, limit);
         let (walk, why) =
             voxlab::plan::auto_traversal_within(&scene, &settings(8, 8, 1, Traversal::Auto), fits);
         (Traversal::Walk(walk), why)

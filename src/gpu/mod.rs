@@ -735,8 +735,10 @@ impl GpuTracer {
         }
         let limits = self.device.limits();
         let dims = scene.grid.dims();
-        if let Some(bytes) = plan.traversal.device_bytes.map(|b| b(dims))
-            && bytes > self.max_voxel_buffer_bytes()
+        if !plan
+            .traversal
+            .binds_within(dims, self.max_voxel_buffer_bytes())
+            && let Some(bytes) = plan.traversal.device_bytes.map(|b| b(dims))
         {
             bail!(
                 "grid {}x{}x{} needs {bytes} bytes for the {} walk; {} binds at most {} \
@@ -1482,9 +1484,7 @@ impl GpuTracer {
         plan.dda_unroll = self.dda_unroll;
         let dims = scene.grid.dims();
         let max_bytes = self.max_voxel_buffer_bytes();
-        let fits = |t: &crate::technique::TraversalModel| {
-            t.device_bytes.is_none_or(|b| b(dims) <= max_bytes)
-        };
+        let fits = |t: &crate::technique::TraversalModel| t.binds_within(dims, max_bytes);
         if settings.traversal == crate::render::Traversal::Auto && !fits(plan.traversal) {
             // The device cannot bind what the planned walk reads (the dense grid, the
             // traversal's own data): the auto choice among the walks it can bind (the

@@ -11,7 +11,7 @@ use super::TraversalModel;
 /// Bytes of the voxel buffer the dense walk reads for a grid of `dims`: one a voxel, in
 /// whole vec4<u32>s.
 pub fn voxel_buffer_bytes(dims: glam::UVec3) -> u64 {
-    dims.as_u64vec3().element_product().next_multiple_of(16)
+    super::per_voxel_bytes(dims, 1)
 }
 
 pub const TRAVERSAL: TraversalModel = TraversalModel {

@@ -659,6 +659,19 @@ pub fn dense_grid_only(scene: &Scene, what: &str) -> Result<(), String> {
     ))
 }
 
+/// The claim of a walk over the dense grid on grids whose largest side is `from` or
+/// more (none held only as the tree), with its reason.
+pub fn claim_dense_from_side(scene: &Scene, from: u32) -> Result<String, String> {
+    dense_grid_only(scene, "the dense grid")?;
+    claim_from_side(scene, from)
+}
+
+/// The bytes of a buffer of `per_voxel` bytes a voxel of a grid of `dims`, in whole
+/// vec4<u32>s: what a walk over the dense grid (its voxels, a field beside them) binds.
+pub fn per_voxel_bytes(dims: glam::UVec3, per_voxel: u64) -> u64 {
+    (per_voxel * dims.as_u64vec3().element_product()).next_multiple_of(16)
+}
+
 /// The claim on grids whose largest side is `from` or more, with its reason.
 pub fn claim_from_side(scene: &Scene, from: u32) -> Result<String, String> {
     let side = scene.grid.dims().max_element();
@@ -708,6 +721,14 @@ pub struct TraversalModel {
     /// tree). Under `"auto"` a walk whose bytes the device cannot bind gives way to the
     /// tree walk (`crate::gpu`).
     pub device_bytes: Option<fn(glam::UVec3) -> u64>,
+}
+
+impl TraversalModel {
+    /// Whether a device that binds at most `max_bytes` in one buffer binds what this
+    /// walk reads of a grid of `dims` (the tree walk binds any grid).
+    pub fn binds_within(&self, dims: glam::UVec3, max_bytes: u64) -> bool {
+        self.device_bytes.is_none_or(|b| b(dims) <= max_bytes)
+    }
 }
 
 /// The traversal called `name`.

@@ -42,18 +42,15 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
               skipping the ray's octant's cube whole (proximity clouds per octant)",
     label: "octant proximity",
     plan: |scene, _| super::dense_grid_only(scene, "the dense grid with 8 radii beside each voxel"),
-    auto: Some(|scene| {
-        super::dense_grid_only(scene, "the dense grid")?;
-        super::claim_from_side(scene, OCTANT_FROM_SIDE)
-    }),
+    auto: Some(|scene| super::claim_dense_from_side(scene, OCTANT_FROM_SIDE)),
     wgsl: (
         "shaders/traversal_octant.wgsl",
         include_str!("../../shaders/traversal_octant.wgsl"),
     ),
     walks_tree: false,
     data: Some(|grid| Arc::new(OctantField::build(grid))),
-    // One word a voxel, in whole vec4<u32>s.
-    device_bytes: Some(|dims| (4 * dims.as_u64vec3().element_product()).next_multiple_of(16)),
+    // One word a voxel.
+    device_bytes: Some(|dims| super::per_voxel_bytes(dims, 4)),
 };
 
 /// Every voxel's material and its eight cubes' codes, one word a voxel (x fastest):
@@ -101,22 +98,26 @@ impl OctantField {
 
     /// The radius of voxel `v`'s cube toward octant `o`.
     pub fn radius(&self, v: IVec3, o: usize) -> u8 {
-        let i = self.index(v);
-        RADII[(self.words[i] >> (8 + 3 * o) & 7) as usize]
+        radius(self.words[self.index(v)], o)
     }
+}
+
+/// The radius toward octant `o` a voxel's word holds.
+fn radius(word: u32, o: usize) -> u8 {
+    RADII[(word >> (8 + 3 * o) & 7) as usize]
 }
 
 impl Regions for OctantField {
     fn region(&self, v: IVec3, step: IVec3) -> Region {
         let o = octant(step);
-        let material = self.words[self.index(v)] as u8;
-        let r = self.radius(v, o) as i32;
+        let word = self.words[self.index(v)];
+        let r = i32::from(radius(word, o));
         let down = IVec3::new((o & 1) as i32, (o >> 1 & 1) as i32, (o >> 2 & 1) as i32);
         let reach = IVec3::splat(r);
         let lo = v - reach * down;
         let hi = v + IVec3::ONE + reach * (IVec3::ONE - down);
         Region {
-            material,
+            material: word as u8,
             lo: lo.max(IVec3::ZERO),
             hi: hi.min(self.dims.as_ivec3()),
         }

@@ -52,18 +52,15 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
     plan: |scene, _| {
         super::dense_grid_only(scene, "the dense grid with a radius beside each voxel")
     },
-    auto: Some(|scene| {
-        super::dense_grid_only(scene, "the dense grid")?;
-        super::claim_from_side(scene, PROXIMITY_FROM_SIDE)
-    }),
+    auto: Some(|scene| super::claim_dense_from_side(scene, PROXIMITY_FROM_SIDE)),
     wgsl: (
         "shaders/traversal_proximity.wgsl",
         include_str!("../../shaders/traversal_proximity.wgsl"),
     ),
     walks_tree: false,
     data: Some(|grid| Arc::new(ProximityField::build(grid))),
-    // Two bytes a voxel, in whole vec4<u32>s.
-    device_bytes: Some(|dims| (2 * dims.as_u64vec3().element_product()).next_multiple_of(16)),
+    // Two bytes a voxel.
+    device_bytes: Some(|dims| super::per_voxel_bytes(dims, 2)),
 };
 
 /// Every voxel's material and radius, two bytes a voxel: voxel `i` (x fastest) in the
