@@ -49,9 +49,14 @@ fn sampled_light(
     let count = max(params.light_samples, 1u);
     var sum = vec3<f32>(0.0);
     var k = 0u;
-    for (; k < count; k++) {
+    // count >= 1: the exit is tested at the bottom (shaders/counters.wgsl).
+    loop {
         let st = light_sample(params.seed, key, j, k, count);
         sum += point_contribution(q, p, n, d, sample_point(light, st), light.radiance, s);
+        continuing {
+            k++;
+            break if k >= count;
+        }
     }
     // Only the driver's loop limit ends it early (shaders/counters.wgsl).
     if k < count {

@@ -180,14 +180,15 @@ fn march(o: vec3<f32>, w: vec3<f32>, tan_half: f32, max_dist: f32, gather: bool)
     m.r.occlusion = 0.0;
     m.r.radiance = vec3<f32>(0.0);
     var done = false;
+    // Exit tested at the bottom (shaders/counters.wgsl).
     loop {
-        if done {
-            break;
-        }
         done = march_step(&m, o, w, tan_half, max_dist, gather);
         if !done { done = march_step(&m, o, w, tan_half, max_dist, gather); }
         if !done { done = march_step(&m, o, w, tan_half, max_dist, gather); }
         if !done { done = march_step(&m, o, w, tan_half, max_dist, gather); }
+        continuing {
+            break if done;
+        }
     }
     // Every step count ends the march (MAX_CONE_STEPS), so the loop ends with `done`;
     // any other way out is the driver's loop limit (shaders/counters.wgsl).
@@ -220,9 +221,14 @@ fn ambient_occlusion(p: vec3<f32>, n: vec3<f32>) -> f32 {
     let o = p + cone.start_offset * n;
     var sum = 0.0;
     var k = 0u;
-    for (; k < cone.ao_cones; k++) {
+    // ao_cones >= 1 (src/technique/cones.rs): the exit is tested at the bottom.
+    loop {
         let w = hemisphere_dir(n, k, cone.ao_cones);
         sum += 1.0 - march(o, w, cone.hemi_tan_half, cone.ao_range, false).occlusion;
+        continuing {
+            k++;
+            break if k >= cone.ao_cones;
+        }
     }
     if k < cone.ao_cones {
         cone_loop_cut = true;
@@ -236,9 +242,14 @@ fn indirect_light(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let o = p + cone.start_offset * n;
     var sum = vec3<f32>(0.0);
     var k = 0u;
-    for (; k < cone.ao_cones; k++) {
+    // ao_cones >= 1 (src/technique/cones.rs): the exit is tested at the bottom.
+    loop {
         let w = hemisphere_dir(n, k, cone.ao_cones);
         sum += march(o, w, cone.hemi_tan_half, cone.indirect_range, true).radiance;
+        continuing {
+            k++;
+            break if k >= cone.ao_cones;
+        }
     }
     if k < cone.ao_cones {
         cone_loop_cut = true;

@@ -16,6 +16,18 @@ const LOOPS_CUT: u32 = 8u;
 // leaves at its next back edge, silently. Each loop of the tracer checks after it ends
 // that it ended for a reason of its own and calls this otherwise, so a cut walk is an
 // error on the host (src/gpu/mod.rs), never a wrong image.
+//
+// The same driver runs a SIMD vector's loop body under a mask of the lanes still in it,
+// every statement of the body whatever the mask (an `if` is a mask, never a jump), and
+// tests for a lane left only at the back edge (lp_exec_endloop). A loop that tests its
+// exit at the top (`for (; cond; ...)`, `loop { if !cond { break; } ... }`) therefore
+// runs its whole body once more after its last lane is done: the pass in which every
+// lane fails the test. For the walks that is one idle step per walk, for the light loop
+// one idle light (its Phong term and a shadow walk's set-up and step), for the ray tree
+// one idle ray. So every loop of the tracer that runs at least once tests its exit at
+// the bottom (`continuing { ...; break if done; }`): the back edge then finds no lane
+// and leaves (seed_rules at 16^3, 512x512, lavapipe: README "What each change to the
+// kernel bought").
 var<private> loops_cut: bool;
 
 fn loop_cut() {

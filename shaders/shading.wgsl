@@ -20,8 +20,15 @@ fn local_light(p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, d: vec3<f32>, s: Mater
     }
     let q = p + params.eps * ng;
     var j = 0u;
-    for (; j < params.num_lights; j++) {
-        local += light_term(q, p, n, d, lights[j], j, s, key);
+    // Exit tested at the bottom: no idle light after the last (shaders/counters.wgsl).
+    if params.num_lights > 0u {
+        loop {
+            local += light_term(q, p, n, d, lights[j], j, s, key);
+            continuing {
+                j++;
+                break if j >= params.num_lights;
+            }
+        }
     }
     if j < params.num_lights {
         loop_cut();

@@ -58,10 +58,11 @@ fn transmittance(q: vec3<f32>, d: vec3<f32>, len: f32) -> vec3<f32> {
     }
     dda_skip(&s, r);
     let n = max_steps();
-    // DDA_UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
+    // DDA_UNROLL steps per loop iteration, exit tested at the bottom, as cast_ray
+    // (shaders/traversal.wgsl).
     var done = false;
     var i = 0u;
-    for (; i < n && !done; i += #{DDA_UNROLL}u) {
+    loop {
         done = shadow_step(&s, &w, &absorb, len);
 #if DDA_UNROLL >= 2
         if !done { done = shadow_step(&s, &w, &absorb, len); }
@@ -76,6 +77,10 @@ fn transmittance(q: vec3<f32>, d: vec3<f32>, len: f32) -> vec3<f32> {
         if !done { done = shadow_step(&s, &w, &absorb, len); }
         if !done { done = shadow_step(&s, &w, &absorb, len); }
 #endif
+        continuing {
+            i += #{DDA_UNROLL}u;
+            break if done || i >= n;
+        }
     }
     // Any other way out is the driver's loop limit (shaders/counters.wgsl).
     if !done && i < n {

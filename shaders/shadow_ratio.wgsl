@@ -118,7 +118,8 @@ fn light_term(
     var visible = vec3<f32>(0.0);
     let vs2 = params.voxel_size * params.voxel_size;
     var k = 0u;
-    for (; k < count; k++) {
+    // count >= 1: the exit is tested at the bottom (shaders/counters.wgsl).
+    loop {
         let x = sample_point(light, light_sample(params.seed, key, j, k, count));
         count_shadow();
         let vis = shadow_to(q, x);
@@ -138,6 +139,10 @@ fn light_term(
         shadowed += vis * f;
         free += f;
         visible += vis;
+        continuing {
+            k++;
+            break if k >= count;
+        }
     }
     // Only the driver's loop limit ends it early (shaders/counters.wgsl).
     if k < count {

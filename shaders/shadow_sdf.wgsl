@@ -60,10 +60,11 @@ fn penumbra(q: vec3<f32>, d: vec3<f32>, len: f32, k: f32) -> f32 {
     var t0 = e.t;
     var p = 1.0;
     let n = max_steps();
-    // DDA_UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
+    // DDA_UNROLL steps per loop iteration, exit tested at the bottom, as cast_ray
+    // (shaders/traversal.wgsl).
     var done = false;
     var i = 0u;
-    for (; i < n && !done; i += #{DDA_UNROLL}u) {
+    loop {
         done = penumbra_step(&s, &t0, &p, len, k);
 #if DDA_UNROLL >= 2
         if !done { done = penumbra_step(&s, &t0, &p, len, k); }
@@ -78,6 +79,10 @@ fn penumbra(q: vec3<f32>, d: vec3<f32>, len: f32, k: f32) -> f32 {
         if !done { done = penumbra_step(&s, &t0, &p, len, k); }
         if !done { done = penumbra_step(&s, &t0, &p, len, k); }
 #endif
+        continuing {
+            i += #{DDA_UNROLL}u;
+            break if done || i >= n;
+        }
     }
     // Any other way out is the driver's loop limit (shaders/counters.wgsl).
     if !done && i < n {

@@ -106,28 +106,35 @@ fn surface_transmittance(q: vec3<f32>, d: vec3<f32>, len: f32, medium: u32) -> v
         dda_skip(&s, reg);
     }
     let n = walk_bound();
-    // DDA_UNROLL steps per loop iteration, as cast_ray (shaders/traversal.wgsl).
+    // DDA_UNROLL steps per loop iteration, exit tested at the bottom, as cast_ray
+    // (shaders/traversal.wgsl).
     var done = w.opaque;
     var i = 0u;
-    for (; i < n && !done; i += #{DDA_UNROLL}u) {
-        done = surface_step(&s, &w, &absorb, r, len);
+    if !done {
+        loop {
+            done = surface_step(&s, &w, &absorb, r, len);
 #if DDA_UNROLL >= 2
-        if !done { done = surface_step(&s, &w, &absorb, r, len); }
+            if !done { done = surface_step(&s, &w, &absorb, r, len); }
 #endif
 #if DDA_UNROLL >= 4
-        if !done { done = surface_step(&s, &w, &absorb, r, len); }
-        if !done { done = surface_step(&s, &w, &absorb, r, len); }
+            if !done { done = surface_step(&s, &w, &absorb, r, len); }
+            if !done { done = surface_step(&s, &w, &absorb, r, len); }
 #endif
 #if DDA_UNROLL >= 8
-        if !done { done = surface_step(&s, &w, &absorb, r, len); }
-        if !done { done = surface_step(&s, &w, &absorb, r, len); }
-        if !done { done = surface_step(&s, &w, &absorb, r, len); }
-        if !done { done = surface_step(&s, &w, &absorb, r, len); }
+            if !done { done = surface_step(&s, &w, &absorb, r, len); }
+            if !done { done = surface_step(&s, &w, &absorb, r, len); }
+            if !done { done = surface_step(&s, &w, &absorb, r, len); }
+            if !done { done = surface_step(&s, &w, &absorb, r, len); }
 #endif
-        if s.at_cell {
-            s.at_cell = false;
-            pass_cell(&s, &w, &absorb, r, s.cell_t, len);
-            done = w.opaque;
+            if s.at_cell {
+                s.at_cell = false;
+                pass_cell(&s, &w, &absorb, r, s.cell_t, len);
+                done = w.opaque;
+            }
+            continuing {
+                i += #{DDA_UNROLL}u;
+                break if done || i >= n;
+            }
         }
     }
     // Any other way out is the driver's loop limit (shaders/counters.wgsl).

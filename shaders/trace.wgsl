@@ -142,28 +142,14 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
 
     var radiance = params.ambient;
     sp = 0u;
-    next_ray = primary;
-    has_next = true;
+    has_next = false;
     // Set when the tree is done: any other way out is the driver's loop limit.
     var finished = false;
+    // The ray being traced; the next is taken at the bottom of the loop, which ends
+    // there once the tree is done, so no idle ray follows the last (shaders/
+    // counters.wgsl).
+    var r = primary;
     loop {
-        var r: RayEntry;
-        if has_next {
-            r = next_ray;
-            has_next = false;
-        } else if sp > 0u {
-            sp -= 1u;
-            let e = stack[sp];
-            r.origin = e.origin;
-            r.dir = e.dir;
-            r.throughput = e.throughput;
-            r.depth_reflection = e.packed & 255u;
-            r.depth_refraction = (e.packed >> 8u) & 255u;
-            r.medium = e.packed >> 16u;
-        } else {
-            finished = true;
-            break;
-        }
         let hit = cast_ray(r.origin, r.dir, r.medium, BIG);
         if !hit.hit {
             continue;
@@ -199,6 +185,25 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
         spawn(r, p, n, hit.geometric, hit.material, s);
 #endif
 #endif
+        // The next ray: the reflection just spawned, else the top of the stack.
+        continuing {
+            if has_next {
+                r = next_ray;
+                has_next = false;
+            } else if sp > 0u {
+                sp -= 1u;
+                let e = stack[sp];
+                r.origin = e.origin;
+                r.dir = e.dir;
+                r.throughput = e.throughput;
+                r.depth_reflection = e.packed & 255u;
+                r.depth_refraction = (e.packed >> 8u) & 255u;
+                r.medium = e.packed >> 16u;
+            } else {
+                finished = true;
+            }
+            break if finished;
+        }
     }
     if !finished {
         loop_cut();

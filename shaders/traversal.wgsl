@@ -317,10 +317,12 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
     // loop iteration: the software driver's loop limit counts back edges, not work
     // (shaders/counters.wgsl), so a walk of k voxels spends k / DDA_UNROLL of it. But
     // that driver runs every step written out whatever `done` says (its branches are
-    // masks), so each walk also pays up to DDA_UNROLL - 1 idle steps.
+    // masks), so each walk also pays up to DDA_UNROLL - 1 idle steps. The exit is tested
+    // at the bottom, so no pass runs after the last lane's walk is over (shaders/
+    // counters.wgsl).
     var done = false;
     var i = 0u;
-    for (; i < n && !done; i += #{DDA_UNROLL}u) {
+    loop {
         done = cast_step(&s, &h, medium, t_limit);
 #if DDA_UNROLL >= 2
         if !done { done = cast_step(&s, &h, medium, t_limit); }
@@ -341,6 +343,10 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
             done = cell_hit(&s, &h, medium, s.cell_t);
         }
 #endif
+        continuing {
+            i += #{DDA_UNROLL}u;
+            break if done || i >= n;
+        }
     }
     // The walk ends by a step, or after max_steps; leaving the loop any other way is the
     // driver's loop limit (shaders/counters.wgsl, loop_cut).
