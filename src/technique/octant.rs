@@ -26,14 +26,16 @@ pub const RADII: [u8; 8] = [0, 1, 2, 4, 8, 16, 32, 64];
 
 /// The grid side from which `render.traversal = "auto"` walks the octant field (up to
 /// the sparse walk's [`super::sparse::SPARSE_FROM_SIDE`], registered after it, whose
-/// claim wins). On lavapipe, 512x512, the seed's rules: 0.98x the dense walk's speed
-/// at 16^3 (2.55 steps a ray against 11.45: a skip costs about four steps there), 1.28x
-/// at 32^3; the seed scene 1.17x at 24^3, 1.37x at 32^3, where the proximity walk is
-/// 1.00x (`voxlab bench --sizes 24,32 --size 512 --gpu-runs 3 --no-cpu --traversal
-/// dense,proximity,octant --experiments experiments/seed_rules.toml`). Where the device
-/// cannot bind its four bytes a voxel (lavapipe: 128 MiB, 32 M voxels) `"auto"` takes
-/// the next walk that claims the grid and fits (`crate::plan::auto_traversal_within`).
-pub const OCTANT_FROM_SIDE: u32 = 24;
+/// claim wins). On lavapipe, 512x512, since the tracer's loops test their exit at the
+/// bottom (shaders/counters.wgsl): the seed scene at 0.80x the dense walk's speed at
+/// 8^3, 0.93x at 12^3, 1.05x at 16^3 and 1.22x at 24^3 (`voxlab bench --sizes
+/// 8,12,16,24 --size 512 --gpu-runs 3 --no-cpu --traversal dense,octant`); the seed's
+/// rules 0.87x at 8^3 and 0.94x at 12^3 (the same with `--sizes 8 --experiments
+/// experiments/seed_rules.toml --set scene.size=8`, and 12), 1.04x at 16^3 (README
+/// "Speed now"). Where the device cannot bind its four bytes a voxel (lavapipe:
+/// 128 MiB, 32 M voxels) `"auto"` takes the next walk that claims the grid and fits
+/// (`crate::plan::auto_traversal_within`).
+pub const OCTANT_FROM_SIDE: u32 = 16;
 
 pub const TRAVERSAL: TraversalModel = TraversalModel {
     name: "octant",
