@@ -752,8 +752,20 @@ mod tests {
         assert_eq!(p.ray_stack_size, 1);
         // Depth 0/0 needs one stack entry anyway: no stack note.
         assert_eq!(p.reasons.len(), 4, "{p}");
-        // RAY_STACK_SIZE and DDA_UNROLL, always defined.
-        assert_eq!(p.shader_defs().len(), 2);
+        // RAY_STACK_SIZE and DDA_UNROLL, always defined, and the walk's id where
+        // `"auto"` takes a walk other than the default (the octant walk from side 16).
+        let names: Vec<String> = p.shader_defs().into_keys().collect();
+        for n in &names {
+            assert!(
+                ["RAY_STACK_SIZE", "DDA_UNROLL", "TRAVERSAL_ID"].contains(&n.as_str()),
+                "{names:?}"
+            );
+        }
+        assert_eq!(
+            names.len(),
+            2 + usize::from(p.traversal.index() != 0),
+            "{names:?}"
+        );
     }
 
     #[test]
