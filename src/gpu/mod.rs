@@ -689,8 +689,9 @@ impl GpuTracer {
         }
     }
 
-    /// Time the latest render spent building (or finding in the cache) its sparse tree
-    /// and cone pyramids: zero when it has neither, and not part of its `trace_time`.
+    /// Time the latest render spent building (or finding in the cache) its walk's data
+    /// (the sparse tree, a proximity or octant field) and cone pyramids: zero when it
+    /// has neither, and not part of its `trace_time`.
     pub fn last_setup_time(&self) -> Duration {
         self.last_setup_time
     }
