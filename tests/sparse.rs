@@ -452,8 +452,7 @@ fn building_from_a_vox_model_gives_the_tree_of_its_grid() {
 }
 
 /// Every registered traversal is listed, chosen by name, printed by its label, and
-/// composes into the kernel; `auto` follows the claims: the default below the sparse
-/// walk's side, the claimant from it on, and the tree for a grid held only as its tree.
+/// composes into the kernel; `auto` takes the default walk below every walk's claim.
 #[test]
 fn every_traversal_is_a_registered_slot() {
     use voxlab::plan::Plan;
@@ -476,7 +475,12 @@ fn every_traversal_is_a_registered_slot() {
         assert!(plan.to_string().contains(t.label), "{plan}");
         assert_eq!(plan.tree_levels > 0, t.walks_tree, "{plan}");
     }
-    let auto = Plan::new(&scene, &RenderSettings::default());
+    // Below every walk's claim (the octant walk's side is the smallest), auto takes the
+    // default walk; tests/gpu_sparse.rs follows the claims up the sides.
+    use voxlab::technique::octant::OCTANT_FROM_SIDE;
+    let side = 8;
+    assert!(side < OCTANT_FROM_SIDE);
+    let auto = Plan::new(&seed_scene(side).unwrap(), &RenderSettings::default());
     assert_eq!(auto.traversal, voxlab::technique::default_traversal());
     assert!(auto.traversal_reason.starts_with("auto: "), "{auto}");
 }
