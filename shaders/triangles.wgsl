@@ -188,14 +188,18 @@ fn next_transition(range: vec2<u32>, r: WatertightRay, t0: f32, t1: f32, after: 
     let lo = t0 - CELL_TOLERANCE;
     let hi = t1 + CELL_TOLERANCE;
     tr.t = BIG;
-    // Eight triangles before the loop and eight per iteration: the software driver's
-    // loop limit counts iterations (shaders/counters.wgsl), and a smooth surface's cells
-    // list seven or eight on average (`voxlab bench --surfaces`), so most cells take no
-    // loop iteration at all.
-    consider_eight(&tr, r, range, 0u, lo, hi, after);
-    var j = 8u;
-    for (; j < range.y; j += 8u) {
+    // Eight triangles per loop iteration, the exit tested at the bottom: the software
+    // driver's loop limit counts passes (shaders/counters.wgsl), and a smooth surface's
+    // cells list seven or eight on average (`voxlab bench --surfaces`), so most cells
+    // take one pass, with no idle pass after it (a cell with no triangles takes one
+    // pass that considers none).
+    var j = 0u;
+    loop {
         consider_eight(&tr, r, range, j, lo, hi, after);
+        continuing {
+            j += 8u;
+            break if j >= range.y;
+        }
     }
     if j < range.y {
         loop_cut();
