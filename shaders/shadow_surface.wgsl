@@ -34,21 +34,28 @@ fn pass_into(w: ptr<function, Media>, absorb: ptr<function, Absorb>, t: f32, nex
 fn pass_cell(s: ptr<function, Dda>, w: ptr<function, Media>, absorb: ptr<function, Absorb>, r: WatertightRay, t_enter: f32, len: f32) {
     let t_exit = min(min((*s).t_max.x, min((*s).t_max.y, (*s).t_max.z)), len);
     let range = cell_range((*s).voxel);
-    // One crossing per loop iteration, the first looked for before the loop (the
-    // driver's loop limit counts iterations, and most cells hold none); at most one
-    // per triangle.
-    var tr = next_transition(range, r, t_enter, t_exit, (*w).after, (*w).medium);
+    // One crossing per pass, looked for at the top of the pass, the exit tested at the
+    // bottom: a cell without crossings (most) takes one pass and no idle one after it
+    // (shaders/counters.wgsl); at most one crossing per triangle.
     var k = 0u;
-    for (; k < range.y && tr.found && tr.t < len; k++) {
-        pass_into(w, absorb, tr.t, tr.medium);
-        (*w).after = tr.t + CELL_TOLERANCE;
-        if (*w).opaque {
-            return;
+    var more = false;
+    loop {
+        let tr = next_transition(range, r, t_enter, t_exit, (*w).after, (*w).medium);
+        more = k < range.y && tr.found && tr.t < len;
+        if more {
+            pass_into(w, absorb, tr.t, tr.medium);
+            (*w).after = tr.t + CELL_TOLERANCE;
+            if (*w).opaque {
+                return;
+            }
         }
-        tr = next_transition(range, r, t_enter, t_exit, (*w).after, (*w).medium);
+        continuing {
+            k++;
+            break if !more;
+        }
     }
     // Any other way out is the driver's loop limit (shaders/counters.wgsl).
-    if k < range.y && tr.found && tr.t < len {
+    if more {
         loop_cut();
     }
 }
