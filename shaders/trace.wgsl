@@ -10,7 +10,7 @@
 // (shading.wgsl and phong.wgsl compose them); this file only walks the ray tree of one
 // frame of one pixel.
 
-#import voxlab::types::{BIG, Material, RULES_SEED, PIXEL_FILTER_BOX, PIXEL_FILTER_GAUSSIAN}
+#import voxlab::types::{BIG, Material, PIXEL_FILTER_BOX, PIXEL_FILTER_GAUSSIAN}
 #import voxlab::bindings::{params, materials, output}
 #import voxlab::traversal::cast_ray
 #ifdef TRIANGLES
@@ -74,11 +74,12 @@ fn may_spawn(r: RayEntry, reflection: bool) -> bool {
     if depth >= params.max_total_depth {
         return false;
     }
+#ifdef SEED_RULES
     // Under the seed's rules the one recursion depth a + b meets both limits.
-    var own = select(r.depth_refraction, r.depth_reflection, reflection);
-    if params.rules == RULES_SEED {
-        own = depth;
-    }
+    let own = depth;
+#else
+    let own = select(r.depth_refraction, r.depth_reflection, reflection);
+#endif
     return own < select(params.max_refraction_depth, params.max_reflection_depth, reflection);
 }
 
@@ -95,9 +96,9 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Mate
         if k < 0.0 {
             // Total internal reflection: the refracted share goes to the reflection;
             // under the seed's rules it is lost (GLSL's refract gives the zero vector).
-            if params.rules != RULES_SEED {
-                w_r += s.kt;
-            }
+#ifndef SEED_RULES
+            w_r += s.kt;
+#endif
         } else {
 #ifdef REFRACTION
             if may_spawn(r, false) {

@@ -4,7 +4,7 @@
 // f64, so both must change together.
 #define_import_path voxlab::traversal
 
-#import voxlab::types::{BIG, RULES_CONSISTENT, Region}
+#import voxlab::types::{BIG, Region}
 #import voxlab::bindings::{params, voxel_inside}
 #import voxlab::counters::{count_step, loop_cut}
 #import voxlab::regions::{RegionCursor, REGIONS_ARE_VOXELS, region_cursor, region_at}
@@ -257,14 +257,17 @@ fn cast_step(s: ptr<function, Dda>, h: ptr<function, Hit>, medium: u32, t_limit:
     dda_advance(s, a);
     if !voxel_inside((*s).voxel) {
         // Outside the grid is void: leaving a non-void medium is a hit on void at the
-        // exit face. The seed's rules make it a miss.
-        if params.rules == RULES_CONSISTENT && medium != 0u {
+        // exit face. The seed's rules make it a miss (SEED_RULES, compiled in: the
+        // software driver would run this for every step whatever the rules).
+#ifndef SEED_RULES
+        if medium != 0u {
             (*h).hit = true;
             (*h).t = t;
             (*h).normal = -f32((*s).step[a]) * axis_vec(a);
             (*h).geometric = (*h).normal;
             (*h).material = 0u;
         }
+#endif
         return true;
     }
     let r = dda_region(s);

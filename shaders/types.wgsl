@@ -39,8 +39,8 @@ struct Params {
     frame_count: u32,
     // Total depth of the ray tree (RenderSettings::total_depth_limit).
     max_total_depth: u32,
-    // RULES_CONSISTENT or RULES_SEED (crate::render::Rules).
-    rules: u32,
+    // Unused: the ray-tree rules are compiled in (SEED_RULES, crate::plan::Plan::seed_rules).
+    pad_rules: u32,
     // PIXEL_FILTER_* (crate::render::PixelFilter) and its width in pixels (PIXEL_FILTER).
     pixel_filter: u32,
     filter_width: f32,
@@ -49,11 +49,6 @@ struct Params {
 // crate::render::PixelFilter::code.
 const PIXEL_FILTER_BOX: u32 = 1u;
 const PIXEL_FILTER_GAUSSIAN: u32 = 2u;
-
-// crate::render::Rules: voxlab's model, or the seed's (one recursion depth, leaving the
-// grid is a miss, the refracted share lost under total internal reflection).
-const RULES_CONSISTENT: u32 = 0u;
-const RULES_SEED: u32 = 1u;
 
 struct Material {
     albedo: vec3<f32>,

@@ -66,6 +66,11 @@ pub struct Plan {
     /// Primary rays spread over the pixel by the pixel filter (`PIXEL_FILTER`), a new
     /// position each frame: `render.pixel_filter` is not "none".
     pub pixel_filter: bool,
+    /// The seed's ray-tree rules (`SEED_RULES`: `render.rules = "seed"`), compiled in
+    /// rather than read from a uniform: the software driver runs both sides of every
+    /// branch (shaders/counters.wgsl), so the rules not in force cost a frame time in
+    /// every walk step and ray (README "What each change to the kernel bought").
+    pub seed_rules: bool,
     /// The pyramids' layout, when the shadow model or a lighting term reads them (the
     /// radiance pyramid only when a term reads it: [`Plan::radiance_pyramid`]).
     pub pyramid: Option<PyramidLayout>,
@@ -413,6 +418,7 @@ impl Plan {
         };
 
         let pixel_filter = settings.pixel_filter != crate::render::PixelFilter::None;
+        let seed_rules = settings.rules == crate::render::Rules::Seed;
         let sampled = shadow_model.stochastic || pixel_filter;
         let accumulate = sampled && settings.spp > 1;
         if !sampled && settings.spp > 1 {
@@ -423,9 +429,8 @@ impl Plan {
             ));
         }
 
-        // Depth-first: a pop that pushes two children grows the stack by one per level,
-        // so both kinds need a + b + 1 slots; one kind alone pushes at most one child per
-        // pop and never holds more than one entry.
+        // The stack holds refraction rays while reflections are traced first
+        // (RenderSettings::ray_stack_size); one kind alone never holds more than one.
         let ray_stack_size = if reflection && refraction {
             settings.ray_stack_size()
         } else {
@@ -484,6 +489,7 @@ impl Plan {
             accumulate,
             terms,
             pixel_filter,
+            seed_rules,
             pyramid,
             count_rays: false,
             ray_stack_size,
@@ -588,6 +594,7 @@ impl Plan {
                     accumulate: false,
                     terms: Vec::new(),
                     pixel_filter: false,
+                    seed_rules: false,
                     pyramid: None,
                     count_rays: false,
                     ray_stack_size,
@@ -618,6 +625,9 @@ impl Plan {
         }
         if self.pixel_filter {
             defs.insert("PIXEL_FILTER".to_string(), ShaderDefValue::Bool(true));
+        }
+        if self.seed_rules {
+            defs.insert("SEED_RULES".to_string(), ShaderDefValue::Bool(true));
         }
         // The transmittance model's module is composed in; a model other than the
         // default keys the cache by its index.
@@ -684,7 +694,13 @@ impl Plan {
 impl fmt::Display for Plan {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let pixel_filter = self.pixel_filter.then(|| "PIXEL_FILTER".to_string());
-        let on: Vec<String> = self.flags_on().into_iter().chain(pixel_filter).collect();
+        let seed_rules = self.seed_rules.then(|| "SEED_RULES".to_string());
+        let on: Vec<String> = self
+            .flags_on()
+            .into_iter()
+            .chain(pixel_filter)
+            .chain(seed_rules)
+            .collect();
         write!(
             f,
             "plan: [{}] ray stack {}",

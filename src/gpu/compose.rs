@@ -207,6 +207,9 @@ mod tests {
     fn every_plan_variant_composes_and_validates() {
         for stack in [1, 9] {
             for mut plan in Plan::all_variants(stack) {
+                // Both rules, without doubling the variants: the seed's with the larger
+                // stack (tests/gpu_frames.rs renders both at random depth limits).
+                plan.seed_rules = stack > 1;
                 for traversal in crate::technique::TRAVERSALS {
                     plan.traversal = traversal;
                     plan.tree_levels = if traversal.walks_tree { 3 } else { 0 };

@@ -18,7 +18,7 @@ use glam::DVec3;
 
 use crate::plan::{Plan, ShaderDefs};
 use crate::render::{
-    Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings, Rules,
+    Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings,
 };
 use crate::scene::{AreaShape, Light, Scene};
 use util::{buffer, buffer_entry, extent, readback, storage_entry, uniform_entry};
@@ -72,7 +72,8 @@ struct GpuParams {
     frame_begin: u32,
     frame_count: u32,
     max_total_depth: u32,
-    rules: u32,
+    // Was the ray-tree rules; the plan compiles them in (`SEED_RULES`).
+    _pad_rules: u32,
     pixel_filter: u32,
     filter_width: f32,
 }
@@ -86,10 +87,6 @@ struct ReduceParams {
     frame_begin: u32,
     frame_count: u32,
 }
-
-/// `RULES_*` of `shaders/types.wgsl`.
-const RULES_CONSISTENT: u32 = 0;
-const RULES_SEED: u32 = 1;
 
 /// `Material` of `shaders/types.wgsl` (64-byte array stride).
 #[repr(C)]
@@ -1194,10 +1191,7 @@ impl GpuTracer {
             frame_begin: 0,
             frame_count: 1,
             max_total_depth: settings.total_depth_limit(),
-            rules: match settings.rules {
-                Rules::Consistent => RULES_CONSISTENT,
-                Rules::Seed => RULES_SEED,
-            },
+            _pad_rules: 0,
             pixel_filter: settings.pixel_filter.code(),
             filter_width: settings.filter_width as f32,
         }
