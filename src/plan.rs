@@ -742,6 +742,7 @@ impl fmt::Display for Plan {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::Rules;
     use crate::scene::{Light, seed_ids, seed_scene};
 
     #[test]
@@ -783,6 +784,23 @@ mod tests {
             2 + usize::from(p.traversal.index() != 0),
             "{names:?}"
         );
+    }
+
+    /// The seed's rules are compiled in only when asked for, and printed with the plan:
+    /// voxlab's own rules compose no code of the seed's, and the other way round.
+    #[test]
+    fn the_seed_rules_are_composed_only_under_the_seed_rules() {
+        let s = seed_scene(16).unwrap();
+        for (rules, on) in [(Rules::Consistent, false), (Rules::Seed, true)] {
+            let settings = RenderSettings {
+                rules,
+                ..Default::default()
+            };
+            let p = Plan::new(&s, &settings);
+            assert_eq!(p.seed_rules, on);
+            assert_eq!(p.shader_defs().contains_key("SEED_RULES"), on, "{p}");
+            assert_eq!(p.to_string().contains("SEED_RULES"), on, "{p}");
+        }
     }
 
     #[test]
