@@ -307,6 +307,51 @@ fn gpu_follows_the_seed_rules_and_the_total_limit() {
     }
 }
 
+/// The kernel's ray stack is sized to the deepest tree the limits allow
+/// (`RenderSettings::ray_stack_size`): a push past it would drop a ray without counting
+/// it, so GPU and CPU counting the same rays over every depth limit, under both rules,
+/// holds the size on the device. The limits make each term of the bound the binding one:
+/// the chain of reflections (a + 1), the refraction limit under the seed's rules (b),
+/// and the total limit.
+#[test]
+fn the_ray_stack_drops_no_ray_at_any_depth_limits() {
+    let mut gpu = tracer();
+    let scene = seed_scene(16).unwrap();
+    let mut sizes = std::collections::BTreeSet::new();
+    for rules in [Rules::Consistent, Rules::Seed] {
+        for a in [0, 1, 3, 5] {
+            for b in [0, 1, 3, 5] {
+                for max_depth in [None, Some(2)] {
+                    let s = RenderSettings {
+                        width: 24,
+                        height: 24,
+                        max_reflection_depth: a,
+                        max_refraction_depth: b,
+                        max_depth,
+                        rules,
+                        ..Default::default()
+                    };
+                    sizes.insert(s.ray_stack_size());
+                    let what = format!(
+                        "rules {}, depth {a}/{b}, max_depth {max_depth:?}",
+                        rules.name()
+                    );
+                    let g = gpu.render_counted(&scene, &s).expect("GPU");
+                    let c = voxlab::cpu::render(&scene, &s);
+                    assert_eq!(
+                        g.stats.primary + g.stats.secondary,
+                        c.stats.primary + c.stats.secondary,
+                        "{what}: ray counts (stack {})",
+                        s.ray_stack_size()
+                    );
+                    assert_agree(&what, &g.frame, &c.frame);
+                }
+            }
+        }
+    }
+    assert_eq!(sizes.len(), 6, "stack sizes 1 to 6: {sizes:?}");
+}
+
 #[test]
 fn the_seed_camera_sits_view_offset_behind_its_orbit() {
     let scene = seed_scene(16).unwrap();
