@@ -301,7 +301,7 @@ struct BenchArgs {
     /// Benchmark mesh voxelization instead: this mesh and a 50,000-triangle torus, each
     /// at --voxelize-resolution.
     #[arg(long, value_name = "MESH", num_args = 0..=1,
-          default_missing_value = "../shared/data/bunny.obj")]
+          default_missing_value = "experiments/data/bunny.obj")]
     voxelize: Option<PathBuf>,
     #[arg(long, default_value_t = 256,
           value_parser = clap::value_parser!(u32).range(1..=voxlab::scene::mesh::MAX_RESOLUTION as i64))]

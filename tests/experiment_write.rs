@@ -77,9 +77,9 @@ fn cycle(e: &Experiment, source: &Table, what: &str) -> (String, Experiment) {
 fn every_experiment_file_round_trips_exactly() {
     let files = experiment_files();
     assert!(files.len() >= 15, "found only {files:?}");
-    // The files that load ../shared/data fail clearly if it is missing.
-    common::shared_data("deer.vox");
-    common::shared_data("bunny.obj");
+    // The files that load experiments/data fail clearly if it is missing.
+    common::example_data("deer.vox");
+    common::example_data("bunny.obj");
     for f in &files {
         let text = std::fs::read_to_string(f).unwrap();
         let e = parse(&text, f);
@@ -375,7 +375,7 @@ fn duplicate_material_names_are_refused() {
 
 #[test]
 fn scene_source_resolves_paths_like_the_loader() {
-    let deer = common::shared_data("deer.vox").canonicalize().unwrap();
+    let deer = common::example_data("deer.vox").canonicalize().unwrap();
     // Relative experiment path (tests run in the package root), relative vox path.
     let rel = Path::new("experiments/deer_area_light.toml");
     let text = std::fs::read_to_string(manifest().join(rel)).unwrap();
@@ -384,7 +384,7 @@ fn scene_source_resolves_paths_like_the_loader() {
     assert_eq!(model["vox"].as_str(), Some(deer.to_str().unwrap()));
     assert_eq!(src["dims"].as_array().unwrap().len(), 3, "{src:?}");
     // A scene's own vox path too.
-    let text = "[scene]\nvox = \"../../shared/data/deer.vox\"\n";
+    let text = "[scene]\nvox = \"data/deer.vox\"\n";
     let src = scene_source(text, rel).unwrap();
     assert_eq!(src["vox"].as_str(), Some(deer.to_str().unwrap()));
     assert_eq!(src.len(), 1, "{src:?}");
@@ -479,13 +479,13 @@ fn relocated_exports_load_the_same_voxels() {
     let _ = std::fs::remove_dir_all(&tmp);
     let deer = manifest().join("experiments/deer_area_light.toml");
     let bunny = manifest().join("experiments/bunny_glass.toml");
-    let data = common::shared_data("deer.vox").canonicalize().unwrap();
+    let data = common::example_data("deer.vox").canonicalize().unwrap();
     let shares = |a: &Path, b: &Path| {
         a.components().nth(1).is_some() && a.components().nth(1) == b.components().nth(1)
     };
     // Beside the repository's data (the target directory usually shares a parent with
-    // ../shared/data): a relative path; where ../shared is a link to another tree
-    // (a CI checkout), the absolute path. Either loads the same experiment.
+    // experiments/data): a relative path; where the target directory lies in another
+    // tree, the absolute path. Either loads the same experiment.
     for (f, sub) in [(&deer, "a/deer"), (&bunny, "b/c/bunny")] {
         let dest = tmp.join(sub);
         let written = export_and_load(f, &dest);
@@ -517,11 +517,11 @@ fn the_cache_gives_what_from_str_gives_without_reloading() {
     std::fs::create_dir_all(&tmp).unwrap();
     // A private copy of the deer, to delete once it is cached.
     let vox = tmp.join("deer.vox");
-    std::fs::copy(common::shared_data("deer.vox"), &vox).unwrap();
+    std::fs::copy(common::example_data("deer.vox"), &vox).unwrap();
     let path = tmp.join("deer.toml");
     let text = std::fs::read_to_string(manifest().join("experiments/deer_area_light.toml"))
         .unwrap()
-        .replace("../../shared/data/deer.vox", "deer.vox");
+        .replace("data/deer.vox", "deer.vox");
     let plain = parse(&text, &path);
     let mut cache = SceneCache::default();
     assert!(cache.is_empty());

@@ -1,6 +1,6 @@
 //! A mutation fuzzer over every loader, on stable Rust: experiment TOML, MagicaVoxel
 //! `.vox`, OBJ with its `.mtl`, and glTF (JSON and GLB). Seeds are the real files (the
-//! experiments, `../shared/data/`) and small generated meshes; each mutated input is
+//! experiments, `experiments/data/`) and small generated meshes; each mutated input is
 //! written to a file and loaded as a user would load it. No input may panic (a panic
 //! escaping a loader fails the test with the input's seed and mutation), hang (each load
 //! is timed) or be read past its limit. `.vox` files and meshes are also loaded straight
@@ -264,7 +264,7 @@ fn seeds(dir: &Path) -> Vec<Case> {
         let name = p.file_name().unwrap().to_string_lossy().to_string();
         out.push((dir.join(&name), vec![(name, std::fs::read(&p).unwrap())]));
     }
-    let data = manifest().join("../shared/data");
+    let data = manifest().join("experiments/data");
     for name in ["deer.vox", "bunny.obj"] {
         let p = data.join(name);
         assert!(p.exists(), "test data {} is missing", p.display());

@@ -7,7 +7,7 @@ use std::path::Path;
 
 #[test]
 fn info_lists_the_palette_with_counts_that_add_up() {
-    let deer = common::shared_data("deer.vox");
+    let deer = common::example_data("deer.vox");
     let text = voxlab::info::describe(&deer).unwrap();
     let v = voxlab::scene::load_vox(&deer, None).unwrap();
     let occupied = v.grid.data().iter().filter(|&&m| m != 0).count();
@@ -31,7 +31,7 @@ fn info_lists_the_palette_with_counts_that_add_up() {
         text.contains("16x16x16") && text.contains("glass") && text.contains("3 light(s)"),
         "{text}"
     );
-    let text = voxlab::info::describe(&common::shared_data("bunny.obj")).unwrap();
+    let text = voxlab::info::describe(&common::example_data("bunny.obj")).unwrap();
     assert!(
         text.contains("mesh: ") && text.contains("triangles"),
         "{text}"

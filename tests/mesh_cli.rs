@@ -6,12 +6,8 @@ use std::process::Command;
 use voxlab::scene::{VoxelizeOptions, load_vox, voxelize_mesh};
 
 fn bunny() -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bunny.obj");
-    assert!(
-        p.exists(),
-        "test data {} is missing: the repository's parent must hold shared/data/",
-        p.display()
-    );
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/data/bunny.obj");
+    assert!(p.exists(), "example data {} is missing", p.display());
     p
 }
 

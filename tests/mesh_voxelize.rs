@@ -30,7 +30,7 @@ fn solid_count(g: &voxlab::scene::Grid) -> usize {
 /// below the mesh volume.
 #[test]
 fn bunny_is_filled_watertight() {
-    let path = common::shared_data("bunny.obj");
+    let path = common::example_data("bunny.obj");
     let mesh = load_mesh(&path).unwrap();
     assert_eq!(mesh.triangles.len(), 3674);
     let v_mesh = signed_volume(&mesh.triangles).abs();
@@ -330,7 +330,7 @@ fn gltf_with_embedded_buffer_voxelizes_with_node_transforms() {
 fn the_same_voxels_whatever_the_triangle_order() {
     // Interior material comes from the nearest shell voxel, but occupancy never
     // depends on the order in which triangles are visited.
-    let path = common::shared_data("bunny.obj");
+    let path = common::example_data("bunny.obj");
     let mesh = load_mesh(&path).unwrap();
     let mut rev = mesh.clone();
     rev.triangles.reverse();

@@ -435,7 +435,7 @@ fn the_experiment_file_names_the_traversal() {
 fn building_from_a_vox_model_gives_the_tree_of_its_grid() {
     // The deer as the whole scene: the tree built from the loaded grid holds every voxel
     // the grid holds, and padding the grid with void changes no region's material.
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/deer.vox");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/data/deer.vox");
     let vox = voxlab::scene::load_vox(&path, None).unwrap_or_else(|e| panic!("{e}"));
     let g = vox.grid;
     let t = SparseTree::build(&g, 2);

@@ -212,7 +212,7 @@ fn boxes_over_a_tree_build_the_dense_grids_tree() {
 fn vox_scenes_load_into_the_same_tree_sparse_as_dense() {
     // deer.vox (a real file), and generated grids wider than a MagicaVoxel model, which
     // write_vox splits into 256-voxel models placed by a scene graph.
-    let mut files = vec![common::shared_data("deer.vox")];
+    let mut files = vec![common::example_data("deer.vox")];
     let dir = std::env::temp_dir().join(format!("voxlab-sparse-vox-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let mut rng = StdRng::seed_from_u64(0x70c5);
@@ -377,7 +377,7 @@ fn meshes_voxelize_into_the_same_tree_sparse_as_dense() {
     open.retain(|t| t.iter().all(|p| p.z < 0.8));
     let mut pair = sphere(DVec3::ZERO, 1.0, 2, false);
     pair.extend(sphere(DVec3::new(1.9, 0.3, 0.0), 0.9, 1, false));
-    let bunny = load_mesh(common::shared_data("bunny.obj")).unwrap();
+    let bunny = load_mesh(common::example_data("bunny.obj")).unwrap();
     let meshes = [
         ("hollow", soup(hollow)),
         ("open", soup(open)),
@@ -435,7 +435,7 @@ fn meshes_voxelize_into_the_same_tree_sparse_as_dense() {
 /// recolours it (the tree rebuilt through the table).
 #[test]
 fn a_mesh_experiment_past_the_dense_bound_is_held_sparse() {
-    let bunny = common::shared_data("bunny.obj");
+    let bunny = common::example_data("bunny.obj");
     let text = format!(
         "[scene]\nmesh = \"{}\"\nresolution = 1024\nmaterial = \"solid\"\n",
         bunny.display()
@@ -539,7 +539,7 @@ fn models_over_a_tree_build_the_dense_grids_tree() {
 /// 700^3, its voxels where they belong; a model too large to place is refused by key.
 #[test]
 fn models_go_into_a_grid_held_sparse() {
-    let deer = common::shared_data("deer.vox");
+    let deer = common::example_data("deer.vox");
     let text = format!(
         "[scene]\nsize = 700\n\n[[scene.models]]\nvox = \"{}\"\noffset = [300, 10, 320]\n",
         deer.display()

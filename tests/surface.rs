@@ -112,7 +112,7 @@ fn a_voxelized_sphere_gives_a_closed_outward_surface_within_a_voxel_of_the_spher
 
 #[test]
 fn every_material_of_a_vox_model_is_closed() {
-    let v = load_vox(common::shared_data("deer.vox"), None).unwrap();
+    let v = load_vox(common::example_data("deer.vox"), None).unwrap();
     let mesh = extract(&v.grid, DEFAULT_RELAX).unwrap();
     let used = v.grid.materials_used();
     let expected: Vec<u8> = (1..=255u8).filter(|&m| used[m as usize]).collect();

@@ -374,7 +374,7 @@ fn brute_force_image(
 
 #[test]
 fn the_bunny_through_its_triangles_equals_a_brute_force_caster_pixel_for_pixel() {
-    let path = common::shared_data("bunny.obj");
+    let path = common::example_data("bunny.obj");
     let text = format!(
         "[scene]\nmesh = {:?}\nresolution = 40\nmaterial = \"solid\"\n\
          [[materials]]\nname = \"solid\"\nkr = 0.0\n\
@@ -452,7 +452,7 @@ fn the_smooth_surface_is_closed_near_the_voxels_and_of_their_materials() {
         }
     }
     // deer.vox's surface is closed too.
-    let deer = voxlab::scene::load_vox(common::shared_data("deer.vox"), None).unwrap();
+    let deer = voxlab::scene::load_vox(common::example_data("deer.vox"), None).unwrap();
     let mesh = extract_solid(&deer.grid, DEFAULT_RELAX).unwrap();
     assert!(!mesh.triangles.is_empty());
     assert_eq!(mesh.open_edges_all(), 0);

@@ -23,7 +23,7 @@ fn load(dir: &Path, text: &str) -> Result<Experiment, String> {
 #[test]
 fn vox_scene_with_model_and_material_override() {
     let dir = temp_dir("vox");
-    let deer = common::shared_data("deer.vox");
+    let deer = common::example_data("deer.vox");
     let e = load(
         &dir,
         &format!("[scene]\nvox = {:?}\n", deer.to_str().unwrap()),
@@ -93,7 +93,7 @@ fn mesh_scene_relative_path_resolution_and_material() {
     // The bunny in the seed's glass: the palette is the seed's, voxels use "glass".
     let text = format!(
         "[scene]\nmesh = {:?}\nresolution = 24\nmaterial = \"glass\"\n",
-        common::shared_data("bunny.obj").to_str().unwrap()
+        common::example_data("bunny.obj").to_str().unwrap()
     );
     let e = load(&dir, &text).unwrap();
     let glass = e

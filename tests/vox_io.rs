@@ -55,7 +55,7 @@ fn raw_palette(bytes: &[u8]) -> Vec<[u8; 4]> {
 
 #[test]
 fn deer_loads_with_documented_axes_and_palette() {
-    let path = common::shared_data("deer.vox");
+    let path = common::example_data("deer.vox");
     let s = load_vox(&path, None).unwrap();
     assert_eq!(s.model_count, 1);
     assert_eq!(solid(&s.grid), 355);
@@ -383,7 +383,7 @@ fn magicavoxel_materials_map_onto_voxlab() {
 #[test]
 fn bunny_round_trips_through_vox() {
     let v = voxelize_mesh(
-        common::shared_data("bunny.obj"),
+        common::example_data("bunny.obj"),
         &VoxelizeOptions::count(64),
     )
     .unwrap();
@@ -483,7 +483,7 @@ fn bad_vox_files_give_clear_errors_and_never_panic() {
         "{e}"
     );
 
-    let e = load_vox(common::shared_data("deer.vox"), Some(1))
+    let e = load_vox(common::example_data("deer.vox"), Some(1))
         .unwrap_err()
         .to_string();
     assert!(
@@ -495,7 +495,7 @@ fn bad_vox_files_give_clear_errors_and_never_panic() {
     // grid whose materials cover it. Never a panic, never an unbounded allocation.
     let p = dir.join("h.vox");
     for src in [
-        common::shared_data("deer.vox"),
+        common::example_data("deer.vox"),
         dot_vox_resources().join("axes.vox"),
     ] {
         let good = std::fs::read(&src).unwrap();

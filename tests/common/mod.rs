@@ -118,18 +118,13 @@ pub fn experiment(file: impl AsRef<Path>) -> Experiment {
     Experiment::load(&path).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// A real test file from `../shared/data/` (beside the repository, in CI too); a
-/// missing file fails the test with where it was looked for.
-pub fn shared_data(name: &str) -> PathBuf {
+/// A real model from `experiments/data/` (made by others; its README gives sources and
+/// licences); a missing file fails the test with where it was looked for.
+pub fn example_data(name: &str) -> PathBuf {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
+        .join("experiments/data")
         .join(name);
-    assert!(
-        p.exists(),
-        "test data {} is missing: the repository's parent must hold shared/data/ \
-         (see shared/data/README.md)",
-        p.display()
-    );
+    assert!(p.exists(), "example data {} is missing", p.display());
     p
 }
 
