@@ -187,3 +187,100 @@ fn every_shadow_model_and_lighting_term_shades_triangles_alike_on_both_tracers()
         eprintln!("  {name}: {:.1} s", start.elapsed().as_secs_f64());
     }
 }
+
+/// An OBJ of two objects, a tetrahedron whose corners name normals and a box of quads,
+/// with the file's normals first (a common exporter's layout). `box_normal` is what the
+/// box's corners say: "" (none), "given" (each face's own normal, named) or "wrong" (the
+/// tetrahedron's (1, 1, 1), named).
+fn mixed_obj(box_normal: &str) -> String {
+    let mut s = String::from(
+        "vn -1 -1 -1\nvn 1 0 0\nvn 0 1 0\nvn 0 0 1\nvn 1 1 1\n\
+         vn -1 0 0\nvn 1 0 0\nvn 0 -1 0\nvn 0 1 0\nvn 0 0 -1\nvn 0 0 1\n\
+         o tet\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n\
+         f 1//1 3//3 2//2\nf 1//1 2//2 4//4\nf 1//1 4//4 3//3\nf 2//5 3//5 4//5\n\
+         o box\nv 2 0 0\nv 3 0 0\nv 3 1 0\nv 2 1 0\nv 2 0 1\nv 3 0 1\nv 3 1 1\nv 2 1 1\n",
+    );
+    // Each face's corners, counter-clockwise from outside, and its normal's index.
+    let faces = [
+        ([5, 8, 7, 6], 10),
+        ([9, 10, 11, 12], 11),
+        ([5, 6, 10, 9], 8),
+        ([8, 12, 11, 7], 9),
+        ([5, 9, 12, 8], 6),
+        ([6, 7, 11, 10], 7),
+    ];
+    for (corners, n) in faces {
+        s.push('f');
+        for c in corners {
+            match box_normal {
+                "" => s.push_str(&format!(" {c}")),
+                "given" => s.push_str(&format!(" {c}//{n}")),
+                _ => s.push_str(&format!(" {c}//5")),
+            }
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// Faces without normals in a file that has normals are shaded with their own face's
+/// normal, on both tracers: exactly as if the file named that normal, and not as the
+/// normal tobj fills in for them (another face's).
+#[test]
+fn faces_without_normals_are_shaded_with_their_face_normal() {
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("gpu_mixed_normals");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let load = |name: &str, box_normal: &str| {
+        std::fs::write(dir.join(format!("{name}.obj")), mixed_obj(box_normal)).unwrap();
+        let toml = format!(
+            "[scene]\nmesh = \"{name}.obj\"\nresolution = 12\n\
+             [render]\nsurface = \"mesh\"\nwidth = 40\nheight = 28\n"
+        );
+        std::fs::write(dir.join(format!("{name}.toml")), toml).unwrap();
+        voxlab::experiment::Experiment::load(dir.join(format!("{name}.toml")))
+            .unwrap_or_else(|e| panic!("{e}"))
+    };
+    let (none, given, wrong) = (
+        load("none", ""),
+        load("given", "given"),
+        load("wrong", "wrong"),
+    );
+    // The loader: the box's corners have no normal (zero: the face's is used).
+    let mesh = none.scene.mesh.as_ref().unwrap();
+    assert_eq!(mesh.triangles.len(), 4 + 12);
+    for t in &mesh.triangles[4..] {
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+        let face = (b - a).cross(c - a).normalize();
+        for &i in t {
+            assert_eq!(mesh.normals[i as usize], face, "a box corner's normal");
+        }
+    }
+    let mut gpu = tracer();
+    let render = |gpu: &mut voxlab::gpu::GpuTracer, e: &voxlab::experiment::Experiment| {
+        let g = gpu
+            .render(&e.scene, &e.settings)
+            .unwrap_or_else(|e| panic!("{e:#}"));
+        (g.frame, voxlab::cpu::render(&e.scene, &e.settings).frame)
+    };
+    let (g_none, c_none) = render(&mut gpu, &none);
+    let (g_given, c_given) = render(&mut gpu, &given);
+    let (_, c_wrong) = render(&mut gpu, &wrong);
+    assert_eq!(
+        c_none.pixels, c_given.pixels,
+        "CPU: no normal against the face's, named"
+    );
+    assert_eq!(
+        g_none.pixels, g_given.pixels,
+        "GPU: no normal against the face's, named"
+    );
+    assert_agree("mixed normals, GPU against CPU", &g_none, &c_none);
+    // The test can fail: a borrowed normal changes the box's pixels.
+    let changed = c_wrong
+        .pixels
+        .iter()
+        .zip(&c_given.pixels)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(changed > 20, "a wrong normal changed only {changed} pixels");
+}

@@ -280,10 +280,49 @@ fn obj_and_mtl_errors_name_their_line() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// An OBJ whose `mtllib` cannot be read (missing, a directory, a device, a FIFO) is
+/// refused with the library's path and why: dropping it would lose every material.
+#[test]
+fn an_unreadable_material_library_refuses_the_mesh() {
+    let dir = temp_dir("mtl_unreadable");
+    let obj = "mtllib m.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let p = dir.join("m.obj");
+    std::fs::write(&p, obj).unwrap();
+    let mtl = dir.join("m.mtl");
+    let refused = |what: &str| {
+        let e = voxelize_mesh(&p, &VoxelizeOptions::count(4))
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("m.obj") && e.contains("material library") && e.contains("m.mtl"),
+            "{what}: {e}"
+        );
+    };
+    refused("missing");
+    std::fs::create_dir(&mtl).unwrap();
+    refused("a directory");
+    std::fs::remove_dir(&mtl).unwrap();
+    std::os::unix::fs::symlink("/dev/null", &mtl).unwrap();
+    refused("a device");
+    std::fs::remove_file(&mtl).unwrap();
+    let made = std::process::Command::new("mkfifo")
+        .arg(&mtl)
+        .status()
+        .unwrap();
+    assert!(made.success());
+    refused("a FIFO");
+    std::fs::remove_file(&mtl).unwrap();
+    // Readable, it gives its material.
+    std::fs::write(&mtl, "newmtl a\nKd 0.2 0.4 0.6\n").unwrap();
+    assert!(voxelize_mesh(&p, &VoxelizeOptions::count(4)).is_ok());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn a_malformed_vox_chunk_is_named_with_its_offset() {
-    let deer = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/deer.vox");
-    let mut b = std::fs::read(&deer).expect("../shared/data/deer.vox");
+    let deer = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("experiments/data/deer.vox");
+    let mut b = std::fs::read(&deer).expect("experiments/data/deer.vox");
     let i = b.windows(4).position(|w| w == b"XYZI").unwrap();
     let n = u32::from_le_bytes(b[i + 12..i + 16].try_into().unwrap());
     b[i + 12..i + 16].copy_from_slice(&(n + 1).to_le_bytes());

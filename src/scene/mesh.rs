@@ -156,12 +156,20 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
     };
     // tobj reads a `mtllib` itself unless given a loader: this one reads it (relative to
     // the OBJ's directory, as tobj would) as a regular file of bounded size.
+    // A library that cannot be read (missing, not a regular file, too large) refuses the
+    // mesh, naming it: tobj alone would drop it and every material with it.
     let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let unreadable = std::cell::RefCell::new(None);
     let mtl_loader = |name: &Path| -> tobj::MTLLoadResult {
         let mtl_path = dir.join(name);
         match crate::input::read_file(&mtl_path, crate::input::MAX_MESH_BYTES, "material library") {
             Ok(b) => tobj::load_mtl_buf(&mut std::io::Cursor::new(b)),
-            Err(_) => Err(tobj::LoadError::OpenFileFailed),
+            Err(e) => {
+                unreadable
+                    .borrow_mut()
+                    .get_or_insert_with(|| format!("{}: {e}", mtl_path.display()));
+                Err(tobj::LoadError::OpenFileFailed)
+            }
         }
     };
     // tobj panics on some malformed lines (a `Kd` with fewer than three values): its
@@ -217,6 +225,11 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
             )));
         }
     };
+    if let Some(why) = unreadable.take() {
+        return Err(LoadErrorKind::InvalidMesh(format!(
+            "its material library (mtllib) cannot be read: {why}"
+        )));
+    }
     let mut mesh = TriangleMesh::default();
     let mtl = match mtl {
         Ok(m) => m,
@@ -231,7 +244,18 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
             Vec::new()
         }
     };
+    // Which face corners name a normal, per triangle in the file's order: tobj's models
+    // are runs of the file's faces in order, each triangulated as a fan.
+    let emitted: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
+    let corner_normals = obj_corner_normals(bytes).filter(|c| c.len() == emitted);
+    if corner_normals.is_none() && models.iter().any(|m| !m.mesh.normals.is_empty()) {
+        mesh.warnings.push(format!(
+            "{}: the faces' normals could not be matched to their corners; face normals used",
+            path.display()
+        ));
+    }
     let mut slots = HashMap::new();
+    let mut first_triangle = 0;
     for model in &models {
         let m = &model.mesh;
         let n = m.positions.len() / 3;
@@ -255,9 +279,15 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
                 m.positions[i + 2] as f64,
             )
         };
-        // The file's normals, when this object gives one per face vertex.
+        // The file's normals, at the face corners that name one: tobj makes one up for a
+        // corner without (the previous corner's, or the file's first), which must not
+        // shade it.
         let normal = |k: usize| -> DVec3 {
-            let Some(&i) = m.normal_indices.get(k) else {
+            let given = corner_normals
+                .as_ref()
+                .and_then(|c| c.get(first_triangle + k / 3))
+                .is_some_and(|t| t[k % 3]);
+            let (true, Some(&i)) = (given, m.normal_indices.get(k)) else {
                 return DVec3::ZERO;
             };
             let i = i as usize * 3;
@@ -266,7 +296,9 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
                 None => DVec3::ZERO,
             }
         };
-        let with_normals = m.normal_indices.len() == m.indices.len() && !m.normals.is_empty();
+        let with_normals = corner_normals.is_some()
+            && m.normal_indices.len() == m.indices.len()
+            && !m.normals.is_empty();
         for (k, f) in m.indices.chunks(3).enumerate() {
             if f.len() < 3 {
                 continue;
@@ -287,11 +319,34 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
                     .push([normal(3 * k), normal(3 * k + 1), normal(3 * k + 2)]);
             }
         }
+        first_triangle += m.indices.len() / 3;
     }
     if !mesh.normals.is_empty() {
         mesh.normals.resize(mesh.triangles.len(), [DVec3::ZERO; 3]);
     }
     Ok(mesh)
+}
+
+/// Per triangle of an OBJ's faces, in the file's order and triangulated as tobj does (a
+/// fan from the first corner), whether each corner names a normal (`v//vn`, `v/vt/vn`).
+/// `None` where a face line does not read as one (tobj then refuses the file).
+fn obj_corner_normals(bytes: &[u8]) -> Option<Vec<[bool; 3]>> {
+    let mut out = Vec::new();
+    for line in bytes.split(|&b| b == b'\n') {
+        let line = std::str::from_utf8(line).ok()?;
+        let mut words = line.split_whitespace();
+        // tobj reads `l` lines as faces too, and keeps those of three or more corners.
+        if !matches!(words.next(), Some("f" | "l")) {
+            continue;
+        }
+        let corners: Vec<bool> = words
+            .map(|w| w.split('/').nth(2).is_some_and(|vn| !vn.is_empty()))
+            .collect();
+        for i in 2..corners.len() {
+            out.push([corners[0], corners[i - 1], corners[i]]);
+        }
+    }
+    Some(out)
 }
 
 fn load_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
