@@ -181,14 +181,42 @@ enum Generator {
     Empty,
 }
 
+/// Fixed-length arrays of the file. serde reads `[T; N]` from the first N elements of a
+/// longer TOML array and ignores the rest (`dims = [8, 8, 8, 999]` rendered 8^3 without
+/// a word), so these read the whole array and check its length.
+mod exact {
+    use serde::de::{Deserialize, Deserializer, Error};
+
+    pub fn array<'de, D, T, const N: usize>(d: D) -> Result<[T; N], D::Error>
+    where
+        D: Deserializer<'de>,
+        T: Deserialize<'de>,
+    {
+        let v = Vec::<T>::deserialize(d)?;
+        let len = v.len();
+        v.try_into()
+            .map_err(|_| D::Error::invalid_length(len, &format!("an array of length {N}").as_str()))
+    }
+
+    pub fn option<'de, D, T, const N: usize>(d: D) -> Result<Option<[T; N]>, D::Error>
+    where
+        D: Deserializer<'de>,
+        T: Deserialize<'de>,
+    {
+        array(d).map(Some)
+    }
+}
+
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawScene {
     /// Absent: the seed generator, unless `vox` or `mesh` gives the voxels.
     generator: Option<Generator>,
     size: Option<i64>,
+    #[serde(default, deserialize_with = "exact::option")]
     dims: Option<[i64; 3]>,
     voxel_size: Option<f64>,
+    #[serde(default, deserialize_with = "exact::option")]
     origin: Option<[f64; 3]>,
     #[serde(default)]
     boxes: Vec<RawBox>,
@@ -210,7 +238,9 @@ struct RawScene {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawBox {
+    #[serde(deserialize_with = "exact::array")]
     min: [i64; 3],
+    #[serde(deserialize_with = "exact::array")]
     max: [i64; 3],
     material: MaterialRef,
 }
@@ -225,6 +255,7 @@ enum MaterialRef {
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawCamera {
+    #[serde(default, deserialize_with = "exact::option")]
     target: Option<[f64; 3]>,
     distance: Option<f64>,
     yaw_deg: Option<f64>,
@@ -246,12 +277,16 @@ enum LightType {
 struct RawLight {
     #[serde(rename = "type")]
     kind: LightType,
+    #[serde(deserialize_with = "exact::array")]
     position: [f64; 3],
+    #[serde(default, deserialize_with = "exact::option")]
     color: Option<[f64; 3]>,
     intensity: f64,
     /// Rectangles and disks: the facing direction (any length > 0).
+    #[serde(default, deserialize_with = "exact::option")]
     normal: Option<[f64; 3]>,
     /// Rectangles: full side lengths along the light's u and v axes.
+    #[serde(default, deserialize_with = "exact::option")]
     size: Option<[f64; 2]>,
     /// Disks and spheres.
     radius: Option<f64>,
@@ -263,6 +298,7 @@ struct RawLight {
 #[serde(deny_unknown_fields)]
 struct RawMaterial {
     name: String,
+    #[serde(default, deserialize_with = "exact::option")]
     albedo: Option<[f64; 3]>,
     kd: Option<f64>,
     ks: Option<f64>,
@@ -270,7 +306,9 @@ struct RawMaterial {
     kr: Option<f64>,
     kt: Option<f64>,
     ior: Option<f64>,
+    #[serde(default, deserialize_with = "exact::option")]
     sigma: Option<[f64; 3]>,
+    #[serde(default, deserialize_with = "exact::option")]
     emission: Option<[f64; 3]>,
 }
 
@@ -286,6 +324,7 @@ struct RawRender {
     falloff: Option<bool>,
     falloff_min_distance: Option<f64>,
     ray_offset: Option<f64>,
+    #[serde(default, deserialize_with = "exact::option")]
     ambient: Option<[f64; 3]>,
     light_samples: Option<i64>,
     spp: Option<i64>,

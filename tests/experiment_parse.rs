@@ -407,3 +407,59 @@ fn bad_names_are_rejected() {
         &["x.toml:1:", "name = \"../escape\"", "output file"],
     );
 }
+
+/// Every fixed-length array of the file, given one element too many or too few: refused
+/// with the key, the line and the length it must have (serde alone read the first N of a
+/// longer array and dropped the rest).
+#[test]
+fn fixed_length_arrays_of_any_other_length_are_refused() {
+    let cases = [
+        ("[scene]\ndims = {}\n", "scene.dims", 3, "8"),
+        ("[scene]\norigin = {}\n", "scene.origin", 3, "0.5"),
+        (
+            "[scene]\ngenerator = \"empty\"\n[[scene.boxes]]\nmin = {}\nmax = [2, 2, 2]\nmaterial = 1\n",
+            "scene.boxes[0].min",
+            3,
+            "0",
+        ),
+        ("[camera]\ntarget = {}\n", "camera.target", 3, "1"),
+        (
+            "[[lights]]\ntype = \"point\"\nposition = {}\nintensity = 1\n",
+            "lights[0].position",
+            3,
+            "1",
+        ),
+        (
+            "[[lights]]\ntype = \"rect\"\nposition = [0, 9, 0]\nnormal = [0, -1, 0]\nsize = {}\nintensity = 1\n",
+            "lights[0].size",
+            2,
+            "1",
+        ),
+        (
+            "[[materials]]\nname = \"glass\"\nalbedo = {}\n",
+            "materials[0].albedo",
+            3,
+            "0.5",
+        ),
+        ("[render]\nambient = {}\n", "render.ambient", 3, "0.1"),
+    ];
+    for (template, key, n, element) in cases {
+        let array = |len: usize| format!("[{}]", vec![element; len].join(", "));
+        // The right length reads; one more (of the element's type or another) or one
+        // fewer is an error.
+        ok(&template.replace("{}", &array(n)));
+        for bad in [
+            array(n + 1),
+            format!("[{}, \"x\"]", vec![element; n].join(", ")),
+            array(n - 1),
+        ] {
+            let text = template.replace("{}", &bad);
+            let e = err(&text);
+            assert!(e.contains(key), "{bad}: {e}");
+            assert!(e.contains(FILE), "{bad}: names the file: {e}");
+            if !bad.contains('"') {
+                assert!(e.contains(&format!("length {n}")), "{bad}: {e}");
+            }
+        }
+    }
+}

@@ -18,7 +18,7 @@ fn parse(text: &str) -> Result<Experiment, ExperimentError> {
 }
 
 fn deer_path() -> String {
-    common::shared_data("deer.vox").display().to_string()
+    common::example_data("deer.vox").display().to_string()
 }
 
 fn composed(extra: &str) -> String {
@@ -65,7 +65,7 @@ fn assert_placed(scene: &Scene, model: &Scene, base: IVec3, scale: i32, outside:
 }
 
 fn deer_alone() -> Scene {
-    let v = load_vox(common::shared_data("deer.vox"), None).unwrap();
+    let v = load_vox(common::example_data("deer.vox"), None).unwrap();
     Scene {
         grid: v.grid,
         materials: v.materials,
@@ -207,7 +207,7 @@ fn two_models_of_one_file_share_their_palette_and_a_later_one_wins() {
 
 #[test]
 fn a_mesh_model_has_the_voxels_of_the_same_mesh_as_a_whole_scene() {
-    let bunny = common::shared_data("bunny.obj").display().to_string();
+    let bunny = common::example_data("bunny.obj").display().to_string();
     let whole = parse(&format!(
         "[scene]\nmesh = \"{bunny}\"\nresolution = 20\nmaterial = \"glass\"\n"
     ))
@@ -258,6 +258,16 @@ fn bad_models_get_an_error_naming_the_key_and_the_range() {
     );
     let e = error_of(&composed("offset = [-1, 0, 0]"));
     assert!(e.contains("scene.models[0].offset"), "{e}");
+    // Offsets whose sum with the model's size would wrap: refused, never a panic.
+    for extreme in [
+        "[9223372036854775807, 0, 0]",
+        "[0, 9223372036854775807, 0]",
+        "[0, 0, 9223372036854775800]",
+        "[-9223372036854775808, 0, 0]",
+    ] {
+        let e = error_of(&composed(&format!("offset = {extreme}")));
+        assert!(e.contains("scene.models[0].offset"), "{extreme}: {e}");
+    }
     let e = error_of(&composed("scale = 2"));
     assert!(e.contains("no offset fits"), "{e}");
     let e = error_of(&composed("scale = 0"));
@@ -300,7 +310,7 @@ fn bad_models_get_an_error_naming_the_key_and_the_range() {
     );
     let e = error_of(&format!(
         "[scene]\ngenerator = \"empty\"\n[[scene.models]]\nmesh = \"{}\"\n",
-        common::shared_data("bunny.obj").display()
+        common::example_data("bunny.obj").display()
     ));
     assert!(
         e.contains("scene.models[0].mesh") && e.contains("resolution"),
@@ -324,7 +334,7 @@ fn bad_models_get_an_error_naming_the_key_and_the_range() {
     // A mesh model longer than the grid is refused before it is voxelized.
     let e = error_of(&format!(
         "[scene]\ngenerator = \"empty\"\ndims = [30, 20, 10]\n[[scene.models]]\nmesh = \"{}\"\nresolution = 60000\n",
-        common::shared_data("bunny.obj").display()
+        common::example_data("bunny.obj").display()
     ));
     assert!(
         e.contains("scene.models[0].resolution") && e.contains("1..=30"),

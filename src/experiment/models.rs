@@ -37,6 +37,7 @@ pub(super) struct RawModel {
     /// Every voxel of the model in this material (name or index of the final palette).
     material: Option<MaterialRef>,
     /// The grid voxel where the model's minimum corner goes.
+    #[serde(default, deserialize_with = "super::exact::option")]
     offset: Option<[i64; 3]>,
     /// With `vox`: each voxel becomes a cube of scale^3 voxels.
     scale: Option<i64>,
@@ -232,8 +233,9 @@ pub(super) fn place_models(
         };
         let size = l.grid.dims() * scale;
         let offset = m.offset.unwrap_or([0; 3]);
+        // Compared without adding to the file's number, which may be near i64::MAX.
         let fits =
-            (0..3).all(|a| offset[a] >= 0 && offset[a] + i64::from(size[a]) <= i64::from(dims[a]));
+            (0..3).all(|a| offset[a] >= 0 && offset[a] <= i64::from(dims[a]) - i64::from(size[a]));
         if !fits {
             let max = |a: usize| i64::from(dims[a]) - i64::from(size[a]);
             let range = if (0..3).all(|a| max(a) >= 0) {
