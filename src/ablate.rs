@@ -1251,6 +1251,67 @@ pub struct AblateReport {
 
 /// Runs the whole ablation of `e` and writes its outputs under `opts.out_dir`.
 /// `source` is the experiment file's text, copied into the outputs.
+/// The files a run writes directly into its output directory (the point images go under
+/// `images/`, the references under the cache directory).
+pub const OUTPUT_FILES: &[&str] = &[
+    "grid.png",
+    "ablation.csv",
+    "plot.png",
+    "plot.svg",
+    "table.md",
+    "table.tex",
+    "experiment.toml",
+    "resolved.toml",
+    "run.txt",
+];
+
+/// Refuses, before anything is written, a run whose outputs would replace one of the
+/// files the experiment reads (`voxlab ablate DIR/resolved.toml --out DIR`, an
+/// experiment named `run.txt`, a model kept under `images/`).
+fn refuse_to_overwrite_inputs(
+    e: &Experiment,
+    source: Option<&str>,
+    out: &Path,
+    cache_dir: &Path,
+) -> Result<()> {
+    let Some(path) = &e.source_path else {
+        return Ok(());
+    };
+    let text = match source {
+        Some(t) => t.to_string(),
+        None => crate::experiment::read_text(path).unwrap_or_default(),
+    };
+    let inputs = crate::experiment::write::input_files(&text, path);
+    let outputs: Vec<PathBuf> = OUTPUT_FILES.iter().map(|f| out.join(f)).collect();
+    if let Some((o, i)) = crate::experiment::write::overwrites(&outputs, &inputs) {
+        bail!(
+            "--out {}: ablate would write {}, which is the experiment's input {}; \
+             choose another output directory",
+            out.display(),
+            o.display(),
+            i.display()
+        );
+    }
+    for dir in [out.join("images"), cache_dir.to_path_buf()] {
+        let Ok(dir) = std::fs::canonicalize(&dir) else {
+            continue;
+        };
+        if let Some(i) = inputs
+            .iter()
+            .find(|i| std::fs::canonicalize(i).is_ok_and(|c| c.starts_with(&dir)))
+        {
+            bail!(
+                "--out {}: the experiment's input {} lies in {}, where ablate writes; \
+                 choose another output directory",
+                out.display(),
+                i.display(),
+                dir.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 pub fn run(
     e: &Experiment,
     c: &AblateConfig,
@@ -1267,8 +1328,9 @@ pub fn run(
         );
     }
     let out = &opts.out_dir;
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let cache_dir = opts.cache_dir.clone().unwrap_or_else(|| out.join("cache"));
+    refuse_to_overwrite_inputs(e, source, out, &cache_dir)?;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     std::fs::create_dir_all(&cache_dir)
         .with_context(|| format!("creating {}", cache_dir.display()))?;
 

@@ -909,6 +909,24 @@ fn cmd_mesh(a: &MeshArgs) -> Result<()> {
         );
     }
     output_dir_exists(&a.out)?;
+    // Never over what the experiment reads (its own mesh and MTL, the file itself).
+    if let Some(p) = &a.experiment {
+        let text = voxlab::experiment::apply_overrides(&voxlab::experiment::read_text(p)?, &a.set)?;
+        let inputs = voxlab::experiment::write::input_files(&text, p);
+        let mut outputs = vec![a.out.clone()];
+        if ext.as_deref() == Some("obj") {
+            outputs.push(a.out.with_extension("mtl"));
+        }
+        if let Some((o, i)) = voxlab::experiment::write::overwrites(&outputs, &inputs) {
+            bail!(
+                "--out {}: mesh would write {}, which is the experiment's input {}; \
+                 mesh never overwrites its input",
+                a.out.display(),
+                o.display(),
+                i.display()
+            );
+        }
+    }
     let e = match &a.experiment {
         Some(p) => Experiment::load_with(p, &a.set)?,
         None => Experiment::from_str_with("", "seed", &a.set)?,

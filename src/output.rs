@@ -12,7 +12,7 @@ use std::io::BufReader;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use image::{ImageFormat, Rgb32FImage, RgbImage};
+use image::{ImageFormat, RgbImage};
 
 use crate::render::Frame;
 
@@ -78,6 +78,15 @@ pub enum OutputError {
         path: PathBuf,
         error: std::io::Error,
     },
+    #[error(
+        "cannot write {}: its file name is {len} bytes, and this file system allows at most {max}",
+        path.display()
+    )]
+    NameTooLong {
+        path: PathBuf,
+        len: usize,
+        max: usize,
+    },
     #[error("cannot read {}: {error}", path.display())]
     Read {
         path: PathBuf,
@@ -88,6 +97,26 @@ pub enum OutputError {
         path: PathBuf,
         error: std::io::Error,
     },
+}
+
+impl OutputError {
+    /// Why, without the path: for a caller whose own message names the file.
+    pub fn cause(&self) -> String {
+        match self {
+            Self::CreateDir { dir, error, .. } => {
+                format!("cannot create directory {}: {error}", dir.display())
+            }
+            Self::WriteFile { error, .. }
+            | Self::Rename { error, .. }
+            | Self::Open { error, .. } => error.to_string(),
+            Self::Write { error, .. } => encoding_text(error),
+            Self::Read { error, .. } => error.to_string(),
+            Self::NameTooLong { len, max, .. } => {
+                format!("its file name is {len} bytes, and this file system allows at most {max}")
+            }
+            Self::UnknownExtension { .. } => self.to_string(),
+        }
+    }
 }
 
 /// An encoder's error as what it is: the image crate reports some failures of its EXR
@@ -109,25 +138,37 @@ fn encoding_text(e: &image::ImageError) -> String {
 pub fn write_frame(frame: &Frame, path: impl AsRef<Path>) -> Result<(), OutputError> {
     let path = path.as_ref();
     let format = OutputFormat::from_path(path)?;
-    write_atomically(path, |tmp| {
-        let written = match format {
-            OutputFormat::Png => {
-                let img = RgbImage::from_raw(frame.width, frame.height, frame.to_rgb8())
-                    .expect("a Frame holds width * height pixels");
-                img.save_with_format(tmp, format.image_format())
-            }
-            OutputFormat::Exr => {
-                let data = frame.pixels.iter().flatten().copied().collect();
-                let img = Rgb32FImage::from_raw(frame.width, frame.height, data)
-                    .expect("a Frame holds width * height pixels");
-                img.save_with_format(tmp, format.image_format())
-            }
-        };
-        written.map_err(|error| OutputError::Write {
-            path: path.to_path_buf(),
-            error,
-        })
+    write_atomically(path, |tmp| match format {
+        OutputFormat::Png => {
+            let img = RgbImage::from_raw(frame.width, frame.height, frame.to_rgb8())
+                .expect("a Frame holds width * height pixels");
+            img.save_with_format(tmp, format.image_format())
+                .map_err(|error| OutputError::Write {
+                    path: path.to_path_buf(),
+                    error,
+                })
+        }
+        OutputFormat::Exr => write_exr(frame, path, tmp),
     })
+}
+
+/// Linear RGB f32 as a scanline EXR (ZIP, 16 lines a block, increasing Y): the layout
+/// every reader takes. The image crate's encoder writes 64x64 RLE tiles, which some
+/// readers (NVIDIA's flip-evaluator 1.7, through tinyexr) crash on.
+fn write_exr(frame: &Frame, path: &Path, tmp: &Path) -> Result<(), OutputError> {
+    use exr::prelude::{Encoding, Image, SpecificChannels, Vec2, WritableImage};
+    let (w, h) = (frame.width as usize, frame.height as usize);
+    let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+        let [r, g, b] = frame.pixels[p.y() * w + p.x()];
+        (r, g, b)
+    });
+    Image::from_encoded_channels((w, h), Encoding::SMALL_LOSSLESS, channels)
+        .write()
+        .to_file(tmp)
+        .map_err(|e| OutputError::WriteFile {
+            path: path.to_path_buf(),
+            error: std::io::Error::other(format!("the EXR encoder failed: {e}")),
+        })
 }
 
 /// The PNG text chunk (iTXt) that holds a render's provenance record.
@@ -146,9 +187,12 @@ pub fn write_frame_with_provenance(
 ) -> Result<(), OutputError> {
     let path = path.as_ref();
     let format = OutputFormat::from_path(path)?;
-    match format {
-        OutputFormat::Exr => write_frame(frame, path)?,
-        OutputFormat::Png => write_atomically(path, |tmp| {
+    let mut sidecar = path.as_os_str().to_os_string();
+    sidecar.push(".json");
+    let sidecar = PathBuf::from(sidecar);
+    let image = move |tmp: &Path| match format {
+        OutputFormat::Exr => write_exr(frame, path, tmp),
+        OutputFormat::Png => {
             let io = |error| OutputError::WriteFile {
                 path: path.to_path_buf(),
                 error,
@@ -171,11 +215,13 @@ pub fn write_frame_with_provenance(
                 .write_image_data(&frame.to_display_rgb8(display))
                 .map_err(encoding)?;
             writer.finish().map_err(encoding)
-        })?,
-    }
-    let mut sidecar = path.as_os_str().to_os_string();
-    sidecar.push(".json");
-    write_file(PathBuf::from(sidecar), json.as_bytes())
+        }
+    };
+    // The image and its record appear together or not at all.
+    write_together(vec![
+        (path.to_path_buf(), Box::new(image) as Fill),
+        (sidecar.clone(), bytes_fill(&sidecar, json.as_bytes())),
+    ])
 }
 
 /// The provenance record stored in a PNG written by [`write_frame_with_provenance`].
@@ -204,12 +250,7 @@ pub fn read_png_provenance(path: impl AsRef<Path>) -> Result<Option<String>, Out
 /// `path` (the viewer's exported experiment files and window captures).
 pub fn write_file(path: impl AsRef<Path>, bytes: &[u8]) -> Result<(), OutputError> {
     let path = path.as_ref();
-    write_atomically(path, |tmp| {
-        std::fs::write(tmp, bytes).map_err(|error| OutputError::WriteFile {
-            path: path.to_path_buf(),
-            error,
-        })
-    })
+    write_together(vec![(path.to_path_buf(), bytes_fill(path, bytes))])
 }
 
 /// Creates `path`'s directory, lets `write` fill a temporary file beside `path`, and
@@ -218,28 +259,116 @@ fn write_atomically(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), OutputError>,
 ) -> Result<(), OutputError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    std::fs::create_dir_all(&dir).map_err(|error| OutputError::CreateDir {
-        dir: dir.clone(),
-        path: path.to_path_buf(),
-        error,
-    })?;
-    let tmp = temp_path(&dir, path);
-    let _pending = Pending::new(&tmp);
-    if let Err(e) = write(&tmp) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e);
-    }
-    std::fs::rename(&tmp, path).map_err(|error| {
-        let _ = std::fs::remove_file(&tmp);
-        OutputError::Rename {
-            path: path.to_path_buf(),
-            error,
-        }
+    write_together(vec![(path.to_path_buf(), Box::new(write))])
+}
+
+/// What fills one temporary file of [`write_together`].
+pub type Fill<'a> = Box<dyn FnOnce(&Path) -> Result<(), OutputError> + 'a>;
+
+/// A [`Fill`] that writes `bytes`, blaming `path` for a failure.
+pub fn bytes_fill<'a>(path: &Path, bytes: &'a [u8]) -> Fill<'a> {
+    let path = path.to_path_buf();
+    Box::new(move |tmp: &Path| {
+        std::fs::write(tmp, bytes).map_err(|error| OutputError::WriteFile { path, error })
     })
+}
+
+/// Writes several files as one output (an image and its record, an OBJ and its MTL):
+/// every name is checked first, each file is filled under a temporary name beside its
+/// own, and only when all are complete are they renamed into place. A failure at any
+/// point, or an interrupt (the handler of [`remove_temporaries_on_interrupt`] waits for
+/// the renames), leaves none of them: those already renamed are removed again.
+pub fn write_together(files: Vec<(PathBuf, Fill<'_>)>) -> Result<(), OutputError> {
+    for (path, _) in &files {
+        check_name(path)?;
+    }
+    let mut written = Vec::with_capacity(files.len());
+    let mut guards = Vec::with_capacity(files.len());
+    let clean = |written: &[(PathBuf, PathBuf)]| {
+        for (_, tmp) in written {
+            let _ = std::fs::remove_file(tmp);
+        }
+    };
+    for (path, fill) in files {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        if let Err(error) = std::fs::create_dir_all(&dir) {
+            clean(&written);
+            return Err(OutputError::CreateDir { dir, path, error });
+        }
+        let tmp = temp_path(&dir, &path);
+        guards.push(Pending::new(&tmp));
+        let filled = fill(&tmp);
+        written.push((path, tmp));
+        if let Err(e) = filled {
+            clean(&written);
+            return Err(e);
+        }
+    }
+    // The interrupt handler takes this lock before it removes the temporaries: it never
+    // runs between two renames.
+    let _renaming = PENDING.lock();
+    for (k, (path, tmp)) in written.iter().enumerate() {
+        if let Err(error) = std::fs::rename(tmp, path) {
+            for (done, _) in &written[..k] {
+                let _ = std::fs::remove_file(done);
+            }
+            clean(&written[k..]);
+            return Err(OutputError::Rename {
+                path: path.clone(),
+                error,
+            });
+        }
+    }
+    drop(_renaming);
+    drop(guards);
+    Ok(())
+}
+
+/// Refuses a file name longer than its directory's file system allows, before anything
+/// is written (the temporary names are short, so only the final rename would fail).
+fn check_name(path: &Path) -> Result<(), OutputError> {
+    let len = path.file_name().map_or(0, |n| n.len());
+    let max = name_max(path.parent().filter(|d| !d.as_os_str().is_empty()));
+    if len > max {
+        return Err(OutputError::NameTooLong {
+            path: path.to_path_buf(),
+            len,
+            max,
+        });
+    }
+    Ok(())
+}
+
+/// The longest file name the directory's file system takes (`pathconf(_PC_NAME_MAX)`,
+/// asked of the nearest directory that exists); 255 (Linux's NAME_MAX) where it cannot
+/// say.
+fn name_max(dir: Option<&Path>) -> usize {
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let mut d = dir.unwrap_or(Path::new("."));
+        while !d.is_dir() {
+            match d.parent() {
+                Some(p) if !p.as_os_str().is_empty() => d = p,
+                _ => {
+                    d = Path::new(".");
+                    break;
+                }
+            }
+        }
+        if let Ok(c) = std::ffi::CString::new(d.as_os_str().as_bytes()) {
+            // SAFETY: a valid NUL-terminated path; pathconf only reads it.
+            let n = unsafe { libc::pathconf(c.as_ptr(), libc::_PC_NAME_MAX) };
+            if n > 0 {
+                return n as usize;
+            }
+        }
+    }
+    let _ = dir;
+    255
 }
 
 /// Temporary files being written right now, removed by [`remove_temporaries_on_interrupt`]'s

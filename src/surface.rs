@@ -41,7 +41,8 @@ pub enum SurfaceError {
          (surface::MAX_SURFACE_VOXELS)"
     )]
     TooLarge { voxels: u64, max: u64 },
-    #[error("cannot write {path}: {error}")]
+    /// The output's error already names the file and says why.
+    #[error("{error}")]
     Write {
         path: String,
         error: crate::output::OutputError,
@@ -364,8 +365,18 @@ pub fn write_mesh(
         Some("obj") => {
             let mtl = path.with_extension("mtl");
             let (obj, mtl_text) = obj_text(mesh, materials, &mtl);
-            crate::output::write_file(&mtl, mtl_text.as_bytes()).map_err(fail)?;
-            crate::output::write_file(path, obj.as_bytes()).map_err(fail)
+            // Both or neither: an OBJ without its MTL, or an MTL left alone, is no output.
+            crate::output::write_together(vec![
+                (
+                    path.to_path_buf(),
+                    crate::output::bytes_fill(path, obj.as_bytes()),
+                ),
+                (
+                    mtl.clone(),
+                    crate::output::bytes_fill(&mtl, mtl_text.as_bytes()),
+                ),
+            ])
+            .map_err(fail)
         }
         Some("ply") => crate::output::write_file(path, &ply_bytes(mesh, materials)).map_err(fail),
         _ => Err(SurfaceError::Format { path: name }),

@@ -73,6 +73,57 @@ pub fn scene_source(text: &str, path: &Path) -> Result<Table, ExperimentError> {
     Ok(scene)
 }
 
+/// Every file an experiment given as `text` (overrides applied) at `path` reads: the
+/// file itself, its scene's and its models' `vox` and `mesh` files, and each OBJ's
+/// material libraries (`mtllib`). What a command that writes must never overwrite.
+/// Paths that do not resolve are left out (the loader reports them).
+pub fn input_files(text: &str, path: &Path) -> Vec<PathBuf> {
+    let mut files = vec![path.to_path_buf()];
+    let Ok(mut scene) = scene_source(text, path) else {
+        return files;
+    };
+    for_each_source_path(&mut scene, |_, v| {
+        let Value::String(p) = v else { return };
+        let asset = PathBuf::from(p.as_str());
+        let is_obj = asset
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+        if is_obj {
+            if let Ok(bytes) = crate::input::read_file(&asset, crate::input::MAX_MESH_BYTES, "mesh")
+            {
+                let dir = asset.parent().unwrap_or(Path::new(""));
+                for line in String::from_utf8_lossy(&bytes).lines() {
+                    let line = line.trim_start();
+                    if let Some(lib) = line.strip_prefix("mtllib ") {
+                        files.push(dir.join(lib.trim()));
+                    }
+                }
+            }
+        }
+        files.push(asset);
+    });
+    files
+}
+
+/// The first of `outputs` that is one of `inputs` (the same file, however named), as
+/// (output, input): a command's refusal to overwrite what it reads.
+pub fn overwrites<'a>(
+    outputs: &'a [PathBuf],
+    inputs: &'a [PathBuf],
+) -> Option<(&'a Path, &'a Path)> {
+    let inputs: Vec<(PathBuf, &Path)> = inputs
+        .iter()
+        .filter_map(|i| Some((std::fs::canonicalize(i).ok()?, i.as_path())))
+        .collect();
+    outputs.iter().find_map(|o| {
+        let o_canon = std::fs::canonicalize(o).ok()?;
+        inputs
+            .iter()
+            .find(|(c, _)| *c == o_canon)
+            .map(|(_, i)| (o.as_path(), *i))
+    })
+}
+
 /// `source` (a [`scene_source`]) for a file written into `dest_dir`: each absolute
 /// `vox`/`mesh` path that shares a directory (not just the root) with `dest_dir` becomes
 /// relative to `dest_dir` (`..` up to the common ancestor, then down), so a file

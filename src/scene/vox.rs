@@ -802,20 +802,9 @@ pub fn write_vox(
     data.write_vox(&mut bytes)
         .map_err(|e| fail(LoadErrorKind::Write(e)))?;
 
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
-    let name = path.file_name().ok_or_else(|| {
-        fail(LoadErrorKind::InvalidOption(
-            "the destination has no file name".into(),
-        ))
-    })?;
-    let tmp_name = format!(".{}.tmp{}", name.to_string_lossy(), std::process::id());
-    let tmp = dir.map_or_else(|| PathBuf::from(&tmp_name), |d| d.join(&tmp_name));
-    let result = std::fs::write(&tmp, &bytes).and_then(|()| std::fs::rename(&tmp, path));
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(fail(LoadErrorKind::Write(e)));
-    }
-    Ok(())
+    // As every output: complete or not at all, and any name the file system takes.
+    crate::output::write_file(path, &bytes)
+        .map_err(|e| fail(LoadErrorKind::Write(std::io::Error::other(e.cause()))))
 }
 
 fn vox_data(grid: &Grid, materials: &[Material]) -> DotVoxData {
