@@ -400,10 +400,21 @@ impl std::str::FromStr for Override {
     type Err = String;
 
     fn from_str(s: &str) -> Result<Self, String> {
-        let (key, value) = s
-            .split_once('=')
-            .ok_or_else(|| format!("`{s}`: expected KEY=VALUE, e.g. render.width=64"))?;
+        let (key, value) = s.split_once('=').ok_or_else(|| {
+            format!(
+                "`{}`: expected KEY=VALUE, e.g. render.width=64",
+                crate::input::excerpt(s, 120)
+            )
+        })?;
         let key = key.trim();
+        let parts = key.split('.').count();
+        if parts > MAX_KEY_PARTS {
+            return Err(format!(
+                "`{}`: a key of {parts} dotted parts; keys have at most {MAX_KEY_PARTS} \
+                 (e.g. techniques.sdf.softness)",
+                crate::input::excerpt(key, 60)
+            ));
+        }
         let ok = !key.is_empty()
             && key.split('.').all(|seg| {
                 let name = seg.split_once('[').map_or(seg, |(n, rest)| {
@@ -423,14 +434,28 @@ impl std::str::FromStr for Override {
             });
         if !ok {
             return Err(format!(
-                "`{key}`: a key is dotted names, with [N] after an array of tables's name \
-                 (e.g. render.width, lights[0].intensity)"
+                "`{}`: a key is dotted names, with [N] after an array of tables's name \
+                 (e.g. render.width, lights[0].intensity)",
+                crate::input::excerpt(key, 120)
             ));
         }
         Ok(Self {
             key: key.to_string(),
             value: value.trim().to_string(),
         })
+    }
+}
+
+/// Most dotted parts a `--set` key may have: the deepest key of a file is
+/// `techniques.<model>.<setting>` or `ablate.sweep`; a deeper one cannot name a setting,
+/// and 5,000 parts made a TOML document too deep to read back.
+pub const MAX_KEY_PARTS: usize = 8;
+
+impl Override {
+    /// `key=value` for a message: the value cut to 120 characters, as a file's values
+    /// are in its messages.
+    pub fn label(&self) -> String {
+        format!("{}={}", self.key, crate::input::excerpt(&self.value, 120))
     }
 }
 
@@ -447,7 +472,7 @@ pub fn apply_overrides(text: &str, overrides: &[Override]) -> Result<String, Exp
         return Ok(text.to_string());
     };
     let at = |o: &Override, message: String| ExperimentError::Invalid {
-        file: format!("--set {o}"),
+        file: format!("--set {}", o.label()),
         line: None,
         key: o.key.clone(),
         message: format!(": {message}"),
@@ -583,7 +608,7 @@ fn blame_override(e: ExperimentError, overrides: &[Override]) -> ExperimentError
             other => other,
         };
     };
-    let file = format!("--set {o}");
+    let file = format!("--set {}", o.label());
     match e {
         ExperimentError::Invalid { key, message, .. } => ExperimentError::Invalid {
             file,
@@ -767,6 +792,17 @@ impl<'a> Ctx<'a> {
             Some(at) => format!("{}expected a table", &msg[..at]),
             None => msg,
         };
+        // serde quotes the whole value ("invalid type: string \"...\""): cut at 120 as
+        // the value itself is.
+        let msg = match (msg.find(" \""), msg.rfind("\", ")) {
+            (Some(a), Some(b)) if b > a + 2 => format!(
+                "{} \"{}\"{}",
+                &msg[..a],
+                crate::input::excerpt(&msg[a + 2..b], 120),
+                &msg[b + 1..]
+            ),
+            _ => msg,
+        };
         let mut msg = crate::input::excerpt(&msg, 400);
         // toml says "duplicate key" without the key: its span covers the key's text (the
         // header's for a table defined twice).
@@ -819,7 +855,7 @@ impl<'a> Ctx<'a> {
             file: self.file.clone(),
             line,
             message: match self.raw_value(&key) {
-                Some(v) => format!(" = {v}: {msg}"),
+                Some(v) => format!(" = {}: {msg}", crate::input::excerpt(&v.to_string(), 120)),
                 None => format!(": {msg}"),
             },
             key,

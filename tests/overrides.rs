@@ -89,6 +89,23 @@ fn errors_name_the_override() {
     ] {
         assert!(bad.parse::<Override>().is_err(), "{bad}");
     }
+    // A huge value is cut in the message (as a file's values are): 200 KB of stderr
+    // otherwise.
+    let huge = format!("render.width=\"{}\"", "w".repeat(200_000));
+    let e = err(&[huge.as_str()]);
+    assert!(
+        e.len() < 2_000 && e.contains("more characters"),
+        "{} bytes",
+        e.len()
+    );
+    let huge_key = format!("{}!=1", "k".repeat(200_000));
+    let e = huge_key.parse::<Override>().map(|_| ()).unwrap_err();
+    assert!(e.len() < 2_000, "{} bytes", e.len());
+    // A key too deep to name any setting is refused as the override's fault, not the
+    // file's.
+    let deep = format!("{}=1", vec!["a"; 5_000].join("."));
+    let e = deep.parse::<Override>().map(|_| ()).unwrap_err();
+    assert!(e.contains("5000 dotted parts") && e.len() < 500, "{e}");
     // The file's own errors keep its line.
     let e = Experiment::from_str_with("[render]\nwidth = -1\n", "f.toml", &set(&["render.spp=2"]))
         .unwrap_err()
