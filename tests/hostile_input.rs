@@ -351,3 +351,78 @@ fn a_type_error_states_the_allowed_range() {
         .to_string();
     assert!(e.contains("expected a number") && e.contains("> 0"), "{e}");
 }
+
+/// A mesh of the wrong scale is named as such (its size and the voxel it would give),
+/// not as "too large".
+#[test]
+fn a_mesh_of_the_wrong_scale_says_so() {
+    let dir = temp_dir("scale");
+    for (scale, what) in [("1e-30", "tiny"), ("1e30", "huge")] {
+        let p = dir.join(format!("{what}.obj"));
+        std::fs::write(
+            &p,
+            format!(
+                "v 0 0 0\nv {scale} 0 0\nv 0 {scale} 0\nv 0 0 {scale}\n\
+                 f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+            ),
+        )
+        .unwrap();
+        let e = voxelize_mesh(&p, &VoxelizeOptions::count(8))
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            !e.contains("too large")
+                && e.contains("voxel size must be in")
+                && e.contains("scale the mesh"),
+            "{what}: {e}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// glTF buffer URIs: a file: URI names the file it names; other schemes are refused
+/// by name, never read as a relative path.
+#[test]
+fn gltf_buffer_uris_with_a_scheme() {
+    let dir = temp_dir("gltf_uri");
+    // One triangle: three f32 positions.
+    let mut bin = Vec::new();
+    for v in [0f32, 0., 0., 1., 0., 0., 0., 1., 0.] {
+        bin.extend(v.to_le_bytes());
+    }
+    let bin_path = dir.join("tri.bin");
+    std::fs::write(&bin_path, &bin).unwrap();
+    let gltf = |uri: &str| {
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"uri":"{uri}","byteLength":36}}],
+            "bufferViews":[{{"buffer":0,"byteLength":36}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",
+              "min":[0,0,0],"max":[1,1,0]}}],
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+            "nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#
+        )
+    };
+    let p = dir.join("m.gltf");
+    for uri in [
+        format!("file://{}", bin_path.display()),
+        format!("file://localhost{}", bin_path.display()),
+        "tri.bin".to_string(),
+    ] {
+        std::fs::write(&p, gltf(&uri)).unwrap();
+        let m = voxlab::scene::load_mesh(&p).unwrap_or_else(|e| panic!("{uri}: {e}"));
+        assert_eq!(m.triangles.len(), 1, "{uri}");
+    }
+    for (uri, says) in [
+        ("http://example.invalid/tri.bin", "http: URI"),
+        ("file://otherhost/tri.bin", "another host"),
+    ] {
+        std::fs::write(&p, gltf(uri)).unwrap();
+        let e = voxlab::scene::load_mesh(&p)
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(says), "{uri}: {e}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -19,7 +19,7 @@
 //! get a grey one. [`VoxelizeOptions::material`] replaces them all with one material.
 
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{DMat4, DVec3};
 
@@ -408,7 +408,38 @@ fn gltf_buffers(gltf: &gltf::Gltf, path: &Path) -> Result<Vec<gltf::buffer::Data
                                 crate::input::excerpt(uri, 80)
                             )
                         })?;
-                    let file = dir.join(name.as_ref());
+                    // A URI with a scheme is no relative path: file: URIs name a local
+                    // file (RFC 8089; host empty or localhost), others are not fetched.
+                    let scheme = name.split_once(':').map(|(s, _)| s).filter(|s| {
+                        s.len() > 1
+                            && s.chars()
+                                .all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
+                    });
+                    let file = match scheme {
+                        None => dir.join(name.as_ref()),
+                        Some(s) if s.eq_ignore_ascii_case("file") => {
+                            let rest = &name[s.len() + 1..];
+                            let local = rest
+                                .strip_prefix("//localhost/")
+                                .map(|p| format!("/{p}"))
+                                .or_else(|| rest.strip_prefix("//").map(str::to_string))
+                                .unwrap_or_else(|| rest.to_string());
+                            if !local.starts_with('/') {
+                                return Err(format!(
+                                    "buffer {i}: its URI {:?} names a file on another host",
+                                    crate::input::excerpt(uri, 80)
+                                ));
+                            }
+                            PathBuf::from(local)
+                        }
+                        Some(s) => {
+                            return Err(format!(
+                                "buffer {i}: its URI {:?} is a {s}: URI; only relative paths, \
+                                 file: and data: URIs are read",
+                                crate::input::excerpt(uri, 80)
+                            ));
+                        }
+                    };
                     crate::input::read_file(&file, crate::input::MAX_MESH_BYTES, "glTF buffer")
                         .map_err(|e| format!("buffer {i} ({}): {e}", file.display()))?
                 }
@@ -717,6 +748,23 @@ pub fn voxelize(
             s
         }
     };
+    // A mesh of the wrong scale (1e-30 across, or light years) is not "too large": say
+    // what its voxels would be, against the range a grid takes.
+    use crate::scene::grid::{MAX_VOXEL_SIZE, MIN_VOXEL_SIZE};
+    if !(MIN_VOXEL_SIZE..=MAX_VOXEL_SIZE).contains(&voxel_size) {
+        return Err(LoadErrorKind::InvalidOption(format!(
+            "the mesh is {:e} x {:e} x {:e} units, so its voxels would be {voxel_size:e} \
+             units across, and a grid's voxel size must be in [{MIN_VOXEL_SIZE:e}, \
+             {MAX_VOXEL_SIZE:e}]: scale the mesh{}",
+            extent.x,
+            extent.y,
+            extent.z,
+            match options.resolution {
+                Resolution::Count(_) => "",
+                Resolution::VoxelSize(_) => " or choose another voxel size",
+            }
+        )));
+    }
     let dims = grid_layout(extent, voxel_size, options.storage).map_err(LoadErrorKind::TooLarge)?;
     let voxels = dims.x as u64 * dims.y as u64 * dims.z as u64;
     let sparse = options.storage.is_sparse_for(voxels);
