@@ -951,15 +951,12 @@ fn cmd_mesh(a: &MeshArgs) -> Result<()> {
     );
     for m in mesh.materials() {
         let count = mesh.triangle_material.iter().filter(|&&k| k == m).count();
-        let open = mesh.open_edges(m);
+        // "closed" as trimesh and open3d mean it: watertight, consistently wound, edge-
+        // and vertex-manifold, a positive volume.
         println!(
             "  {m:>3} {:<28} {count:>9} triangles, {}",
             e.scene.materials[m as usize].name,
-            if open == 0 {
-                "closed".to_string()
-            } else {
-                format!("{open} open edges")
-            }
+            mesh.manifold_report(Some(m))
         );
     }
     println!("wrote {}", a.out.display());

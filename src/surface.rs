@@ -1,14 +1,16 @@
 //! Smooth surfaces of a voxel grid, per material: the seed's O6 (a), `voxlab mesh`.
 //!
-//! Each material's voxels are a binary volume; its surface is extracted by Naive Surface
-//! Nets (one vertex per dual cell the surface crosses, quads between them; the
-//! `fast-surface-nets` crate) on the volume padded by one voxel of outside, so the mesh
-//! is closed. On a binary volume every vertex starts at the centre of its dual cell
-//! (a staircase with chamfers); it is then relaxed as Gibson's constrained elastic
-//! surface nets do ("Constrained Elastic Surface Nets", MERL TR 1998): each vertex moves
-//! to the mean of its neighbours, clamped to its own cell, so the surface smooths out
-//! while staying within the cells that the voxel boundary passes through (at most one
-//! voxel from it, and the topology, hence closedness, unchanged).
+//! Each material's voxels are a binary volume; its surface is extracted by surface nets
+//! (one vertex per piece of surface in each dual cell, quads between them; Gibson,
+//! "Constrained Elastic Surface Nets", MERL TR 1998) on the volume padded by one voxel
+//! of outside. Where voxels of the material touch only along an edge or at a corner, the
+//! cell's vertex is split by the pieces of surface in it ([`cell_case`], as manifold
+//! dual contouring does), so every surface is a closed 2-manifold: each edge shared by
+//! exactly two triangles, each vertex's triangles one fan ([`SurfaceMesh::is_closed`]
+//! checks it as trimesh and open3d do). On a binary volume every vertex starts at the
+//! mean of its crossings' midpoints (a staircase with chamfers); it is then relaxed,
+//! each vertex kept in its own cell, and the material's volume restored (see
+//! [`relax`]).
 //!
 //! A boundary between two non-void materials gets a surface from each side (coincident,
 //! opposite normals): each material's surface is closed on its own.
@@ -16,8 +18,6 @@
 use std::io::Write as _;
 use std::path::Path;
 
-use fast_surface_nets::ndshape::{RuntimeShape, Shape};
-use fast_surface_nets::{SurfaceNetsBuffer, surface_nets};
 use glam::DVec3;
 
 use crate::scene::{Grid, Material, VOID};
@@ -154,12 +154,169 @@ impl SurfaceMesh {
         edges
     }
 
+    /// How `material`'s triangles (all, with `None`) fall short of a closed 2-manifold,
+    /// by the definitions the field's tools use, after welding vertices at equal
+    /// positions (as trimesh does on load): trimesh's `is_watertight` (every edge shared
+    /// by exactly two triangles) and `is_winding_consistent` (those two run it opposite
+    /// ways), open3d's `is_edge_manifold` and `is_vertex_manifold` (a vertex's triangles
+    /// form one fan), no triangle of zero area, and trimesh's `is_volume` (a positive
+    /// enclosed volume).
+    pub fn manifold_report(&self, material: Option<u8>) -> ManifoldReport {
+        use std::collections::HashMap;
+        let tris: Vec<[u32; 3]> = self
+            .triangles
+            .iter()
+            .zip(&self.triangle_material)
+            .filter(|(_, m)| material.is_none_or(|k| k == **m))
+            .map(|(t, _)| *t)
+            .collect();
+        // Weld by position.
+        let mut welded: HashMap<[u64; 3], u32> = HashMap::new();
+        let mut at = Vec::new();
+        let id: Vec<u32> = self
+            .positions
+            .iter()
+            .map(|p| {
+                // +0.0 makes -0.0 and 0.0 one key.
+                let key = p.to_array().map(|c| (c + 0.0).to_bits());
+                *welded.entry(key).or_insert_with(|| {
+                    at.push(*p);
+                    at.len() as u32 - 1
+                })
+            })
+            .collect();
+        let tris: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|i| id[i as usize])).collect();
+        let mut report = ManifoldReport {
+            triangles: tris.len(),
+            ..Default::default()
+        };
+        let mut edges: HashMap<(u32, u32), (u32, i64)> = HashMap::new();
+        let mut around: HashMap<u32, Vec<usize>> = HashMap::new();
+        let mut volume = 0.0;
+        for (f, t) in tris.iter().enumerate() {
+            let [a, b, c] = t.map(|i| i as usize);
+            if a == b || b == c || a == c {
+                report.degenerate += 1;
+                continue;
+            }
+            let [pa, pb, pc] = [a, b, c].map(|i| at[i]);
+            if (pb - pa).cross(pc - pa).length_squared() == 0.0 {
+                report.degenerate += 1;
+            }
+            volume += pa.dot(pb.cross(pc)) / 6.0;
+            for k in 0..3 {
+                let (x, y) = (t[k], t[(k + 1) % 3]);
+                let e = edges.entry((x.min(y), x.max(y))).or_default();
+                e.0 += 1;
+                e.1 += if x < y { 1 } else { -1 };
+                around.entry(t[k]).or_default().push(f);
+            }
+        }
+        for &(n, signed) in edges.values() {
+            if n != 2 {
+                if n > 2 {
+                    report.non_manifold_edges += 1;
+                } else {
+                    report.open_edges += 1;
+                }
+            } else if signed != 0 {
+                report.inconsistent_edges += 1;
+            }
+        }
+        // A vertex's triangles are one fan: connected through the edges at the vertex.
+        for (&v, faces) in &around {
+            let mut seen = vec![false; faces.len()];
+            let mut stack = vec![0];
+            seen[0] = true;
+            while let Some(i) = stack.pop() {
+                let ti = tris[faces[i]];
+                for (j, &g) in faces.iter().enumerate() {
+                    if seen[j] {
+                        continue;
+                    }
+                    let tj = tris[g];
+                    let shares = ti.iter().filter(|&&x| x != v && tj.contains(&x)).count() > 0;
+                    if shares {
+                        seen[j] = true;
+                        stack.push(j);
+                    }
+                }
+            }
+            if seen.iter().any(|s| !s) {
+                report.non_manifold_vertices += 1;
+            }
+        }
+        report.volume = volume;
+        report
+    }
+
+    /// Whether `material`'s surface is a closed, consistently wound 2-manifold
+    /// enclosing a positive volume ([`SurfaceMesh::manifold_report`]).
+    pub fn is_closed(&self, material: Option<u8>) -> bool {
+        self.manifold_report(material).is_closed()
+    }
+
     /// The materials that have triangles, ascending.
     pub fn materials(&self) -> Vec<u8> {
         let mut m = self.triangle_material.clone();
         m.sort_unstable();
         m.dedup();
         m
+    }
+}
+
+/// What [`SurfaceMesh::manifold_report`] found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ManifoldReport {
+    pub triangles: usize,
+    /// Edges of one triangle (trimesh: not watertight).
+    pub open_edges: usize,
+    /// Edges of three or more triangles (open3d: not edge-manifold).
+    pub non_manifold_edges: usize,
+    /// Edges whose two triangles run them the same way (trimesh: winding inconsistent).
+    pub inconsistent_edges: usize,
+    /// Vertices whose triangles are more than one fan (open3d: not vertex-manifold).
+    pub non_manifold_vertices: usize,
+    /// Triangles of zero area.
+    pub degenerate: usize,
+    /// Enclosed volume (divergence theorem), world units cubed.
+    pub volume: f64,
+}
+
+impl ManifoldReport {
+    pub fn is_closed(&self) -> bool {
+        self.triangles > 0
+            && self.open_edges == 0
+            && self.non_manifold_edges == 0
+            && self.inconsistent_edges == 0
+            && self.non_manifold_vertices == 0
+            && self.degenerate == 0
+            && self.volume > 0.0
+    }
+}
+
+impl std::fmt::Display for ManifoldReport {
+    /// "closed 2-manifold", or what it is not.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.is_closed() {
+            return write!(f, "closed 2-manifold");
+        }
+        let mut faults = Vec::new();
+        for (n, what) in [
+            (self.open_edges, "open edges"),
+            (self.non_manifold_edges, "non-manifold edges"),
+            (self.inconsistent_edges, "inconsistently wound edges"),
+            (self.non_manifold_vertices, "non-manifold vertices"),
+            (self.degenerate, "degenerate triangles"),
+        ] {
+            if n > 0 {
+                faults.push(format!("{n} {what}"));
+            }
+        }
+        if self.volume <= 0.0 {
+            faults.push(format!("enclosed volume {:.3e}", self.volume));
+        }
+        write!(f, "not a closed 2-manifold: {}", faults.join(", "))
     }
 }
 
@@ -234,44 +391,24 @@ fn solid_near(grid: &Grid, p: DVec3) -> u8 {
 /// triangle then of the material of the voxel behind it), appended to `mesh`.
 fn append_material(grid: &Grid, material: Option<u8>, relax: u32, mesh: &mut SurfaceMesh) {
     let d = grid.dims();
-    // One voxel of outside before the grid and two after: the extractor makes no face
-    // for a cube edge whose cube starts on its last layer, so the outside layer that
-    // closes the grid's far faces must not be the last.
-    let padded = [d.x + 3, d.y + 3, d.z + 3];
-    let shape = RuntimeShape::<u32, 3>::new(padded);
-    // Negative inside the material; the one-voxel border is outside.
-    let mut field = vec![0.5f32; shape.usize()];
+    // One voxel of outside on every side: the surface closes inside the padded box.
+    let padded = [d.x as usize + 2, d.y as usize + 2, d.z as usize + 2];
+    let mut inside = vec![false; padded[0] * padded[1] * padded[2]];
     for (i, &m) in grid.data().iter().enumerate() {
         if material.map_or(m != VOID, |k| m == k) {
             let i = i as u32;
             let (x, y, z) = (i % d.x, (i / d.x) % d.y, i / (d.x * d.y));
-            field[shape.linearize([x + 1, y + 1, z + 1]) as usize] = -0.5;
+            let at =
+                (x as usize + 1) + padded[0] * ((y as usize + 1) + padded[1] * (z as usize + 1));
+            inside[at] = true;
         }
     }
-    let mut buf = SurfaceNetsBuffer::default();
-    surface_nets(
-        &field,
-        &shape,
-        [0; 3],
-        [padded[0] - 1, padded[1] - 1, padded[2] - 1],
-        &mut buf,
-    );
-    drop(field);
-    let mut p: Vec<DVec3> = buf
-        .positions
-        .iter()
-        .map(|q| DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64))
-        .collect();
-    let cells: Vec<DVec3> = buf
-        .surface_points
-        .iter()
-        .map(|c| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64))
-        .collect();
-    let triangles: Vec<[u32; 3]> = buf
-        .indices
-        .chunks_exact(3)
-        .map(|t| [t[0], t[1], t[2]])
-        .collect();
+    let Nets {
+        positions: mut p,
+        cells,
+        triangles,
+    } = surface_nets(&inside, padded);
+    drop(inside);
     // Neighbours along the mesh's edges, each once.
     let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); p.len()];
     for t in &triangles {
@@ -343,6 +480,292 @@ fn append_material(grid: &Grid, material: Option<u8>, relax: u32, mesh: &mut Sur
     mesh.positions.extend(p.into_iter().map(world));
     mesh.normals
         .extend(normals.into_iter().map(|n| n.normalize_or_zero()));
+}
+
+/// The crossings of a binary volume's cell (a 2x2x2 block of voxel centres), grouped
+/// into the surface's pieces within it. Corner k of a cell is at offset (k & 1, k >> 1 &
+/// 1, k >> 2 & 1); edge `4a + ob + 2oc` runs along axis a from the corner whose offsets
+/// are `ob` on axis (a + 1) % 3 and `oc` on axis (a + 2) % 3.
+struct CellCase {
+    /// Each piece of the surface in the cell: the crossed edges it passes, in order
+    /// round the piece (a closed loop on the cell's faces).
+    loops: Vec<Vec<u8>>,
+    /// Per edge, the loop it belongs to (`u8::MAX`: not crossed).
+    loop_of: [u8; 12],
+}
+
+fn edge_index(axis: usize, ob: usize, oc: usize) -> usize {
+    4 * axis + ob + 2 * oc
+}
+
+/// The two corners of cell edge `e`, from offset 0 to offset 1 along its axis.
+fn edge_corners(e: usize) -> (usize, usize) {
+    let a = e / 4;
+    let mut off = [0usize; 3];
+    off[(a + 1) % 3] = e & 1;
+    off[(a + 2) % 3] = (e >> 1) & 1;
+    let c0 = off[0] + 2 * off[1] + 4 * off[2];
+    (c0, c0 + (1 << a))
+}
+
+/// Face `f = 2n + s` of a cell (the corners whose offset on axis n is s): its corners in
+/// order round it and its edges, edge i joining corners i and i + 1.
+fn face_ring(f: usize) -> ([usize; 4], [usize; 4]) {
+    let (n, s) = (f / 2, f % 2);
+    let (u, v) = ((n + 1) % 3, (n + 2) % 3);
+    let corner = |uo: usize, vo: usize| {
+        let mut off = [0usize; 3];
+        off[n] = s;
+        off[u] = uo;
+        off[v] = vo;
+        off[0] + 2 * off[1] + 4 * off[2]
+    };
+    (
+        [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)],
+        [
+            edge_index(u, 0, s),
+            edge_index(v, s, 1),
+            edge_index(u, 1, s),
+            edge_index(v, s, 0),
+        ],
+    )
+}
+
+/// Whether face `f` of a cell of `config` has its inside corners on a diagonal (four
+/// crossed edges: the one place where the pairing is a choice).
+fn face_is_ambiguous(config: usize, f: usize) -> bool {
+    let (corners, _) = face_ring(f);
+    let inside = corners.map(|k| config >> k & 1 == 1);
+    inside[0] == inside[2] && inside[1] == inside[3] && inside[0] != inside[1]
+}
+
+/// Whether the two inside corners of ambiguous face `f` are joined through the rest of
+/// the cell (a path of inside corners along the cell's edges).
+fn diagonal_joined(config: usize, f: usize) -> bool {
+    let (corners, _) = face_ring(f);
+    let inside = |k: usize| config >> k & 1 == 1;
+    let (from, to) = if inside(corners[0]) {
+        (corners[0], corners[2])
+    } else {
+        (corners[1], corners[3])
+    };
+    let mut seen = 1u8 << from;
+    let mut stack = vec![from];
+    while let Some(k) = stack.pop() {
+        for a in 0..3 {
+            let j = k ^ (1 << a);
+            if inside(j) && seen >> j & 1 == 0 {
+                seen |= 1 << j;
+                stack.push(j);
+            }
+        }
+    }
+    seen >> to & 1 == 1
+}
+
+/// The pieces of a cell of `config` whose ambiguous faces are paired as `outside_faces`
+/// says (bit f set: face f keeps its outside corners apart; clear: its inside corners).
+/// Every crossed edge lies on two faces and so has two partners: the pieces are closed
+/// loops. Both cells of a face pair its edges alike, so the pieces of neighbouring cells
+/// fit. A loop crosses an ambiguous face twice where the face's diagonal pair that it
+/// keeps apart is joined through the rest of the cell; [`surface_nets`] chooses each
+/// face's pairing so that this never happens in both of its cells (where it would, four
+/// triangles would share an edge).
+fn cell_case(config: usize, outside_faces: u8) -> &'static CellCase {
+    static CASES: std::sync::OnceLock<Vec<CellCase>> = std::sync::OnceLock::new();
+    let cases = CASES.get_or_init(|| {
+        (0..256 * 64usize)
+            .map(|i| build_case(i % 256, (i / 256) as u8))
+            .collect()
+    });
+    &cases[config + 256 * outside_faces as usize]
+}
+
+fn build_case(config: usize, outside_faces: u8) -> CellCase {
+    let inside = |k: usize| config >> k & 1 == 1;
+    let crossed = |e: usize| {
+        let (a, b) = edge_corners(e);
+        inside(a) != inside(b)
+    };
+    let mut partners: [Vec<usize>; 12] = Default::default();
+    let mut link = |a: usize, b: usize| {
+        partners[a].push(b);
+        partners[b].push(a);
+    };
+    for f in 0..6 {
+        let (corners, edges) = face_ring(f);
+        let cut: Vec<usize> = edges.iter().copied().filter(|&e| crossed(e)).collect();
+        match cut.len() {
+            2 => link(cut[0], cut[1]),
+            4 => {
+                // Each segment cuts off one corner of the side kept apart.
+                let apart = outside_faces >> f & 1 == 0;
+                for i in 0..4 {
+                    if inside(corners[i]) == apart {
+                        link(edges[(i + 3) % 4], edges[i]);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    let mut loop_of = [u8::MAX; 12];
+    let mut loops = Vec::new();
+    for start in (0..12).filter(|&e| crossed(e)) {
+        if loop_of[start] != u8::MAX {
+            continue;
+        }
+        let id = loops.len() as u8;
+        let mut piece = vec![start as u8];
+        loop_of[start] = id;
+        let (mut prev, mut at) = (start, partners[start][0]);
+        while at != start {
+            loop_of[at] = id;
+            piece.push(at as u8);
+            let next = if partners[at][0] == prev {
+                partners[at][1]
+            } else {
+                partners[at][0]
+            };
+            (prev, at) = (at, next);
+        }
+        loops.push(piece);
+    }
+    CellCase { loops, loop_of }
+}
+
+/// A surface of a binary volume in padded index space (voxel centres at integers).
+struct Nets {
+    positions: Vec<DVec3>,
+    /// Each vertex's cell (its minimum corner), which relaxation keeps it in.
+    cells: Vec<DVec3>,
+    /// Counter-clockwise seen from outside.
+    triangles: Vec<[u32; 3]>,
+}
+
+/// Surface nets of `inside` (dims `p`, x fastest; its outermost layer must be outside):
+/// a vertex per piece of the surface in each cell ([`cell_case`]), at the mean of its
+/// crossings' midpoints, and a quad, as two triangles, round every crossed edge between
+/// two voxel centres (Gibson 1998's surface nets, with the cell's vertex split where the
+/// surface has more than one piece in it).
+fn surface_nets(inside: &[bool], p: [usize; 3]) -> Nets {
+    let at = |x: usize, y: usize, z: usize| x + p[0] * (y + p[1] * z);
+    let c = [p[0] - 1, p[1] - 1, p[2] - 1];
+    let cell_at = |x: usize, y: usize, z: usize| x + c[0] * (y + c[1] * z);
+    let config = |m: [usize; 3]| {
+        (0..8).fold(0usize, |acc, k| {
+            let i = at(m[0] + (k & 1), m[1] + (k >> 1 & 1), m[2] + (k >> 2 & 1));
+            acc | (usize::from(inside[i]) << k)
+        })
+    };
+    // An ambiguous face keeps its inside corners apart, unless the cells on both sides
+    // join them through their other corners: then a loop of each would cross the face
+    // twice, so the face keeps its outside corners apart instead (which neither cell
+    // then joins: an inside and an outside path round the face cannot both exist).
+    let case_of = |m: [usize; 3]| {
+        let k = config(m);
+        let mut outside_faces = 0u8;
+        for f in 0..6 {
+            if !face_is_ambiguous(k, f) {
+                continue;
+            }
+            let (n, side) = (f / 2, f % 2);
+            let mut other = m;
+            if side == 1 {
+                other[n] += 1;
+            } else {
+                other[n] -= 1;
+            }
+            let g = f ^ 1;
+            if diagonal_joined(k, f) && diagonal_joined(config(other), g) {
+                outside_faces |= 1 << f;
+            }
+        }
+        cell_case(k, outside_faces)
+    };
+    let mut first = vec![u32::MAX; c[0] * c[1] * c[2]];
+    let mut positions = Vec::new();
+    let mut cells = Vec::new();
+    for z in 0..c[2] {
+        for y in 0..c[1] {
+            for x in 0..c[0] {
+                let k = config([x, y, z]);
+                if k == 0 || k == 255 {
+                    continue;
+                }
+                let case = case_of([x, y, z]);
+                first[cell_at(x, y, z)] = positions.len() as u32;
+                let base = DVec3::new(x as f64, y as f64, z as f64);
+                for piece in &case.loops {
+                    let sum: DVec3 = piece
+                        .iter()
+                        .map(|&e| {
+                            let (c0, _) = edge_corners(e as usize);
+                            let corner = DVec3::new(
+                                (c0 & 1) as f64,
+                                (c0 >> 1 & 1) as f64,
+                                (c0 >> 2 & 1) as f64,
+                            );
+                            let mut half = DVec3::ZERO;
+                            half[e as usize / 4] = 0.5;
+                            corner + half
+                        })
+                        .sum();
+                    positions.push(base + sum / piece.len() as f64);
+                    cells.push(base);
+                }
+            }
+        }
+    }
+    let mut triangles = Vec::new();
+    for z in 0..p[2] {
+        for y in 0..p[1] {
+            for x in 0..p[0] {
+                let here = [x, y, z];
+                for a in 0..3 {
+                    let mut there = here;
+                    there[a] += 1;
+                    if there[a] >= p[a] {
+                        continue;
+                    }
+                    let lower = inside[at(x, y, z)];
+                    if lower == inside[at(there[0], there[1], there[2])] {
+                        continue;
+                    }
+                    // The four cells round the edge, counter-clockwise about +a.
+                    let (b, cc) = ((a + 1) % 3, (a + 2) % 3);
+                    let quad = [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(sb, sc)| {
+                        let mut m = here;
+                        m[b] -= sb;
+                        m[cc] -= sc;
+                        let piece = case_of(m).loop_of[edge_index(a, sb, sc)];
+                        first[cell_at(m[0], m[1], m[2])] + u32::from(piece)
+                    });
+                    // Outward is +a where the lower voxel is the inside one.
+                    let [q0, q1, q2, q3] = if lower {
+                        quad
+                    } else {
+                        [quad[3], quad[2], quad[1], quad[0]]
+                    };
+                    let len = |i: u32, j: u32| {
+                        (positions[i as usize] - positions[j as usize]).length_squared()
+                    };
+                    if len(q0, q2) <= len(q1, q3) {
+                        triangles.push([q0, q1, q2]);
+                        triangles.push([q0, q2, q3]);
+                    } else {
+                        triangles.push([q0, q1, q3]);
+                        triangles.push([q1, q2, q3]);
+                    }
+                }
+            }
+        }
+    }
+    Nets {
+        positions,
+        cells,
+        triangles,
+    }
 }
 
 /// Writes `mesh` as OBJ (with `usemtl` per material and an MTL file beside it, the

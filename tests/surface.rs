@@ -210,3 +210,147 @@ fn voxlab_mesh_writes_obj_and_ply_that_load_again() {
     assert!(!ok && err.contains("does not exist"), "{err}");
     assert!(!dir.join("x.stl").exists() && !dir.join("no").exists());
 }
+
+/// Two tetrahedra, as a soup welded by position, sharing `shared` of their corners:
+/// the check's own failing cases.
+fn two_tetrahedra(offset: DVec3) -> voxlab::surface::SurfaceMesh {
+    let tet = |o: DVec3| {
+        let [a, b, c, d] = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z].map(|p| p + o);
+        [[a, c, b], [a, b, d], [a, d, c], [b, c, d]]
+    };
+    let tris: Vec<[DVec3; 3]> = tet(DVec3::ZERO).into_iter().chain(tet(offset)).collect();
+    voxlab::surface::SurfaceMesh::from_soup(&tris, &[], &vec![1; tris.len()])
+}
+
+#[test]
+fn the_manifold_check_finds_what_trimesh_and_open3d_find() {
+    // Apart: two closed manifolds.
+    let apart = two_tetrahedra(DVec3::splat(5.0));
+    assert!(
+        apart.is_closed(Some(1)),
+        "{}",
+        apart.manifold_report(Some(1))
+    );
+    // Touching at one corner (welded): a non-manifold vertex, every edge fine.
+    let r = two_tetrahedra(DVec3::new(1.0, 0.0, 0.0) - DVec3::ZERO).manifold_report(Some(1));
+    assert_eq!(r.non_manifold_vertices, 1, "{r:?}");
+    assert_eq!((r.open_edges, r.non_manifold_edges), (0, 0), "{r:?}");
+    assert!(!r.is_closed());
+    // One triangle gone: three open edges. Flipped: inconsistent winding.
+    let mut open = two_tetrahedra(DVec3::splat(5.0));
+    open.triangles.pop();
+    let r = open.manifold_report(Some(1));
+    assert_eq!(r.open_edges, 3, "{r:?}");
+    let mut flipped = two_tetrahedra(DVec3::splat(5.0));
+    flipped.triangles[0].swap(1, 2);
+    let r = flipped.manifold_report(Some(1));
+    assert_eq!(r.inconsistent_edges, 3, "{r:?}");
+    // Inside out: a negative volume.
+    let mut inverted = two_tetrahedra(DVec3::splat(5.0));
+    for t in &mut inverted.triangles {
+        t.swap(1, 2);
+    }
+    assert!(inverted.manifold_report(Some(1)).volume < 0.0);
+    assert!(!inverted.is_closed(Some(1)));
+}
+
+/// Voxels that touch only along an edge or at a corner (the places where surface nets
+/// without splitting made four triangles share an edge or pinched a vertex), and random
+/// grids full of such places: every material's surface and the solid surface are closed
+/// 2-manifolds, at every relaxation.
+#[test]
+fn surfaces_of_edge_and_corner_contacts_are_closed_manifolds() {
+    use rand::{RngExt, SeedableRng};
+    let mut cases: Vec<(String, Grid)> = Vec::new();
+    for (name, a, b) in [
+        ("edge", IVec3::new(1, 1, 1), IVec3::new(2, 2, 1)),
+        ("corner", IVec3::new(1, 1, 1), IVec3::new(2, 2, 2)),
+        ("edge y-z", IVec3::new(1, 1, 1), IVec3::new(1, 2, 2)),
+    ] {
+        for other in [1u8, 2] {
+            let mut g = Grid::new(UVec3::splat(4), 1.0, DVec3::ZERO).unwrap();
+            g.set(a, 1);
+            g.set(b, other);
+            cases.push((format!("{name}, materials 1 and {other}"), g));
+        }
+    }
+    // A checkerboard: every pair of neighbours of a colour meets along edges.
+    let mut g = Grid::new(UVec3::new(6, 5, 4), 1.0, DVec3::ZERO).unwrap();
+    for z in 0..4 {
+        for y in 0..5 {
+            for x in 0..6 {
+                if (x + y + z) % 2 == 0 {
+                    g.set(IVec3::new(x, y, z), 1);
+                }
+            }
+        }
+    }
+    cases.push(("checkerboard".into(), g));
+    let mut rng = rand::rngs::StdRng::seed_from_u64(34);
+    for i in 0..24 {
+        let d = UVec3::new(
+            rng.random_range(2..9),
+            rng.random_range(2..9),
+            rng.random_range(2..9),
+        );
+        let density = rng.random_range(0.2..0.7);
+        let materials = 1 + i % 3;
+        let mut g = Grid::new(d, 1.0, DVec3::ZERO).unwrap();
+        for z in 0..d.z as i32 {
+            for y in 0..d.y as i32 {
+                for x in 0..d.x as i32 {
+                    if rng.random_bool(density) {
+                        g.set(
+                            IVec3::new(x, y, z),
+                            1 + rng.random_range(0..materials) as u8,
+                        );
+                    }
+                }
+            }
+        }
+        cases.push((format!("random {i}: {d}, density {density:.2}"), g));
+    }
+    for (name, g) in &cases {
+        for relax in [0, 1, 8, DEFAULT_RELAX] {
+            let mesh = extract(g, relax).unwrap();
+            for m in mesh.materials() {
+                let r = mesh.manifold_report(Some(m));
+                assert!(r.is_closed(), "{name}, relax {relax}, material {m}: {r}");
+            }
+            let solid = voxlab::surface::extract_solid(g, relax).unwrap();
+            let r = solid.manifold_report(None);
+            assert!(
+                r.is_closed() || solid.triangles.is_empty(),
+                "{name}, relax {relax}, solid: {r}"
+            );
+        }
+    }
+}
+
+/// Every shipped experiment's surfaces, as `voxlab mesh` writes them and as
+/// `render.surface = "smooth"` traces them.
+#[test]
+fn every_shipped_experiments_surfaces_are_closed_manifolds() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let p = entry.unwrap().path();
+        if p.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let e = voxlab::experiment::Experiment::load(&p).unwrap_or_else(|e| panic!("{e}"));
+        if e.scene.grid.voxel_count() > 4_000_000 {
+            continue; // bunny_512: its 128 version is the bunny_glass experiment
+        }
+        let mesh = extract(&e.scene.grid, DEFAULT_RELAX).unwrap();
+        for m in mesh.materials() {
+            let r = mesh.manifold_report(Some(m));
+            assert!(r.is_closed(), "{}: material {m}: {r}", p.display());
+        }
+        let solid = voxlab::surface::extract_solid(&e.scene.grid, DEFAULT_RELAX).unwrap();
+        let r = solid.manifold_report(None);
+        assert!(r.is_closed(), "{}: solid: {r}", p.display());
+        n += 1;
+    }
+    assert!(n >= 15, "{n} experiments");
+}
