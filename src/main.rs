@@ -306,6 +306,15 @@ struct BenchArgs {
     #[arg(long, default_value_t = 256,
           value_parser = clap::value_parser!(u32).range(1..=voxlab::scene::mesh::MAX_RESOLUTION as i64))]
     voxelize_resolution: u32,
+    /// Measure the smooth surfaces instead: an analytic sphere and torus voxelized at
+    /// each of these sizes, marching cubes and surface nets at several relaxations,
+    /// their Chamfer and Hausdorff distances to the shape (in voxels), volume error and
+    /// time.
+    #[arg(long, value_name = "SIZES", num_args = 0..=1, value_delimiter = ',',
+          default_missing_value = "32,64,128",
+          value_parser = clap::value_parser!(u32).range(4..=512),
+          conflicts_with_all = ["voxelize", "plan", "trees"])]
+    surface_fidelity: Option<Vec<u32>>,
     /// Benchmark the render plan instead: the reduced kernel against the full one on
     /// scenes that do not need a feature (time and device memory, as ratios), on the
     /// seed geometry at the first of --sizes.
@@ -726,6 +735,25 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
             a.size
         );
         println!("{}", voxlab::bench::trees_table(&rows));
+        return Ok(());
+    }
+    if let Some(sizes) = &a.surface_fidelity {
+        use voxlab::surface::fidelity;
+        let rows = fidelity::fidelity_rows(sizes, |r| {
+            eprintln!(
+                "  {} {}^3, {}: Chamfer {:.4}",
+                r.shape, r.size, r.method, r.fidelity.chamfer
+            )
+        });
+        if a.json {
+            let head = bench_head("surface-fidelity", None, a);
+            return print_json_rows(&head, rows.iter().map(|r| r.json()));
+        }
+        println!(
+            "surface fidelity: distances to the analytic shape the voxels came from (voxel \
+             centres inside), in voxels\n"
+        );
+        println!("{}", fidelity::fidelity_table(&rows));
         return Ok(());
     }
     if let Some(mesh_path) = &a.voxelize {

@@ -88,15 +88,13 @@ pub fn input_files(text: &str, path: &Path) -> Vec<PathBuf> {
         let is_obj = asset
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-        if is_obj {
-            if let Ok(bytes) = crate::input::read_file(&asset, crate::input::MAX_MESH_BYTES, "mesh")
-            {
-                let dir = asset.parent().unwrap_or(Path::new(""));
-                for line in String::from_utf8_lossy(&bytes).lines() {
-                    let line = line.trim_start();
-                    if let Some(lib) = line.strip_prefix("mtllib ") {
-                        files.push(dir.join(lib.trim()));
-                    }
+        if is_obj
+            && let Ok(bytes) = crate::input::read_file(&asset, crate::input::MAX_MESH_BYTES, "mesh")
+        {
+            let dir = asset.parent().unwrap_or(Path::new(""));
+            for line in String::from_utf8_lossy(&bytes).lines() {
+                if let Some(lib) = line.trim_start().strip_prefix("mtllib ") {
+                    files.push(dir.join(lib.trim()));
                 }
             }
         }
