@@ -502,6 +502,14 @@ fn key_sweeps(
                 toml::Value::String(s) => s.clone(),
                 other => other.to_string(),
             };
+            // Two equal values would be two rows of one file name, the second image
+            // over the first: refused, naming the value.
+            if points.iter().any(|p: &SweepValue| p.value == written) {
+                return Err(what(format!(
+                    "{} is listed twice; each value of a sweep is one point (list each once)",
+                    crate::input::excerpt(&written, 60)
+                )));
+            }
             let o: Override = format!("{key}={written}").parse().map_err(what)?;
             let e =
                 Experiment::from_str_with_cache(text, path, std::slice::from_ref(&o), &mut cache)

@@ -136,6 +136,89 @@ pub fn guarded<T>(f: impl FnOnce() -> T) -> Result<T, String> {
     })
 }
 
+/// How many more bytes this process may allocate, by the limits it actually runs
+/// under: its address-space limit (RLIMIT_AS, `ulimit -v`) less what it has mapped, and
+/// its cgroup's memory limit (v2 `memory.max`, v1 `memory.limit_in_bytes`) less the
+/// cgroup's use. `None` where neither limits it (or the platform cannot say). A work
+/// that needs more is refused before it starts, rather than aborting half-way on a
+/// failed allocation.
+pub fn memory_headroom() -> Option<(u64, &'static str)> {
+    let mut best: Option<(u64, &'static str)> = None;
+    let mut consider = |bytes: u64, what: &'static str| {
+        if best.is_none_or(|(b, _)| bytes < b) {
+            best = Some((bytes, what));
+        }
+    };
+    #[cfg(unix)]
+    {
+        let mut lim = libc::rlimit {
+            rlim_cur: 0,
+            rlim_max: 0,
+        };
+        // SAFETY: getrlimit writes the struct it is given.
+        if unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut lim) } == 0
+            && lim.rlim_cur != libc::RLIM_INFINITY
+        {
+            let mapped = std::fs::read_to_string("/proc/self/statm")
+                .ok()
+                .and_then(|s| s.split_whitespace().next()?.parse::<u64>().ok())
+                .map_or(0, |pages| pages * page_size());
+            consider(
+                (lim.rlim_cur as u64).saturating_sub(mapped),
+                "the address-space limit (RLIMIT_AS)",
+            );
+        }
+    }
+    let read = |p: &str| std::fs::read_to_string(p).ok();
+    let number = |s: Option<String>| s.and_then(|s| s.trim().parse::<u64>().ok());
+    if let Some(max) = number(read("/sys/fs/cgroup/memory.max")) {
+        let used = number(read("/sys/fs/cgroup/memory.current")).unwrap_or(0);
+        consider(max.saturating_sub(used), "the cgroup's memory.max");
+    } else if let Some(max) = number(read("/sys/fs/cgroup/memory/memory.limit_in_bytes")) {
+        // v1 says "no limit" with a number near 2^63.
+        if max < 1 << 60 {
+            let used = number(read("/sys/fs/cgroup/memory/memory.usage_in_bytes")).unwrap_or(0);
+            consider(
+                max.saturating_sub(used),
+                "the cgroup's memory.limit_in_bytes",
+            );
+        }
+    }
+    best
+}
+
+#[cfg(unix)]
+fn page_size() -> u64 {
+    // SAFETY: sysconf has no preconditions.
+    let n = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
+    if n > 0 { n as u64 } else { 4096 }
+}
+
+/// Refuses a work that needs `bytes` more than [`memory_headroom`] allows, with what
+/// it is and which limit stops it.
+pub fn check_memory(bytes: u64, what: &str) -> Result<(), String> {
+    match memory_headroom() {
+        Some((room, limit)) if bytes > room => Err(format!(
+            "{what} needs about {bytes} bytes, and {limit} leaves this process {room}"
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// A vector of `n` copies of `v`, or an error instead of the abort a failed allocation
+/// would be.
+pub fn try_filled<T: Clone>(n: usize, v: T, what: &str) -> Result<Vec<T>, String> {
+    let mut out = Vec::new();
+    out.try_reserve_exact(n).map_err(|_| {
+        format!(
+            "{what}: cannot allocate {} bytes",
+            n as u64 * std::mem::size_of::<T>() as u64
+        )
+    })?;
+    out.resize(n, v);
+    Ok(out)
+}
+
 /// `text` cut to at most `max` characters for an error message, with how much was cut.
 pub fn excerpt(text: &str, max: usize) -> String {
     let n = text.chars().count();

@@ -1017,7 +1017,24 @@ fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
     }
     output_dir_exists(&a.out)?;
     let start = Instant::now();
-    let v = voxelize_mesh(&a.mesh, &VoxelizeOptions::count(a.resolution))?;
+    let options = VoxelizeOptions::count(a.resolution);
+    // Memory for the whole command, before the work: writing a .vox holds the grid
+    // dense (a byte a voxel), its voxels as MagicaVoxel records (4 bytes each, every
+    // voxel solid at worst) and the file's bytes (as many again).
+    let mesh = voxlab::scene::load_mesh(&a.mesh)?;
+    let (dims, ..) = voxlab::scene::mesh::voxelize_layout(&mesh, &options)
+        .map_err(|k| voxlab::scene::LoadError::new(&a.mesh, k))?;
+    drop(mesh);
+    let voxels = dims.x as u64 * dims.y as u64 * dims.z as u64;
+    voxlab::input::check_memory(
+        voxels * 9,
+        &format!(
+            "writing a .vox of {}x{}x{} voxels (resolution {})",
+            dims.x, dims.y, dims.z, a.resolution
+        ),
+    )
+    .map_err(|e| anyhow::anyhow!("{}: {e}; choose a coarser resolution", a.mesh.display()))?;
+    let v = voxelize_mesh(&a.mesh, &options)?;
     for w in &v.warnings {
         eprintln!("warning: {w}");
     }

@@ -632,6 +632,29 @@ fn overrides_reach_the_ablate_table() {
     );
 }
 
+/// A sweep that lists a value twice would write two rows over one image file: refused,
+/// naming the key and the value.
+#[test]
+fn a_sweep_value_listed_twice_is_refused() {
+    let dir = scratch("sweep_twice");
+    let path = dir.join("tiny.toml");
+    std::fs::write(&path, experiment_text(110.0, SWEEP)).unwrap();
+    for (sweep, value) in [
+        (r#"ablate.sweep={"render.light_samples"=[2, 4, 2]}"#, "2"),
+        (
+            r#"ablate.sweep={"features.transmittance"=["min-kt", "min-kt"]}"#,
+            "min-kt",
+        ),
+    ] {
+        let set: Vec<voxlab::experiment::Override> = vec![sweep.parse().unwrap()];
+        let err = ablate::load_with(&path, &set).unwrap_err().to_string();
+        assert!(
+            err.contains("sweep") && err.contains(&format!("{value} is listed twice")),
+            "{sweep}: {err}"
+        );
+    }
+}
+
 /// FLIP is computed on the displayed sRGB image (LDR-FLIP's input), so an equal linear
 /// step weighs more in the darks than in the brights, as it looks; fed the linear
 /// values as if they were sRGB, both steps would look alike.

@@ -85,3 +85,46 @@ fn voxelize_reports_bad_input_without_writing() {
     );
     assert!(!out.exists());
 }
+
+/// Under an address-space limit (`ulimit -v`), a voxelization that cannot fit is refused
+/// at once, naming the limit, rather than aborting on a failed allocation minutes in;
+/// one that fits still runs under the same limit.
+#[test]
+fn voxelize_refuses_what_the_memory_limit_cannot_hold() {
+    let dir = std::env::temp_dir().join(format!("voxlab-cli-rlimit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let tetra = dir.join("tetra.obj");
+    std::fs::write(
+        &tetra,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .unwrap();
+    let run = |resolution: u32| {
+        let out = dir.join(format!("t{resolution}.vox"));
+        let script = format!(
+            "ulimit -v 3000000; exec \"$0\" voxelize \"$1\" --resolution {resolution} --out \"$2\""
+        );
+        let start = std::time::Instant::now();
+        let o = Command::new("bash")
+            .args(["-c", &script])
+            .arg(env!("CARGO_BIN_EXE_voxlab"))
+            .arg(&tetra)
+            .arg(&out)
+            .output()
+            .unwrap();
+        (o, out, start.elapsed())
+    };
+    let (o, out, took) = run(1290);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("RLIMIT_AS") && err.contains("coarser resolution"),
+        "{err}"
+    );
+    assert!(took.as_secs() < 30, "refused only after {took:?}");
+    assert!(!out.exists());
+    let (o, out, _) = run(48);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.exists());
+    std::fs::remove_dir_all(&dir).ok();
+}

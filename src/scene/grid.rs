@@ -126,7 +126,11 @@ impl Grid {
             dims,
             voxel_size,
             origin,
-            voxels: Voxels::dense(vec![VOID; count as usize]),
+            // Fallibly: a failed allocation is an error, not an abort.
+            voxels: Voxels::dense(
+                crate::input::try_filled(count as usize, VOID, "the grid's voxels")
+                    .map_err(SceneError::new)?,
+            ),
         })
     }
 

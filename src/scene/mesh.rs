@@ -21,7 +21,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use glam::{DMat4, DVec3};
+use glam::{DMat4, DVec3, UVec3};
 
 use super::vox::{LoadError, LoadErrorKind, diffuse_material};
 use super::voxelize::{
@@ -695,11 +695,13 @@ pub fn voxelize_mesh(
     Ok(v)
 }
 
-/// Voxelizes a triangle soup (the in-memory half of [`voxelize_mesh`]).
-pub fn voxelize(
+/// The grid [`voxelize`] would make of `mesh` (its dims, voxel size and minimum
+/// corner), and whether it would be held sparse: what a caller checks memory against
+/// before the work starts.
+pub fn voxelize_layout(
     mesh: &TriangleMesh,
     options: &VoxelizeOptions,
-) -> Result<Voxelized, LoadErrorKind> {
+) -> Result<(UVec3, f64, DVec3, bool), LoadErrorKind> {
     let tris = &mesh.triangles;
     if tris.is_empty() {
         return Err(LoadErrorKind::EmptyMesh(
@@ -767,7 +769,17 @@ pub fn voxelize(
     }
     let dims = grid_layout(extent, voxel_size, options.storage).map_err(LoadErrorKind::TooLarge)?;
     let voxels = dims.x as u64 * dims.y as u64 * dims.z as u64;
-    let sparse = options.storage.is_sparse_for(voxels);
+    Ok((dims, voxel_size, lo, options.storage.is_sparse_for(voxels)))
+}
+
+/// Voxelizes a triangle soup (the in-memory half of [`voxelize_mesh`]).
+pub fn voxelize(
+    mesh: &TriangleMesh,
+    options: &VoxelizeOptions,
+) -> Result<Voxelized, LoadErrorKind> {
+    let tris = &mesh.triangles;
+    let (dims, voxel_size, lo, sparse) = voxelize_layout(mesh, options)?;
+    let voxels = dims.x as u64 * dims.y as u64 * dims.z as u64;
     let fill = super::voxelize::fill_bytes(voxels);
     if !sparse && fill > super::voxelize::MAX_FILL_BYTES {
         return Err(LoadErrorKind::TooLarge(format!(
@@ -778,6 +790,15 @@ pub fn voxelize(
             dims.z,
             super::voxelize::MAX_FILL_BYTES
         )));
+    }
+    if !sparse {
+        // The grid and the fill's state and queues, against the limits this process
+        // runs under: refused now, not aborted half-way.
+        crate::input::check_memory(
+            voxels + fill,
+            &format!("a dense grid of {}x{}x{} voxels", dims.x, dims.y, dims.z),
+        )
+        .map_err(|e| LoadErrorKind::TooLarge(format!("{e}; choose a coarser resolution")))?;
     }
     let mut materials = vec![seed_palette()[0].clone()];
     let ids: Vec<u8> = match &options.material {
