@@ -163,8 +163,11 @@ pub fn memory_headroom() -> Option<(u64, &'static str)> {
                 .ok()
                 .and_then(|s| s.split_whitespace().next()?.parse::<u64>().ok())
                 .map_or(0, |pages| pages * page_size());
+            // rlim_t is u64 on Linux, not on every unix.
+            #[allow(clippy::unnecessary_cast)]
+            let limit = lim.rlim_cur as u64;
             consider(
-                (lim.rlim_cur as u64).saturating_sub(mapped),
+                limit.saturating_sub(mapped),
                 "the address-space limit (RLIMIT_AS)",
             );
         }
