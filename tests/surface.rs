@@ -331,9 +331,12 @@ fn surfaces_of_edge_and_corner_contacts_are_closed_manifolds() {
 /// `render.surface = "smooth"` traces them.
 #[test]
 fn every_shipped_experiments_surfaces_are_closed_manifolds() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut n = 0;
-    for entry in std::fs::read_dir(&dir).unwrap() {
+    let files = std::fs::read_dir(root.join("experiments"))
+        .unwrap()
+        .chain(std::fs::read_dir(root.join("experiments/stress")).unwrap());
+    for entry in files {
         let p = entry.unwrap().path();
         if p.extension().is_none_or(|e| e != "toml") {
             continue;
@@ -352,7 +355,7 @@ fn every_shipped_experiments_surfaces_are_closed_manifolds() {
         assert!(r.is_closed(), "{}: solid: {r}", p.display());
         n += 1;
     }
-    assert!(n >= 15, "{n} experiments");
+    assert!(n >= 20, "{n} experiments");
 }
 
 /// The smooth surface against the shape its voxels came from (an analytic sphere and

@@ -207,7 +207,10 @@ impl SurfaceMesh {
             if (pb - pa).cross(pc - pa).length_squared() == 0.0 {
                 report.degenerate += 1;
             }
-            volume += pa.dot(pb.cross(pc)) / 6.0;
+            // About a point of the mesh: far from the world's origin (1e6), the
+            // products of absolute positions cancel to noise.
+            let r = at[0];
+            volume += (pa - r).dot((pb - r).cross(pc - r)) / 6.0;
             for k in 0..3 {
                 let (x, y) = (t[k], t[(k + 1) % 3]);
                 let e = edges.entry((x.min(y), x.max(y))).or_default();
@@ -423,10 +426,12 @@ impl Volume {
 
 /// Enclosed volume of a closed, outward-wound triangle set (divergence theorem).
 fn enclosed_volume(p: &[DVec3], triangles: &[[u32; 3]]) -> f64 {
+    // About a point of the mesh, so that positions far from the origin do not cancel.
+    let r = p.first().copied().unwrap_or(DVec3::ZERO);
     triangles
         .iter()
         .map(|t| {
-            let [a, b, c] = t.map(|i| p[i as usize]);
+            let [a, b, c] = t.map(|i| p[i as usize] - r);
             a.dot(b.cross(c)) / 6.0
         })
         .sum()
