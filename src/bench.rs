@@ -493,7 +493,7 @@ pub fn surface_table(rows: &[SurfaceRow]) -> String {
     out
 }
 
-/// The table the README quotes: one line per grid size and backend, then the ratio.
+/// The table docs/sparse-traversal.md quotes: one line per grid size and backend, then the ratio.
 pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> String {
     let mut out = format!(
         "{}x{}, depth {}/{} (experiments: their own render settings, one frame); GPU: {adapter}; CPU: {}; host: {}\n\n\

@@ -90,7 +90,7 @@ struct InfoArgs {
 
 #[derive(Args, Debug)]
 struct TechniquesArgs {
-    /// Print the markdown table the README's "Techniques" section holds.
+    /// Print the markdown table docs/techniques.md holds.
     #[arg(long)]
     markdown: bool,
 }

@@ -69,7 +69,7 @@ pub struct Plan {
     /// The seed's ray-tree rules (`SEED_RULES`: `render.rules = "seed"`), compiled in
     /// rather than read from a uniform: the software driver runs both sides of every
     /// branch (shaders/counters.wgsl), so the rules not in force would cost time in
-    /// every walk step and ray (README "What each change to the kernel bought").
+    /// every walk step and ray (docs/sparse-traversal.md, "What each change to the kernel bought").
     pub seed_rules: bool,
     /// The pyramids' layout, when the shadow model or a lighting term reads them (the
     /// radiance pyramid only when a term reads it: [`Plan::radiance_pyramid`]).

@@ -392,8 +392,9 @@ impl RenderSettings {
     /// holds one ray for each hit of the current chain of reflections: the chain's
     /// first a + 1 hits under the total limit push, under the seed's rules only those
     /// below depth b. At least 1 (an array of none is not WGSL). Each entry costs the
-    /// software driver time on every SIMD lane (README "What each change to the kernel
-    /// bought": seed_rules at 16^3, 9 entries to 5 made a frame 1.02x as fast).
+    /// software driver time on every SIMD lane (docs/sparse-traversal.md, "What each
+    /// change to the kernel bought": seed_rules at 16^3, 9 entries to 5 made a frame
+    /// 1.02x as fast).
     pub fn ray_stack_size(&self) -> u32 {
         let (a, b) = (self.max_reflection_depth, self.max_refraction_depth);
         let pushes = match self.rules {

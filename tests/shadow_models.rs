@@ -3,7 +3,7 @@
 //! (parsed, written back), the viewer's lists, `voxlab ablate`'s curves and the stress
 //! suite; off is the golden baseline; a light of size 0 gives exactly the hard shadow
 //! and a vanishing one converges to it; GPU = CPU over image sizes, frames, sample
-//! counts and depth limits. The README's table of techniques is the registry's.
+//! counts and depth limits. The table of docs/techniques.md is the registry's.
 //!
 //! Tolerances: GPU against CPU those of tests/gpu_agreement.rs (`assert_agree`: fewer
 //! than 0.5 % of pixels over 2/255, mean below 1e-3); the vanishing light against the
@@ -126,17 +126,20 @@ fn declarations_are_sound() {
 }
 
 #[test]
-fn the_readme_table_is_the_registry() {
-    let readme =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+fn the_docs_table_is_the_registry() {
+    let page = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/techniques.md"))
+        .unwrap();
     let begin = "<!-- techniques:begin (voxlab techniques --markdown) -->\n";
     let end = "<!-- techniques:end -->";
-    let at = readme.find(begin).expect("README has the techniques table") + begin.len();
-    let table = &readme[at..at + readme[at..].find(end).expect("table end marker")];
+    let at = page
+        .find(begin)
+        .expect("docs/techniques.md has the techniques table")
+        + begin.len();
+    let table = &page[at..at + page[at..].find(end).expect("table end marker")];
     assert_eq!(
         table,
         technique::listing_markdown(),
-        "README's table differs from `voxlab techniques --markdown`"
+        "docs/techniques.md's table differs from `voxlab techniques --markdown`"
     );
 }
 

@@ -849,7 +849,7 @@ pub fn listing() -> Vec<ListingRow> {
 }
 
 /// The listing as a markdown table (what `voxlab techniques --markdown` prints and the
-/// README's table must equal).
+/// table of docs/techniques.md must equal).
 pub fn listing_markdown() -> String {
     let mut out = String::from(
         "| technique | slot | switch | settings | what it is |\n|---|---|---|---|---|\n",

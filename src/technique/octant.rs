@@ -31,10 +31,10 @@ pub const RADII: [u8; 8] = [0, 1, 2, 4, 8, 16, 32, 64];
 /// 8^3, 0.93x at 12^3, 1.05x at 16^3 and 1.22x at 24^3 (`voxlab bench --sizes
 /// 8,12,16,24 --size 512 --gpu-runs 3 --no-cpu --traversal dense,octant`); the seed's
 /// rules 0.87x at 8^3 and 0.94x at 12^3 (the same with `--sizes 8 --experiments
-/// experiments/seed_rules.toml --set scene.size=8`, and 12), 1.04x at 16^3 (README
-/// "Speed now"). Where the device cannot bind its four bytes a voxel (lavapipe:
-/// 128 MiB, 32 M voxels) `"auto"` takes the next walk that claims the grid and fits
-/// (`crate::plan::auto_traversal_within`).
+/// experiments/seed_rules.toml --set scene.size=8`, and 12), 1.04x at 16^3
+/// (docs/sparse-traversal.md, "Speed now"). Where the device cannot bind its four
+/// bytes a voxel (lavapipe: 128 MiB, 32 M voxels) `"auto"` takes the next walk that
+/// claims the grid and fits (`crate::plan::auto_traversal_within`).
 pub const OCTANT_FROM_SIDE: u32 = 16;
 
 pub const TRAVERSAL: TraversalModel = TraversalModel {

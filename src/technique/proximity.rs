@@ -38,7 +38,7 @@ pub const MAX_RADIUS: u8 = 255;
 /// where the device binds it) does not fit, up to the sparse walk's
 /// [`super::sparse::SPARSE_FROM_SIDE`]. On lavapipe the seed scene renders at 0.75x the
 /// dense walk's speed at 16^3, where a walk is a few steps and a skip costs more than
-/// a step, at 1.48x at 64^3 and 3.23x at 256^3 (README "Sparse traversal", "Speed
+/// a step, at 1.48x at 64^3 and 3.23x at 256^3 (docs/sparse-traversal.md, "Speed
 /// now"). A field larger than the device binds as one buffer (lavapipe: 128 MiB, 64 M
 /// voxels) is left to the tree under "auto" (`crate::gpu`).
 pub const PROXIMITY_FROM_SIDE: u32 = 64;

@@ -1,7 +1,7 @@
 //! The sparse traversal, the seed's O2: the DDA over the grid's 64-tree of uniform
 //! regions (`crate::sparse`), leaving every region of the ray's medium whole, at the
 //! voxel, distance and face where the dense DDA leaves it (`src/trace_contract.md`,
-//! "Sparse traversal"; the structure and why a 64-tree: README "Sparse traversal").
+//! "Sparse traversal"; the structure and why a 64-tree: docs/sparse-traversal.md).
 //!
 //! It walks every grid. Under `render.traversal = "auto"` it takes grids of
 //! [`SPARSE_FROM_SIDE`] voxels a side or more, and every grid held only as its tree.
@@ -13,7 +13,7 @@ use super::TraversalModel;
 /// skip per step, for all the steps the tree saves: on lavapipe the seed scene renders
 /// at 0.80x the dense walk's speed with the tree at 256^3 and at 2.03x at 512^3, the
 /// bunny voxelized at 512 at 2.11x (`voxlab bench --sizes 256,512 --experiments
-/// experiments/bunny_512.toml`, README "Sparse traversal"). A grid larger than the
+/// experiments/bunny_512.toml`, docs/sparse-traversal.md). A grid larger than the
 /// device binds as one buffer is walked sparse whatever its side (`crate::gpu`).
 pub const SPARSE_FROM_SIDE: u32 = 512;
 
