@@ -53,7 +53,9 @@ fn load(path: &Path) -> Result<(), String> {
             // Every fourth load also as ablate, info and mesh read it: the slice stays
             // within CI's time.
             static LOADS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-            let full = LOADS.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % 4 == 0;
+            let full = LOADS
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+                .is_multiple_of(4);
             let e = Experiment::load(path).map_err(|e| e.to_string())?;
             if !full {
                 return Ok(());
