@@ -802,7 +802,16 @@ pub fn write_vox(
     data.write_vox(&mut bytes)
         .map_err(|e| fail(LoadErrorKind::Write(e)))?;
 
-    // As every output: complete or not at all, and any name the file system takes.
+    // Into an existing directory only (a mistyped path makes no new tree), and as every
+    // output: complete or not at all, and any name the file system takes.
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
+        && !dir.is_dir()
+    {
+        return Err(fail(LoadErrorKind::Write(std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            format!("its directory {} does not exist", dir.display()),
+        ))));
+    }
     crate::output::write_file(path, &bytes)
         .map_err(|e| fail(LoadErrorKind::Write(std::io::Error::other(e.cause()))))
 }
