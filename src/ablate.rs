@@ -521,6 +521,11 @@ fn key_sweeps(
                      one size (give render.width and render.height in the file)"
                 )));
             }
+            // A key the rendered plan never reads would draw a flat curve that looks
+            // like a finding: refused before anything renders.
+            crate::plan::Plan::new(&e.scene, &e.settings)
+                .reads(key, &e.settings.features)
+                .map_err(what)?;
             let scene = (e.scene != base.scene).then(|| std::sync::Arc::new(e.scene));
             points.push(SweepValue {
                 value: written,

@@ -499,6 +499,61 @@ impl Plan {
     }
 
     /// Whether the radiance pyramid is built: a planned term reads it.
+    /// Whether this plan reads `key` of an experiment file, decided from the technique
+    /// registry: a shadow model's own settings (`techniques.<model>.*`) are read only
+    /// under that model, a shared group's (`cones.*`) only where its `used` rule says
+    /// the features use it; every other key (scene, camera, lights, materials,
+    /// `render.*`) by every plan. `Err` says which techniques would read it.
+    pub fn reads(&self, key: &str, features: &crate::render::Features) -> Result<(), String> {
+        use crate::technique::{LIGHTING_TERMS, SETTING_GROUPS, SHADOW_MODELS};
+        if let Some(rest) = key.strip_prefix("techniques.") {
+            let model = rest.split('.').next().unwrap_or(rest);
+            if model == self.shadow_model.name {
+                return Ok(());
+            }
+            let known = SHADOW_MODELS.iter().any(|m| m.name == model);
+            return Err(format!(
+                "this experiment never reads {key}: it renders with the shadow model \"{}\"; {}",
+                self.shadow_model.name,
+                if known {
+                    format!(
+                        "the shadow model \"{model}\" would read it (features.shadow_model = \
+                         \"{model}\")"
+                    )
+                } else {
+                    format!("no registered shadow model is called \"{model}\"")
+                }
+            ));
+        }
+        let group = SETTING_GROUPS.iter().find(|g| {
+            key.strip_prefix(g.table)
+                .is_some_and(|r| r.starts_with('.'))
+        });
+        match group {
+            Some(g) if !(g.used)(features) => {
+                let prefix = format!("{}.", g.table);
+                let readers: Vec<String> = SHADOW_MODELS
+                    .iter()
+                    .filter(|m| m.shared_settings.iter().any(|k| k.starts_with(&prefix)))
+                    .map(|m| format!("the shadow model \"{}\"", m.name))
+                    .chain(
+                        LIGHTING_TERMS
+                            .iter()
+                            .filter(|t| t.shared_settings.iter().any(|k| k.starts_with(&prefix)))
+                            .map(|t| format!("the lighting term \"{}\"", t.name)),
+                    )
+                    .collect();
+                Err(format!(
+                    "this experiment never reads {key}: no feature it renders with uses \
+                     [{}]; {} would",
+                    g.table,
+                    readers.join(" or ")
+                ))
+            }
+            _ => Ok(()),
+        }
+    }
+
     pub fn radiance_pyramid(&self) -> bool {
         self.terms.iter().any(|t| t.radiance_pyramid)
     }

@@ -605,6 +605,40 @@ fn key_sweeps_measure_any_knob() {
     assert!(e.contains("image size"), "{e}");
     let e = bad("{ \"render.spp\" = 3 }");
     assert!(e.contains("non-empty list"), "{e}");
+    // Keys the rendered plan never reads, decided from the registry: a plug-in's
+    // setting under another shadow model, a [cones] setting with no cone feature on.
+    let e = bad("{ \"techniques.sdf.softness\" = [0.25, 1.0] }");
+    assert!(
+        e.contains("never reads techniques.sdf.softness")
+            && e.contains("shadow model \"hard\"")
+            && e.contains("\"sdf\" would read it"),
+        "{e}"
+    );
+    let e = bad("{ \"cones.step_factor\" = [0.5, 1.0] }");
+    assert!(
+        e.contains("never reads cones.step_factor") && e.contains("shadow model \"cone\""),
+        "{e}"
+    );
+    // Under the model that reads them, both load.
+    for (features, sweep) in [
+        (
+            "shadow_model = \"sdf\"",
+            "{ \"techniques.sdf.softness\" = [0.25, 1.0] }",
+        ),
+        (
+            "ambient_occlusion = true",
+            "{ \"cones.step_factor\" = [0.5, 1.0] }",
+        ),
+    ] {
+        let text = format!(
+            "[scene]\nsize = 8\n[render]\nwidth = 8\nheight = 8\n[features]\n{features}\n\
+             [ablate]\nreference_spp = 2\nspp = [1]\nsweep = {sweep}\n"
+        );
+        let path = dir.join("good.toml");
+        std::fs::write(&path, &text).unwrap();
+        let (_, c, _) = ablate::load(&path).unwrap_or_else(|e| panic!("{features}: {e}"));
+        assert_eq!(c.sweeps[0].points.len(), 2);
+    }
 }
 
 /// `voxlab ablate --set`: overrides reach the experiment and the [ablate] table alike.

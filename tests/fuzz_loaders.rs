@@ -252,7 +252,8 @@ fn generated_seeds(dir: &Path) -> Vec<Case> {
                   size = [4, 4]\nintensity = 300\n\
                   [render]\nwidth = 16\nheight = 16\n\
                   [ablate]\nreference_spp = 8\nspp = [1, 2]\nruns = 1\n\
-                  sweep = { \"render.light_samples\" = [1, 2], \"techniques.sdf.softness\" = [0.5] }\n";
+                  sweep = { \"render.light_samples\" = [1, 2], \"techniques.sdf.softness\" = [0.5] }\n\
+                  [features]\nshadow_model = \"sdf\"\n";
     let deer = std::fs::read(manifest().join("experiments/data/deer.vox")).unwrap();
     vec![
         (
