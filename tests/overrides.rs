@@ -215,3 +215,32 @@ fn one_invocation_renders_several_experiments() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// One switch per choice: every shipped experiment takes every registered shadow model
+/// by `--set features.shadow_model=NAME` (none uses an older switch that would clash).
+#[test]
+fn every_shipped_experiment_takes_every_shadow_model_by_set() {
+    let mut files: Vec<std::path::PathBuf> = std::fs::read_dir(root().join("experiments"))
+        .unwrap()
+        .chain(std::fs::read_dir(root().join("experiments/stress")).unwrap())
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 20);
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        let mut cache = voxlab::experiment::SceneCache::new();
+        for m in voxlab::technique::SHADOW_MODELS {
+            let o = set(&[&format!("features.shadow_model={}", m.name)]);
+            let e = Experiment::from_str_with_cache(&text, f, &o, &mut cache)
+                .unwrap_or_else(|e| panic!("{}: {}: {e}", f.display(), m.name));
+            assert_eq!(
+                e.settings.features.shadow_model.name,
+                m.name,
+                "{}",
+                f.display()
+            );
+        }
+    }
+}
