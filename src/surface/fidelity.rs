@@ -304,56 +304,46 @@ fn point_triangle_distance(p: DVec3, &[a, b, c]: &[DVec3; 3]) -> f64 {
 /// surface is measured against.
 pub fn marching_cubes(grid: &Grid, material: Option<u8>) -> SurfaceMesh {
     let volume = Volume::of(grid, material);
-    let c = volume.cells();
     let mut vertex_of = std::collections::HashMap::new();
     let mut positions = Vec::new();
     let mut triangles = Vec::new();
-    for z in 0..c[2] {
-        for y in 0..c[1] {
-            for x in 0..c[0] {
-                let k = volume.config([x, y, z]);
-                if k == 0 || k == 255 {
-                    continue;
-                }
-                let base = DVec3::new(x as f64, y as f64, z as f64);
-                for piece in &volume.case([x, y, z]).loops {
-                    // Outward: from the inside end of each crossed edge to the other.
-                    let mut outward = DVec3::ZERO;
-                    let ring: Vec<u32> = piece
-                        .iter()
-                        .map(|&e| {
-                            let e = e as usize;
-                            let (c0, _) = edge_corners(e);
-                            let axis = e / 4;
-                            let sign = if k >> c0 & 1 == 1 { 1.0 } else { -1.0 };
-                            outward[axis] += sign;
-                            // The edge's lower end, in padded voxel coordinates: its key.
-                            let lower = [x + (c0 & 1), y + (c0 >> 1 & 1), z + (c0 >> 2 & 1)];
-                            let key = (volume.at(lower[0], lower[1], lower[2]), axis);
-                            *vertex_of.entry(key).or_insert_with(|| {
-                                positions.push(base + edge_midpoint(e));
-                                positions.len() as u32 - 1
-                            })
-                        })
-                        .collect();
-                    // Newell's normal of the ring, against the outward direction.
-                    let mut normal = DVec3::ZERO;
-                    for i in 0..ring.len() {
-                        let (p, q) = (
-                            positions[ring[i] as usize],
-                            positions[ring[(i + 1) % ring.len()] as usize],
-                        );
-                        normal += p.cross(q);
-                    }
-                    let ccw = normal.dot(outward) > 0.0;
-                    for i in 1..ring.len() - 1 {
-                        let t = [ring[0], ring[i], ring[i + 1]];
-                        triangles.push(if ccw { t } else { [t[0], t[2], t[1]] });
-                    }
-                }
+    volume.for_each_surface_cell(|[x, y, z], k, case| {
+        let base = DVec3::new(x as f64, y as f64, z as f64);
+        for piece in &case.loops {
+            // Outward: from the inside end of each crossed edge to the other.
+            let mut outward = DVec3::ZERO;
+            let ring: Vec<u32> = piece
+                .iter()
+                .map(|&e| {
+                    let e = e as usize;
+                    let (c0, _) = edge_corners(e);
+                    let axis = e / 4;
+                    outward[axis] += if k >> c0 & 1 == 1 { 1.0 } else { -1.0 };
+                    // The edge's lower end, in padded voxel coordinates: its key.
+                    let lower = [x + (c0 & 1), y + (c0 >> 1 & 1), z + (c0 >> 2 & 1)];
+                    let key = (volume.at(lower[0], lower[1], lower[2]), axis);
+                    *vertex_of.entry(key).or_insert_with(|| {
+                        positions.push(base + edge_midpoint(e));
+                        positions.len() as u32 - 1
+                    })
+                })
+                .collect();
+            // Newell's normal of the ring, against the outward direction.
+            let mut normal = DVec3::ZERO;
+            for i in 0..ring.len() {
+                let (p, q) = (
+                    positions[ring[i] as usize],
+                    positions[ring[(i + 1) % ring.len()] as usize],
+                );
+                normal += p.cross(q);
+            }
+            let ccw = normal.dot(outward) > 0.0;
+            for i in 1..ring.len() - 1 {
+                let t = [ring[0], ring[i], ring[i + 1]];
+                triangles.push(if ccw { t } else { [t[0], t[2], t[1]] });
             }
         }
-    }
+    });
     let nets = Nets {
         cells: vec![DVec3::ZERO; positions.len()],
         positions,

@@ -329,24 +329,26 @@ impl std::fmt::Display for ManifoldReport {
 
 /// The smooth surface of every non-void material of `grid`, relaxed `relax` times.
 pub fn extract(grid: &Grid, relax: u32) -> Result<SurfaceMesh, SurfaceError> {
-    let voxels = grid.voxel_count() as u64;
-    if voxels > MAX_SURFACE_VOXELS {
-        return Err(SurfaceError::TooLarge {
-            voxels,
-            max: MAX_SURFACE_VOXELS,
-        });
-    }
     let used = grid.materials_used();
-    let dense = grid.to_dense().map_err(|_| SurfaceError::TooLarge {
-        voxels,
-        max: MAX_SURFACE_VOXELS,
-    })?;
-    let grid = dense.as_ref();
+    let dense = dense_within_bound(grid)?;
     let mut mesh = SurfaceMesh::default();
     for m in (0..=255u8).filter(|&m| m != VOID && used[m as usize]) {
-        append_material(grid, Some(m), relax, &mut mesh);
+        append_material(&dense, Some(m), relax, &mut mesh);
     }
     Ok(mesh)
+}
+
+/// `grid` held dense, refused past [`MAX_SURFACE_VOXELS`] before anything is allocated.
+fn dense_within_bound(grid: &Grid) -> Result<std::borrow::Cow<'_, Grid>, SurfaceError> {
+    let voxels = grid.voxel_count() as u64;
+    let too_large = SurfaceError::TooLarge {
+        voxels,
+        max: MAX_SURFACE_VOXELS,
+    };
+    if voxels > MAX_SURFACE_VOXELS {
+        return Err(too_large);
+    }
+    grid.to_dense().map_err(|_| too_large)
 }
 
 /// The smooth surface between void and everything else, relaxed `relax` times, each
@@ -356,20 +358,9 @@ pub fn extract(grid: &Grid, relax: u32) -> Result<SurfaceMesh, SurfaceError> {
 /// triangle separates void from one material, as `crate::triangles`' medium rule
 /// reads it.
 pub fn extract_solid(grid: &Grid, relax: u32) -> Result<SurfaceMesh, SurfaceError> {
-    let voxels = grid.voxel_count() as u64;
-    if voxels > MAX_SURFACE_VOXELS {
-        return Err(SurfaceError::TooLarge {
-            voxels,
-            max: MAX_SURFACE_VOXELS,
-        });
-    }
-    let dense = grid.to_dense().map_err(|_| SurfaceError::TooLarge {
-        voxels,
-        max: MAX_SURFACE_VOXELS,
-    })?;
-    let grid = dense.as_ref();
+    let dense = dense_within_bound(grid)?;
     let mut mesh = SurfaceMesh::default();
-    append_material(grid, None, relax, &mut mesh);
+    append_material(&dense, None, relax, &mut mesh);
     Ok(mesh)
 }
 
@@ -767,6 +758,22 @@ impl Volume {
         cell_case(k, outside_faces)
     }
 
+    /// Every cell the surface passes (neither all inside nor all outside), in index
+    /// order: its minimum corner, its corners' bits ([`Volume::config`]) and pieces.
+    fn for_each_surface_cell(&self, mut f: impl FnMut([usize; 3], usize, &'static CellCase)) {
+        let c = self.cells();
+        for z in 0..c[2] {
+            for y in 0..c[1] {
+                for x in 0..c[0] {
+                    let k = self.config([x, y, z]);
+                    if k != 0 && k != 255 {
+                        f([x, y, z], k, self.case([x, y, z]));
+                    }
+                }
+            }
+        }
+    }
+
     /// Every crossed edge between two voxel centres: its lower end, its axis, and
     /// whether the lower end is the inside one.
     fn crossed_edges(&self, mut f: impl FnMut([usize; 3], usize, bool)) {
@@ -809,23 +816,15 @@ fn surface_nets(volume: &Volume) -> Nets {
     let mut first = vec![u32::MAX; c[0] * c[1] * c[2]];
     let mut positions = Vec::new();
     let mut cells = Vec::new();
-    for z in 0..c[2] {
-        for y in 0..c[1] {
-            for x in 0..c[0] {
-                let k = volume.config([x, y, z]);
-                if k == 0 || k == 255 {
-                    continue;
-                }
-                first[volume.cell_index([x, y, z])] = positions.len() as u32;
-                let base = DVec3::new(x as f64, y as f64, z as f64);
-                for piece in &volume.case([x, y, z]).loops {
-                    let sum: DVec3 = piece.iter().map(|&e| edge_midpoint(e as usize)).sum();
-                    positions.push(base + sum / piece.len() as f64);
-                    cells.push(base);
-                }
-            }
+    volume.for_each_surface_cell(|m, _, case| {
+        first[volume.cell_index(m)] = positions.len() as u32;
+        let base = DVec3::new(m[0] as f64, m[1] as f64, m[2] as f64);
+        for piece in &case.loops {
+            let sum: DVec3 = piece.iter().map(|&e| edge_midpoint(e as usize)).sum();
+            positions.push(base + sum / piece.len() as f64);
+            cells.push(base);
         }
-    }
+    });
     let mut triangles = Vec::new();
     volume.crossed_edges(|here, a, lower| {
         // The four cells round the edge, counter-clockwise about +a.
