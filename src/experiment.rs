@@ -23,9 +23,10 @@ use std::sync::Arc;
 use glam::{DVec3, IVec3, UVec3};
 use serde::Deserialize;
 
+use crate::settings::{self, Field, Setting};
 use crate::surface::SurfaceMesh;
 
-use crate::render::{Features, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES, RenderSettings};
+use crate::render::{Features, RenderSettings};
 use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
 use crate::scene::{
     AreaLight, AreaShape, DENSE_MAX_VOXELS, Grid, Light, MAX_SPARSE_SIDE, MAX_VOXEL_SIZE,
@@ -991,14 +992,6 @@ fn path_at(item: &toml_edit::Item, span: &Range<usize>, prefix: &str) -> Option<
 // ---------------------------------------------------------------------------------------
 // Validation and assembly.
 
-fn finite(ctx: &Ctx, key: &str, v: f64) -> Result<f64, ExperimentError> {
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(ctx.invalid(key, "must be a finite number"))
-    }
-}
-
 /// A float in a range; `what` names the range for the message (e.g. "> 0").
 fn float_where(
     ctx: &Ctx,
@@ -1074,6 +1067,35 @@ fn int_in(
             format!("must be an integer in {}..={}", range.start(), range.end()),
         ))
     }
+}
+
+/// `v` checked against its declaration `setting` (`crate::settings`), under `key`.
+fn declared(ctx: &Ctx, key: &str, setting: &Setting, v: f64) -> Result<f64, ExperimentError> {
+    setting.check(v).map_err(|req| ctx.invalid(key, req))
+}
+
+/// The values `given` (key, value if the file has it) of the declared `fields` of
+/// `table`, checked and set in `target`.
+fn apply_fields<T>(
+    fields: &'static [Field<T>],
+    table: &str,
+    given: &[(&str, Option<f64>)],
+    target: &mut T,
+    ctx: &Ctx,
+) -> Result<(), ExperimentError> {
+    for f in fields {
+        let value = given.iter().find(|(k, _)| *k == f.key());
+        debug_assert!(
+            value.is_some(),
+            "the file has no key for {table}.{}",
+            f.key()
+        );
+        if let Some(&(_, Some(v))) = value {
+            let v = declared(ctx, &format!("{table}.{}", f.key()), &f.setting, v)?;
+            (f.set)(target, v);
+        }
+    }
+    Ok(())
 }
 
 /// The grid and file palette of `[scene]`: `load_scene_file`, else `build_grid`; from the
@@ -1152,68 +1174,21 @@ fn build(
     // Render settings first: the ambient colour belongs to the scene.
     let r = &raw.render;
     let d = RenderSettings::default();
-    let side = 1..=MAX_IMAGE_SIDE as i64;
-    let depth = 0..=MAX_DEPTH_LIMIT as i64;
     let mut settings = RenderSettings {
-        width: r.width.map_or(Ok(d.width), |v| {
-            int_in(ctx, "render.width", v, side.clone())
-        })?,
-        height: r
-            .height
-            .map_or(Ok(d.height), |v| int_in(ctx, "render.height", v, side))?,
-        max_reflection_depth: r
-            .max_reflection_depth
-            .map_or(Ok(d.max_reflection_depth), |v| {
-                int_in(ctx, "render.max_reflection_depth", v, depth.clone())
-            })?,
-        max_refraction_depth: r
-            .max_refraction_depth
-            .map_or(Ok(d.max_refraction_depth), |v| {
-                int_in(ctx, "render.max_refraction_depth", v, depth)
-            })?,
         max_depth: r
             .max_depth
-            .map(|v| {
-                int_in(
-                    ctx,
-                    "render.max_depth",
-                    v,
-                    0..=crate::render::MAX_TOTAL_DEPTH_LIMIT as i64,
-                )
-            })
-            .transpose()?,
+            .map(|v| declared(ctx, "render.max_depth", &settings::MAX_DEPTH, v as f64))
+            .transpose()?
+            .map(|v| v as u32),
         rules: match r.rules {
             None | Some(RulesName::Consistent) => crate::render::Rules::Consistent,
             Some(RulesName::Seed) => crate::render::Rules::Seed,
         },
         falloff: r.falloff.unwrap_or(d.falloff),
-        falloff_min_distance: r
-            .falloff_min_distance
-            .map_or(Ok(d.falloff_min_distance), |v| {
-                float_where(ctx, "render.falloff_min_distance", v, |x| x > 0.0, "> 0")
-            })?,
-        ray_offset: r.ray_offset.map_or(Ok(d.ray_offset), |v| {
-            float_where(
-                ctx,
-                "render.ray_offset",
-                v,
-                |x| (0.0..1.0).contains(&x),
-                "in [0, 1) (voxel widths)",
-            )
-        })?,
         features: build_features(raw.features.as_ref(), ctx)?,
         technique_params: build_technique_params(raw.techniques.as_ref(), ctx)?,
         // The shared groups' fields: their defaults here, the file's by apply_groups.
         cones: d.cones.clone(),
-        light_samples: r.light_samples.map_or(Ok(d.light_samples), |v| {
-            int_in(ctx, "render.light_samples", v, 1..=MAX_SAMPLES as i64)
-        })?,
-        spp: r.spp.map_or(Ok(d.spp), |v| {
-            int_in(ctx, "render.spp", v, 1..=MAX_SAMPLES as i64)
-        })?,
-        seed: r.seed.map_or(Ok(d.seed), |v| {
-            int_in(ctx, "render.seed", v, 0..=u32::MAX as i64)
-        })?,
         pixel_filter: choice(
             ctx,
             "render.pixel_filter",
@@ -1238,16 +1213,22 @@ fn build(
             &crate::render::Surface::all(),
             crate::render::Surface::name,
         )?,
-        filter_width: r.filter_width.map_or(Ok(d.filter_width), |v| {
-            float_where(
-                ctx,
-                "render.filter_width",
-                v,
-                |x| x > 0.0 && x <= crate::render::MAX_FILTER_WIDTH,
-                "in (0, 4] (pixels)",
-            )
-        })?,
+        ..d
     };
+    let int = |v: Option<i64>| v.map(|v| v as f64);
+    let given = [
+        ("width", int(r.width)),
+        ("height", int(r.height)),
+        ("max_reflection_depth", int(r.max_reflection_depth)),
+        ("max_refraction_depth", int(r.max_refraction_depth)),
+        ("light_samples", int(r.light_samples)),
+        ("spp", int(r.spp)),
+        ("seed", int(r.seed)),
+        ("filter_width", r.filter_width),
+        ("falloff_min_distance", r.falloff_min_distance),
+        ("ray_offset", r.ray_offset),
+    ];
+    apply_fields(settings::RENDER, "render", &given, &mut settings, ctx)?;
     // serde takes each group's table as a field of RawExperiment.
     apply_groups(&[("cones", raw.cones.as_ref())], &mut settings, ctx)?;
     let ambient = match r.ambient {
@@ -1265,33 +1246,13 @@ fn build(
     if let Some(t) = cam.target {
         camera.target = vec3_where(ctx, "camera.target", t, |_| true, "")?;
     }
-    if let Some(v) = cam.distance {
-        camera.distance = float_where(ctx, "camera.distance", v, |x| x > 0.0, "> 0")?;
-    }
-    // Degrees are divided by 180 before multiplying by pi, so round numbers give the
-    // very radians the seed writes as fractions of pi (36 deg == 0.2 * PI bit for bit).
-    let rad = |deg: f64| deg / 180.0 * std::f64::consts::PI;
-    if let Some(v) = cam.yaw_deg {
-        camera.yaw = rad(finite(ctx, "camera.yaw_deg", v)?);
-    }
-    if let Some(v) = cam.pitch_deg {
-        camera.pitch = rad(float_where(
-            ctx,
-            "camera.pitch_deg",
-            v,
-            |x| (-90.0..=90.0).contains(&x),
-            "in [-90, 90]",
-        )?);
-    }
-    if let Some(v) = cam.vfov_deg {
-        camera.vfov = rad(float_where(
-            ctx,
-            "camera.vfov_deg",
-            v,
-            |x| x > 0.0 && x < 180.0,
-            "in (0, 180)",
-        )?);
-    }
+    let given = [
+        ("distance", cam.distance),
+        ("yaw_deg", cam.yaw_deg),
+        ("pitch_deg", cam.pitch_deg),
+        ("vfov_deg", cam.vfov_deg),
+    ];
+    apply_fields(settings::CAMERA, "camera", &given, &mut camera, ctx)?;
 
     let lights = match &raw.lights {
         None => seed_lights(c, w),
@@ -1613,8 +1574,13 @@ fn build_light(
         Some(col) => vec3_where(ctx, &key("color"), col, |x| x >= 0.0, ">= 0")?,
         None => DVec3::ONE,
     };
-    let intensity = float_where(ctx, &key("intensity"), l.intensity, |x| x >= 0.0, ">= 0")?;
-    let non_negative = |k: &str, v: f64| float_where(ctx, &key(k), v, |x| x >= 0.0, ">= 0");
+    let intensity = declared(
+        ctx,
+        &key("intensity"),
+        &settings::LIGHT_INTENSITY,
+        l.intensity,
+    )?;
+    let non_negative = |k: &str, v: f64| declared(ctx, &key(k), &settings::LIGHT_RADIUS, v);
     let shape = match l.kind {
         LightType::Point => {
             return Ok(Light::Point(PointLight {
@@ -1630,8 +1596,11 @@ fn build_light(
                     "is required for a rect light: [width, height], each >= 0",
                 )
             })?;
-            if !(w.is_finite() && h.is_finite() && w >= 0.0 && h >= 0.0) {
-                return Err(ctx.invalid(&key("size"), "both sides must be finite numbers >= 0"));
+            if settings::LIGHT_SIDE.check(w).is_err() || settings::LIGHT_SIDE.check(h).is_err() {
+                return Err(ctx.invalid(
+                    &key("size"),
+                    format!("each side {}", settings::LIGHT_SIDE.range_text()),
+                ));
             }
             AreaShape::Rect {
                 width: w,
@@ -1680,7 +1649,12 @@ fn build_light(
         None => -DVec3::Y,
     };
     let rotation = match l.rotation_deg {
-        Some(v) => finite(ctx, &key("rotation_deg"), v)? / 180.0 * std::f64::consts::PI,
+        Some(v) => settings::radians(declared(
+            ctx,
+            &key("rotation_deg"),
+            &settings::LIGHT_ROTATION,
+            v,
+        )?),
         None => 0.0,
     };
     Ok(Light::Area(AreaLight {
@@ -1950,23 +1924,24 @@ fn build_materials(
                 new
             }
         };
-        let unit = |k: &str, v: Option<f64>, cur: f64| match v {
-            Some(v) => float_where(ctx, &key(k), v, |x| (0.0..=1.0).contains(&x), "in [0, 1]"),
-            None => Ok(cur),
-        };
         if let Some(a) = m.albedo {
             mat.albedo = vec3_where(ctx, &key("albedo"), a, |x| x >= 0.0, ">= 0")?;
         }
-        mat.kd = unit("kd", m.kd, mat.kd)?;
-        mat.ks = unit("ks", m.ks, mat.ks)?;
-        mat.kr = unit("kr", m.kr, mat.kr)?;
-        mat.kt = unit("kt", m.kt, mat.kt)?;
-        if let Some(v) = m.shininess {
-            mat.shininess = float_where(ctx, &key("shininess"), v, |x| x >= 0.0, ">= 0")?;
-        }
-        if let Some(v) = m.ior {
-            mat.ior = float_where(ctx, &key("ior"), v, |x| x > 0.0, "> 0")?;
-        }
+        let given = [
+            ("kd", m.kd),
+            ("ks", m.ks),
+            ("shininess", m.shininess),
+            ("kr", m.kr),
+            ("kt", m.kt),
+            ("ior", m.ior),
+        ];
+        apply_fields(
+            settings::MATERIAL,
+            &format!("materials[{i}]"),
+            &given,
+            &mut mat,
+            ctx,
+        )?;
         if let Some(s) = m.sigma {
             mat.sigma = Some(vec3_where(
                 ctx,

@@ -18,6 +18,7 @@ pub mod progress;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod settings;
 pub mod sparse;
 pub mod stress;
 pub mod surface;

@@ -55,6 +55,9 @@ enum Command {
     /// the `[features]` switch, its settings with type, default and range, and the paper
     /// it follows.
     Techniques(TechniquesArgs),
+    /// Every number of an experiment file outside the techniques (camera, render,
+    /// materials, lights): its type, range, default and unit, as the parser checks it.
+    Settings(SettingsArgs),
     /// What a scene file holds: a .vox's or an experiment's grid and every palette entry
     /// with its voxel count and colour; a mesh's triangles, bounds and materials.
     Info(InfoArgs),
@@ -91,6 +94,13 @@ struct InfoArgs {
 #[derive(Args, Debug)]
 struct TechniquesArgs {
     /// Print the markdown table docs/techniques.md holds.
+    #[arg(long)]
+    markdown: bool,
+}
+
+#[derive(Args, Debug)]
+struct SettingsArgs {
+    /// Print the markdown table docs/experiments.md holds (the default: plain text).
     #[arg(long)]
     markdown: bool,
 }
@@ -538,6 +548,19 @@ fn main() -> ExitCode {
                     voxlab::technique::listing_text()
                 }
             );
+            Ok(())
+        }
+        Some(Command::Settings(args)) => {
+            let table = voxlab::settings::markdown();
+            if args.markdown {
+                print!("{table}");
+            } else {
+                // The same rows without the markdown rules.
+                for line in table.lines().filter(|l| !l.starts_with("|---")) {
+                    let cells: Vec<&str> = line.trim_matches('|').split(" | ").collect();
+                    println!("{}", cells.join("  ").replace('`', "").trim());
+                }
+            }
             Ok(())
         }
     };

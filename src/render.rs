@@ -360,7 +360,7 @@ pub const MAX_IMAGE_SIDE: u32 = 16384;
 impl Default for RenderSettings {
     /// The seed's settings: 512x512, depth 4/4, falloff on.
     fn default() -> Self {
-        Self {
+        let mut s = Self {
             width: 512,
             height: 512,
             max_reflection_depth: 4,
@@ -380,7 +380,12 @@ impl Default for RenderSettings {
             filter_width: 0.5,
             traversal: Traversal::Auto,
             surface: Surface::default(),
+        };
+        // The numbers' defaults are declared once, with their ranges.
+        for f in crate::settings::RENDER {
+            (f.set)(&mut s, f.setting.default);
         }
+        s
     }
 }
 

@@ -121,9 +121,9 @@ fn aim(scene: &mut Scene, target: DVec3, distance: f64, yaw_deg: f64, pitch_deg:
     let c = &mut scene.camera;
     c.target = target;
     c.distance = distance;
-    c.yaw = yaw_deg.to_radians();
-    c.pitch = pitch_deg.to_radians();
-    c.vfov = vfov.to_radians();
+    c.yaw = crate::settings::radians(yaw_deg);
+    c.pitch = crate::settings::radians(pitch_deg);
+    c.vfov = crate::settings::radians(vfov);
 }
 
 fn point(position: DVec3, color: DVec3, intensity: f64) -> Light {

@@ -150,7 +150,7 @@ fn out_of_range_value_names_file_line_key_and_range() {
     let msg = err("[render]\nheight = 8\nwidth = 0\n");
     assert_eq!(
         msg,
-        "experiments/x.toml:3: render.width = 0: must be an integer in 1..=16384"
+        "experiments/x.toml:3: render.width = 0: must be an integer in 1..=16384 (pixels)"
     );
 }
 
@@ -220,7 +220,11 @@ fn nan_inf_and_negative_floats() {
     );
     assert_has(
         &err("[camera]\nvfov_deg = 180"),
-        &["x.toml:2:", "camera.vfov_deg = 180", "(0, 180)"],
+        &[
+            "x.toml:2:",
+            "camera.vfov_deg = 180",
+            "[0.000001, 180) (degrees)",
+        ],
     );
 }
 

@@ -14,7 +14,6 @@
 //! cycle. The palette is written by name, as `[[materials]]` override it, which needs
 //! unique names ([`WriteError`]).
 
-use std::f64::consts::PI;
 use std::path::{Component, Path, PathBuf};
 
 use glam::DVec3;
@@ -193,50 +192,24 @@ fn relative_path(target: &Path, dir: &Path) -> Option<PathBuf> {
     Some(rel)
 }
 
-/// The parser's degrees to radians (`rad` in `build`).
-fn radians(deg: f64) -> f64 {
-    deg / 180.0 * PI
-}
-
-/// Radians as the degrees an experiment file holds. First `rad / pi * 180` rounded to
-/// 1e-9, so angles parsed from round numbers come out round (the parser computes
-/// `deg / 180 * pi`: 36 degrees is `0.2 * PI`, written `36.0`), and so do angles within
-/// a few ulps of such a parse (a viewer's `36.000001_f64.to_radians()`). An angle that
-/// is not (`2 atan(1/3)`, the seed's field of view) gets the shortest decimal that
-/// parses to it exactly where one exists (`36.86989764584402`), else the rounded value.
-/// Either way, writing the parsed angle again gives the same degrees (a fixed point for
-/// |angle| < 4e5 degrees).
-pub fn degrees(rad: f64) -> f64 {
-    let d = rad / PI * 180.0;
-    let scaled = d * 1e9;
-    // Beyond 2^52 every f64 is an integer: nothing to round (and no overflow to inf).
-    let rounded = if scaled.is_finite() && scaled.abs() < 4_503_599_627_370_496.0 {
-        scaled.round() / 1e9
-    } else {
-        d
-    };
-    if (radians(rounded) - rad).abs() <= 4.0 * f64::EPSILON * rad.abs() {
-        return rounded;
-    }
-    (0..17)
-        .filter_map(|digits| format!("{d:.digits$e}").parse::<f64>().ok())
-        .chain([d, d.next_up(), d.next_down()])
-        .find(|&c| radians(c) == rad)
-        .unwrap_or(rounded)
-}
+pub use crate::settings::degrees;
 
 fn v3(v: DVec3) -> Value {
     Value::Array(vec![v.x.into(), v.y.into(), v.z.into()])
+}
+
+/// Every declared number of `fields` (`crate::settings`) as `target` has it.
+fn insert_fields<T>(t: &mut Table, fields: &[crate::settings::Field<T>], target: &T) {
+    for f in fields {
+        t.insert(f.key().into(), f.setting.toml_value((f.get)(target)));
+    }
 }
 
 /// `[camera]`: target, distance and the angles in degrees.
 pub fn camera_table(c: &OrbitCamera) -> Table {
     let mut t = Table::new();
     t.insert("target".into(), v3(c.target));
-    t.insert("distance".into(), c.distance.into());
-    t.insert("yaw_deg".into(), degrees(c.yaw).into());
-    t.insert("pitch_deg".into(), degrees(c.pitch).into());
-    t.insert("vfov_deg".into(), degrees(c.vfov).into());
+    insert_fields(&mut t, crate::settings::CAMERA, c);
     t
 }
 
@@ -285,16 +258,7 @@ pub fn material_table(m: &Material) -> Table {
     let mut t = Table::new();
     t.insert("name".into(), m.name.clone().into());
     t.insert("albedo".into(), v3(m.albedo));
-    for (k, v) in [
-        ("kd", m.kd),
-        ("ks", m.ks),
-        ("shininess", m.shininess),
-        ("kr", m.kr),
-        ("kt", m.kt),
-        ("ior", m.ior),
-    ] {
-        t.insert(k.into(), v.into());
-    }
+    insert_fields(&mut t, crate::settings::MATERIAL, m);
     if let Some(s) = m.sigma {
         t.insert("sigma".into(), v3(s));
     }
@@ -329,24 +293,14 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
         surface: _,
     } = s;
     let mut t = Table::new();
-    let int = |v: u32| Value::Integer(i64::from(v));
-    t.insert("width".into(), int(s.width));
-    t.insert("height".into(), int(s.height));
-    t.insert("max_reflection_depth".into(), int(s.max_reflection_depth));
-    t.insert("max_refraction_depth".into(), int(s.max_refraction_depth));
+    insert_fields(&mut t, crate::settings::RENDER, s);
     if let Some(d) = s.max_depth {
-        t.insert("max_depth".into(), int(d));
+        t.insert("max_depth".into(), Value::Integer(i64::from(d)));
     }
     t.insert("rules".into(), s.rules.name().into());
     t.insert("falloff".into(), s.falloff.into());
-    t.insert("falloff_min_distance".into(), s.falloff_min_distance.into());
-    t.insert("ray_offset".into(), s.ray_offset.into());
     t.insert("ambient".into(), v3(ambient));
-    t.insert("light_samples".into(), int(s.light_samples));
-    t.insert("spp".into(), int(s.spp));
-    t.insert("seed".into(), int(s.seed));
     t.insert("pixel_filter".into(), s.pixel_filter.name().into());
-    t.insert("filter_width".into(), s.filter_width.into());
     t.insert("traversal".into(), s.traversal.name().into());
     t.insert("surface".into(), s.surface.name().into());
     t

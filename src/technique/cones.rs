@@ -25,8 +25,14 @@ const fn float(
 ) -> Setting {
     Setting {
         key,
-        kind: Kind::Float { min, max, min_open },
+        kind: Kind::Float {
+            min,
+            max,
+            min_open,
+            max_open: false,
+        },
         default,
+        unit: "",
         doc,
         sweep: &[],
     }
@@ -42,6 +48,7 @@ pub const CONE_SETTINGS: &[GroupSetting] = &[
                 max: crate::cpu::pyramid::MAX_LEVELS as i64,
             },
             default: 0.0,
+            unit: "",
             doc: "pyramid levels; 0 chooses automatically",
             sweep: &[],
         },
@@ -89,6 +96,7 @@ pub const CONE_SETTINGS: &[GroupSetting] = &[
             key: "ao_cones",
             kind: Kind::Int { min: 1, max: 64 },
             default: 8.0,
+            unit: "",
             doc: "hemisphere cones for ambient occlusion and indirect light",
             sweep: &[],
         },

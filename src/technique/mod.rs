@@ -119,11 +119,7 @@ pub struct SettingGroup {
 }
 
 /// One setting of a [`SettingGroup`] and the field of `RenderSettings` it is.
-pub struct GroupSetting {
-    pub setting: Setting,
-    pub get: fn(&RenderSettings) -> f64,
-    pub set: fn(&mut RenderSettings, f64),
-}
+pub type GroupSetting = crate::settings::Field<RenderSettings>;
 
 impl SettingGroup {
     /// Its setting `key` (without the table's prefix).
@@ -177,61 +173,7 @@ impl Slot {
     }
 }
 
-/// The type and allowed range of a setting.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Kind {
-    /// An integer in `min..=max`.
-    Int { min: i64, max: i64 },
-    /// A finite number in `[min, max]`, or `(min, max]` when `min_open`.
-    Float { min: f64, max: f64, min_open: bool },
-}
-
-/// One experiment setting of a technique, declared once.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Setting {
-    /// Key within the technique's table (`[techniques.<name>]` for plug-ins).
-    pub key: &'static str,
-    pub kind: Kind,
-    pub default: f64,
-    /// What it does, one line.
-    pub doc: &'static str,
-    /// Values `voxlab ablate` sweeps it over (empty: not a quality knob).
-    pub sweep: &'static [f64],
-}
-
-impl Setting {
-    /// The allowed range in the words of the experiment parser's messages.
-    pub fn range_text(&self) -> String {
-        match self.kind {
-            Kind::Int { min, max } => format!("must be an integer in {min}..={max}"),
-            Kind::Float {
-                min,
-                max,
-                min_open: true,
-            } => format!("must be a finite number in ({min}, {max}]"),
-            Kind::Float { min, max, .. } => format!("must be a finite number in [{min}, {max}]"),
-        }
-    }
-
-    /// `Ok(v)` when `v` is of the declared type and in range, else the requirement.
-    pub fn check(&self, v: f64) -> Result<f64, String> {
-        let ok = match self.kind {
-            Kind::Int { min, max } => v.fract() == 0.0 && (min as f64..=max as f64).contains(&v),
-            Kind::Float { min, max, min_open } => {
-                v.is_finite() && v <= max && if min_open { v > min } else { v >= min }
-            }
-        };
-        if ok { Ok(v) } else { Err(self.range_text()) }
-    }
-
-    /// The TOML value of `v` in this setting's type.
-    pub fn toml_value(&self, v: f64) -> toml::Value {
-        match self.kind {
-            Kind::Int { .. } => toml::Value::Integer(v as i64),
-            Kind::Float { .. } => toml::Value::Float(v),
-        }
-    }
-}
+pub use crate::settings::{Kind, Setting};
 
 /// The settings of plug-in techniques as the experiment gives them: technique name ->
 /// key -> value. A key left out takes its declared default ([`TechniqueParams::get`]).

@@ -49,8 +49,10 @@ const SETTINGS: &[Setting] = &[Setting {
         min: 0.0,
         max: 16.0,
         min_open: false,
+        max_open: false,
     },
     default: 1.0,
+    unit: "",
     doc: "scale of the light's radius in the penumbra estimate (0: hard shadows)",
     sweep: &[0.25, 0.5, 1.0, 2.0, 4.0],
 }];

@@ -19,17 +19,28 @@ use super::state::{
 use super::worker::{Job, Report, Update};
 use crate::experiment::Experiment;
 use crate::metrics::{Domain, compare};
-use crate::render::{Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, MAX_SAMPLES};
+use crate::render::Frame;
 use crate::scene::{AreaShape, Light};
 
 /// One row of a declared setting (`crate::technique::Setting`): a drag value over its
 /// declared range; true when it changed to a value the declaration's check accepts.
-fn setting_row(ui: &mut egui::Ui, setting: &crate::technique::Setting, v: &mut f64) -> bool {
-    use crate::technique::Kind;
-    let (lo, hi, decimals) = match setting.kind {
-        Kind::Int { min, max } => (min as f64, max as f64, Some(0)),
-        Kind::Float { min, max, .. } => (min, max, None),
-    };
+fn setting_row(ui: &mut egui::Ui, setting: &crate::settings::Setting, v: &mut f64) -> bool {
+    let row = ui.label(setting.key).id;
+    let changed = setting_edit(ui, row, setting, v);
+    ui.end_row();
+    changed
+}
+
+/// The drag value of [`setting_row`], named by `label`.
+fn setting_edit(
+    ui: &mut egui::Ui,
+    label: egui::Id,
+    setting: &crate::settings::Setting,
+    v: &mut f64,
+) -> bool {
+    use crate::settings::Kind;
+    let (lo, hi) = setting.widget_range();
+    let decimals = matches!(setting.kind, Kind::Int { .. }).then_some(0);
     let mut edited = *v;
     let mut value = egui::DragValue::new(&mut edited)
         .range(lo..=hi)
@@ -37,7 +48,7 @@ fn setting_row(ui: &mut egui::Ui, setting: &crate::technique::Setting, v: &mut f
     if let Some(d) = decimals {
         value = value.max_decimals(d);
     }
-    let changed = drag_row(ui, setting.key, value);
+    let changed = ui.add(value).labelled_by(label).changed();
     match setting.check(edited) {
         Ok(x) if changed => {
             *v = x;
@@ -45,6 +56,25 @@ fn setting_row(ui: &mut egui::Ui, setting: &crate::technique::Setting, v: &mut f
         }
         _ => false,
     }
+}
+
+/// A row for each of the declared `fields` (`crate::settings`) of `target` that `shown`
+/// keeps; true when one changed.
+fn field_rows<T>(
+    ui: &mut egui::Ui,
+    fields: &'static [crate::settings::Field<T>],
+    target: &mut T,
+    shown: impl Fn(&str) -> bool,
+) -> bool {
+    let mut changed = false;
+    for f in fields.iter().filter(|f| shown(f.key())) {
+        let mut v = (f.get)(target);
+        if setting_row(ui, &f.setting, &mut v) {
+            (f.set)(target, v);
+            changed = true;
+        }
+    }
+    changed
 }
 
 /// One row of a plug-in technique's declared setting, read from and written to `params`.
@@ -1041,38 +1071,10 @@ impl ViewerApp {
         egui::CollapsingHeader::new("Camera")
             .default_open(true)
             .show(ui, |ui| {
-                let mut yaw = camera.yaw.to_degrees();
-                let mut pitch = camera.pitch.to_degrees();
-                let mut vfov = camera.vfov.to_degrees();
                 egui::Grid::new("camera").show(ui, |ui| {
-                    cam_changed |= drag_row(
-                        ui,
-                        "distance",
-                        egui::DragValue::new(&mut camera.distance)
-                            .speed(0.01)
-                            .range(1e-6..=1e9),
-                    );
-                    cam_changed |=
-                        drag_row(ui, "yaw deg", egui::DragValue::new(&mut yaw).speed(0.5));
-                    cam_changed |= drag_row(
-                        ui,
-                        "pitch deg",
-                        egui::DragValue::new(&mut pitch)
-                            .speed(0.5)
-                            .range(-89.0..=89.0),
-                    );
-                    cam_changed |= drag_row(
-                        ui,
-                        "vfov deg",
-                        egui::DragValue::new(&mut vfov)
-                            .speed(0.5)
-                            .range(1.0..=170.0),
-                    );
+                    cam_changed |= field_rows(ui, crate::settings::CAMERA, &mut camera, |_| true);
                     cam_changed |= vec3_row(ui, "target", &mut camera.target, 0.01, None);
                 });
-                camera.yaw = yaw.to_radians();
-                camera.pitch = pitch.to_radians();
-                camera.vfov = vfov.to_radians();
                 ui.label("Drag the image to orbit, scroll to zoom, R to reset.");
             });
         if cam_changed {
@@ -1089,35 +1091,18 @@ impl ViewerApp {
             .default_open(true)
             .show(ui, |ui| {
                 egui::Grid::new("render").show(ui, |ui| {
-                    changed |= drag_row(
-                        ui,
-                        "width",
-                        egui::DragValue::new(&mut settings.width).range(1..=MAX_IMAGE_SIDE),
-                    );
-                    changed |= drag_row(
-                        ui,
-                        "height",
-                        egui::DragValue::new(&mut settings.height).range(1..=MAX_IMAGE_SIDE),
-                    );
-                    changed |= drag_row(
-                        ui,
-                        "reflection depth",
-                        egui::DragValue::new(&mut settings.max_reflection_depth)
-                            .range(0..=MAX_DEPTH_LIMIT),
-                    );
-                    changed |= drag_row(
-                        ui,
-                        "refraction depth",
-                        egui::DragValue::new(&mut settings.max_refraction_depth)
-                            .range(0..=MAX_DEPTH_LIMIT),
-                    );
+                    // Samples and frames are each side's, in its own panel; the filter's
+                    // width only where a filter is chosen.
+                    let filtered = settings.pixel_filter != crate::render::PixelFilter::None;
+                    changed |= field_rows(ui, crate::settings::RENDER, &mut settings, |k| {
+                        !matches!(k, "light_samples" | "spp") && (k != "filter_width" || filtered)
+                    });
                     let row = ui.label("falloff").id;
                     changed |= ui
                         .checkbox(&mut settings.falloff, "inverse square")
                         .labelled_by(row)
                         .changed();
                     ui.end_row();
-                    changed |= drag_row(ui, "seed", egui::DragValue::new(&mut settings.seed));
                     changed |= choice_row(
                         ui,
                         "pixel filter",
@@ -1125,15 +1110,6 @@ impl ViewerApp {
                         &crate::render::PixelFilter::ALL,
                         crate::render::PixelFilter::name,
                     );
-                    if settings.pixel_filter != crate::render::PixelFilter::None {
-                        changed |= drag_row(
-                            ui,
-                            "filter width px",
-                            egui::DragValue::new(&mut settings.filter_width)
-                                .speed(0.01)
-                                .range(0.01..=crate::render::MAX_FILTER_WIDTH),
-                        );
-                    }
                     changed |= vec3_row(ui, "ambient", &mut ambient, 0.005, Some(0.0));
                     changed |= choice_row(
                         ui,
@@ -1222,32 +1198,7 @@ impl ViewerApp {
                         .show(ui, |ui| {
                             egui::Grid::new(("material-grid", i)).show(ui, |ui| {
                                 changed |= vec3_row(ui, "albedo", &mut m.albedo, 0.01, Some(0.0));
-                                for (name, v) in [
-                                    ("kd", &mut m.kd),
-                                    ("ks", &mut m.ks),
-                                    ("kr", &mut m.kr),
-                                    ("kt", &mut m.kt),
-                                ] {
-                                    changed |= drag_row(
-                                        ui,
-                                        name,
-                                        egui::DragValue::new(v).speed(0.01).range(0.0..=1.0),
-                                    );
-                                }
-                                changed |= drag_row(
-                                    ui,
-                                    "shininess",
-                                    egui::DragValue::new(&mut m.shininess)
-                                        .speed(1.0)
-                                        .range(0.0..=1e6),
-                                );
-                                changed |= drag_row(
-                                    ui,
-                                    "ior",
-                                    egui::DragValue::new(&mut m.ior)
-                                        .speed(0.01)
-                                        .range(0.01..=10.0),
-                                );
+                                changed |= field_rows(ui, crate::settings::MATERIAL, m, |_| true);
                                 changed |=
                                     vec3_row(ui, "emission", &mut m.emission, 0.01, Some(0.0));
                                 let row = ui.label("sigma").id;
@@ -1341,11 +1292,12 @@ impl ViewerApp {
         };
         egui::Grid::new(("side-grid", i)).show(ui, |ui| {
             if samples_lights {
-                changed |= drag_row(
-                    ui,
-                    "light samples / frame",
-                    egui::DragValue::new(&mut s.light_samples).range(1..=MAX_SAMPLES),
-                );
+                let declared = &crate::settings::field(crate::settings::RENDER, "light_samples");
+                let mut v = f64::from(s.light_samples);
+                if setting_row(ui, &declared.setting, &mut v) {
+                    s.light_samples = v as u32;
+                    changed = true;
+                }
             }
             if accumulates {
                 changed |= drag_row(
@@ -1775,33 +1727,21 @@ fn light_edit(
                 };
                 changed |= vec3_row(ui, "position", position, 0.01, None);
                 changed |= vec3_row(ui, "color", color, 0.01, Some(0.0));
-                changed |= drag_row(
-                    ui,
-                    "intensity",
-                    egui::DragValue::new(intensity).speed(0.05).range(0.0..=1e9),
-                );
+                changed |= setting_row(ui, &crate::settings::LIGHT_INTENSITY, intensity);
                 if let Light::Area(a) = light {
                     match &mut a.shape {
                         AreaShape::Rect { width, height } => {
-                            let row = ui.label("size").id;
+                            let side = &crate::settings::LIGHT_SIDE;
+                            let row = ui.label(side.key).id;
                             ui.horizontal(|ui| {
-                                changed |= ui
-                                    .add(egui::DragValue::new(width).speed(0.01).range(0.0..=1e6))
-                                    .labelled_by(row)
-                                    .changed();
-                                changed |= ui
-                                    .add(egui::DragValue::new(height).speed(0.01).range(0.0..=1e6))
-                                    .labelled_by(row)
-                                    .changed();
+                                for v in [width, height] {
+                                    changed |= setting_edit(ui, row, side, v);
+                                }
                             });
                             ui.end_row();
                         }
                         AreaShape::Disk { radius } | AreaShape::Sphere { radius } => {
-                            changed |= drag_row(
-                                ui,
-                                "radius",
-                                egui::DragValue::new(radius).speed(0.01).range(0.0..=1e6),
-                            );
+                            changed |= setting_row(ui, &crate::settings::LIGHT_RADIUS, radius);
                         }
                     }
                     if !matches!(a.shape, AreaShape::Sphere { .. }) {
@@ -1816,17 +1756,11 @@ fn light_edit(
                     // A disk looks the same turned about its normal: only a rect has a
                     // rotation that changes the image.
                     if matches!(a.shape, AreaShape::Rect { .. }) {
-                        let row = ui.label("rotation deg").id;
-                        let mut deg = a.rotation.to_degrees();
-                        if ui
-                            .add(egui::DragValue::new(&mut deg).speed(0.5))
-                            .labelled_by(row)
-                            .changed()
-                        {
-                            a.rotation = deg.to_radians();
+                        let mut deg = crate::settings::degrees(a.rotation);
+                        if setting_row(ui, &crate::settings::LIGHT_ROTATION, &mut deg) {
+                            a.rotation = crate::settings::radians(deg);
                             changed = true;
                         }
-                        ui.end_row();
                     }
                 }
             });

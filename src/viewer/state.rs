@@ -348,8 +348,8 @@ impl ViewerState {
         let yaw_deg = (cam.yaw.to_degrees() + yaw).rem_euclid(360.0);
         let pitch_deg = (cam.pitch.to_degrees() + pitch).clamp(-MAX_PITCH_DEG, MAX_PITCH_DEG);
         // Rounded to a millionth of a degree so the file shows short numbers.
-        cam.yaw = round6(yaw_deg).to_radians();
-        cam.pitch = round6(pitch_deg).to_radians();
+        cam.yaw = crate::settings::radians(round6(yaw_deg));
+        cam.pitch = crate::settings::radians(round6(pitch_deg));
         self.commit_shared()
     }
 
