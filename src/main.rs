@@ -11,11 +11,11 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use voxlab::Session;
 use voxlab::experiment::Experiment;
 use voxlab::gpu::GpuTracer;
-use voxlab::output::{OutputFormat, write_frame_with_provenance};
-use voxlab::plan::Plan;
-use voxlab::render::{Frame, MAX_IMAGE_SIDE, RenderOutput};
+use voxlab::output::OutputFormat;
+use voxlab::render::{Frame, MAX_IMAGE_SIDE};
 
 /// Whitted ray tracing over a voxel grid, on the GPU (wgpu) with an f64 CPU reference.
 ///
@@ -573,80 +573,27 @@ fn main() -> ExitCode {
     }
 }
 
-/// A tracer chosen by `--backend`, and how it presents itself in the output.
-enum Renderer {
-    Gpu(Box<GpuTracer>),
-    Cpu { label: String },
-}
-
-impl Renderer {
-    fn new(backend: Backend) -> Self {
-        match backend {
-            Backend::Cpu => Renderer::Cpu {
-                label: voxlab::cpu::backend_summary(),
-            },
-            Backend::Gpu => match GpuTracer::new() {
-                Ok(t) => {
-                    if t.adapter_info().backend == wgpu::Backend::Gl
-                        && std::env::var_os("WGPU_BACKEND").is_none()
-                    {
-                        // A fresh machine without a Vulkan driver: the README's first
-                        // command would otherwise be slow without saying why.
-                        eprintln!(
-                            "note: no Vulkan driver found, so the GPU kernel runs through \
-                             OpenGL, which is slower; install Mesa's Vulkan driver \
-                             (`apt-get install mesa-vulkan-drivers`, which `bash \
-                             tests/run.sh` does) or a GPU's own"
-                        );
-                    }
-                    Renderer::Gpu(Box::new(t))
-                }
-                Err(e) => {
-                    eprintln!("warning: GPU backend unavailable: {e:#}");
-                    eprintln!("warning: rendering with the CPU reference instead");
-                    Renderer::Cpu {
-                        label: format!(
-                            "{} -- fallback, no GPU adapter found",
-                            voxlab::cpu::backend_summary()
-                        ),
-                    }
-                }
-            },
-        }
+/// The session `--backend` asks for: on the GPU, or on the CPU reference (saying why)
+/// when no adapter opens.
+fn open_session(backend: Backend) -> Session {
+    let backend = match backend {
+        Backend::Cpu => voxlab::Backend::Cpu,
+        Backend::Gpu => voxlab::Backend::Gpu,
+    };
+    let session = Session::or_cpu(backend, |w| eprintln!("warning: {w}"));
+    if let Some(t) = session.gpu()
+        && t.adapter_info().backend == wgpu::Backend::Gl
+        && std::env::var_os("WGPU_BACKEND").is_none()
+    {
+        // A fresh machine without a Vulkan driver: the README's first command would
+        // otherwise be slow without saying why.
+        eprintln!(
+            "note: no Vulkan driver found, so the GPU kernel runs through OpenGL, which is \
+             slower; install Mesa's Vulkan driver (`apt-get install mesa-vulkan-drivers`, \
+             which `bash tests/run.sh` does) or a GPU's own"
+        );
     }
-
-    fn label(&self) -> String {
-        match self {
-            Renderer::Gpu(t) => format!("GPU {}", t.adapter_summary()),
-            Renderer::Cpu { label } => label.clone(),
-        }
-    }
-
-    /// Renders and returns the plan the tracer used (the CPU's is derived the same way,
-    /// for the printout: it needs no shader variant, but the scene's needs are the same).
-    fn render(&mut self, e: &Experiment, forced: bool) -> Result<(RenderOutput, Plan)> {
-        match self {
-            Renderer::Gpu(t) => {
-                let progress = voxlab::progress::Progress::new(&e.name, "frames", forced);
-                t.set_progress(progress.map(std::sync::Arc::new));
-                let out = t.render(&e.scene, &e.settings);
-                t.set_progress(None);
-                let out = out.context("GPU render failed")?;
-                let plan = t
-                    .last_plan()
-                    .cloned()
-                    .unwrap_or_else(|| Plan::new(&e.scene, &e.settings));
-                Ok((out, plan))
-            }
-            Renderer::Cpu { .. } => {
-                let plan = Plan::new(&e.scene, &e.settings);
-                let progress = voxlab::progress::Progress::new(&e.name, "rows", forced);
-                let out =
-                    voxlab::cpu::render_with_progress(&e.scene, &e.settings, progress.as_ref());
-                Ok((out, plan))
-            }
-        }
-    }
+    session
 }
 
 fn cmd_ablate(a: &AblateArgs) -> Result<()> {
@@ -1137,12 +1084,12 @@ fn cmd_render_all(mut experiments: Vec<Experiment>, opts: &RenderOpts) -> Result
         }
         outs.push(out);
     }
-    let mut renderer = Renderer::new(opts.backend);
+    let mut session = open_session(opts.backend);
     for (i, (e, out)) in experiments.iter().zip(&outs).enumerate() {
         if i > 0 && !opts.json {
             println!();
         }
-        render_one(&mut renderer, e, out, opts)?;
+        render_one(&mut session, e, out, opts)?;
     }
     Ok(())
 }
@@ -1156,129 +1103,46 @@ macro_rules! say {
     };
 }
 
-/// What made an image, as JSON: the resolved experiment (`--set` applied), the
-/// overrides, the revision, the backend and adapter, size, frames, samples, seed, plan,
-/// timings and rays. Stored with the image (`output::write_frame_with_provenance`) and
-/// printed, one line per image, by `render --json`.
-#[allow(clippy::too_many_arguments)]
-fn provenance(
-    e: &Experiment,
-    renderer: &Renderer,
-    plan: &Plan,
-    result: &RenderOutput,
-    frames: u32,
-    trace: std::time::Duration,
-    wall: std::time::Duration,
-    out: &Path,
-    opts: &RenderOpts,
-) -> Result<serde_json::Value> {
-    let overrides: Vec<String> = opts.set.iter().map(|o| o.to_string()).collect();
-    // The [scene] table as the file (with the overrides) gives it, so the resolved
-    // experiment renders again from its own text.
-    let scene_source = match &e.source_path {
-        Some(p) => {
-            let text = voxlab::experiment::read_text(p)?;
-            let text = voxlab::experiment::apply_overrides(&text, &opts.set)?;
-            voxlab::experiment::write::scene_source(&text, p)?
-        }
-        None => toml::Table::new(),
-    };
-    let resolved = voxlab::experiment::to_toml(e, &scene_source)?;
-    let s = &result.stats;
-    let record = serde_json::json!({
-        "voxlab": env!("CARGO_PKG_VERSION"),
-        "revision": voxlab::ablate::git_revision(),
-        "experiment": e.name,
-        "source": e.source_path.as_ref().map(|p| p.display().to_string()),
-        "overrides": overrides,
-        "backend": renderer.label(),
-        "width": e.settings.width,
-        "height": e.settings.height,
-        "spp": e.settings.spp,
-        "frames": frames,
-        "light_samples": e.settings.light_samples,
-        "seed": e.settings.seed,
-        "pixel_filter": e.settings.pixel_filter.name(),
-        "display": opts.display().encoding.name(),
-        "exposure": opts.exposure,
-        "plan": plan.to_string(),
-        "trace_ms": trace.as_secs_f64() * 1e3,
-        "wall_ms": wall.as_secs_f64() * 1e3,
-        "rays": {
-            "primary": s.primary,
-            "secondary": s.secondary,
-            "shadow": s.shadow,
-            "voxel_steps": s.voxel_steps,
-            "counted": s.total_rays() > 0,
-        },
-        "finite": result.frame.all_finite(),
-        "output": out.display().to_string(),
-        "resolved_experiment": resolved,
-    });
-    Ok(record)
-}
-
-fn render_one(
-    renderer: &mut Renderer,
-    e: &Experiment,
-    out: &Path,
-    opts: &RenderOpts,
-) -> Result<()> {
+fn render_one(session: &mut Session, e: &Experiment, out: &Path, opts: &RenderOpts) -> Result<()> {
     let source = match &e.source_path {
         Some(p) => p.display().to_string(),
         None => "built-in".to_string(),
     };
     say!(opts, "experiment: {} ({source})", e.name);
-    say!(opts, "backend:    {}", renderer.label());
-    let wall = Instant::now();
-    let (result, plan) = renderer.render(e, opts.progress)?;
-    let wall = wall.elapsed();
+    say!(opts, "backend:    {}", session.label());
+    let image = session.render_with_progress(e, opts.progress)?;
     // Plan's Display starts with "plan:" and lists what was left out on further lines.
-    say!(opts, "{plan}");
+    say!(opts, "{}", image.plan);
     say!(
         opts,
         "image:      {}x{}",
         e.settings.width,
         e.settings.height
     );
-    // Only a plan that samples something accumulates frames; otherwise one is traced.
-    let frames = if plan.accumulate {
-        e.settings.spp.max(1)
-    } else {
-        1
-    };
-    // On the GPU, device time from timestamp queries where the adapter has them.
-    let (trace, timer) = match &*renderer {
-        Renderer::Gpu(t) => (
-            t.last_gpu_time().unwrap_or(result.trace_time),
-            t.timer_name(),
-        ),
-        Renderer::Cpu { .. } => (result.trace_time, "wall"),
-    };
-    let trace_ms = trace.as_secs_f64() * 1e3;
+    let frames = image.frames;
+    let trace_ms = image.trace_time.as_secs_f64() * 1e3;
     say!(
         opts,
-        "time:       {:.3} ms per frame (trace, {timer}), {} frame{} in {:.3} ms, {:.3} ms wall",
+        "time:       {:.3} ms per frame (trace, {}), {} frame{} in {:.3} ms, {:.3} ms wall",
         trace_ms / frames as f64,
+        image.timer,
         frames,
         if frames == 1 { "" } else { "s" },
         trace_ms,
-        wall.as_secs_f64() * 1e3
+        image.wall_time.as_secs_f64() * 1e3
     );
     // What the trace reads is prepared before it, so the trace time leaves it out.
-    if !result.setup_time.is_zero() {
+    if !image.setup_time.is_zero() {
         say!(
             opts,
             "setup:      {:.3} ms (walk data, triangle surfaces, cone pyramids: not in the trace time)",
-            result.setup_time.as_secs_f64() * 1e3
+            image.setup_time.as_secs_f64() * 1e3
         );
     }
-    if let Renderer::Gpu(t) = &*renderer
-        && let Some(m) = t.last_memory()
-    {
+    if let Some(m) = session.gpu().and_then(|t| t.last_memory()) {
         say!(opts, "memory:     {m} on the device");
     }
-    let s = result.stats;
+    let s = image.stats;
     if s.total_rays() > 0 {
         say!(
             opts,
@@ -1290,16 +1154,11 @@ fn render_one(
             s.voxel_steps
         );
     }
-    if !result.frame.all_finite() {
+    if !image.frame.all_finite() {
         eprintln!("warning: the image holds non-finite values (NaN or inf)");
     }
-    let record = provenance(e, renderer, &plan, &result, frames, trace, wall, out, opts)?;
-    write_frame_with_provenance(
-        &result.frame,
-        out,
-        &serde_json::to_string_pretty(&record)?,
-        opts.display(),
-    )?;
+    let record = image.provenance(e, &opts.set, opts.display(), Some(out))?;
+    image.save(out, &record, opts.display())?;
     say!(
         opts,
         "output:     {} (provenance: its iTXt chunk `voxlab` and {}.json)",
@@ -1310,14 +1169,14 @@ fn render_one(
         println!("{record}");
     }
     if let Some(side) = opts.check {
-        check_against_cpu(e, &result.frame, side, renderer)?;
+        check_against_cpu(e, &image.frame, side, session)?;
     }
     Ok(())
 }
 
 /// `render --check`: the centre crop of `frame` against the CPU reference's.
-fn check_against_cpu(e: &Experiment, frame: &Frame, side: u32, renderer: &Renderer) -> Result<()> {
-    if matches!(renderer, Renderer::Cpu { .. }) {
+fn check_against_cpu(e: &Experiment, frame: &Frame, side: u32, session: &Session) -> Result<()> {
+    if session.gpu().is_none() {
         println!("check:      the image is the CPU reference's own; nothing to check");
         return Ok(());
     }

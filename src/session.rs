@@ -1,0 +1,265 @@
+//! A [`Session`]: one tracer (the GPU kernel on one device, or the f64 CPU reference)
+//! kept open across renders, so a sweep compiles each kernel variant and uploads each
+//! scene once. [`Session::render`] gives an [`Image`]: the radiance, what it cost and
+//! the plan it was traced with; [`Image::provenance`] the record `voxlab render --json`
+//! prints and stores beside every image.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use crate::error::{Error, ErrorKind, Result};
+use crate::experiment::{Experiment, Override};
+use crate::gpu::GpuTracer;
+use crate::plan::Plan;
+use crate::render::{DisplayTransform, Frame, RayStats};
+
+/// Which tracer a session renders with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    /// The wgpu compute kernel on the first adapter wgpu finds.
+    Gpu,
+    /// The f64 reference on the CPU: the tests' oracle.
+    Cpu,
+}
+
+enum Tracer {
+    Gpu(Box<GpuTracer>),
+    Cpu { label: String },
+}
+
+/// One tracer kept open across renders.
+///
+/// ```
+/// use voxlab::{Backend, Experiment, Session};
+///
+/// let mut e = Experiment::load(concat!(env!("CARGO_MANIFEST_DIR"), "/experiments/baseline.toml"))?;
+/// (e.settings.width, e.settings.height) = (16, 12);
+/// let mut session = Session::new(Backend::Cpu)?;
+/// let image = session.render(&e)?;
+/// assert_eq!((image.width(), image.height()), (16, 12));
+/// assert!(image.radiance().iter().flatten().all(|c| c.is_finite()));
+/// assert!(image.stats.primary == 16 * 12);
+/// # Ok::<(), voxlab::Error>(())
+/// ```
+pub struct Session {
+    tracer: Tracer,
+}
+
+impl Session {
+    /// A session on `backend`; with [`Backend::Gpu`] an error of kind
+    /// [`ErrorKind::Device`] when no adapter can be opened.
+    pub fn new(backend: Backend) -> Result<Self> {
+        let tracer =
+            match backend {
+                Backend::Cpu => Tracer::Cpu {
+                    label: crate::cpu::backend_summary(),
+                },
+                Backend::Gpu => Tracer::Gpu(Box::new(GpuTracer::new().map_err(|e| {
+                    Error::new(ErrorKind::Device, format!("no GPU device: {e:#}"))
+                })?)),
+            };
+        Ok(Self { tracer })
+    }
+
+    /// A session on `backend`, or on the CPU reference when the GPU cannot be opened;
+    /// `warn` is told why (the command line prints it).
+    pub fn or_cpu(backend: Backend, warn: impl Fn(&str)) -> Self {
+        match Self::new(backend) {
+            Ok(s) => s,
+            Err(e) => {
+                warn(&format!("GPU backend unavailable: {e}"));
+                warn("rendering with the CPU reference instead");
+                Self {
+                    tracer: Tracer::Cpu {
+                        label: format!(
+                            "{} -- fallback, no GPU adapter found",
+                            crate::cpu::backend_summary()
+                        ),
+                    },
+                }
+            }
+        }
+    }
+
+    /// The backend and, on the GPU, the adapter, as reports name it.
+    pub fn label(&self) -> String {
+        match &self.tracer {
+            Tracer::Gpu(t) => format!("GPU {}", t.adapter_summary()),
+            Tracer::Cpu { label } => label.clone(),
+        }
+    }
+
+    /// The GPU tracer, when the session has one (for its memory and timers).
+    pub fn gpu(&self) -> Option<&GpuTracer> {
+        match &self.tracer {
+            Tracer::Gpu(t) => Some(t),
+            Tracer::Cpu { .. } => None,
+        }
+    }
+
+    /// Renders `e` (its `spp` frames where its plan samples anything, else one).
+    pub fn render(&mut self, e: &Experiment) -> Result<Image> {
+        self.render_with_progress(e, false)
+    }
+
+    /// As [`render`](Self::render), with a progress line on stderr (`forced`: even when
+    /// stderr is not a terminal).
+    pub fn render_with_progress(&mut self, e: &Experiment, forced: bool) -> Result<Image> {
+        let wall = Instant::now();
+        let (out, plan, timer) = match &mut self.tracer {
+            Tracer::Gpu(t) => {
+                let progress = crate::progress::Progress::new(&e.name, "frames", forced);
+                t.set_progress(progress.map(std::sync::Arc::new));
+                let out = t.render(&e.scene, &e.settings);
+                t.set_progress(None);
+                let mut out = out.map_err(|err| {
+                    Error::new(ErrorKind::Device, format!("GPU render failed: {err:#}"))
+                })?;
+                // Device time from timestamp queries, where the adapter has them.
+                if let Some(device) = t.last_gpu_time() {
+                    out.trace_time = device;
+                }
+                let plan = t
+                    .last_plan()
+                    .cloned()
+                    .unwrap_or_else(|| Plan::new(&e.scene, &e.settings));
+                (out, plan, t.timer_name())
+            }
+            Tracer::Cpu { .. } => {
+                // The CPU's plan is derived the same way, for the record: it needs no
+                // shader variant, but the scene's needs are the same.
+                let plan = Plan::new(&e.scene, &e.settings);
+                let progress = crate::progress::Progress::new(&e.name, "rows", forced);
+                let out =
+                    crate::cpu::render_with_progress(&e.scene, &e.settings, progress.as_ref());
+                (out, plan, "wall")
+            }
+        };
+        // Only a plan that samples something accumulates frames; otherwise one is traced.
+        let frames = if plan.accumulate {
+            e.settings.spp.max(1)
+        } else {
+            1
+        };
+        Ok(Image {
+            frame: out.frame,
+            stats: out.stats,
+            trace_time: out.trace_time,
+            setup_time: out.setup_time,
+            wall_time: wall.elapsed(),
+            timer,
+            frames,
+            plan,
+            backend: self.label(),
+        })
+    }
+}
+
+/// A rendered image and what made it.
+#[derive(Clone, Debug)]
+pub struct Image {
+    /// Linear radiance, row-major from the top-left pixel.
+    pub frame: Frame,
+    /// Rays and voxel steps, counted by the tracer.
+    pub stats: RayStats,
+    /// The trace alone: device time from timestamp queries where the GPU has them, else
+    /// wall time (`timer` says which).
+    pub trace_time: Duration,
+    /// Preparation before the trace (walk data, triangle surfaces, cone pyramids).
+    pub setup_time: Duration,
+    /// The whole call.
+    pub wall_time: Duration,
+    /// What measured `trace_time`.
+    pub timer: &'static str,
+    /// Frames accumulated.
+    pub frames: u32,
+    /// What the tracer ran and what it left out.
+    pub plan: Plan,
+    /// The session's [`Session::label`].
+    pub backend: String,
+}
+
+impl Image {
+    pub fn width(&self) -> u32 {
+        self.frame.width
+    }
+
+    pub fn height(&self) -> u32 {
+        self.frame.height
+    }
+
+    /// Linear RGB per pixel, row-major from the top-left.
+    pub fn radiance(&self) -> &[[f32; 3]] {
+        &self.frame.pixels
+    }
+
+    /// What made the image, as JSON: the resolved experiment (overrides applied), the
+    /// overrides, the revision voxlab was built from, the backend and adapter, size,
+    /// frames, samples, seed, plan, timings and rays. `voxlab render` stores it with the
+    /// image and prints it with `--json`.
+    pub fn provenance(
+        &self,
+        e: &Experiment,
+        overrides: &[Override],
+        display: DisplayTransform,
+        output: Option<&Path>,
+    ) -> Result<serde_json::Value> {
+        let labels: Vec<String> = overrides.iter().map(|o| o.to_string()).collect();
+        // The [scene] table as the file (with the overrides) gives it, so the resolved
+        // experiment renders again from its own text.
+        let scene_source = match &e.source_path {
+            Some(p) => {
+                let text = crate::experiment::read_text(p)?;
+                let text = crate::experiment::apply_overrides(&text, overrides)?;
+                crate::experiment::write::scene_source(&text, p)?
+            }
+            None => toml::Table::new(),
+        };
+        let resolved = crate::experiment::to_toml(e, &scene_source)?;
+        let s = &self.stats;
+        Ok(serde_json::json!({
+            "voxlab": env!("CARGO_PKG_VERSION"),
+            "revision": crate::ablate::git_revision(),
+            "experiment": e.name,
+            "source": e.source_path.as_ref().map(|p| p.display().to_string()),
+            "overrides": labels,
+            "backend": self.backend,
+            "width": e.settings.width,
+            "height": e.settings.height,
+            "spp": e.settings.spp,
+            "frames": self.frames,
+            "light_samples": e.settings.light_samples,
+            "seed": e.settings.seed,
+            "pixel_filter": e.settings.pixel_filter.name(),
+            "display": display.encoding.name(),
+            "exposure": display.exposure,
+            "plan": self.plan.to_string(),
+            "trace_ms": self.trace_time.as_secs_f64() * 1e3,
+            "wall_ms": self.wall_time.as_secs_f64() * 1e3,
+            "rays": {
+                "primary": s.primary,
+                "secondary": s.secondary,
+                "shadow": s.shadow,
+                "voxel_steps": s.voxel_steps,
+                "counted": s.total_rays() > 0,
+            },
+            "finite": self.frame.all_finite(),
+            "output": output.map(|p| p.display().to_string()),
+            "resolved_experiment": resolved,
+        }))
+    }
+
+    /// Writes the image (`.png`: 8 bits, clamped, `display` applied; `.exr`: linear)
+    /// with `provenance` stored in it and beside it (`<path>.json`), all or nothing.
+    pub fn save(
+        &self,
+        path: impl AsRef<Path>,
+        provenance: &serde_json::Value,
+        display: DisplayTransform,
+    ) -> Result<()> {
+        let text = serde_json::to_string_pretty(provenance)
+            .map_err(|e| Error::new(ErrorKind::Other, e.to_string()))?;
+        crate::output::write_frame_with_provenance(&self.frame, path, &text, display)?;
+        Ok(())
+    }
+}
