@@ -798,7 +798,7 @@ pub fn full_plan(
         full.set_flag(f, true);
     }
     full.ray_stack_size = settings.ray_stack_size();
-    full.pyramid = Some(crate::cpu::pyramid::PyramidLayout::new(
+    full.pyramid = Some(crate::technique::cones::pyramid::PyramidLayout::new(
         scene.grid.dims(),
         settings.cones.levels,
     ));
@@ -922,7 +922,8 @@ pub struct TreeRow {
 /// (f64, one thread, so the times compare the work): the primary rays of the scene's
 /// camera at `size`^2 and a min-kt shadow ray from each hit to each light.
 pub fn bench_trees(name: &str, scene: &Scene, size: u32) -> Vec<TreeRow> {
-    use crate::cpu::{cast_over, shadow_min_kt_over};
+    use crate::cpu::shadow_min_kt_over;
+    use crate::dda::cast_over;
     use crate::sparse::SparseTree;
     let cam = scene.camera.frame();
     let mut rows = Vec::new();

@@ -1301,7 +1301,7 @@ fn build(
     // Cone pyramids scale with the grid: estimated before any render builds them.
     let plan = crate::plan::Plan::new(&scene, &settings);
     if let Some(layout) = plan.pyramid {
-        use crate::cpu::pyramid::{MAX_PYRAMID_BYTES, cpu_pyramid_bytes};
+        use crate::technique::cones::pyramid::{MAX_PYRAMID_BYTES, cpu_pyramid_bytes};
         let indirect = plan.radiance_pyramid();
         let bytes = cpu_pyramid_bytes(&layout, indirect);
         if bytes > MAX_PYRAMID_BYTES {

@@ -59,6 +59,8 @@
 pub mod ablate;
 pub mod bench;
 pub mod cpu;
+pub mod dda;
+pub mod device;
 pub mod error;
 pub mod experiment;
 pub mod gpu;

@@ -22,10 +22,10 @@ use std::fmt;
 
 use naga_oil::compose::ShaderDefValue;
 
-use crate::cpu::pyramid::{PyramidLayout, memory_line};
 use crate::render::RenderSettings;
 pub use crate::render::{Surface, Traversal};
 use crate::scene::{Material, Scene, VOID};
+use crate::technique::cones::pyramid::{PyramidLayout, memory_line};
 use crate::technique::{LightingTerm, ShadowModel, TRAVERSALS, TransmittanceModel, TraversalModel};
 
 /// Shader defs of one kernel variant, ordered so they can key a pipeline cache.

@@ -100,3 +100,12 @@ mod tests {
         );
     }
 }
+
+/// What the light samples of one primary ray depend on (see `crate::sampling`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SampleKey {
+    /// `row * width + column`.
+    pub pixel: u32,
+    /// The accumulation frame, `0..spp`.
+    pub frame: u32,
+}

@@ -8,7 +8,7 @@
 //! the ray's medium holds no hit, whatever that medium is: a ray inside a glass block
 //! skips the block as a ray in air skips the air.
 //!
-//! The walk over it ([`crate::cpu::Dda::skip`], `dda_skip` in shaders/traversal.wgsl)
+//! The walk over it ([`crate::dda::Dda::skip`], `dda_skip` in shaders/traversal.wgsl)
 //! leaves a region at exactly the voxel, distance and face where the dense DDA leaves it,
 //! so the hits, normals and images are the dense grid's (`tests/sparse.rs`).
 //!
@@ -365,7 +365,7 @@ impl Region {
 
 /// The uniform regions of a grid as a traversal finds them on the CPU (the f64 twin of
 /// its WGSL `region_at`, `crate::technique::TraversalModel::cpu`): the walks
-/// (`crate::cpu::Dda`) leave a region of the ray's medium whole. Without one every
+/// (`crate::dda::Dda`) leave a region of the ray's medium whole. Without one every
 /// region is a voxel, read from the grid.
 pub trait Regions: Send + Sync {
     /// A uniform region holding voxel `v` (inside the grid), for a walk whose step along

@@ -845,7 +845,7 @@ pub fn ill_conditioned(case: &StressCase, oracle: &Frame) -> Vec<bool> {
                         let d = (dir + sign * across).normalize();
                         let mut sum = DVec3::ZERO;
                         for frame in 0..frames {
-                            let key = crate::cpu::SampleKey {
+                            let key = crate::sampling::SampleKey {
                                 pixel: j * w + i,
                                 frame,
                             };

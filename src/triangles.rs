@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 use glam::{DVec3, IVec3};
 use rayon::prelude::*;
 
-use crate::cpu::{Dda, Hit};
+use crate::dda::{Dda, Hit};
 use crate::render::{RayStats, Transmittance};
 use crate::scene::voxelize::tri_box_overlap;
 use crate::scene::{Grid, Material, Scene, VOID};

@@ -1,12 +1,12 @@
-//! The f64 cone tracer (`voxlab::cpu::cone`) and its pyramids (`voxlab::cpu::pyramid`)
+//! The f64 cone tracer (`voxlab::technique::cones::march`) and its pyramids (`voxlab::technique::cones::pyramid`)
 //! on cases with known answers.
 
 use glam::{DVec3, IVec3, UVec3};
 use voxlab::RenderSettings;
-use voxlab::cpu::cone::{self, ConeParams};
-use voxlab::cpu::pyramid::{Pyramid, PyramidLayout, sample_level};
 use voxlab::render::RayStats;
 use voxlab::scene::{Grid, Scene, seed_ids, seed_scene};
+use voxlab::technique::cones::march::{self as cone, ConeParams};
+use voxlab::technique::cones::pyramid::{Pyramid, PyramidLayout, sample_level};
 
 fn params() -> ConeParams {
     ConeParams {
@@ -165,7 +165,7 @@ fn shrinking_cones_approach_the_hard_shadow() {
                 if g.get(v) != seed_ids::SOLID {
                     continue;
                 }
-                for f in voxlab::cpu::pyramid::FACES {
+                for f in voxlab::scene::FACES {
                     if g.get(v + f) == 0 {
                         pts.push((v.as_dvec3() + 0.5 + 0.5 * f.as_dvec3(), f.as_dvec3()));
                     }

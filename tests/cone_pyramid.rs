@@ -1,5 +1,5 @@
 //! Cone-tracing pyramids and cones on the GPU against the f64 reference
-//! (`voxlab::cpu::pyramid`, `voxlab::cpu::cone`).
+//! (`voxlab::technique::cones::pyramid`, `voxlab::technique::cones::march`).
 //!
 //! Tolerances (f16 storage):
 //! - opacity: built in f32 and rounded to f16 once, so `|gpu - cpu| <= 2^-10 |cpu| + 2^-24`
@@ -14,12 +14,12 @@ mod common;
 use common::tracer;
 use glam::{DVec3, IVec3, UVec3};
 use voxlab::RenderSettings;
-use voxlab::cpu::cone::{self, ConeParams};
-use voxlab::cpu::pyramid::{Pyramid, PyramidLayout};
 use voxlab::gpu::GpuTracer;
 use voxlab::gpu::pyramid::ConeQuery;
 use voxlab::render::ConeSettings;
 use voxlab::scene::{Grid, Scene, seed_palette, seed_scene};
+use voxlab::technique::cones::march::{self as cone, ConeParams};
+use voxlab::technique::cones::pyramid::{Pyramid, PyramidLayout};
 
 /// A grid of `dims` filled pseudo-randomly (a fixed LCG) with the seed palette's glass,
 /// semi-solid and solid at `fill` density, lit by the seed's lights for a 16^3 grid moved
@@ -161,7 +161,7 @@ fn grid_256_cubed_builds_and_its_opacity_matches() {
     let g = gpu
         .build_pyramid(&scene, &settings(), layout, true)
         .unwrap();
-    let line = voxlab::cpu::pyramid::memory_line(&layout, true);
+    let line = voxlab::technique::cones::pyramid::memory_line(&layout, true);
     println!("{line}");
     // 8/7 of 2 + 8 bytes per voxel, less the levels beyond the eighth.
     let bpv = g.bytes() as f64 / (256f64 * 256.0 * 256.0);
@@ -213,7 +213,7 @@ fn queries(scene: &Scene) -> Vec<ConeQuery> {
     }
     // Surface points: voxel faces that border void.
     let g = &scene.grid;
-    let faces = voxlab::cpu::pyramid::FACES;
+    let faces = voxlab::scene::FACES;
     let mut surface = Vec::new();
     for z in 0..g.dims().z as i32 {
         for y in 0..g.dims().y as i32 {

@@ -32,7 +32,8 @@ fn every_cone_variant_composes() {
         .iter()
         .copied()
         .filter(|m| m.pyramid || *m == default_shadow_model());
-    let layout = voxlab::cpu::pyramid::PyramidLayout::new(glam::UVec3::new(16, 9, 5), 3);
+    let layout =
+        voxlab::technique::cones::pyramid::PyramidLayout::new(glam::UVec3::new(16, 9, 5), 3);
     let mut composed = 0;
     for b in bases {
         for model in models.clone() {

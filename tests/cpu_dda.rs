@@ -4,7 +4,7 @@
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
-use voxlab::cpu::{Dda, cast};
+use voxlab::dda::{Dda, cast};
 use voxlab::scene::Grid;
 
 /// A non-cubic, non-power-of-two grid away from the origin, with non-unit voxels and a

@@ -8,7 +8,8 @@ mod common;
 
 use common::{linear, tracer};
 use glam::{DVec3, IVec3, UVec3};
-use voxlab::cpu::{Dda, cast, refract, shadow_beer_lambert};
+use voxlab::cpu::{refract, shadow_beer_lambert};
+use voxlab::dda::{Dda, cast};
 use voxlab::scene::{Grid, Light, Material, PointLight, Scene, seed_scene, seed_scene_dims};
 use voxlab::stress::{SuiteOptions, TOLERANCE, cases, run_case};
 use voxlab::{RayStats, RenderSettings};

@@ -15,11 +15,11 @@ use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use voxlab::RayStats;
-use voxlab::cpu::shadow_transmittance_over;
 use voxlab::experiment::{Experiment, write};
 use voxlab::render::{RenderSettings, Transmittance};
 use voxlab::scene::{AreaLight, AreaShape, Grid, Light, seed_ids, seed_scene, seed_scene_dims};
 use voxlab::sparse::SparseTree;
+use voxlab::technique::shading::shadow_transmittance_over;
 use voxlab::technique::{self, Slot, TRANSMITTANCES};
 
 fn every_model() -> impl Iterator<Item = Transmittance> {

@@ -14,12 +14,13 @@ use common::{DENSE_WALK, MESH_SURFACE, VOXELS_SURFACE};
 use glam::{DVec3, IVec3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
-use voxlab::cpu::{Hit, ShadowWalk, cast_through, shadow_transmittance, unshadowed};
+use voxlab::dda::{Hit, cast_through};
 use voxlab::experiment::Experiment;
 use voxlab::render::{RayStats, RenderSettings};
 use voxlab::scene::{Light, Material, PointLight, Scene, VOID, seed_palette};
 use voxlab::sparse::SparseTree;
 use voxlab::surface::{DEFAULT_RELAX, extract_solid};
+use voxlab::technique::shading::{ShadowWalk, shadow_transmittance, unshadowed};
 use voxlab::triangles::{SURFACE_TAG, SurfaceTrace};
 
 fn trace_of(scene: &Scene) -> SurfaceTrace {
@@ -320,7 +321,7 @@ fn a_ray_inside_the_mesh_leaves_it_into_void_and_cells_are_tagged() {
 }
 
 /// One brute-force Whitted frame without secondary rays: the nearest crossing over
-/// every triangle, Phong with falloff (`voxlab::cpu::unshadowed`, the model's formula)
+/// every triangle, Phong with falloff (`voxlab::technique::shading::unshadowed`, the model's formula)
 /// for each point light seen through a brute-force shadow ray.
 fn brute_force_image(
     scene: &Scene,

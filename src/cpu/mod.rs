@@ -3,20 +3,18 @@
 //! tests and the fallback renderer when no GPU adapter exists. It follows
 //! `src/trace_contract.md` to the letter.
 
-pub mod cone;
-pub mod dda;
-pub mod pyramid;
-
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use rayon::prelude::*;
 
-pub use dda::{Dda, Hit, Visit, cast, cast_over, cast_through, cast_with};
+pub use crate::sampling::SampleKey;
+use crate::technique::shading::ShadowWalk;
 
+use crate::dda::cast_through;
 use crate::plan::Plan;
-use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Rules, Transmittance};
-use crate::scene::{Material, Scene};
+use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Rules};
+use crate::scene::Scene;
 use crate::sparse::Regions;
 use crate::triangles::SurfaceTrace;
 
@@ -210,15 +208,6 @@ fn trace_region(
     }
 }
 
-/// What the light samples of one primary ray depend on (see `crate::sampling`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct SampleKey {
-    /// `row * width + column`.
-    pub pixel: u32,
-    /// The accumulation frame, `0..spp`.
-    pub frame: u32,
-}
-
 /// One entry of the explicit ray stack (the recursion of Whitted's model unrolled).
 struct StackRay {
     origin: DVec3,
@@ -232,7 +221,7 @@ struct StackRay {
 /// What a render builds once from the scene before tracing, as its plan asks: the cone
 /// pyramids, the shadow model's own data, the triangle surfaces and the sparse tree.
 pub struct Prepared {
-    pub cones: Option<cone::ConeScene>,
+    pub cones: Option<crate::technique::cones::march::ConeScene>,
     pub shadow_model: Box<dyn crate::technique::CpuShadow>,
     /// The plan's lighting terms.
     pub terms: Vec<&'static crate::technique::LightingTerm>,
@@ -256,7 +245,7 @@ impl Prepared {
         };
         let grid = surfaces.as_ref().map_or(&scene.grid, |s| &s.tagged);
         Self {
-            cones: cone::ConeScene::new(scene, settings, plan),
+            cones: crate::technique::cones::march::ConeScene::new(scene, settings, plan),
             shadow_model: (plan.shadow_model.cpu)(scene, settings),
             terms: plan.terms.clone(),
             regions: plan.traversal.data.map(|data| data(grid)),
@@ -264,30 +253,18 @@ impl Prepared {
         }
     }
 
+    /// How shadow segments from a point in `medium` walk this preparation's structures.
+    pub fn shadow_walk(&self, medium: u8) -> ShadowWalk<'_> {
+        ShadowWalk {
+            regions: self.regions.as_deref(),
+            surfaces: self.surfaces.as_ref(),
+            medium,
+        }
+    }
+
     /// The grid the walks read: the scene's, or its copy with the cells tagged.
     pub fn grid<'a>(&'a self, scene: &'a Scene) -> &'a crate::scene::Grid {
         self.surfaces.as_ref().map_or(&scene.grid, |s| &s.tagged)
-    }
-}
-
-/// How a shadow segment walks the scene: through the sparse tree and the triangle
-/// surfaces when they are planned, starting in `medium` (the material at its start,
-/// which only the triangle walk needs: the voxel walk reads it from the grid).
-#[derive(Clone, Copy, Default)]
-pub struct ShadowWalk<'a> {
-    pub regions: Option<&'a dyn Regions>,
-    pub surfaces: Option<&'a SurfaceTrace>,
-    pub medium: u8,
-}
-
-impl<'a> ShadowWalk<'a> {
-    /// The walk of `prepared`'s structures from a point in `medium`.
-    pub fn new(prepared: &'a Prepared, medium: u8) -> Self {
-        Self {
-            regions: prepared.regions.as_deref(),
-            surfaces: prepared.surfaces.as_ref(),
-            medium,
-        }
     }
 }
 
@@ -456,7 +433,7 @@ fn direct_light(
 ) -> DVec3 {
     let m = &scene.materials[shade_id as usize];
     let Surface { p, n, q, medium } = *at;
-    let walk = ShadowWalk::new(prepared, medium);
+    let walk = prepared.shadow_walk(medium);
     let mut sum = DVec3::ZERO;
     for (j, light) in scene.lights.iter().enumerate() {
         // The plan's shadow model shades the whole light (crate::technique).
@@ -479,121 +456,6 @@ fn direct_light(
     m.albedo * sum
 }
 
-/// One point emitter at `x` of radiance `radiance` (colour times intensity) seen from the
-/// hit point `p` (shadow ray from `q`): `V E (kd diffuse + ks specular)`, before albedo.
-#[allow(clippy::too_many_arguments)]
-pub fn point_contribution(
-    scene: &Scene,
-    walk: &ShadowWalk,
-    settings: &RenderSettings,
-    m: &Material,
-    q: DVec3,
-    p: DVec3,
-    n: DVec3,
-    d: DVec3,
-    x: DVec3,
-    radiance: DVec3,
-    stats: &mut RayStats,
-) -> DVec3 {
-    // No shadow ray where nothing it could let through is seen (a light behind the
-    // surface, say): `V` multiplies zero there. Contract: "Shading a hit".
-    let lit = unshadowed(settings, m, p, n, d, x, radiance);
-    if lit == DVec3::ZERO {
-        return lit;
-    }
-    stats.shadow += 1;
-    shadow_transmittance(scene, walk, settings.features.transmittance, q, x, stats) * lit
-}
-
-/// `E (kd diffuse + ks specular)` of a point emitter at `x` seen from `p`, before
-/// visibility and albedo.
-pub fn unshadowed(
-    settings: &RenderSettings,
-    m: &Material,
-    p: DVec3,
-    n: DVec3,
-    d: DVec3,
-    x: DVec3,
-    radiance: DVec3,
-) -> DVec3 {
-    let to_light = x - p;
-    let dl = to_light.length();
-    let l = if dl > 0.0 { to_light / dl } else { n };
-    let e = if settings.falloff {
-        radiance / (dl * dl).max(settings.falloff_min_distance.powi(2))
-    } else {
-        radiance
-    };
-    let nl = n.dot(l);
-    let diffuse = nl.max(0.0);
-    // A light behind the surface gives no highlight: textbook Phong gates the specular
-    // term by n.l > 0 (a transmitting face lets its own shadow ray through, so without
-    // the gate glass lit from behind would glow towards the viewer).
-    let r = l - 2.0 * nl * n;
-    let rd = r.dot(d);
-    let spec = if nl > 0.0 && rd > 0.0 {
-        rd.powf(m.shininess)
-    } else {
-        0.0
-    };
-    e * (m.kd * diffuse + m.ks * spec)
-}
-
 // The two models' own entry points, where tests and the cone injection call them.
 pub use crate::technique::beer_lambert::{shadow_beer_lambert, shadow_beer_lambert_over};
 pub use crate::technique::min_kt::{shadow_min_kt, shadow_min_kt_over};
-
-/// Transmittance (RGB) of the shadow segment from `q` to `light` under `model`, over
-/// the scene's grid as the walk's tree holds it when there is one (the same value), or
-/// through its triangle surfaces (`crate::triangles::SurfaceTrace::transmittance`).
-pub fn shadow_transmittance(
-    scene: &Scene,
-    walk: &ShadowWalk,
-    model: Transmittance,
-    q: DVec3,
-    light: DVec3,
-    stats: &mut RayStats,
-) -> DVec3 {
-    let regions = walk.regions;
-    if let Some(s) = walk.surfaces {
-        return s.transmittance(scene, regions, model, q, light, walk.medium, stats);
-    }
-    shadow_transmittance_over(scene, regions, model, q, light, stats)
-}
-
-/// The transmittance of the segment from `q` to `light` over the voxels, as `tree`
-/// holds them when given (a uniform region passes at once): every voxel visited, the
-/// start voxel included, passes to `model` in order; nothing outside the grid absorbs.
-pub fn shadow_transmittance_over(
-    scene: &Scene,
-    regions: Option<&dyn Regions>,
-    model: Transmittance,
-    q: DVec3,
-    light: DVec3,
-    stats: &mut RayStats,
-) -> DVec3 {
-    let to_light = light - q;
-    let len = to_light.length();
-    if len == 0.0 {
-        return DVec3::ONE;
-    }
-    let m = model.model();
-    let grid = &scene.grid;
-    let vs = grid.voxel_size();
-    let mut dda = Dda::over(grid, regions, q, to_light / len, len);
-    let mut state = (m.start)();
-    let mut opaque = false;
-    while let Some(v) = dda.next() {
-        let material = &scene.materials[v.material as usize];
-        if (m.pass)(&mut state, v.t_enter, v.material, material, vs) {
-            opaque = true;
-            break;
-        }
-        dda.skip_region();
-    }
-    stats.voxel_steps += dda.steps;
-    if opaque {
-        return DVec3::ZERO;
-    }
-    (m.result)(&state, dda.t_end.min(len))
-}

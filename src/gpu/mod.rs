@@ -3,7 +3,6 @@
 
 mod compose;
 pub mod pyramid;
-pub(crate) mod util;
 
 pub use compose::{ENTRY_POINT, ShaderError, compose_shader, validate};
 
@@ -16,12 +15,12 @@ use anyhow::{Context, Result, anyhow, bail};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
+use crate::device::{buffer, buffer_entry, extent, readback, storage_entry, uniform_entry};
 use crate::plan::{Plan, ShaderDefs};
 use crate::render::{
     Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings,
 };
 use crate::scene::{AreaShape, Light, Scene};
-use util::{buffer, buffer_entry, extent, readback, storage_entry, uniform_entry};
 
 /// Side of the square workgroup (`@workgroup_size(8, 8, 1)` in `shaders/trace.wgsl`).
 const WORKGROUP: u32 = 8;
@@ -1858,9 +1857,9 @@ impl GpuTracer {
             }
         }
         let pyramids = plan.pyramid.map_or(0, |layout| {
-            layout.texture_bytes(crate::cpu::pyramid::OPACITY_TEXEL_BYTES)
+            layout.texture_bytes(crate::technique::cones::pyramid::OPACITY_TEXEL_BYTES)
                 + if plan.radiance_pyramid() {
-                    layout.texture_bytes(crate::cpu::pyramid::RADIANCE_TEXEL_BYTES)
+                    layout.texture_bytes(crate::technique::cones::pyramid::RADIANCE_TEXEL_BYTES)
                 } else {
                     0
                 }

@@ -1,7 +1,7 @@
 //! Cone-tracing pyramids on the GPU: built by compute passes (`shaders/inject.wgsl`,
 //! `shaders/mip_build.wgsl`) into mip-mapped 3D textures, an R16Float opacity pyramid
 //! and, for indirect light, an RGBA16Float radiance pyramid. Layout, filter and
-//! injection are those of the f64 reference, `crate::cpu::pyramid`, which documents
+//! injection are those of the f64 reference, `crate::technique::cones::pyramid`, which documents
 //! them; the tests hold the two within f16 storage error.
 //!
 //! The opacity is built level by level in f32 storage buffers and rounded to f16 once,
@@ -22,15 +22,15 @@ use bytemuck::{Pod, Zeroable};
 use glam::UVec3;
 use naga_oil::compose::ShaderDefValue;
 
-use super::util::{
+use super::{GpuLight, GpuMaterial, GpuTracer};
+use crate::device::{
     buffer, buffer_entry, buffer_init, extent, readback, sampler_entry, storage_entry,
     texture_3d_entry, uniform_entry, view_entry,
 };
-use super::{GpuLight, GpuMaterial, GpuTracer};
-use crate::cpu::cone::hemisphere_tan_half;
-use crate::cpu::pyramid::{PyramidLayout, alpha_table};
 use crate::render::{ConeSettings, RenderSettings};
 use crate::scene::Scene;
+use crate::technique::cones::march::hemisphere_tan_half;
+use crate::technique::cones::pyramid::{PyramidLayout, alpha_table};
 
 const INJECT: (&str, &str) = (
     "shaders/inject.wgsl",
@@ -104,7 +104,7 @@ impl GpuConeParams {
     }
 }
 
-pub use crate::cpu::cone::{indirect_range, light_radius};
+pub use crate::technique::cones::march::{indirect_range, light_radius};
 
 /// A pyramid on the device.
 pub struct GpuPyramid {
@@ -120,7 +120,7 @@ pub struct GpuPyramid {
 impl GpuPyramid {
     /// Device memory of the textures (stand-ins excluded).
     pub fn bytes(&self) -> u64 {
-        use crate::cpu::pyramid::{OPACITY_TEXEL_BYTES, RADIANCE_TEXEL_BYTES};
+        use crate::technique::cones::pyramid::{OPACITY_TEXEL_BYTES, RADIANCE_TEXEL_BYTES};
         self.layout.texture_bytes(OPACITY_TEXEL_BYTES)
             + if self.radiance.is_some() {
                 self.layout.texture_bytes(RADIANCE_TEXEL_BYTES)

@@ -421,6 +421,17 @@ fn check_placement(voxel_size: f64, origin: DVec3) -> Result<(), SceneError> {
     Ok(())
 }
 
+/// The six face normals of a voxel, in the order the cone pyramids' builders and the
+/// interior fill visit them.
+pub const FACES: [IVec3; 6] = [
+    IVec3::new(-1, 0, 0),
+    IVec3::new(1, 0, 0),
+    IVec3::new(0, -1, 0),
+    IVec3::new(0, 1, 0),
+    IVec3::new(0, 0, -1),
+    IVec3::new(0, 0, 1),
+];
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -11,8 +11,8 @@ pub mod voxelize;
 
 pub use camera::{CameraFrame, OrbitCamera};
 pub use grid::{
-    DENSE_MAX_VOXELS, Grid, MAX_SPARSE_SIDE, MAX_VOXEL_SIZE, MAX_VOXELS, MIN_VOXEL_SIZE, Storage,
-    VOID,
+    DENSE_MAX_VOXELS, FACES, Grid, MAX_SPARSE_SIDE, MAX_VOXEL_SIZE, MAX_VOXELS, MIN_VOXEL_SIZE,
+    Storage, VOID,
 };
 pub use light::{AreaLight, AreaShape, Light, PointLight};
 pub use material::{MIN_KT_FOR_SIGMA, Material, SEED_SHININESS, seed_ids, seed_palette};

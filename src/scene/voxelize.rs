@@ -472,7 +472,7 @@ impl<'a> OutsideFlood<'a> {
                 }
                 // Otherwise reached along a run since it was pushed.
             } else if let Some(v) = self.voxel_stack.pop() {
-                for f in crate::cpu::pyramid::FACES {
+                for f in crate::scene::FACES {
                     self.visit(v + f);
                 }
             } else {

@@ -1,12 +1,12 @@
 //! Ambient occlusion by voxel cones: the ambient light a hit receives, times the mean
 //! visibility of cosine-weighted hemisphere cones through the opacity pyramid (C.
 //! Crassin et al., "Interactive Indirect Illumination Using Voxel Cone Tracing", CGF
-//! 30(7), 2011, section 4; the march is `crate::cpu::cone`'s).
+//! 30(7), 2011, section 4; the march is `crate::technique::cones::march`'s).
 //!
 //! Contract (both tracers): at a hit of a material with `kd > 0` it adds
 //! `ambient * albedo * kd * AO`, `AO` the mean visibility `1 - occ` of `cones.ao_cones`
 //! hemisphere cones (Malley's method on a golden spiral about the shading normal) of
-//! range `cones.ao_range` voxels from the grid-local hit (`crate::cpu::cone::
+//! range `cones.ao_range` voxels from the grid-local hit (`crate::technique::cones::march::
 //! ambient_occlusion`). Off, nothing is added: the baseline's ambient stays the
 //! per-pixel background term.
 
@@ -42,7 +42,7 @@ fn term(at: &TermQuery) -> DVec3 {
         return DVec3::ZERO;
     };
     let m = at.material;
-    let ao = crate::cpu::cone::ambient_occlusion(
+    let ao = crate::technique::cones::march::ambient_occlusion(
         &c.pyramid, &c.params, pl, at.n, c.ao_cones, c.ao_range,
     );
     at.scene.ambient * m.albedo * m.kd * ao

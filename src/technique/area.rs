@@ -76,7 +76,7 @@ pub fn sampled(at: &LightQuery, stats: &mut RayStats) -> DVec3 {
             let mut sum = DVec3::ZERO;
             for k in 0..count {
                 let (u, v) = light_sample(s.seed, at.key.pixel, at.key.frame, at.index, k, count);
-                sum += crate::cpu::point_contribution(
+                sum += crate::technique::shading::point_contribution(
                     at.scene,
                     &at.walk,
                     s,

@@ -99,5 +99,5 @@ pub fn shadow_beer_lambert_over(
     light: DVec3,
     stats: &mut crate::render::RayStats,
 ) -> DVec3 {
-    crate::cpu::shadow_transmittance_over(scene, regions, ID, q, light, stats)
+    crate::technique::shading::shadow_transmittance_over(scene, regions, ID, q, light, stats)
 }

@@ -1,14 +1,14 @@
 //! Cone shadows: one cone per light through the opacity pyramid replaces the shadow rays
 //! (C. Crassin et al., "Interactive Indirect Illumination Using Voxel Cone Tracing",
 //! CGF 30(7), 2011, section 4). The march and the pyramids are shared with ambient
-//! occlusion and indirect light (`crate::cpu::cone`, `shaders/cone.wgsl`); its knobs are
+//! occlusion and indirect light (`crate::technique::cones::march`, `shaders/cone.wgsl`); its knobs are
 //! the `[cones]` table's ([`super::cones`]).
 //!
 //! Contract (both tracers): light j at centre `x` is `V E (kd diffuse + ks specular)`
-//! (`crate::cpu::unshadowed`) at `x`, `V` the visibility `1 - occ` of one cone from the
+//! (`crate::technique::shading::unshadowed`) at `x`, `V` the visibility `1 - occ` of one cone from the
 //! hit (grid-local, apex `start_offset` along the normal) to `x`. Its aperture is the
 //! angle the light subtends, `tan(theta / 2) = R / dist` with `R` its radius in voxels
-//! (`crate::cpu::cone::light_radius`: a rectangle's half-diagonal) and `dist` from the
+//! (`crate::technique::cones::march::light_radius`: a rectangle's half-diagonal) and `dist` from the
 //! hit to `x`; `cones.aperture_deg` for point lights. Each light counts one shadow ray.
 //! It casts no shadow ray through the transmittance model: the pyramid's opacity
 //! already holds the materials' transmittance, so the plan leaves the model out.
@@ -16,9 +16,9 @@
 use glam::DVec3;
 
 use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
-use crate::cpu::cone::{ConeScene, light_radius, shadow_visibility};
 use crate::render::{RayStats, RenderSettings};
 use crate::scene::{Light, Scene};
+use crate::technique::cones::march::{ConeScene, light_radius, shadow_visibility};
 
 pub const MODEL: ShadowModel = ShadowModel {
     name: "cone",
@@ -140,7 +140,7 @@ impl CpuShadow for Cone {
         let v = shadow_visibility(&c.pyramid, &c.params, pl, at.n, ll, th);
         if v > 0.0 {
             let radiance = at.light.color() * at.light.intensity();
-            v * crate::cpu::unshadowed(
+            v * crate::technique::shading::unshadowed(
                 at.settings,
                 at.material,
                 at.p,

@@ -2,7 +2,7 @@
 //! (T. Whitted, "An Improved Illumination Model for Shaded Display", CACM 23(6), 1980).
 //!
 //! Contract (both tracers): a light, point or area, is one point emitter at its centre
-//! `x`: `T E (kd diffuse + ks specular)` (`crate::cpu::point_contribution`), `T` the
+//! `x`: `T E (kd diffuse + ks specular)` (`crate::technique::shading::point_contribution`), `T` the
 //! shadow transmittance of the segment from `q` to `x` under the experiment's
 //! transmittance model. An area light's shape is ignored; every other model reaches this
 //! one as its light vanishes.
@@ -52,7 +52,7 @@ impl CpuShadow for Hard {
 /// models fall back to for point lights.
 pub fn at_centre(at: &LightQuery, stats: &mut RayStats) -> DVec3 {
     let radiance = at.light.color() * at.light.intensity();
-    crate::cpu::point_contribution(
+    crate::technique::shading::point_contribution(
         at.scene,
         &at.walk,
         at.settings,

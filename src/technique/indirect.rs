@@ -1,12 +1,12 @@
 //! One bounce of diffuse light by voxel cones: the direct light injected into the
 //! radiance pyramid, gathered at each hit by cosine-weighted hemisphere cones (C.
 //! Crassin et al., "Interactive Indirect Illumination Using Voxel Cone Tracing", CGF
-//! 30(7), 2011, section 4.2; injection `crate::cpu::pyramid`, march `crate::cpu::cone`).
+//! 30(7), 2011, section 4.2; injection `crate::technique::cones::pyramid`, march `crate::technique::cones::march`).
 //!
 //! Contract (both tracers): at a hit of a material with `kd > 0` it adds
 //! `indirect_strength * albedo * kd * L_ind`, `L_ind` the mean radiance `cones.ao_cones`
 //! hemisphere cones gather from the radiance pyramid until they leave the grid
-//! (`crate::cpu::cone::indirect`, range `indirect_range`).
+//! (`crate::technique::cones::march::indirect`, range `indirect_range`).
 
 use glam::DVec3;
 
@@ -42,7 +42,9 @@ fn term(at: &TermQuery) -> DVec3 {
         return DVec3::ZERO;
     };
     let m = at.material;
-    let range = crate::cpu::cone::indirect_range(&c.pyramid.layout);
-    let l = crate::cpu::cone::indirect(&c.pyramid, &c.params, pl, at.n, c.ao_cones, range);
+    let range = crate::technique::cones::march::indirect_range(&c.pyramid.layout);
+    let l = crate::technique::cones::march::indirect(
+        &c.pyramid, &c.params, pl, at.n, c.ao_cones, range,
+    );
     c.indirect_strength * m.albedo * m.kd * l
 }

@@ -57,5 +57,5 @@ pub fn shadow_min_kt_over(
     light: DVec3,
     stats: &mut crate::render::RayStats,
 ) -> f64 {
-    crate::cpu::shadow_transmittance_over(scene, regions, ID, q, light, stats).x
+    crate::technique::shading::shadow_transmittance_over(scene, regions, ID, q, light, stats).x
 }

@@ -18,14 +18,14 @@
 //! per-voxel transmittance the cone pyramids use), registered with one line in
 //! [`TRANSMITTANCES`]: `min-kt` ([`min_kt`]) and `beer-lambert` ([`beer_lambert`]).
 //! The shadow walks (voxels, dense or sparse, and triangle surfaces; `shaders/shadow.wgsl`,
-//! `shaders/shadow_surface.wgsl`, `crate::cpu::shadow_transmittance`) are generic over it.
+//! `shaders/shadow_surface.wgsl`, `crate::technique::shading::shadow_transmittance`) are generic over it.
 //!
 //! A lighting term is one [`LightingTerm`] value in its own file (name, summary, plan
 //! rule, the pyramids it reads, WGSL module `voxlab::term::<name>` and f64 function),
 //! registered with one line in [`LIGHTING_TERMS`]: [`ambient_occlusion`] and
 //! [`indirect`]. The kernel adds every planned term's `term` at each hit (a module
 //! `voxlab::lighting_terms` composed for the plan, `crate::gpu::compose`). The cone
-//! techniques share the march and the pyramids (`crate::cpu::cone`,
+//! techniques share the march and the pyramids (`crate::technique::cones::march`,
 //! `shaders/cone.wgsl`) and the `[cones]` settings, declared in [`cones`].
 //!
 //! A traversal is one [`TraversalModel`] value in its own file (name, summary, plan
@@ -33,7 +33,7 @@
 //! the data it walks), registered with one line in [`TRAVERSALS`]: the seed's `dense`
 //! DDA ([`dense`]), the `proximity` clouds ([`proximity`], a radius beside each voxel)
 //! and the `sparse` 64-tree ([`sparse`], the seed's O2). Every walk, on
-//! both backends, is the one DDA of `shaders/traversal.wgsl` and `crate::cpu::dda` over
+//! both backends, is the one DDA of `shaders/traversal.wgsl` and `crate::dda` over
 //! the regions the traversal finds; all give the same visits.
 //!
 //! A surface is one [`SurfaceModel`] value in its own file (name, summary, plan rule,
@@ -56,6 +56,7 @@ pub mod octant;
 pub mod proximity;
 pub mod ratio;
 pub mod sdf;
+pub mod shading;
 pub mod smooth;
 pub mod sparse;
 pub mod voxels;
@@ -65,8 +66,8 @@ use std::fmt;
 
 use glam::DVec3;
 
-use crate::cpu::SampleKey;
 use crate::render::{RayStats, RenderSettings, Transmittance};
+use crate::sampling::SampleKey;
 use crate::scene::{Light, Material, Scene};
 
 /// Shadow models, in the order they are listed and offered; the first is the default
@@ -222,17 +223,17 @@ pub struct LightQuery<'a> {
     /// The light's index and the light.
     pub index: u32,
     pub light: &'a Light,
-    /// How shadow segments walk the scene (`crate::cpu::shadow_transmittance`): the
+    /// How shadow segments walk the scene (`crate::technique::shading::shadow_transmittance`): the
     /// sparse tree and the triangle surfaces when planned, and the medium at `q`.
-    pub walk: crate::cpu::ShadowWalk<'a>,
+    pub walk: crate::technique::shading::ShadowWalk<'a>,
     /// The cone pyramids, when the plan built them (for a model with `pyramid`).
-    pub cones: Option<&'a crate::cpu::cone::ConeScene>,
+    pub cones: Option<&'a crate::technique::cones::march::ConeScene>,
 }
 
 /// A shadow model's f64 reference, made once per render (its per-scene data built).
 pub trait CpuShadow: Send + Sync {
     /// Light `at.light`'s local radiance at the hit before albedo: visibility times
-    /// `E (kd diffuse + ks specular)` (`crate::cpu::unshadowed`), however the model
+    /// `E (kd diffuse + ks specular)` (`crate::technique::shading::unshadowed`), however the model
     /// estimates it. Counts its shadow rays and voxel steps in `stats`.
     fn light_term(&self, at: &LightQuery, stats: &mut RayStats) -> DVec3;
 }
@@ -475,7 +476,7 @@ pub struct TransmittanceModel {
     /// The RGB transmittance of the segment ending at `t_end`.
     pub result: fn(&AbsorbState, t_end: f64) -> DVec3,
     /// The transmittance across one voxel of a material, for the cone pyramids'
-    /// opacity `1 - T` (`crate::cpu::pyramid::material_alpha`).
+    /// opacity `1 - T` (`crate::technique::cones::pyramid::material_alpha`).
     pub voxel_transmittance: fn(&Material, voxel_size: f64) -> f64,
 }
 
@@ -489,14 +490,16 @@ pub struct TermQuery<'a> {
     pub p: DVec3,
     pub n: DVec3,
     /// The cone pyramids, when the plan built them (for a term with `pyramid`).
-    pub cones: Option<&'a crate::cpu::cone::ConeScene>,
+    pub cones: Option<&'a crate::technique::cones::march::ConeScene>,
 }
 
 impl<'a> TermQuery<'a> {
     /// For a term gathered by hemisphere cones from diffuse hits: the pyramids and the
     /// grid-local hit point, or `None` where the material is not diffuse (the term adds
     /// nothing there). The plan builds the pyramids for every term with `pyramid`.
-    pub fn diffuse_cone_hit(&self) -> Option<(&'a crate::cpu::cone::ConeScene, DVec3)> {
+    pub fn diffuse_cone_hit(
+        &self,
+    ) -> Option<(&'a crate::technique::cones::march::ConeScene, DVec3)> {
         if self.material.kd <= 0.0 {
             return None;
         }
@@ -628,7 +631,7 @@ pub fn claim_from_side(scene: &Scene, from: u32) -> Result<String, String> {
 /// traversal gives the dense DDA's visits (voxels, distances, faces), so images do not
 /// depend on it; only the time and the memory do. A walk asks it for the uniform region
 /// around the voxel it is in and leaves a region of the ray's medium whole
-/// (`shaders/traversal.wgsl`'s `dda_region`/`dda_skip`, `crate::cpu::Dda`).
+/// (`shaders/traversal.wgsl`'s `dda_region`/`dda_skip`, `crate::dda::Dda`).
 pub struct TraversalModel {
     /// Its name in experiment files (`render.traversal`) and lists.
     pub name: &'static str,

@@ -8,7 +8,7 @@
 //!
 //! Where the sparse tree descends its levels at every step (on a SIMD device every
 //! level, whatever the lane needs), this walk reads one word a step, as the dense walk
-//! does, and skips with the same exact exit (`dda_skip`, `crate::cpu::Dda`), so its
+//! does, and skips with the same exact exit (`dda_skip`, `crate::dda::Dda`), so its
 //! hits, normals and images are the dense walk's. It costs two bytes a voxel (material
 //! and radius) in place of the dense walk's one, and needs the dense grid.
 //!

@@ -36,10 +36,10 @@
 use glam::DVec3;
 
 use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
-use crate::cpu::shadow_transmittance;
 use crate::render::RayStats;
 use crate::sampling::light_sample;
 use crate::scene::{AreaShape, Light};
+use crate::technique::shading::shadow_transmittance;
 
 pub const MODEL: ShadowModel = ShadowModel {
     name: "ratio",

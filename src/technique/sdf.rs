@@ -35,9 +35,10 @@ use glam::{DVec3, IVec3, UVec3};
 use super::{
     AblateCurve, CpuShadow, GpuBuild, GpuData, Kind, Knob, LightQuery, Setting, ShadowModel,
 };
-use crate::cpu::{Dda, shadow_transmittance, unshadowed};
+use crate::dda::Dda;
 use crate::render::{RayStats, RenderSettings};
 use crate::scene::{Scene, VOID};
+use crate::technique::shading::{shadow_transmittance, unshadowed};
 
 /// Largest grid (voxels) the field is built for: 64 MiB of f32 on the device (and
 /// twice that of scratch while it is built), 128 MiB of f64 for the CPU reference.
@@ -268,7 +269,7 @@ impl CpuShadow for Sdf {
         }
         let to = x - at.q;
         let len = to.length();
-        let r = self.softness * crate::cpu::cone::light_radius(at.light);
+        let r = self.softness * crate::technique::cones::march::light_radius(at.light);
         let p = if r > 0.0 && len > 0.0 {
             // k in voxels: len / r is a ratio of world lengths.
             self.penumbra(scene, at.q, to / len, len, len / r, stats)
@@ -300,9 +301,7 @@ fn build_on_device(b: &GpuBuild) -> anyhow::Result<wgpu::Buffer> {
         .enumerate()
         .map(|(i, m)| u32::from(i != VOID as usize && m.kt <= 0.0))
         .collect();
-    use crate::gpu::util::{
-        buffer_entry, storage_entry, texture_3d_entry, uniform_entry, view_entry,
-    };
+    use crate::device::{buffer_entry, storage_entry, texture_3d_entry, uniform_entry, view_entry};
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("sdf field"),
         entries: &[
@@ -336,8 +335,7 @@ fn build_on_device(b: &GpuBuild) -> anyhow::Result<wgpu::Buffer> {
         })
     };
     let (envelope, finish) = (pipeline("envelope"), pipeline("finish"));
-    let buffer =
-        |label, size: u64, usage| crate::gpu::util::buffer(device, label, size.max(4), usage);
+    let buffer = |label, size: u64, usage| crate::device::buffer(device, label, size.max(4), usage);
     let storage_usage = wgpu::BufferUsages::STORAGE;
     let field = buffer(
         "sdf field",
@@ -358,7 +356,7 @@ fn build_on_device(b: &GpuBuild) -> anyhow::Result<wgpu::Buffer> {
         4,
         storage_usage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
     );
-    let cut_read = crate::gpu::util::readback(device, "sdf loop cut readback", 4);
+    let cut_read = crate::device::readback(device, "sdf loop cut readback", 4);
     let opaque = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("sdf opaque materials"),
         contents: bytemuck::cast_slice(&opaque),

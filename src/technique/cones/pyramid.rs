@@ -2,7 +2,7 @@
 //! Indirect Illumination Using Voxel Cone Tracing", Computer Graphics Forum 30(7), 2011,
 //! section 3), built in f64: the reference the GPU builder (`src/gpu/pyramid.rs`,
 //! `shaders/inject.wgsl`, `shaders/mip_build.wgsl`) is tested against, and what the CPU
-//! cone tracer (`super::cone`) samples.
+//! cone tracer (`super::march`) samples.
 //!
 //! Two pyramids over the same layout:
 //! - opacity: level 0 holds each voxel's opacity `alpha = 1 - T1`, with `T1` the
@@ -192,15 +192,7 @@ pub fn alpha_table(scene: &Scene, model: Transmittance) -> Vec<f64> {
         .collect()
 }
 
-/// The six face normals, in the order both builders visit them.
-pub const FACES: [IVec3; 6] = [
-    IVec3::new(-1, 0, 0),
-    IVec3::new(1, 0, 0),
-    IVec3::new(0, -1, 0),
-    IVec3::new(0, 1, 0),
-    IVec3::new(0, 0, -1),
-    IVec3::new(0, 0, 1),
-];
+use crate::scene::FACES;
 
 /// Diffuse outgoing radiance of voxel `v` under direct light (the injection of
 /// Crassin et al. section 3.2, here from the lights themselves rather than a light-view
@@ -243,7 +235,7 @@ pub fn inject_voxel(scene: &Scene, settings: &RenderSettings, v: IVec3) -> DVec3
             if nl <= 0.0 {
                 continue;
             }
-            let vis = super::shadow_min_kt(scene, q, lp, &mut stats);
+            let vis = crate::technique::min_kt::shadow_min_kt(scene, q, lp, &mut stats);
             if vis <= 0.0 {
                 continue;
             }

@@ -5,6 +5,9 @@
 //! default` and the listing take the type, default and range from here, through
 //! [`GROUP`] (registered in `SETTING_GROUPS`).
 
+pub mod march;
+pub mod pyramid;
+
 use super::{GroupSetting, Kind, Setting, SettingGroup};
 
 /// The `[cones]` table: read by every technique that reads the pyramids.
@@ -45,7 +48,7 @@ pub const CONE_SETTINGS: &[GroupSetting] = &[
             key: "levels",
             kind: Kind::Int {
                 min: 0,
-                max: crate::cpu::pyramid::MAX_LEVELS as i64,
+                max: crate::technique::cones::pyramid::MAX_LEVELS as i64,
             },
             default: 0.0,
             unit: "",
