@@ -59,6 +59,14 @@ pub const MODEL_VERSION: u32 = 2;
 /// Nested samples would share noise with the reference and understate the error.
 const REFERENCE_SEED_OFFSETS: [u32; 2] = [0x9E37_79B9, 0x3C6E_F372];
 
+/// Seeds per point when `[ablate] seeds` is not given: three is the fewest with an
+/// interval (t = 4.30 at 2 degrees of freedom) at three times the cost of one.
+pub const DEFAULT_SEEDS: u32 = 3;
+
+/// The most seeds per point; far below the reference's seed offsets, so a point's seeds
+/// never draw the reference's samples.
+pub const MAX_SEEDS: u32 = 64;
+
 // ---------------------------------------------------------------------------------------
 // Configuration: the `[ablate]` table.
 
@@ -91,7 +99,11 @@ pub struct AblateConfig {
     pub reference_spp: u32,
     /// The stochastic sweep, ascending.
     pub spp: Vec<u32>,
-    /// Timed renders per point; the median is reported.
+    /// Independent seeds per point (`render.seed + k`, k < seeds): each seed's error
+    /// and time is a row of the CSV; tables and plots give their mean with a 95 %
+    /// interval (Student's t over the seeds).
+    pub seeds: u32,
+    /// Timed renders per point and seed; the median is that seed's time.
     pub runs: u32,
     /// Untimed renders before them (pipeline builds, uploads, caches).
     pub warmup: u32,
@@ -150,6 +162,7 @@ impl Default for AblateConfig {
         Self {
             reference_spp: 1024,
             spp: (0..=8).map(|k| 1 << k).collect(),
+            seeds: DEFAULT_SEEDS,
             runs: 3,
             warmup: 1,
             // Every registered model.
@@ -173,6 +186,7 @@ impl Default for AblateConfig {
 struct RawAblate {
     reference_spp: Option<i64>,
     spp: Option<Vec<i64>>,
+    seeds: Option<i64>,
     runs: Option<i64>,
     warmup: Option<i64>,
     transmittance: Option<Vec<String>>,
@@ -187,6 +201,7 @@ struct RawAblate {
 const ABLATE_KEYS: &[&str] = &[
     "reference_spp",
     "spp",
+    "seeds",
     "runs",
     "warmup",
     "transmittance",
@@ -372,6 +387,9 @@ impl AblateConfig {
                      reference's own noise under a quarter of the last point's error"
                 ),
             ));
+        }
+        if let Some(v) = raw.seeds {
+            c.seeds = int("seeds", v, 1, MAX_SEEDS)?;
         }
         if let Some(v) = raw.runs {
             c.runs = int("runs", v, 1, 1000)?;
@@ -916,6 +934,10 @@ pub struct Reference {
     /// Estimated RMSE of the reference against the converged image: half the RMSE
     /// between its two independent halves.
     pub noise_rmse: f64,
+    /// FLIP of each half against the whole reference, averaged: what a converged point
+    /// would measure, about (each half differs from the whole by exactly the
+    /// reference's own noise, `(a - b) / 2`). The FLIP panel's floor.
+    pub flip_floor: f64,
     /// Render time of both halves (when it was rendered; from the cache's record else).
     pub seconds: f64,
 }
@@ -994,6 +1016,8 @@ struct ReferenceMeta {
     spp: u32,
     backend: String,
     noise_rmse: f64,
+    /// A cache written before the floor was recorded lacks it and is rendered again.
+    flip_floor: f64,
     seconds: f64,
     model_version: u32,
 }
@@ -1036,6 +1060,7 @@ fn reference(
             spp: c.reference_spp,
             backend: meta.backend,
             noise_rmse: meta.noise_rmse,
+            flip_floor: meta.flip_floor,
             seconds: meta.seconds,
         });
     }
@@ -1066,12 +1091,18 @@ fn reference(
             o[k] = (a[k] * na + b[k] * nb) / (na + nb);
         }
     }
+    let flip_floor = frames
+        .iter()
+        .map(|half| crate::metrics::flip_mean(&frame, half))
+        .sum::<f64>()
+        / 2.0;
     write_frame(&frame, &exr)?;
     let meta = ReferenceMeta {
         key: key.clone(),
         spp: c.reference_spp,
         backend: backend.clone(),
         noise_rmse,
+        flip_floor,
         seconds,
         model_version: MODEL_VERSION,
     };
@@ -1084,6 +1115,7 @@ fn reference(
         spp: c.reference_spp,
         backend,
         noise_rmse,
+        flip_floor,
         seconds,
     })
 }
@@ -1123,8 +1155,18 @@ pub struct Row {
     pub setup_ms_median: f64,
     pub lights_as_points: bool,
     pub rmse: f64,
+    /// `sqrt(max(0, rmse^2 - noise^2))`: the RMSE against the converged image, the
+    /// reference's own noise (`Reference::noise_rmse`, independent of the point's)
+    /// taken out.
+    pub rmse_corrected: f64,
     pub psnr: f64,
     pub flip_mean: f64,
+    /// The seed this row was rendered with (`render.seed + k`), and `k`.
+    pub seed: u32,
+    pub seed_index: u32,
+    /// A point's summary over its seeds: the mean in the fields above and the 95 %
+    /// interval of each; `None` in a row of one seed.
+    pub interval: Option<Interval>,
     /// Measured against a reference of its own scene (a key sweep that changes the
     /// scene): that reference's noise RMSE. `None`: the experiment's reference.
     pub own_reference: Option<f64>,
@@ -1137,6 +1179,63 @@ pub struct Row {
 
 pub use crate::metrics::flip;
 
+/// Half-widths of the 95 % intervals of a point's means over its seeds (Student's t,
+/// `crate::metrics::mean_interval`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Interval {
+    /// Seeds behind the means.
+    pub seeds: u32,
+    pub ms: f64,
+    pub rmse: f64,
+    pub rmse_corrected: f64,
+    pub flip: f64,
+}
+
+/// One summary per point, in the order of the rows: the mean over its seeds of time and
+/// every error, with the 95 % interval of each; the image and plan of its first seed.
+pub fn summarize(rows: &[Row]) -> Vec<Row> {
+    let mut out: Vec<Row> = Vec::new();
+    let mut groups: Vec<Vec<&Row>> = Vec::new();
+    for r in rows {
+        match groups.iter_mut().find(|g| {
+            let f = g[0];
+            (&f.model, &f.knob, &f.value) == (&r.model, &r.knob, &r.value)
+        }) {
+            Some(g) => g.push(r),
+            None => groups.push(vec![r]),
+        }
+    }
+    for g in groups {
+        let stat = |f: fn(&Row) -> f64| {
+            let v: Vec<f64> = g.iter().map(|r| f(r)).collect();
+            crate::metrics::mean_interval(&v)
+        };
+        let (ms, ms_ci) = stat(|r| r.ms_median);
+        let (rmse, rmse_ci) = stat(|r| r.rmse);
+        let (corrected, corrected_ci) = stat(|r| r.rmse_corrected);
+        let (flip, flip_ci) = stat(|r| r.flip_mean);
+        let first = g[0];
+        let mut row = first.clone();
+        row.ms_median = ms;
+        row.trace_ms_median = stat(|r| r.trace_ms_median).0;
+        row.setup_ms_median = stat(|r| r.setup_ms_median).0;
+        row.ms_runs = g.iter().flat_map(|r| r.ms_runs.iter().copied()).collect();
+        row.rmse = rmse;
+        row.rmse_corrected = corrected;
+        row.psnr = stat(|r| r.psnr).0;
+        row.flip_mean = flip;
+        row.interval = (g.len() > 1).then_some(Interval {
+            seeds: g.len() as u32,
+            ms: ms_ci,
+            rmse: rmse_ci,
+            rmse_corrected: corrected_ci,
+            flip: flip_ci,
+        });
+        out.push(row);
+    }
+    out
+}
+
 fn median_ms(times: &[Duration]) -> f64 {
     let mut v: Vec<f64> = times.iter().map(|t| t.as_secs_f64() * 1e3).collect();
     v.sort_by(f64::total_cmp);
@@ -1148,14 +1247,17 @@ fn median_ms(times: &[Duration]) -> f64 {
     }
 }
 
+/// `point` rendered with each of `c.seeds` seeds: a row per seed.
 fn measure(
     e: &Experiment,
     c: &AblateConfig,
     tracers: &mut Tracers,
     point: &Point,
-    reference: &Frame,
+    reference: &Reference,
     progress: &ProgressBar,
-) -> Result<Row> {
+) -> Result<Vec<Row>> {
+    let noise_rmse = reference.noise_rmse;
+    let reference = &reference.frame;
     progress.set_message(format!("{} {} {}", point.model, point.knob, point.value));
     let s = &point.settings;
     let converted;
@@ -1167,32 +1269,65 @@ fn measure(
         own
     };
     let mut choice = c.backend;
-    let mut times = Vec::new();
-    let mut setups = Vec::new();
-    let mut last = None;
-    for i in 0..(c.warmup + c.runs) {
-        let r = tracers.render(choice, scene, s)?;
-        let setup = tracers.setup_time(&r, scene, s)?;
-        // The first render settles the backend, so later runs do not retry the GPU.
-        if choice == BackendChoice::Auto {
-            choice = if r.backend == "gpu" {
-                BackendChoice::Gpu
-            } else {
-                BackendChoice::Cpu
-            };
+    let mut rows = Vec::new();
+    for k in 0..c.seeds {
+        let s = RenderSettings {
+            seed: s.seed.wrapping_add(k),
+            ..s.clone()
+        };
+        let mut times = Vec::new();
+        let mut setups = Vec::new();
+        let mut last = None;
+        // Warm-up renders before the first seed only: later seeds reuse its pipelines.
+        let warmup = if k == 0 { c.warmup } else { 0 };
+        for i in 0..(warmup + c.runs) {
+            let r = tracers.render(choice, scene, &s)?;
+            let setup = tracers.setup_time(&r, scene, &s)?;
+            // The first render settles the backend, so later runs do not retry the GPU.
+            if choice == BackendChoice::Auto {
+                choice = if r.backend == "gpu" {
+                    BackendChoice::Gpu
+                } else {
+                    BackendChoice::Cpu
+                };
+            }
+            if i >= warmup {
+                times.push(r.time);
+                setups.push(setup);
+            }
+            progress.inc(u64::from(s.spp.max(1)));
+            last = Some(r);
         }
-        if i >= c.warmup {
-            times.push(r.time);
-            setups.push(setup);
+        let r = last.expect("runs >= 1");
+        let mut row = point_row(point, scene, &s, r, reference, &times, &setups, noise_rmse)?;
+        row.seed_index = k;
+        // Only the first seed's image is kept and written: the others are measured.
+        if k > 0 {
+            row.image.clear();
+            row.frame = Frame::new(0, 0);
         }
-        progress.inc(u64::from(s.spp.max(1)));
-        last = Some(r);
+        rows.push(row);
     }
-    let r = last.expect("runs >= 1");
+    Ok(rows)
+}
+
+/// The row of one seed of `point`: its last render `r` against `reference`, the timed
+/// runs' `times` and `setups`.
+#[allow(clippy::too_many_arguments)]
+fn point_row(
+    point: &Point,
+    scene: &Scene,
+    s: &RenderSettings,
+    r: Rendered,
+    reference: &Frame,
+    times: &[Duration],
+    setups: &[Duration],
+    noise_rmse: f64,
+) -> Result<Row> {
     let d = compare(reference, &r.frame, Domain::Linear, 0.0)
         .ok_or_else(|| anyhow!("point and reference differ in size"))?;
     let (flip_mean, _) = flip(reference, &r.frame);
-    let totals: Vec<Duration> = times.iter().zip(&setups).map(|(t, u)| *t + *u).collect();
+    let totals: Vec<Duration> = times.iter().zip(setups).map(|(t, u)| *t + *u).collect();
     let m = r.plan.shadow_model;
     let model_settings = m
         .shared_settings
@@ -1226,12 +1361,16 @@ fn measure(
         },
         ms_median: median_ms(&totals),
         ms_runs: totals.iter().map(|t| t.as_secs_f64() * 1e3).collect(),
-        trace_ms_median: median_ms(&times),
-        setup_ms_median: median_ms(&setups),
+        trace_ms_median: median_ms(times),
+        setup_ms_median: median_ms(setups),
         lights_as_points: point.lights_as_points,
         rmse: d.rmse,
+        rmse_corrected: (d.rmse * d.rmse - noise_rmse * noise_rmse).max(0.0).sqrt(),
         psnr: d.psnr,
         flip_mean,
+        seed: s.seed,
+        seed_index: 0,
+        interval: None,
         own_reference: None,
         plan: r.plan.to_string(),
         image: format!("images/{}.png", point.slug()),
@@ -1253,7 +1392,11 @@ pub struct AblateOptions {
 /// What a run measured and wrote.
 pub struct AblateReport {
     pub reference: Reference,
+    /// Every point and seed: the CSV's rows.
     pub rows: Vec<Row>,
+    /// Every point's mean over its seeds with its intervals (`summarize`): the table's
+    /// and the plot's rows.
+    pub summaries: Vec<Row>,
     pub adapter: String,
     pub git_revision: String,
     /// Every file written, relative to the output directory.
@@ -1362,7 +1505,7 @@ pub fn run(
 
     let sweep_frames: u64 = points
         .iter()
-        .map(|p| u64::from(p.settings.spp.max(1)) * u64::from(c.warmup + c.runs))
+        .map(|p| u64::from(p.settings.spp.max(1)) * u64::from(c.warmup + c.seeds * c.runs))
         .sum();
     let progress = if opts.progress && std::io::stderr().is_terminal() {
         let pb = ProgressBar::new(sweep_frames + u64::from(c.reference_spp));
@@ -1423,26 +1566,36 @@ pub fn run(
             }
         };
         let against = own.unwrap_or(&reference);
-        let mut row = measure(e, c, &mut tracers, p, &against.frame, &progress)?;
-        row.own_reference = own.map(|r| r.noise_rmse);
-        if lines {
-            eprintln!(
-                "{} {}={}: {:.2} ms ({}), rmse {:.3e}, flip {:.4}",
-                row.model, row.knob, row.value, row.ms_median, row.backend, row.rmse, row.flip_mean
-            );
+        for mut row in measure(e, c, &mut tracers, p, against, &progress)? {
+            row.own_reference = own.map(|r| r.noise_rmse);
+            if lines {
+                eprintln!(
+                    "{} {}={} seed {}: {:.2} ms ({}), rmse {:.3e}, flip {:.4}",
+                    row.model,
+                    row.knob,
+                    row.value,
+                    row.seed,
+                    row.ms_median,
+                    row.backend,
+                    row.rmse,
+                    row.flip_mean
+                );
+            }
+            rows.push(row);
         }
-        rows.push(row);
     }
     progress.finish_and_clear();
 
     let git_revision = git_revision();
     let mut files = Vec::new();
+    let summaries = summarize(&rows);
     write_outputs(
         e,
         c,
         source,
         &reference,
         &rows,
+        &summaries,
         &adapter,
         &git_revision,
         out,
@@ -1452,6 +1605,7 @@ pub fn run(
     Ok(AblateReport {
         reference,
         rows,
+        summaries,
         adapter,
         git_revision,
         files,
@@ -1501,7 +1655,7 @@ fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
     write_bytes(path, bytes.get_ref())
 }
 
-pub const CSV_COLUMNS: [&str; 24] = [
+pub const CSV_COLUMNS: [&str; 28] = [
     "model",
     "knob",
     "value",
@@ -1518,11 +1672,15 @@ pub const CSV_COLUMNS: [&str; 24] = [
     "trace_ms_median",
     "setup_ms_median",
     "lights_as_points",
+    "seed",
+    "seed_index",
     "rmse",
+    "rmse_corrected",
     "psnr",
     "flip_mean",
     "reference_spp",
     "reference_noise_rmse",
+    "reference_flip_floor",
     "own_reference",
     "image",
     "fallback",
@@ -1561,11 +1719,15 @@ fn csv(rows: &[Row], r: &Reference) -> String {
             format!("{:.4}", row.trace_ms_median),
             format!("{:.4}", row.setup_ms_median),
             row.lights_as_points.to_string(),
+            row.seed.to_string(),
+            row.seed_index.to_string(),
             format!("{:.9e}", row.rmse),
+            format!("{:.9e}", row.rmse_corrected),
             format!("{:.6}", row.psnr),
             format!("{:.9e}", row.flip_mean),
             r.spp.to_string(),
             format!("{:.9e}", row.own_reference.unwrap_or(r.noise_rmse)),
+            format!("{:.9e}", r.flip_floor),
             row.own_reference.is_some().to_string(),
             row.image.clone(),
             row.fallback
@@ -1581,18 +1743,44 @@ fn csv(rows: &[Row], r: &Reference) -> String {
     out
 }
 
+/// `mean ± half` in the precision `digits` gives (`e` for scientific), or the mean alone
+/// without an interval.
+fn pm(mean: f64, half: Option<f64>, sci: bool, digits: usize) -> String {
+    let f = |v: f64| {
+        if sci {
+            format!("{v:.digits$e}")
+        } else {
+            format!("{v:.digits$}")
+        }
+    };
+    match half {
+        Some(h) => format!("{} ± {}", f(mean), f(h)),
+        None => f(mean),
+    }
+}
+
 fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) -> String {
+    let seeds = rows
+        .iter()
+        .filter_map(|r| r.interval)
+        .map(|i| i.seeds)
+        .max();
     let mut t = format!(
         "Ablation of `{}`: {}x{}, depth {}/{}, light_samples {}; reference {} spp \
-         (stochastic area lights, {}; its own noise: rmse {:.2e}). GPU: {adapter}. \
-         Revision {rev}.\n\n\
-         Time: the median over runs of trace + setup, in ms; the plot uses it. Setup is \
+         (stochastic area lights, {}; its own noise: RMSE {:.2e}, FLIP floor {:.4}). \
+         GPU: {adapter}. Revision {rev}.\n\n\
+         {}\
+         Time: per seed the median over runs of trace + setup, in ms. Setup is \
          one full cone pyramid build per image, timed apart from the GPU's trace (what a \
          scene that changes every frame pays; 0 without cones, and on the CPU, whose \
-         trace time holds it).\n\n\
-         Pareto: the points no other point beats in both time and error (RMSE, FLIP).\n\n\
-         | model | knob | value | backend | ms (trace + setup) | runs min..max | trace ms | setup ms | RMSE | PSNR dB | FLIP mean | Pareto |\n\
-         |---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|\n",
+         trace time holds it). RMSE - noise: the RMSE with the reference's own noise \
+         taken out, sqrt(RMSE^2 - noise^2). The floors: a converged point would measure \
+         the reference's noise RMSE and about the FLIP floor (each half of the \
+         reference against the whole); no point can be shown to be closer.\n\n\
+         Pareto: the points no other point beats in both mean time and mean error (RMSE, \
+         FLIP); where intervals overlap, the order is not established.\n\n\
+         | model | knob | value | backend | ms (trace + setup) | runs min..max | trace ms | setup ms | RMSE | RMSE - noise | PSNR dB | FLIP mean | Pareto |\n\
+         |---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
         e.name,
         e.settings.width,
         e.settings.height,
@@ -1602,6 +1790,16 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
         r.spp,
         r.backend,
         r.noise_rmse,
+        r.flip_floor,
+        match seeds {
+            Some(n) => format!(
+                "Each point: the mean over {n} seeds, ± the half-width of its 95 % \
+                 interval (Student's t over the seeds; the CSV has every seed's row).\n\n"
+            ),
+            None => "Each point: one seed (no interval; `[ablate] seeds` >= 2 gives \
+                     95 % intervals).\n\n"
+                .to_string(),
+        },
     );
     let rmse_front = pareto_front(rows, |r| r.rmse);
     let flip_front = pareto_front(rows, |r| r.flip_mean);
@@ -1617,18 +1815,20 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
             (false, true) => "FLIP",
             (false, false) => "",
         };
+        let ci = row.interval;
         let _ = writeln!(
             t,
-            "| {} | {} | {} | {backend} | {:.2} | {lo:.1}..{hi:.1} | {:.2} | {:.2} | {:.3e} | {:.2} | {:.4} | {front} |",
+            "| {} | {} | {} | {backend} | {} | {lo:.1}..{hi:.1} | {:.2} | {:.2} | {} | {} | {:.2} | {} | {front} |",
             row.model,
             row.knob,
             row.value,
-            row.ms_median,
+            pm(row.ms_median, ci.map(|c| c.ms), false, 2),
             row.trace_ms_median,
             row.setup_ms_median,
-            row.rmse,
+            pm(row.rmse, ci.map(|c| c.rmse), true, 3),
+            pm(row.rmse_corrected, ci.map(|c| c.rmse_corrected), true, 3),
             row.psnr,
-            row.flip_mean
+            pm(row.flip_mean, ci.map(|c| c.flip), false, 4),
         );
     }
     // What each shadow model with points says of itself, then of its curves.
@@ -1725,8 +1925,8 @@ fn latex_table(e: &Experiment, rows: &[Row], r: &Reference) -> String {
         "% voxlab ablate: {name}. Needs \\usepackage{{booktabs}}.\n\
          \\begin{{table}}\n\\centering\n\\small\n\
          \\caption{{Error against time, {name}: {w}$\\times${h}, reference {spp} spp (its own \
-         noise: RMSE {noise:.2e}). Time: median of trace + setup over the runs, with their \
-         range. Bold: on the Pareto front of RMSE against time.}}\n\
+         noise: RMSE {noise:.2e}). {seeds}Time: median of trace + setup over the runs. \
+         Bold: on the Pareto front of the mean RMSE against the mean time.}}\n\
          \\label{{tab:ablate-{label}}}\n\
          \\begin{{tabular}}{{lllrrrr}}\n\\toprule\n\
          Model & Knob & Value & Time (ms) & RMSE & PSNR (dB) & FLIP \\\\\n\\midrule\n",
@@ -1736,6 +1936,13 @@ fn latex_table(e: &Experiment, rows: &[Row], r: &Reference) -> String {
         spp = r.spp,
         noise = r.noise_rmse,
         label = e.name.replace(|c: char| !c.is_ascii_alphanumeric(), "-"),
+        seeds = match rows.iter().find_map(|r| r.interval) {
+            Some(i) => format!(
+                "Mean over {} seeds $\\pm$ the half-width of the 95\\,\\% interval. ",
+                i.seeds
+            ),
+            None => "One seed per point. ".to_string(),
+        },
     );
     let mut previous: Option<&str> = None;
     for (row, on_front) in rows.iter().zip(front) {
@@ -1743,7 +1950,7 @@ fn latex_table(e: &Experiment, rows: &[Row], r: &Reference) -> String {
             t += "\\addlinespace\n";
         }
         previous = Some(&row.model);
-        let (lo, hi) = ms_spread(row);
+        let ci = row.interval;
         let bold = |s: String| {
             if on_front {
                 format!("\\textbf{{{s}}}")
@@ -1753,14 +1960,14 @@ fn latex_table(e: &Experiment, rows: &[Row], r: &Reference) -> String {
         };
         let _ = writeln!(
             t,
-            "{} & {} & {} & {} {{\\scriptsize [{lo:.0}, {hi:.0}]}} & {} & {:.2} & {:.4} \\\\",
+            "{} & {} & {} & {} & {} & {:.2} & {} \\\\",
             latex_escape(&row.model),
             latex_escape(&row.knob),
             latex_escape(&row.value),
-            bold(format!("{:.1}", row.ms_median)),
-            bold(format!("{:.3e}", row.rmse)),
+            bold(pm(row.ms_median, ci.map(|c| c.ms), false, 1).replace('±', "$\\pm$")),
+            bold(pm(row.rmse, ci.map(|c| c.rmse), true, 2).replace('±', "$\\pm$")),
             row.psnr,
-            row.flip_mean,
+            pm(row.flip_mean, ci.map(|c| c.flip), false, 4).replace('±', "$\\pm$"),
         );
     }
     t += "\\bottomrule\n\\end{tabular}\n\\end{table}\n";
@@ -1836,6 +2043,7 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
             .collect::<Vec<_>>()
             .into(),
     );
+    ablate.insert("seeds".into(), i64::from(c.seeds).into());
     ablate.insert("runs".into(), i64::from(c.runs).into());
     ablate.insert("warmup".into(), i64::from(c.warmup).into());
     ablate.insert(
@@ -1906,6 +2114,7 @@ fn write_outputs(
     c: &AblateConfig,
     source: Option<&str>,
     r: &Reference,
+    seed_rows: &[Row],
     rows: &[Row],
     adapter: &str,
     rev: &str,
@@ -1917,6 +2126,7 @@ fn write_outputs(
     write_frame(&r.frame, out.join("images/reference.exr"))?;
     record("images/reference.png");
     record("images/reference.exr");
+    // Every seed's row in the CSV; a point's summary over its seeds everywhere else.
     for row in rows {
         let png = row.image.clone();
         let exr = png.replace(".png", ".exr");
@@ -1931,13 +2141,13 @@ fn write_outputs(
     }
     write_png(&out.join("grid.png"), &grid::grid_image(r, rows))?;
     record("grid.png");
-    write_text(&out.join("ablation.csv"), &csv(rows, r))?;
+    write_text(&out.join("ablation.csv"), &csv(seed_rows, r))?;
     record("ablation.csv");
     let title = format!(
         "{}: error against time ({}x{}, reference {} spp)",
         e.name, e.settings.width, e.settings.height, r.spp
     );
-    let (png, svg) = plot::plot(rows, &title, Some(r.noise_rmse))?;
+    let (png, svg) = plot::plot(rows, &title, Some((r.noise_rmse, r.flip_floor)))?;
     write_png(&out.join("plot.png"), &png)?;
     write_text(&out.join("plot.svg"), &svg)?;
     record("plot.png");

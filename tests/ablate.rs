@@ -41,7 +41,7 @@ transmittance = "beer-lambert"
     )
 }
 
-const SWEEP: &str = "[ablate]\nreference_spp = 256\nspp = [1, 2, 4, 8, 16]\nruns = 2\nwarmup = 1\n\
+const SWEEP: &str = "[ablate]\nreference_spp = 256\nspp = [1, 2, 4, 8, 16]\nseeds = 2\nruns = 2\nwarmup = 1\n\
                      cone_step_factor = [0.5, 2]\ncone_aperture_deg = [10, 40]\n";
 
 fn load(dir: &Path, text: &str) -> (Experiment, AblateConfig) {
@@ -171,7 +171,16 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
             Knob::Shared { list, .. } => c.list(list).len(),
         })
         .sum();
-    assert_eq!(rows.len(), 1 + curves);
+    // A row per point and seed, the seeds of a point together.
+    assert_eq!(c.seeds, 2);
+    assert_eq!(rows.len(), 2 * (1 + curves));
+    for pair in rows.chunks(2) {
+        let point =
+            |r: &Vec<String>| ["model", "knob", "value"].map(|k| col(&header, r, k).to_string());
+        assert_eq!(point(&pair[0]), point(&pair[1]));
+        let seed = |r: &Vec<String>| col(&header, r, "seed").parse::<u32>().unwrap();
+        assert_eq!(seed(&pair[1]), seed(&pair[0]) + 1);
+    }
     for m in voxlab::technique::SHADOW_MODELS {
         assert!(
             rows.iter()
@@ -222,15 +231,33 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         assert!(rmse > 0.0 && rmse.is_finite());
         assert!((psnr - 10.0 * (1.0 / (rmse * rmse)).log10()).abs() < 1e-3);
         assert!((0.0..=1.0).contains(&flip));
-        assert!(out.join(col(&header, r, "image")).is_file());
+        // The first seed's image is written; the others are measured only.
+        let image = col(&header, r, "image");
+        if col(&header, r, "seed_index") == "0" {
+            assert!(out.join(image).is_file());
+        } else {
+            assert!(image.is_empty(), "{r:?}");
+        }
+        let corrected: f64 = col(&header, r, "rmse_corrected").parse().unwrap();
+        let noise: f64 = col(&header, r, "reference_noise_rmse").parse().unwrap();
+        assert!((corrected * corrected - (rmse * rmse - noise * noise).max(0.0)).abs() < 1e-9);
     }
+    // The table's and the plot's rows: each point's mean over its seeds.
+    let points = report.summaries.len();
+    assert_eq!(points, 1 + curves);
+    assert!(
+        report
+            .summaries
+            .iter()
+            .all(|r| r.interval.is_some_and(|i| i.seeds == 2))
+    );
     // What the GPU kernel supports runs there; the rest is labelled where it ran.
-    let baseline = &report.rows[0];
+    let baseline = &report.summaries[0];
     assert_eq!(
         baseline.backend, "gpu",
         "the baseline must render on the GPU"
     );
-    for r in &report.rows {
+    for r in &report.summaries {
         assert_eq!(r.fallback.is_some(), r.backend == "cpu");
     }
 
@@ -244,7 +271,7 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
             .map(|&(_, v)| v)
     };
     let cones: Vec<&ablate::Row> = report
-        .rows
+        .summaries
         .iter()
         .filter(|r| r.shadow_model == "cone")
         .collect();
@@ -299,7 +326,7 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     // Error against the reference falls with every doubling of the samples, and 16x the
     // samples cut the RMSE by more than half (1/4 in theory, plus the reference's noise).
     let stochastic: Vec<&ablate::Row> = report
-        .rows
+        .summaries
         .iter()
         .filter(|r| r.knob == "spp" && r.shadow_model == "area")
         .collect();
@@ -331,11 +358,12 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     let table = std::fs::read_to_string(out.join("table.md")).unwrap();
     assert_eq!(
         table.lines().filter(|l| l.starts_with("| ")).count(),
-        1 + rows.len()
+        1 + points
     );
     assert!(table.contains("trace + setup"));
+    assert!(table.contains(" ± "), "means with their intervals");
     // The Pareto column: the fastest point and the most accurate are on both fronts.
-    let measured = &report.rows;
+    let measured = &report.summaries;
     let fastest = (0..measured.len())
         .min_by(|&a, &b| measured[a].ms_median.total_cmp(&measured[b].ms_median))
         .unwrap();
@@ -362,7 +390,7 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     );
     assert_eq!(
         tex.lines().filter(|l| l.ends_with("\\\\")).count(),
-        1 + rows.len(),
+        1 + points,
         "{tex}"
     );
     assert!(
@@ -375,7 +403,7 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     assert!(run_txt.contains("plan: ["));
     let resolved: toml::Table =
         toml::from_str(&std::fs::read_to_string(out.join("resolved.toml")).unwrap()).unwrap();
-    assert_eq!(resolved["points"].as_array().unwrap().len(), rows.len());
+    assert_eq!(resolved["points"].as_array().unwrap().len(), points);
     assert_eq!(
         resolved["ablate"]["cone_step_factor"]
             .as_array()
@@ -550,7 +578,7 @@ fn ablate_table_errors_name_file_line_and_key() {
 fn key_sweeps_measure_any_knob() {
     let dir = scratch("keys");
     let text = "name = \"keys\"\n[scene]\nsize = 8\n[render]\nwidth = 24\nheight = 24\n\
-                [ablate]\nreference_spp = 2\nspp = [1]\nruns = 1\nwarmup = 0\n\
+                [ablate]\nreference_spp = 2\nspp = [1]\nseeds = 1\nruns = 1\nwarmup = 0\n\
                 sweep = { \"render.max_reflection_depth\" = [0, 1, 4] }\n";
     let (e, c) = load(&dir, text);
     assert_eq!(c.sweeps.len(), 1);
@@ -718,7 +746,7 @@ fn flip_compares_the_srgb_display() {
 fn a_camera_sweep_measures_each_point_against_its_own_reference() {
     let dir = scratch("camera-sweep");
     let text = "name = \"cams\"\n[scene]\nsize = 8\n[render]\nwidth = 24\nheight = 24\n\
-                [ablate]\nreference_spp = 2\nspp = [1]\nruns = 1\nwarmup = 0\n\
+                [ablate]\nreference_spp = 2\nspp = [1]\nseeds = 1\nruns = 1\nwarmup = 0\n\
                 sweep = { \"camera.yaw_deg\" = [36, 10, -20] }\n";
     let (e, c) = load(&dir, text);
     let own: Vec<bool> = c.sweeps[0]
@@ -765,4 +793,98 @@ fn a_camera_sweep_measures_each_point_against_its_own_reference() {
     .unwrap();
     assert!(off.rmse > 1e-2, "{}", off.rmse);
     assert!(report.table.contains("reference of their own scene"));
+}
+
+/// The stochastic points only, at one spp, over `seeds` seeds (cone curves and key
+/// sweeps left out).
+fn seeded(seeds: u32, spp: u32) -> String {
+    experiment_text(
+        110.0,
+        &format!(
+            "[ablate]\nreference_spp = 64\nspp = [{spp}]\nseeds = {seeds}\nruns = 1\nwarmup = 0\n\
+             cone_step_factor = []\ncone_aperture_deg = []\ntransmittance = [\"beer-lambert\"]\n"
+        ),
+    )
+}
+
+/// Seeds draw different samples (a sampled point's error changes with its seed, a
+/// deterministic one's does not), and the interval of a point's mean narrows as seeds
+/// are added (Student's t over 2 seeds is 12.7, over 6 2.57).
+#[test]
+fn seeds_draw_new_samples_and_the_interval_narrows_with_more() {
+    let dir = scratch("seeds");
+    let mut half = Vec::new();
+    for seeds in [2, 6] {
+        let (e, c) = load(&dir, &seeded(seeds, 1));
+        let out = dir.join(format!("out-{seeds}"));
+        let report = run(&e, &c, &out, &dir.join("cache"));
+        let area: Vec<&ablate::Row> = report
+            .rows
+            .iter()
+            .filter(|r| r.shadow_model == "area" && r.knob == "spp")
+            .collect();
+        assert_eq!(area.len(), seeds as usize);
+        let seeds_used: Vec<u32> = area.iter().map(|r| r.seed).collect();
+        assert_eq!(
+            seeds_used,
+            (0..seeds).map(|k| e.settings.seed + k).collect::<Vec<_>>()
+        );
+        assert!(
+            area.windows(2).all(|w| w[0].rmse != w[1].rmse),
+            "each seed draws its own samples"
+        );
+        let hard: Vec<f64> = report
+            .rows
+            .iter()
+            .filter(|r| r.model == "baseline (all off)")
+            .map(|r| r.rmse)
+            .collect();
+        assert_eq!(hard.len(), seeds as usize);
+        assert!(hard.windows(2).all(|w| w[0] == w[1]), "nothing to sample");
+        let summary = report
+            .summaries
+            .iter()
+            .find(|r| r.shadow_model == "area" && r.knob == "spp")
+            .unwrap();
+        let i = summary
+            .interval
+            .expect("two seeds or more give an interval");
+        assert_eq!(i.seeds, seeds);
+        let mean = area.iter().map(|r| r.rmse).sum::<f64>() / f64::from(seeds);
+        assert!((summary.rmse - mean).abs() < 1e-12);
+        assert!(i.rmse > 0.0 && i.flip > 0.0);
+        half.push(i.rmse);
+    }
+    assert!(half[1] < half[0] / 2.0, "interval half-widths {half:?}");
+}
+
+/// A point rendered at the reference's own spp (independent seeds) differs from it by
+/// both images' noise, sqrt(2) times the reference's: the noise-corrected RMSE takes
+/// the reference's share out and leaves the point's own, which equals the reference's
+/// noise estimate from its two halves.
+#[test]
+fn the_reference_noise_is_taken_out_of_the_rmse() {
+    let dir = scratch("floor");
+    let (e, c) = load(&dir, &seeded(4, 64));
+    let report = run(&e, &c, &dir.join("out"), &dir.join("cache"));
+    let noise = report.reference.noise_rmse;
+    assert!(noise > 0.0 && report.reference.flip_floor > 0.0);
+    let point = report
+        .summaries
+        .iter()
+        .find(|r| r.shadow_model == "area" && r.knob == "spp")
+        .unwrap();
+    assert!(
+        (point.rmse / noise - 2f64.sqrt()).abs() < 0.35,
+        "measured {} against noise {noise}",
+        point.rmse
+    );
+    assert!(
+        (point.rmse_corrected / noise - 1.0).abs() < 0.25,
+        "corrected {} against noise {noise}",
+        point.rmse_corrected
+    );
+    // The FLIP floor is each half against the whole: a point as noisy as the reference
+    // measures more (its noise and the reference's add), never far less.
+    assert!(point.flip_mean > 0.8 * report.reference.flip_floor);
 }

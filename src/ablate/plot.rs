@@ -1,8 +1,11 @@
 //! The log-log plot of error against time: RMSE and FLIP panels, one curve per model,
-//! each point with the spread of its timed runs, the Pareto front of each panel, the
-//! reference's own noise (the floor no point can be shown to beat), and the legend in a
-//! band of its own below the panels, so it never covers data. Point labels are placed
-//! where they collide with no other label or point.
+//! each point the mean over its seeds with its 95 % interval on both axes (one seed: the
+//! spread of its timed runs in time), the Pareto front of each panel, the reference's
+//! own noise (each metric's floor, which no point can be shown to beat), and the legend
+//! in a band of its own below the panels, so it never covers data. Each technique keeps
+//! its colour across runs (Okabe and Ito's colour-blind-safe palette, by the registry's
+//! order); point labels go where they collide with no other label or point, or are left
+//! out (the table has every value).
 
 use std::collections::BTreeMap;
 use std::sync::Once;
@@ -11,7 +14,7 @@ use anyhow::{Result, anyhow};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{Row, ms_spread, pareto_front};
+use super::{Interval, Row, ms_spread, pareto_front};
 use crisp::CrispText;
 
 const SIZE: (u32, u32) = (1400, 700);
@@ -21,8 +24,98 @@ const LEGEND_H: u32 = 92;
 const LABEL_SIZE: f32 = 12.0;
 const FRONT_COLOUR: RGBColor = RGBColor(90, 90, 90);
 
-/// An error column of a row.
+/// An error column of a row, and its interval's half-width.
 type Metric = fn(&Row) -> f64;
+type Half = fn(&Interval) -> f64;
+
+/// Okabe and Ito's colour-blind-safe palette without its yellow (too light on white)
+/// and black (the floors): a technique's curves take its registry index's colour.
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(0, 114, 178),
+    RGBColor(230, 159, 0),
+    RGBColor(0, 158, 115),
+    RGBColor(204, 121, 167),
+    RGBColor(86, 180, 233),
+    RGBColor(213, 94, 0),
+];
+
+/// The colour of a row's technique: its shadow model's place in the registry, so the
+/// same technique has the same colour in every plot.
+pub fn technique_colour(row: &Row) -> RGBColor {
+    let i = crate::technique::SHADOW_MODELS
+        .iter()
+        .position(|m| m.name == row.shadow_model)
+        .unwrap_or(crate::technique::SHADOW_MODELS.len());
+    PALETTE[i % PALETTE.len()]
+}
+
+/// A tick's label: the fewest digits its value needs (ticks have at most five
+/// significant ones), in scientific notation outside 0.01..10000.
+fn tick_label(v: f64) -> String {
+    let sci = format!("{v:.4e}");
+    let (mantissa, exp) = sci.split_once('e').unwrap_or((&sci, "0"));
+    let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+    let exp: i32 = exp.parse().unwrap_or(0);
+    if (-2..4).contains(&exp) {
+        let digits = (mantissa.len().saturating_sub(2) as i32 - exp).max(0) as usize;
+        format!("{v:.digits$}")
+    } else {
+        format!("{mantissa}e{exp}")
+    }
+}
+
+/// Tick values for a log axis over `lo..hi`: the decades' 1, 2, 5 (or every digit)
+/// where those give at least four, else five values evenly spaced in the logarithm,
+/// rounded to two significant digits, so a narrow range still gets labels.
+pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    if !(lo > 0.0 && hi > lo && hi.is_finite()) {
+        return vec![];
+    }
+    let within = |mantissas: &[f64]| -> Vec<f64> {
+        let mut out = Vec::new();
+        let mut decade = 10f64.powf(lo.log10().floor());
+        while decade <= hi {
+            for m in mantissas {
+                let v = m * decade;
+                if v >= lo && v <= hi {
+                    out.push(v);
+                }
+            }
+            decade *= 10.0;
+        }
+        out
+    };
+    for mantissas in [
+        &[1.0][..],
+        &[1.0, 2.0, 5.0][..],
+        &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0][..],
+    ] {
+        let t = within(mantissas);
+        if t.len() >= 4 && t.len() <= 14 {
+            return t;
+        }
+    }
+    // A narrow range: five values evenly spaced in the logarithm, with the fewest
+    // significant digits that keep them apart.
+    let (a, b) = (lo.ln(), hi.ln());
+    let even: Vec<f64> = (1..=5)
+        .map(|k| (a + (b - a) * k as f64 / 6.0).exp())
+        .collect();
+    for significant in 2..=15 {
+        let t: Vec<f64> = even
+            .iter()
+            .map(|&v| {
+                let unit = 10f64.powf(v.log10().floor() + 1.0 - significant as f64);
+                (v / unit).round() * unit
+            })
+            .filter(|v| (lo..=hi).contains(v))
+            .collect();
+        if t.len() == even.len() && t.windows(2).all(|w| w[0] < w[1]) {
+            return t;
+        }
+    }
+    even
+}
 
 fn register_font() {
     static ONCE: Once = Once::new();
@@ -36,13 +129,14 @@ fn register_font() {
     });
 }
 
-/// The plot as a PNG image and as SVG text. `noise_rmse`: the reference's own RMSE
-/// against the converged image, drawn as the RMSE panel's floor.
+/// The plot as a PNG image and as SVG text. `floors`: the reference's own RMSE and FLIP
+/// floor (`super::Reference`), drawn as each panel's floor.
 pub fn plot(
     rows: &[Row],
     title: &str,
-    noise_rmse: Option<f64>,
+    floors: Option<(f64, f64)>,
 ) -> Result<(image::RgbImage, String)> {
+    let noise_rmse = floors;
     register_font();
     let mut buf = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
     {
@@ -83,12 +177,13 @@ fn overlaps(a: PixelBox, b: PixelBox) -> bool {
 
 /// Where each label goes, as an offset from its point: the first of several places
 /// around the point that overlaps no placed label, no point and stays in the plotting
-/// area; else the place with the fewest overlaps. Greedy, in the order given.
+/// area; `None` where every place collides (the label is left out: the table has the
+/// value). Greedy, in the order given.
 fn place_labels(
     points: &[(f32, f32)],
     labels: &[(usize, String)],
     area: PixelBox,
-) -> Vec<(i32, i32)> {
+) -> Vec<Option<(i32, i32)>> {
     let obstacles: Vec<PixelBox> = points
         .iter()
         .map(|&(x, y)| (x - 4.0, y - 4.0, x + 4.0, y + 4.0))
@@ -108,6 +203,8 @@ fn place_labels(
             (8.0, -h / 2.0),
             (-w - 8.0, -h / 2.0),
         ];
+        // Scored where they will be drawn: at whole pixels.
+        let candidates = candidates.map(|(dx, dy): (f32, f32)| (dx.round(), dy.round()));
         let score = |&(dx, dy): &(f32, f32)| {
             let b = (x + dx, y + dy, x + dx + w, y + dy + h);
             let outside = b.0 < area.0 || b.1 < area.1 || b.2 > area.2 || b.3 > area.3;
@@ -115,22 +212,40 @@ fn place_labels(
                 + obstacles.iter().filter(|o| overlaps(**o, b)).count();
             hits + if outside { 100 } else { 0 }
         };
-        let best = candidates
-            .iter()
-            .min_by_key(|c| score(c))
-            .copied()
-            .expect("candidates are not empty");
+        let Some(best) = candidates.iter().find(|c| score(c) == 0).copied() else {
+            out.push(None);
+            continue;
+        };
         placed.push((x + best.0, y + best.1, x + best.0 + w, y + best.1 + h));
-        out.push((best.0.round() as i32, best.1.round() as i32));
+        out.push(Some((best.0.round() as i32, best.1.round() as i32)));
     }
     out
+}
+
+/// A row's time interval: the 95 % interval over seeds, else the runs' spread.
+fn x_bar(r: &Row) -> (f64, f64) {
+    match r.interval {
+        Some(i) => (
+            (r.ms_median - i.ms).max(r.ms_median * 1e-3),
+            r.ms_median + i.ms,
+        ),
+        None => ms_spread(r),
+    }
+}
+
+/// A row's error interval under `metric`, where it has one (its lower end kept above
+/// zero for the log axis).
+fn y_bar(r: &Row, metric: Metric, half: Half) -> Option<(f64, f64)> {
+    let i = r.interval?;
+    let (y, h) = (metric(r), half(&i));
+    Some(((y - h).max(y * 1e-3), y + h))
 }
 
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     rows: &[Row],
     title: &str,
-    noise_rmse: Option<f64>,
+    floors: Option<(f64, f64)>,
 ) -> Result<(), Box<dyn std::error::Error>>
 where
     DB::ErrorType: 'static,
@@ -149,53 +264,93 @@ where
         }
         curves.entry(&r.model).or_default().push(i);
     }
-    let colour = |model: &str| {
-        let i = order.iter().position(|m| *m == model).unwrap_or(0);
-        Palette99::pick(i).to_rgba()
+    let colour = |model: &str| technique_colour(&rows[curves[model][0]]).to_rgba();
+    // The curves of one technique are told apart by their markers.
+    let shape = |model: &str| {
+        let t = rows[curves[model][0]].shadow_model;
+        order
+            .iter()
+            .filter(|m| rows[curves[**m][0]].shadow_model == t)
+            .position(|m| *m == model)
+            .unwrap_or(0)
     };
     let mixed = rows.iter().any(|r| r.backend != rows[0].backend);
+    let seeds = rows
+        .iter()
+        .filter_map(|r| r.interval)
+        .map(|i| i.seeds)
+        .max();
     let x_range = range(rows.iter().flat_map(|r| {
-        let (lo, hi) = ms_spread(r);
+        let (lo, hi) = x_bar(r);
         [lo, hi]
     }));
-    let metrics: [(&str, Metric, Option<f64>); 2] = [
-        ("RMSE (linear radiance)", |r| r.rmse, noise_rmse),
-        ("FLIP mean (sRGB display)", |r| r.flip_mean, None),
+    let metrics: [(&str, Metric, Half, Option<f64>); 2] = [
+        (
+            "RMSE (linear radiance)",
+            |r| r.rmse,
+            |i| i.rmse,
+            floors.map(|f| f.0),
+        ),
+        (
+            "FLIP mean (sRGB display)",
+            |r| r.flip_mean,
+            |i| i.flip,
+            floors.map(|f| f.1),
+        ),
     ];
-    for (panel, (name, metric, floor)) in panels.iter().zip(metrics) {
-        let y_range = range(rows.iter().map(metric).chain(floor));
+    let x_desc = match seeds {
+        Some(n) => format!(
+            "ms per image (trace + cone pyramid build; mean of {n} seeds, bars: 95 % interval)"
+        ),
+        None => {
+            "ms per image (median of trace + cone pyramid build; bars: the runs' range)".to_string()
+        }
+    };
+    for (panel, (name, metric, half, floor)) in panels.iter().zip(metrics) {
+        let y_range = range(
+            rows.iter()
+                .flat_map(|r| {
+                    let (lo, hi) = y_bar(r, metric, half).unwrap_or((metric(r), metric(r)));
+                    [lo, hi]
+                })
+                .chain(floor),
+        );
+        let (xt, yt) = (
+            log_ticks(x_range.start, x_range.end),
+            log_ticks(y_range.start, y_range.end),
+        );
         let mut chart = ChartBuilder::on(panel)
             .margin(16)
             .x_label_area_size(44)
             .y_label_area_size(70)
             .caption(format!("{name} against time"), (FONT, 18))
-            .build_cartesian_2d(x_range.clone().log_scale(), y_range.clone().log_scale())?;
+            .build_cartesian_2d(
+                x_range.clone().log_scale().with_key_points(xt),
+                y_range.clone().log_scale().with_key_points(yt),
+            )?;
         chart
             .configure_mesh()
-            .x_desc("ms per image (median of trace + cone pyramid build; bars: the runs' range)")
+            .x_desc(x_desc.as_str())
             .y_desc(name)
-            .x_labels(12)
-            .y_labels(12)
-            .x_label_formatter(&|v| format!("{v}"))
-            .y_label_formatter(&|v| format!("{v:.1e}"))
+            .x_label_formatter(&|v| tick_label(*v))
+            .y_label_formatter(&|v| tick_label(*v))
             .label_style((FONT, 13))
             .axis_desc_style((FONT, 15))
             .light_line_style(RGBColor(238, 238, 238))
-            .max_light_lines(4)
             .draw()?;
 
         // The reference's noise: no point can be shown to be closer than this.
         if let Some(f) = floor {
             let dashes = dashed(x_range.start, x_range.end, f);
             for d in dashes {
-                chart.draw_series(LineSeries::new(d, RGBColor(200, 40, 40).stroke_width(1)))?;
+                chart.draw_series(LineSeries::new(d, BLACK.stroke_width(1)))?;
             }
             chart.draw_series(std::iter::once(
                 EmptyElement::at((x_range.start, f))
                     + Text::new(
                         format!("reference noise {f:.1e}"),
                         (4, -16),
-                        (FONT, 12).into_font().color(&RGBColor(200, 40, 40)),
+                        (FONT, 12).into_font().color(&BLACK),
                     ),
             ))?;
         }
@@ -224,39 +379,67 @@ where
             ShapeStyle::from(&FRONT_COLOUR.mix(0.35)).stroke_width(4),
         ))?;
 
-        for model in &order {
+        // Curves first, single points (fixed configurations) last, so none hides.
+        let mut drawing: Vec<&&str> = order.iter().collect();
+        drawing.sort_by_key(|m| curves[**m].len() == 1);
+        for model in drawing {
             let c = colour(model);
-            let idx = &curves[model];
+            let idx = &curves[*model];
             let pts: Vec<(f64, f64)> = idx
                 .iter()
                 .map(|&i| (rows[i].ms_median.max(1e-9), metric(&rows[i]).max(1e-12)))
                 .collect();
-            // The spread of the timed runs, as a horizontal bar with end ticks.
             for &i in idx {
-                let (lo, hi) = ms_spread(&rows[i]);
-                let y = metric(&rows[i]).max(1e-12);
+                let (x, y) = (rows[i].ms_median.max(1e-9), metric(&rows[i]).max(1e-12));
+                let (lo, hi) = x_bar(&rows[i]);
+                let mut bars = Vec::new();
                 if hi > lo {
+                    bars.push(((lo, y), (hi, y), true));
+                }
+                if let Some((ylo, yhi)) = y_bar(&rows[i], metric, half)
+                    && yhi > ylo
+                {
+                    bars.push(((x, ylo), (x, yhi), false));
+                }
+                for (a, b, horizontal) in bars {
                     chart.draw_series(std::iter::once(PathElement::new(
-                        vec![(lo, y), (hi, y)],
+                        vec![a, b],
                         c.stroke_width(1),
                     )))?;
-                    for x in [lo, hi] {
+                    let tick = if horizontal {
+                        vec![(0, -4), (0, 4)]
+                    } else {
+                        vec![(-4, 0), (4, 0)]
+                    };
+                    for end in [a, b] {
                         chart.draw_series(std::iter::once(
-                            EmptyElement::at((x, y))
-                                + PathElement::new(vec![(0, -4), (0, 4)], c.stroke_width(1)),
+                            EmptyElement::at(end)
+                                + PathElement::new(tick.clone(), c.stroke_width(1)),
                         ))?;
                     }
                 }
             }
             if pts.len() > 1 {
                 chart.draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))?;
-                chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, c.filled())))?;
-            } else {
-                chart.draw_series(pts.iter().map(|&p| TriangleMarker::new(p, 7, c.filled())))?;
+            }
+            let k = if pts.len() > 1 { shape(model) } else { 2 };
+            for &p in &pts {
+                // A white rim keeps a marker visible on a line or another marker.
+                chart.draw_series(std::iter::once(Circle::new(p, 7, WHITE.filled())))?;
+                // Marker shapes tell a technique's curves apart (they share its colour).
+                match k % 3 {
+                    0 => chart.draw_series(std::iter::once(Circle::new(p, 4, c.filled())))?,
+                    1 => chart.draw_series(std::iter::once(
+                        EmptyElement::at(p) + Rectangle::new([(-4, -4), (4, 4)], c.filled()),
+                    ))?,
+                    _ => {
+                        chart.draw_series(std::iter::once(TriangleMarker::new(p, 6, c.filled())))?
+                    }
+                };
             }
         }
 
-        // The knob's value beside each point of a curve, where it collides least.
+        // The knob's value beside each point of a curve, where it collides with nothing.
         let area = chart.plotting_area();
         let (xr, yr) = area.get_pixel_range();
         let bounds = (
@@ -278,7 +461,10 @@ where
             .flat_map(|m| curves[*m].iter().map(|&i| (i, rows[i].value.clone())))
             .collect();
         let offsets = place_labels(&pixel, &labels, bounds);
-        for ((i, label), (dx, dy)) in labels.iter().zip(offsets) {
+        for ((i, label), offset) in labels.iter().zip(offsets) {
+            let Some((dx, dy)) = offset else {
+                continue;
+            };
             let p = (rows[*i].ms_median.max(1e-9), metric(&rows[*i]).max(1e-12));
             // The curve's colour, darkened so light ones stay legible on white.
             let RGBAColor(r, g, b, _) = colour(&rows[*i].model);
@@ -296,7 +482,7 @@ where
 
     // The legend, in its own band: one entry per curve, then the front and the floor.
     legend_area.fill(&WHITE)?;
-    let mut entries: Vec<(String, RGBAColor, bool)> = order
+    let mut entries: Vec<(String, RGBAColor, Option<usize>)> = order
         .iter()
         .map(|m| {
             let backend = rows[curves[*m][0]].backend;
@@ -305,35 +491,46 @@ where
             } else {
                 m.to_string()
             };
-            (label, colour(m), curves[*m].len() > 1)
+            let k = (curves[*m].len() > 1).then(|| shape(m));
+            (label, colour(m), k)
         })
         .collect();
     entries.push((
         "Pareto front (each panel's)".into(),
         FRONT_COLOUR.mix(0.35),
-        true,
+        None,
     ));
-    if noise_rmse.is_some() {
+    if floors.is_some() {
         entries.push((
-            "reference noise (RMSE floor)".into(),
-            RGBColor(200, 40, 40).to_rgba(),
-            true,
+            "reference noise (each metric's floor)".into(),
+            BLACK.to_rgba(),
+            None,
         ));
     }
     let columns = 4;
     let (lw, _) = legend_area.dim_in_pixel();
     let cell_w = (lw as i32 - 40) / columns;
-    for (k, (label, c, line)) in entries.iter().enumerate() {
+    let n_curves = order.len();
+    for (k, (label, c, shape)) in entries.iter().enumerate() {
         let (col, row) = (k as i32 % columns, k as i32 / columns);
         let (x, y) = (20 + col * cell_w, 10 + row * 20);
-        if *line {
+        let curve = k < n_curves;
+        if !curve || shape.is_some() {
             legend_area.draw(&PathElement::new(
                 vec![(x, y + 7), (x + 22, y + 7)],
                 c.stroke_width(2),
             ))?;
-            legend_area.draw(&Circle::new((x + 11, y + 7), 4, c.filled()))?;
-        } else {
-            legend_area.draw(&TriangleMarker::new((x + 11, y + 7), 6, c.filled()))?;
+        }
+        if curve {
+            let p = (x + 11, y + 7);
+            match shape.unwrap_or(2) % 3 {
+                0 => legend_area.draw(&Circle::new(p, 4, c.filled()))?,
+                1 => legend_area.draw(&Rectangle::new(
+                    [(p.0 - 4, p.1 - 4), (p.0 + 4, p.1 + 4)],
+                    c.filled(),
+                ))?,
+                _ => legend_area.draw(&TriangleMarker::new(p, 6, c.filled()))?,
+            }
         }
         legend_area.draw(&Text::new(label.clone(), (x + 30, y), (FONT, 13)))?;
     }
@@ -359,20 +556,40 @@ mod tests {
     use super::*;
 
     /// Labels of a dense cluster of points find places that overlap nothing when there
-    /// is room, and stay inside the area.
+    /// is room, and stay inside the area; in a cluster too dense for all of them, those
+    /// that would collide are left out, and the rest still overlap nothing.
     #[test]
     fn labels_avoid_each_other_and_the_points() {
-        let points: Vec<(f32, f32)> = (0..6).map(|k| (200.0 + 9.0 * k as f32, 200.0)).collect();
-        let labels: Vec<(usize, String)> = (0..6).map(|k| (k, format!("{}", 1 << k))).collect();
-        let area = (0.0, 0.0, 600.0, 400.0);
-        let offsets = place_labels(&points, &labels, area);
+        for (spacing, count) in [(9.0, 6), (2.0, 40)] {
+            let points: Vec<(f32, f32)> = (0..count)
+                .map(|k| (200.0 + spacing * k as f32, 200.0))
+                .collect();
+            let labels: Vec<(usize, String)> =
+                (0..count).map(|k| (k, format!("{}", 1u64 << k))).collect();
+            let offsets = place_labels(&points, &labels, (0.0, 0.0, 600.0, 400.0));
+            let placed = offsets.iter().flatten().count();
+            if count == 6 {
+                assert_eq!(placed, 6, "room for every label");
+            } else {
+                assert!(placed > 0 && placed < count, "{placed} of {count}");
+            }
+            assert_separate(&points, &labels, &offsets);
+        }
+    }
+
+    fn assert_separate(
+        points: &[(f32, f32)],
+        labels: &[(usize, String)],
+        offsets: &[Option<(i32, i32)>],
+    ) {
         let boxes: Vec<PixelBox> = labels
             .iter()
-            .zip(&offsets)
-            .map(|((i, l), (dx, dy))| {
+            .zip(offsets)
+            .filter_map(|((i, l), o)| {
+                let (dx, dy) = (*o)?;
                 let (w, h) = super::super::text::measure(l, LABEL_SIZE);
-                let (x, y) = (points[*i].0 + *dx as f32, points[*i].1 + *dy as f32);
-                (x, y, x + w, y + h)
+                let (x, y) = (points[*i].0 + dx as f32, points[*i].1 + dy as f32);
+                Some((x, y, x + w, y + h))
             })
             .collect();
         for (a, ba) in boxes.iter().enumerate() {
@@ -380,13 +597,42 @@ mod tests {
             for bb in &boxes[a + 1..] {
                 assert!(!overlaps(*ba, *bb), "{ba:?} {bb:?}");
             }
-            for &(x, y) in &points {
+            for &(x, y) in points {
                 assert!(
                     !overlaps(*ba, (x - 4.0, y - 4.0, x + 4.0, y + 4.0)),
                     "{ba:?} on ({x}, {y})"
                 );
             }
         }
+    }
+
+    /// Any range, however narrow, gets at least three tick values inside it, and at most
+    /// fourteen.
+    #[test]
+    fn log_axes_get_enough_ticks() {
+        for (lo, hi) in [
+            (0.0101, 0.0113),
+            (0.0038, 0.0052),
+            (1e-4, 1e3),
+            (1e-12, 1e12),
+            (0.9, 1.1),
+            (3.0, 7.0),
+            (55.0, 60.0),
+            (1e-3, 1.0),
+        ] {
+            let t = log_ticks(lo, hi);
+            assert!((3..=14).contains(&t.len()), "{lo}..{hi}: {t:?}");
+            assert!(t.iter().all(|v| (lo..=hi).contains(v)), "{lo}..{hi}: {t:?}");
+            assert!(t.windows(2).all(|w| w[0] < w[1]), "{t:?}");
+            let labels: Vec<String> = t.iter().map(|&v| tick_label(v)).collect();
+            assert!(
+                labels.windows(2).all(|w| w[0] != w[1]),
+                "{lo}..{hi}: {labels:?}"
+            );
+        }
+        assert_eq!(tick_label(0.01053), "0.01053");
+        assert_eq!(tick_label(200.0), "200");
+        assert_eq!(tick_label(2e-5), "2e-5");
     }
 }
 
