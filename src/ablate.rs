@@ -1160,7 +1160,11 @@ pub struct Row {
     /// taken out.
     pub rmse_corrected: f64,
     pub psnr: f64,
+    /// Mean LDR-FLIP on the display's sRGB values as floats (`metrics::flip`).
     pub flip_mean: f64,
+    /// The same on the display images quantised to 8 bits (`metrics::flip_8bit`, what a
+    /// FLIP of two PNGs measures).
+    pub flip8_mean: f64,
     /// The seed this row was rendered with (`render.seed + k`), and `k`.
     pub seed: u32,
     pub seed_index: u32,
@@ -1224,6 +1228,7 @@ pub fn summarize(rows: &[Row]) -> Vec<Row> {
         row.rmse_corrected = corrected;
         row.psnr = stat(|r| r.psnr).0;
         row.flip_mean = flip;
+        row.flip8_mean = stat(|r| r.flip8_mean).0;
         row.interval = (g.len() > 1).then_some(Interval {
             seeds: g.len() as u32,
             ms: ms_ci,
@@ -1368,6 +1373,7 @@ fn point_row(
         rmse_corrected: (d.rmse * d.rmse - noise_rmse * noise_rmse).max(0.0).sqrt(),
         psnr: d.psnr,
         flip_mean,
+        flip8_mean: crate::metrics::flip_8bit(reference, &r.frame),
         seed: s.seed,
         seed_index: 0,
         interval: None,
@@ -1412,6 +1418,7 @@ pub struct AblateReport {
 pub const OUTPUT_FILES: &[&str] = &[
     "grid.png",
     "ablation.csv",
+    "ablation.csv.json",
     "plot.png",
     "plot.svg",
     "table.md",
@@ -1586,7 +1593,7 @@ pub fn run(
     }
     progress.finish_and_clear();
 
-    let git_revision = git_revision();
+    let git_revision = crate::revision::revision().to_string();
     let mut files = Vec::new();
     let summaries = summarize(&rows);
     write_outputs(
@@ -1613,30 +1620,6 @@ pub fn run(
     })
 }
 
-/// `git rev-parse HEAD` of the source tree this binary was built from, with `-dirty`
-/// when tracked files differ from it; "unknown" without git.
-pub fn git_revision() -> String {
-    let dir = env!("CARGO_MANIFEST_DIR");
-    let git = |args: &[&str]| {
-        std::process::Command::new("git")
-            .arg("-C")
-            .arg(dir)
-            .args(args)
-            .output()
-            .ok()
-            .filter(|o| o.status.success())
-            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-    };
-    match git(&["rev-parse", "HEAD"]) {
-        Some(rev) if !rev.is_empty() => {
-            let dirty = git(&["status", "--porcelain", "--untracked-files=no"])
-                .is_some_and(|s| !s.is_empty());
-            if dirty { format!("{rev}-dirty") } else { rev }
-        }
-        _ => "unknown".to_string(),
-    }
-}
-
 // ---------------------------------------------------------------------------------------
 // Outputs.
 
@@ -1655,36 +1638,152 @@ fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
     write_bytes(path, bytes.get_ref())
 }
 
-pub const CSV_COLUMNS: [&str; 28] = [
-    "model",
-    "knob",
-    "value",
-    "spp",
-    "light_samples",
-    "shadow_model",
-    "model_settings",
-    "transmittance",
-    "backend",
-    "timer",
-    "ms_median",
-    "ms_runs",
-    "runs",
-    "trace_ms_median",
-    "setup_ms_median",
-    "lights_as_points",
-    "seed",
-    "seed_index",
-    "rmse",
-    "rmse_corrected",
-    "psnr",
-    "flip_mean",
-    "reference_spp",
-    "reference_noise_rmse",
-    "reference_flip_floor",
-    "own_reference",
-    "image",
-    "fallback",
+/// Every column of `ablation.csv` and what it holds: the header, and the column
+/// definitions its sidecar `ablation.csv.json` gives.
+pub const CSV_SCHEMA: [(&str, &str); 29] = [
+    ("model", "the curve the point belongs to"),
+    (
+        "knob",
+        "the quality knob the curve sweeps; - for a fixed point",
+    ),
+    ("value", "the knob's value"),
+    ("spp", "frames accumulated (samples per pixel)"),
+    (
+        "light_samples",
+        "shadow rays per area light per hit and frame",
+    ),
+    (
+        "shadow_model",
+        "the registry name of the shadow model the plan used",
+    ),
+    (
+        "model_settings",
+        "key=value of each setting that model reads, ;-separated",
+    ),
+    ("transmittance", "the transmittance model"),
+    ("backend", "gpu or cpu"),
+    ("timer", "what measured the time"),
+    (
+        "ms_median",
+        "this seed's median over its runs of trace + setup, ms",
+    ),
+    ("ms_runs", "each timed run's trace + setup, ms, ;-separated"),
+    ("runs", "timed runs of this seed"),
+    ("trace_ms_median", "median trace time, ms"),
+    (
+        "setup_ms_median",
+        "median setup the trace time leaves out (cone pyramid builds), ms",
+    ),
+    (
+        "lights_as_points",
+        "area lights replaced by point lights at their centres",
+    ),
+    ("seed", "render.seed of this row"),
+    (
+        "seed_index",
+        "k of seed = the experiment's render.seed + k; the image is k = 0's",
+    ),
+    (
+        "rmse",
+        "root mean square error against the reference, linear radiance, over pixels and channels",
+    ),
+    (
+        "rmse_corrected",
+        "sqrt(max(0, rmse^2 - reference_noise_rmse^2)): the reference's own noise taken out",
+    ),
+    ("psnr", "10 log10(1 / mse), peak 1, dB"),
+    (
+        "flip_mean",
+        "mean LDR-FLIP (Andersson et al. 2020), 67 px/degree, of the display values (clamped to [0, 1], sRGB-encoded) as floats",
+    ),
+    (
+        "flip8_mean",
+        "the same on the display values quantised to 8 bits (NVIDIA's nv-flip)",
+    ),
+    ("reference_spp", "samples per pixel of the reference"),
+    (
+        "reference_noise_rmse",
+        "the reference's own RMSE against the converged image: half the RMSE between its two halves",
+    ),
+    (
+        "reference_flip_floor",
+        "FLIP of each half of the reference against the whole, averaged: the FLIP floor",
+    ),
+    (
+        "own_reference",
+        "measured against a reference of its own scene (a key sweep that changes the scene)",
+    ),
+    (
+        "image",
+        "the first seed's PNG, relative to the output directory",
+    ),
+    (
+        "fallback",
+        "why backend auto rendered on the CPU, if it did",
+    ),
 ];
+
+/// The header of `ablation.csv` (`CSV_SCHEMA`'s names).
+pub const CSV_COLUMNS: [&str; 29] = {
+    let mut out = [""; 29];
+    let mut i = 0;
+    while i < out.len() {
+        out[i] = CSV_SCHEMA[i].0;
+        i += 1;
+    }
+    out
+};
+
+/// What `ablation.csv` is: its columns' definitions and what made it (revision,
+/// adapter, experiment with its assets' hashes, size, seeds, runs, reference).
+fn csv_sidecar(
+    e: &Experiment,
+    c: &AblateConfig,
+    r: &Reference,
+    adapter: &str,
+    rev: &str,
+) -> serde_json::Value {
+    let assets: Vec<serde_json::Value> = e
+        .source_path
+        .as_ref()
+        .and_then(|p| {
+            let text = crate::experiment::read_text(p).ok()?;
+            Some(crate::experiment::write::input_hashes(&text, p))
+        })
+        .unwrap_or_default()
+        .into_iter()
+        .map(|(f, hash)| serde_json::json!({"path": f.display().to_string(), "blake3": hash}))
+        .collect();
+    serde_json::json!({
+        "file": "ablation.csv",
+        "voxlab": env!("CARGO_PKG_VERSION"),
+        "revision": rev,
+        "adapter": adapter,
+        "cpu": crate::cpu::backend_summary(),
+        "experiment": e.name,
+        "source": e.source_path.as_ref().map(|p| p.display().to_string()),
+        "assets": assets,
+        "width": e.settings.width,
+        "height": e.settings.height,
+        "seed": e.settings.seed,
+        "seeds": c.seeds,
+        "runs": c.runs,
+        "warmup": c.warmup,
+        "reference": {
+            "spp": r.spp,
+            "backend": r.backend,
+            "key": r.key,
+            "noise_rmse": r.noise_rmse,
+            "flip_floor": r.flip_floor,
+            "reused": r.reused,
+        },
+        "rows": "one per point and seed; table.md, table.tex and the plot give each point's mean over its seeds with the half-width of its 95 % interval (Student's t)",
+        "columns": CSV_SCHEMA
+            .iter()
+            .map(|(name, meaning)| serde_json::json!({"name": name, "meaning": meaning}))
+            .collect::<Vec<_>>(),
+    })
+}
 
 fn csv_field(s: &str) -> String {
     if s.contains([',', '"', '\n']) {
@@ -1725,6 +1824,7 @@ fn csv(rows: &[Row], r: &Reference) -> String {
             format!("{:.9e}", row.rmse_corrected),
             format!("{:.6}", row.psnr),
             format!("{:.9e}", row.flip_mean),
+            format!("{:.9e}", row.flip8_mean),
             r.spp.to_string(),
             format!("{:.9e}", row.own_reference.unwrap_or(r.noise_rmse)),
             format!("{:.9e}", r.flip_floor),
@@ -2143,6 +2243,12 @@ fn write_outputs(
     record("grid.png");
     write_text(&out.join("ablation.csv"), &csv(seed_rows, r))?;
     record("ablation.csv");
+    let sidecar = csv_sidecar(e, c, r, adapter, rev);
+    write_text(
+        &out.join("ablation.csv.json"),
+        &serde_json::to_string_pretty(&sidecar)?,
+    )?;
+    record("ablation.csv.json");
     let title = format!(
         "{}: error against time ({}x{}, reference {} spp)",
         e.name, e.settings.width, e.settings.height, r.spp

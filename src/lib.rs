@@ -71,6 +71,7 @@ pub mod output;
 pub mod plan;
 pub mod progress;
 pub mod render;
+pub mod revision;
 pub mod sampling;
 pub mod scene;
 pub mod session;

@@ -833,7 +833,7 @@ fn bench_head(bench: &str, adapter: Option<&str>, a: &BenchArgs) -> serde_json::
     serde_json::json!({
         "bench": bench,
         "voxlab": env!("CARGO_PKG_VERSION"),
-        "revision": voxlab::ablate::git_revision(),
+        "revision": voxlab::revision::revision(),
         "adapter": adapter,
         "image_side": a.size,
         "gpu_runs": a.gpu_runs,

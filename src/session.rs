@@ -194,8 +194,9 @@ impl Image {
     }
 
     /// What made the image, as JSON: the resolved experiment (overrides applied), the
-    /// overrides, the revision voxlab was built from, the backend and adapter, size,
-    /// frames, samples, seed, plan, timings and rays. `voxlab render` stores it with the
+    /// overrides, every file it read with its content's blake3 hash, the revision
+    /// voxlab was built from, the backend and adapter, size, frames, samples, seed,
+    /// plan, timings and rays. `voxlab render` stores it with the
     /// image and prints it with `--json`.
     pub fn provenance(
         &self,
@@ -207,21 +208,29 @@ impl Image {
         let labels: Vec<String> = overrides.iter().map(|o| o.to_string()).collect();
         // The [scene] table as the file (with the overrides) gives it, so the resolved
         // experiment renders again from its own text.
-        let scene_source = match &e.source_path {
+        let (scene_source, assets) = match &e.source_path {
             Some(p) => {
                 let text = crate::experiment::read_text(p)?;
                 let text = crate::experiment::apply_overrides(&text, overrides)?;
-                crate::experiment::write::scene_source(&text, p)?
+                let assets: Vec<serde_json::Value> =
+                    crate::experiment::write::input_hashes(&text, p)
+                        .into_iter()
+                        .map(|(f, hash)| {
+                            serde_json::json!({"path": f.display().to_string(), "blake3": hash})
+                        })
+                        .collect();
+                (crate::experiment::write::scene_source(&text, p)?, assets)
             }
-            None => toml::Table::new(),
+            None => (toml::Table::new(), Vec::new()),
         };
         let resolved = crate::experiment::to_toml(e, &scene_source)?;
         let s = &self.stats;
         Ok(serde_json::json!({
             "voxlab": env!("CARGO_PKG_VERSION"),
-            "revision": crate::ablate::git_revision(),
+            "revision": crate::revision::revision(),
             "experiment": e.name,
             "source": e.source_path.as_ref().map(|p| p.display().to_string()),
+            "assets": assets,
             "overrides": labels,
             "backend": self.backend,
             "width": e.settings.width,

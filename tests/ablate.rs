@@ -119,6 +119,7 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
 
     for f in [
         "ablation.csv",
+        "ablation.csv.json",
         "grid.png",
         "plot.png",
         "plot.svg",
@@ -139,6 +140,32 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
 
     let (header, rows) = read_csv(&out.join("ablation.csv"));
     assert_eq!(header, CSV_COLUMNS);
+    // The CSV describes itself in its sidecar: every column's meaning, the build's
+    // revision, and the experiment's files with their content hashes.
+    let sidecar: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("ablation.csv.json")).unwrap())
+            .unwrap();
+    let names: Vec<&str> = sidecar["columns"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, header);
+    assert!(
+        sidecar["columns"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|c| { c["meaning"].as_str().is_some_and(|m| m.len() >= 8) })
+    );
+    assert_eq!(sidecar["revision"], voxlab::revision::revision());
+    assert_eq!(sidecar["seeds"], 2);
+    let tiny = std::fs::read(dir.join("tiny.toml")).unwrap();
+    assert_eq!(
+        sidecar["assets"][0]["blake3"],
+        blake3::hash(&tiny).to_hex().as_str()
+    );
     for required in [
         "model",
         "knob",

@@ -12,7 +12,7 @@ const LAYERS: &[(&str, &[&str])] = &[
         "model",
         &[
             "scene", "settings", "render", "sampling", "sparse", "surface", "input", "output",
-            "metrics", "progress",
+            "metrics", "progress", "revision",
         ],
     ),
     ("walks", &["dda", "triangles", "device"]),

@@ -75,7 +75,14 @@ fn images_carry_what_made_them() {
             .unwrap()
             .contains("CPU reference")
     );
-    assert!(stored["revision"].as_str().is_some_and(|r| !r.is_empty()));
+    assert_eq!(stored["revision"], voxlab::revision::revision());
+    // Every file the experiment read, with its content's hash.
+    let sdf = std::fs::read(root.join("experiments/sdf.toml")).unwrap();
+    assert_eq!(stored["assets"][0]["path"], "experiments/sdf.toml");
+    assert_eq!(
+        stored["assets"][0]["blake3"],
+        blake3::hash(&sdf).to_hex().as_str()
+    );
     // The resolved experiment is the one rendered: the file with its overrides and the
     // command line's size.
     let resolved = stored["resolved_experiment"].as_str().unwrap();
@@ -149,4 +156,58 @@ fn display_and_exposure_shape_the_png_only() {
         .unwrap();
     assert!(!bad.status.success());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The revision a binary records is the one it was built from, read when `build.rs`
+/// ran: the binary, run where git cannot be found and outside the checkout, names the
+/// checkout's HEAD (with `-dirty` exactly when the sources that make it differ).
+#[test]
+fn the_revision_is_the_builds_not_the_checkouts_at_run_time() {
+    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let git = |args: &[&str]| {
+        let out = Command::new("git")
+            .arg("-C")
+            .arg(&root)
+            .args(args)
+            .output()
+            .expect("the test suite runs in a git checkout with git");
+        assert!(out.status.success(), "git {args:?}");
+        String::from_utf8(out.stdout).unwrap().trim().to_string()
+    };
+    let head = git(&["rev-parse", "HEAD"]);
+    let dirty = !git(&[
+        "status",
+        "--porcelain",
+        "--untracked-files=no",
+        "--",
+        "src",
+        "shaders",
+        "build.rs",
+        "Cargo.toml",
+        "Cargo.lock",
+    ])
+    .is_empty();
+    let want = if dirty { format!("{head}-dirty") } else { head };
+    assert_eq!(voxlab::revision::revision(), want);
+
+    let dir = std::env::temp_dir().join(format!("voxlab-revision-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("probe.toml"), "[scene]\nsize = 4\n").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_voxlab"))
+        .current_dir(&dir)
+        .env("PATH", "")
+        .args(["render", "probe.toml", "--backend", "cpu"])
+        .args(["--width", "4", "--height", "4", "--json"])
+        .args(["--out", "seed.png"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    let record: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(record["revision"], want.as_str());
 }

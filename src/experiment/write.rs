@@ -72,6 +72,22 @@ pub fn scene_source(text: &str, path: &Path) -> Result<Table, ExperimentError> {
     Ok(scene)
 }
 
+/// Every file [`input_files`] names with the blake3 hash of its content (hex), as
+/// provenance records them: a stored experiment names its assets by path, and the
+/// hash says whether the file at that path is still the one it was made from. A file
+/// that cannot be read is left out.
+pub fn input_hashes(text: &str, path: &Path) -> Vec<(PathBuf, String)> {
+    input_files(text, path)
+        .into_iter()
+        .filter_map(|f| {
+            let file = std::fs::File::open(&f).ok()?;
+            let mut h = blake3::Hasher::new();
+            h.update_reader(file).ok()?;
+            Some((f, h.finalize().to_hex().to_string()))
+        })
+        .collect()
+}
+
 /// Every file an experiment given as `text` (overrides applied) at `path` reads: the
 /// file itself, its scene's and its models' `vox` and `mesh` files, and each OBJ's
 /// material libraries (`mtllib`). What a command that writes must never overwrite.

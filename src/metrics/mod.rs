@@ -1,5 +1,7 @@
 //! Image error measures shared by the tests, the golden-image checks and the reports.
 
+pub mod flip;
+
 use crate::render::Frame;
 
 /// How two images differ, per channel.
@@ -99,13 +101,58 @@ pub fn difference_image(a: &Frame, b: &Frame, gain: f32) -> Frame {
     out
 }
 
-/// FLIP (Andersson et al. 2020, LDR-FLIP; NVIDIA's implementation, `nv-flip`) of `test`
-/// against `reference` at FLIP's default viewing (67 pixels per degree): its mean, and
-/// the error map coloured with FLIP's magma LUT. LDR-FLIP compares sRGB images, so both
-/// are compared as a display shows them: radiance clamped to [0, 1] and sRGB-encoded
-/// (`--display srgb`), in 8 bits. (The PNGs voxlab writes by default are the seed's
+/// FLIP's pixels per degree by default: a 0.7 m wide 4K monitor seen from 0.7 m.
+pub const FLIP_PPD: f32 = 67.0;
+
+/// The display values FLIP compares: radiance clamped to [0, 1] and sRGB-encoded
+/// (`--display srgb`), unquantised. (The PNGs voxlab writes by default are the seed's
 /// linear framebuffer; fed to FLIP as if sRGB they would weigh dark errors wrongly.)
+fn display_srgb(f: &Frame) -> Vec<[f32; 3]> {
+    f.pixels
+        .iter()
+        .map(|p| p.map(|c| crate::render::srgb_encode(c.clamp(0.0, 1.0))))
+        .collect()
+}
+
+/// The magma colouring of a FLIP map (FLIP's own LUT).
+fn magma(map: &[f32], w: u32, h: u32) -> image::RgbImage {
+    let lut = nv_flip::magma_lut().to_vec();
+    let bytes: Vec<u8> = map
+        .iter()
+        .flat_map(|&v| {
+            let i = ((v * 255.0).round() as usize).min(255) * 3;
+            [lut[i], lut[i + 1], lut[i + 2]]
+        })
+        .collect();
+    image::RgbImage::from_raw(w, h, bytes).expect("FLIP map has w*h pixels")
+}
+
+/// FLIP (Andersson et al. 2020, LDR-FLIP) of `test` against `reference` at FLIP's
+/// default viewing (67 pixels per degree), on the display's sRGB values as floats
+/// (`flip::flip_map`): its mean, and the error map coloured with FLIP's magma LUT.
+/// [`flip_8bit`] is the same on 8-bit images.
 pub fn flip(reference: &Frame, test: &Frame) -> (f64, image::RgbImage) {
+    let (w, h) = (reference.width, reference.height);
+    let map = flip::flip_map(
+        &display_srgb(reference),
+        &display_srgb(test),
+        w as usize,
+        h as usize,
+        FLIP_PPD,
+    );
+    let mean = map.iter().map(|&v| f64::from(v)).sum::<f64>() / map.len().max(1) as f64;
+    (mean, magma(&map, w, h))
+}
+
+/// The mean of [`flip`].
+pub fn flip_mean(reference: &Frame, test: &Frame) -> f64 {
+    flip(reference, test).0
+}
+
+/// FLIP of the display images quantised to 8 bits, by NVIDIA's implementation
+/// (`nv-flip`): what a FLIP of two PNGs measures. Quantising adds an error of its own,
+/// so this is above [`flip`] for small differences.
+pub fn flip_8bit(reference: &Frame, test: &Frame) -> f64 {
     let (w, h) = (reference.width, reference.height);
     let srgb = crate::render::DisplayTransform {
         encoding: crate::render::DisplayEncoding::Srgb,
@@ -113,16 +160,8 @@ pub fn flip(reference: &Frame, test: &Frame) -> (f64, image::RgbImage) {
     };
     let r = nv_flip::FlipImageRgb8::with_data(w, h, &reference.to_display_rgb8(srgb));
     let t = nv_flip::FlipImageRgb8::with_data(w, h, &test.to_display_rgb8(srgb));
-    let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
-    let mean = nv_flip::FlipPool::from_image(&map).mean() as f64;
-    let vis = map.apply_color_lut(&nv_flip::magma_lut());
-    let img = image::RgbImage::from_raw(w, h, vis.to_vec()).expect("FLIP map has w*h pixels");
-    (mean, img)
-}
-
-/// The mean of [`flip`].
-pub fn flip_mean(reference: &Frame, test: &Frame) -> f64 {
-    flip(reference, test).0
+    let map = nv_flip::flip(r, t, FLIP_PPD);
+    nv_flip::FlipPool::from_image(&map).mean() as f64
 }
 
 /// Student's t at 0.975 for 1 to 30 degrees of freedom: the half-width of a 95 %
