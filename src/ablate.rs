@@ -29,7 +29,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -600,6 +600,15 @@ pub struct Point {
 }
 
 impl Point {
+    /// The point as reports name it: the curve, and `knob=value` where it has a knob.
+    pub fn label(&self) -> String {
+        if self.knob == "-" {
+            self.model.clone()
+        } else {
+            format!("{} {}={}", self.model, self.knob, self.value)
+        }
+    }
+
     /// A file-name-safe name, unique within a sweep: the model, then `knob-value` unless
     /// the model's name already says them (`stochastic_beer-lambert_spp-00016`,
     /// `cone_at_light_s_aperture_beer-lambert_step_factor-0.5`).
@@ -1035,7 +1044,7 @@ fn reference(
     c: &AblateConfig,
     tracers: &mut Tracers,
     cache_dir: &Path,
-    progress: &ProgressBar,
+    progress: &Meter,
 ) -> Result<Reference> {
     let halves = reference_halves(e, c);
     let backend = backend_label(tracers, c.reference_backend);
@@ -1065,14 +1074,15 @@ fn reference(
         });
     }
 
-    progress.set_message(format!("reference, {} spp", c.reference_spp));
+    progress.working_on(&format!("reference, {} spp on {backend}", c.reference_spp));
     let mut frames = Vec::new();
     let mut seconds = 0.0;
     for s in &halves {
         let r = tracers.render(c.reference_backend, &e.scene, s)?;
         seconds += r.time.as_secs_f64();
         frames.push(r.frame);
-        progress.inc(u64::from(s.spp));
+        progress.advance(progress.reference_cost(s.spp));
+        progress.line(&format!("reference half of {} spp rendered", s.spp));
     }
     let noise_rmse = compare(&frames[0], &frames[1], Domain::Linear, 0.0)
         .expect("halves have one size")
@@ -1259,11 +1269,11 @@ fn measure(
     tracers: &mut Tracers,
     point: &Point,
     reference: &Reference,
-    progress: &ProgressBar,
+    progress: &Meter,
 ) -> Result<Vec<Row>> {
     let noise_rmse = reference.noise_rmse;
     let reference = &reference.frame;
-    progress.set_message(format!("{} {} {}", point.model, point.knob, point.value));
+    progress.working_on(&point.label());
     let s = &point.settings;
     let converted;
     let own = point.scene.as_deref().unwrap_or(&e.scene);
@@ -1300,7 +1310,7 @@ fn measure(
                 times.push(r.time);
                 setups.push(setup);
             }
-            progress.inc(u64::from(s.spp.max(1)));
+            progress.advance(progress.point_cost(s.spp.max(1)));
             last = Some(r);
         }
         let r = last.expect("runs >= 1");
@@ -1387,12 +1397,76 @@ fn point_row(
 // ---------------------------------------------------------------------------------------
 // The run.
 
+/// The sweep's progress: a bar in estimated microseconds of work, each frame costed by
+/// a 1-spp calibration render of the reference and of a point before the sweep starts,
+/// and an ETA from the cost still to do at the rate measured so far (the calibration's
+/// before anything is done), so a long reference render shows a sensible wait instead
+/// of none. Off a terminal, `--progress` prints it as lines.
+struct Meter {
+    bar: ProgressBar,
+    lines: bool,
+    start: Instant,
+    /// Estimated microseconds per frame of the reference and of a point.
+    reference_us: f64,
+    point_us: f64,
+}
+
+impl Meter {
+    fn reference_cost(&self, frames: u32) -> u64 {
+        (f64::from(frames) * self.reference_us).ceil() as u64
+    }
+
+    fn point_cost(&self, frames: u32) -> u64 {
+        (f64::from(frames) * self.point_us).ceil() as u64
+    }
+
+    /// Time still to wait: the estimated work left at the rate measured so far.
+    fn eta(&self) -> Duration {
+        let (done, total) = (self.bar.position(), self.bar.length().unwrap_or(0));
+        let left = total.saturating_sub(done) as f64;
+        let rate = if done > 0 {
+            self.start.elapsed().as_secs_f64() / done as f64
+        } else {
+            1e-6
+        };
+        Duration::from_secs_f64(left * rate)
+    }
+
+    fn status(&self, what: &str) -> String {
+        let t = self.eta().as_secs();
+        format!("{what}; about {}m {:02}s left", t / 60, t % 60)
+    }
+
+    /// Says what is being rendered now.
+    fn working_on(&self, what: &str) {
+        self.bar.set_message(self.status(what));
+    }
+
+    /// Records `cost` more done.
+    fn advance(&self, cost: u64) {
+        self.bar.inc(cost);
+        if let Some(what) = self.bar.message().split(';').next() {
+            self.bar.set_message(self.status(what));
+        }
+    }
+
+    /// A line of the `--progress` log off a terminal.
+    fn line(&self, text: &str) {
+        if self.lines {
+            let (done, total) = (self.bar.position(), self.bar.length().unwrap_or(1).max(1));
+            eprintln!("[{:>3}%] {}", 100 * done / total, self.status(text));
+        }
+    }
+}
+
 pub struct AblateOptions {
     pub out_dir: PathBuf,
     /// Where references are cached; default `<out_dir>/cache`.
     pub cache_dir: Option<PathBuf>,
-    /// Show a progress bar (only when stderr is a terminal; else one line per point).
+    /// Show a progress bar when standard error is a terminal.
     pub progress: bool,
+    /// Off a terminal, print the progress as lines (`voxlab ablate --progress`).
+    pub log: bool,
 }
 
 /// What a run measured and wrote.
@@ -1475,6 +1549,26 @@ fn refuse_to_overwrite_inputs(
     Ok(())
 }
 
+/// Microseconds per frame of the reference (on its backend, 1 spp) and of a point (the
+/// experiment's settings at 1 spp on the points' backend, its second render, after the
+/// first has built the pipelines): the scale of the progress bar and the first ETA.
+fn calibrate(e: &Experiment, c: &AblateConfig, tracers: &mut Tracers) -> Result<(f64, f64)> {
+    let one = |s: &RenderSettings| RenderSettings {
+        spp: 1,
+        ..s.clone()
+    };
+    let half = &reference_halves(e, c)[0];
+    let t = Instant::now();
+    tracers.render(c.reference_backend, &e.scene, &one(half))?;
+    let reference_us = t.elapsed().as_secs_f64() * 1e6;
+    let point = one(&e.settings);
+    tracers.render(c.backend, &e.scene, &point)?;
+    let t = Instant::now();
+    tracers.render(c.backend, &e.scene, &point)?;
+    let point_us = t.elapsed().as_secs_f64() * 1e6;
+    Ok((reference_us.max(1.0), point_us.max(1.0)))
+}
+
 pub fn run(
     e: &Experiment,
     c: &AblateConfig,
@@ -1510,44 +1604,76 @@ pub fn run(
     let mut tracers = Tracers::new(c)?;
     let adapter = tracers.adapter();
 
-    let sweep_frames: u64 = points
+    let point_frames: u32 = points
         .iter()
-        .map(|p| u64::from(p.settings.spp.max(1)) * u64::from(c.warmup + c.seeds * c.runs))
+        .map(|p| p.settings.spp.max(1) * (c.warmup + c.seeds * c.runs))
         .sum();
-    let progress = if opts.progress && std::io::stderr().is_terminal() {
-        let pb = ProgressBar::new(sweep_frames + u64::from(c.reference_spp));
+    let (reference_us, point_us) = calibrate(e, c, &mut tracers)?;
+    let estimate = f64::from(c.reference_spp) * reference_us + f64::from(point_frames) * point_us;
+    let minutes = |us: f64| {
+        let s = (us / 1e6).round() as u64;
+        format!("{}m {:02}s", s / 60, s % 60)
+    };
+    // The plan, before anything long starts.
+    eprintln!(
+        "ablate {}: {} points x {} seeds x {} runs (+{} warm-up) at {}x{} on {}; reference {} spp \
+         on {} (reused when cached); about {} in all ({} of it the reference), by a 1-spp \
+         calibration render of each",
+        e.name,
+        points.len(),
+        c.seeds,
+        c.runs,
+        c.warmup,
+        e.settings.width,
+        e.settings.height,
+        c.backend.name(),
+        c.reference_spp,
+        c.reference_backend.name(),
+        minutes(estimate),
+        minutes(f64::from(c.reference_spp) * reference_us),
+    );
+    let bar = if opts.progress && std::io::stderr().is_terminal() {
+        let pb = ProgressBar::new(1);
         pb.set_style(
-            ProgressStyle::with_template(
-                "{elapsed_precise} [{bar:30}] {percent:>3}% frames, eta {eta} {msg}",
-            )
-            .expect("valid template")
-            .progress_chars("=> "),
+            ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {percent:>3}% {msg}")
+                .expect("valid template")
+                .progress_chars("=> "),
         );
+        pb.enable_steady_tick(Duration::from_millis(500));
         pb
     } else {
         ProgressBar::hidden()
     };
-    let lines = opts.progress && progress.is_hidden();
+    let lines = opts.log && bar.is_hidden();
+    let progress = Meter {
+        bar,
+        lines,
+        start: Instant::now(),
+        reference_us,
+        point_us,
+    };
+    let sweep_cost = progress.point_cost(point_frames);
+    progress
+        .bar
+        .set_length(sweep_cost + progress.reference_cost(c.reference_spp));
 
     let reference = reference(e, c, &mut tracers, &cache_dir, &progress)?;
     if reference.reused {
         // The bar counted the reference's frames; they are not rendered.
-        progress.set_length(sweep_frames);
+        progress.bar.set_length(sweep_cost);
     }
-    if lines {
-        eprintln!(
-            "reference: {} spp on {}, {} ({}), noise rmse {:.3e}",
-            reference.spp,
-            reference.backend,
-            if reference.reused {
-                "reused from cache"
-            } else {
-                "rendered"
-            },
-            reference.path.display(),
-            reference.noise_rmse
-        );
-    }
+    progress.line(&format!(
+        "reference: {} spp on {}, {} ({}), noise rmse {:.3e}",
+        reference.spp,
+        reference.backend,
+        if reference.reused {
+            "reused from cache"
+        } else {
+            "rendered"
+        },
+        reference.path.display(),
+        reference.noise_rmse
+    ));
     let mut rows = Vec::new();
     // References of the points with a scene of their own, by scene.
     let mut own_references: Vec<(std::sync::Arc<Scene>, Reference)> = Vec::new();
@@ -1559,7 +1685,9 @@ pub fn run(
                 let i = match known {
                     Some(i) => i,
                     None => {
-                        progress.inc_length(u64::from(c.reference_spp));
+                        progress
+                            .bar
+                            .inc_length(progress.reference_cost(c.reference_spp));
                         let pe = Experiment {
                             scene: scene.as_ref().clone(),
                             ..e.clone()
@@ -1575,23 +1703,19 @@ pub fn run(
         let against = own.unwrap_or(&reference);
         for mut row in measure(e, c, &mut tracers, p, against, &progress)? {
             row.own_reference = own.map(|r| r.noise_rmse);
-            if lines {
-                eprintln!(
-                    "{} {}={} seed {}: {:.2} ms ({}), rmse {:.3e}, flip {:.4}",
-                    row.model,
-                    row.knob,
-                    row.value,
-                    row.seed,
-                    row.ms_median,
-                    row.backend,
-                    row.rmse,
-                    row.flip_mean
-                );
-            }
+            progress.line(&format!(
+                "{} seed {}: {:.2} ms ({}), rmse {:.3e}, flip {:.4}",
+                p.label(),
+                row.seed,
+                row.ms_median,
+                row.backend,
+                row.rmse,
+                row.flip_mean
+            ));
             rows.push(row);
         }
     }
-    progress.finish_and_clear();
+    progress.bar.finish_and_clear();
 
     let git_revision = crate::revision::revision().to_string();
     let mut files = Vec::new();

@@ -270,6 +270,10 @@ struct AblateArgs {
     /// `--set render.width=64`); repeatable, checked exactly like the file.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<voxlab::experiment::Override>,
+    /// Report progress as lines (each step, the share done, the time left) also when
+    /// standard error is not a terminal, for logs; a terminal shows a bar anyway.
+    #[arg(long)]
+    progress: bool,
 }
 
 #[derive(Args, Debug)]
@@ -607,6 +611,7 @@ fn cmd_ablate(a: &AblateArgs) -> Result<()> {
         out_dir: out.clone(),
         cache_dir: a.cache.clone(),
         progress: true,
+        log: a.progress,
     };
     let report = ablate::run(&e, &config, Some(&text), &opts)?;
     println!("{}", report.table);

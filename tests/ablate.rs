@@ -60,6 +60,7 @@ fn run(e: &Experiment, c: &AblateConfig, out: &Path, cache: &Path) -> AblateRepo
             out_dir: out.to_path_buf(),
             cache_dir: Some(cache.to_path_buf()),
             progress: false,
+            log: false,
         },
     )
     .unwrap()
@@ -914,4 +915,46 @@ fn the_reference_noise_is_taken_out_of_the_rmse() {
     // The FLIP floor is each half against the whole: a point as noisy as the reference
     // measures more (its noise and the reference's add), never far less.
     assert!(point.flip_mean > 0.8 * report.reference.flip_floor);
+}
+
+/// Before anything long starts, ablate prints its plan with an estimate from a 1-spp
+/// calibration render; with `--progress` off a terminal (a log), a line per step with
+/// the share done and an estimate of the time left that is never "0 s" while work
+/// remains.
+#[test]
+fn ablate_prints_its_plan_and_progress_lines_with_a_moving_estimate() {
+    let dir = scratch("progress");
+    let path = dir.join("tiny.toml");
+    std::fs::write(&path, seeded(2, 4)).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_voxlab"))
+        .args(["ablate", path.to_str().unwrap(), "--progress", "--out"])
+        .arg(dir.join("out"))
+        .arg("--cache")
+        .arg(dir.join("cache"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let plan = stderr
+        .lines()
+        .find(|l| l.starts_with("ablate tiny: "))
+        .unwrap_or_else(|| panic!("no plan line: {stderr}"));
+    assert!(
+        plan.contains("x 2 seeds x 1 runs") && plan.contains("in all"),
+        "{plan}"
+    );
+    let steps: Vec<&str> = stderr.lines().filter(|l| l.starts_with('[')).collect();
+    assert!(steps.len() >= 4, "{stderr}");
+    let percent = |l: &str| l[1..4].trim().parse::<u32>().unwrap();
+    assert!(
+        steps.windows(2).all(|w| percent(w[0]) <= percent(w[1])),
+        "{stderr}"
+    );
+    assert!(steps.iter().all(|l| l.contains(" left")), "{stderr}");
+    assert!(
+        steps
+            .iter()
+            .any(|l| l.starts_with("[") && l.contains("reference half"))
+    );
+    assert_eq!(percent(steps.last().unwrap()), 100, "{stderr}");
 }

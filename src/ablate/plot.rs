@@ -284,18 +284,20 @@ where
         let (lo, hi) = x_bar(r);
         [lo, hi]
     }));
-    let metrics: [(&str, Metric, Half, Option<f64>); 2] = [
+    let metrics: [(&str, Metric, Half, Option<f64>, &str); 2] = [
         (
             "RMSE (linear radiance)",
             |r| r.rmse,
             |i| i.rmse,
             floors.map(|f| f.0),
+            "reference noise",
         ),
         (
             "FLIP mean (sRGB display)",
             |r| r.flip_mean,
             |i| i.flip,
             floors.map(|f| f.1),
+            "FLIP floor (reference halves)",
         ),
     ];
     let x_desc = match seeds {
@@ -306,7 +308,7 @@ where
             "ms per image (median of trace + cone pyramid build; bars: the runs' range)".to_string()
         }
     };
-    for (panel, (name, metric, half, floor)) in panels.iter().zip(metrics) {
+    for (panel, (name, metric, half, floor, floor_name)) in panels.iter().zip(metrics) {
         let y_range = range(
             rows.iter()
                 .flat_map(|r| {
@@ -348,7 +350,7 @@ where
             chart.draw_series(std::iter::once(
                 EmptyElement::at((x_range.start, f))
                     + Text::new(
-                        format!("reference noise {f:.1e}"),
+                        format!("{floor_name} {f:.1e}"),
                         (4, -16),
                         (FONT, 12).into_font().color(&BLACK),
                     ),
@@ -422,7 +424,13 @@ where
             if pts.len() > 1 {
                 chart.draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))?;
             }
-            let k = if pts.len() > 1 { shape(model) } else { 2 };
+            // Single points start at the triangle, so a technique's fixed points differ
+            // from each other as its curves do.
+            let k = if pts.len() > 1 {
+                shape(model)
+            } else {
+                shape(model) + 2
+            };
             for &p in &pts {
                 // A white rim keeps a marker visible on a line or another marker.
                 chart.draw_series(std::iter::once(Circle::new(p, 7, WHITE.filled())))?;
@@ -491,7 +499,11 @@ where
             } else {
                 m.to_string()
             };
-            let k = (curves[*m].len() > 1).then(|| shape(m));
+            let k = if curves[*m].len() > 1 {
+                Some(shape(m))
+            } else {
+                Some(shape(m) + 2 + 3 * 1000)
+            };
             (label, colour(m), k)
         })
         .collect();
@@ -515,7 +527,9 @@ where
         let (col, row) = (k as i32 % columns, k as i32 / columns);
         let (x, y) = (20 + col * cell_w, 10 + row * 20);
         let curve = k < n_curves;
-        if !curve || shape.is_some() {
+        // Curves have a line through their marker; single points (shape >= 3000) none.
+        let single = shape.is_some_and(|k| k >= 3000);
+        if !curve || !single {
             legend_area.draw(&PathElement::new(
                 vec![(x, y + 7), (x + 22, y + 7)],
                 c.stroke_width(2),
