@@ -1338,9 +1338,6 @@ fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, Experi
     let Some(t) = t else {
         return Ok(features);
     };
-    let mut shadow_model = None;
-    // The shadow models chosen by their switches, as `key = true`.
-    let mut switched: Vec<(String, &'static crate::technique::ShadowModel)> = Vec::new();
     for (k, v) in t {
         let key = format!("features.{k}");
         let text = |names: Vec<&str>| {
@@ -1356,7 +1353,18 @@ fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, Experi
                 .ok_or_else(|| ctx.invalid(&key, "must be true or false"))
         };
         match k.as_str() {
-            "shadow_model" => shadow_model = Some(text(shadow_model_names())?),
+            "shadow_model" => {
+                let name = text(shadow_model_names())?;
+                if !features.set_shadow_model(&name) {
+                    return Err(ctx.invalid(
+                        &key,
+                        format!(
+                            "no such shadow model; allowed: {}",
+                            shadow_model_names().join(", ")
+                        ),
+                    ));
+                }
+            }
             "transmittance" => {
                 let name = text(transmittance_names())?;
                 features.transmittance = transmittance(&name).ok_or_else(|| {
@@ -1370,11 +1378,25 @@ fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, Experi
                 })?;
             }
             _ => {
+                // A shadow model's retired switch: one key, shadow_model, chooses every
+                // model, so `--set features.shadow_model=X` works on every file.
                 if let Some(m) = SHADOW_MODELS.iter().find(|m| m.switch == Some(k)) {
-                    if boolean()? {
-                        switched.push((format!("{k} = true"), m));
-                    }
-                    continue;
+                    return Err(ctx.invalid(
+                        &key,
+                        if boolean()? {
+                            format!(
+                                "was replaced by features.shadow_model = \"{}\"; write that \
+                                 instead",
+                                m.name
+                            )
+                        } else {
+                            format!(
+                                "was replaced by features.shadow_model (false chose nothing: \
+                                 remove the line; \"{}\" is the default)",
+                                crate::technique::default_shadow_model().name
+                            )
+                        },
+                    ));
                 }
                 let Some(term) = LIGHTING_TERMS.iter().find(|t| t.name == k) else {
                     return Err(ExperimentError::UnknownKey {
@@ -1387,38 +1409,6 @@ fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, Experi
                 features.set_term(term.name, boolean()?);
             }
         }
-    }
-    let said: Vec<&str> = switched.iter().map(|(s, _)| s.as_str()).collect();
-    match (shadow_model, switched.as_slice()) {
-        (Some(_), [_, ..]) => {
-            return Err(ctx.invalid(
-                "features.shadow_model",
-                format!("give either shadow_model or {}, not both", said.join(" / ")),
-            ));
-        }
-        (Some(name), []) => {
-            if !features.set_shadow_model(&name) {
-                return Err(ctx.invalid(
-                    "features.shadow_model",
-                    format!(
-                        "no such shadow model; allowed: {}",
-                        shadow_model_names().join(", ")
-                    ),
-                ));
-            }
-        }
-        (None, [(_, m)]) => features.shadow_model = m,
-        (None, [(first, _), ..]) => {
-            let key = format!("features.{}", first.trim_end_matches(" = true"));
-            return Err(ctx.invalid(
-                &key,
-                format!(
-                    "{} each choose a shadow model; give one, or shadow_model",
-                    said.join(" and ")
-                ),
-            ));
-        }
-        (None, []) => {}
     }
     Ok(features)
 }

@@ -115,9 +115,10 @@ struct ViewArgs {
     /// (default: the experiment's own).
     #[arg(long, value_name = "LIST")]
     left: Option<String>,
-    /// Features of the right side (default: area lights sampled with beer-lambert, or
-    /// cones when the experiment already asks for that).
-    #[arg(long, value_name = "LIST")]
+    #[arg(long, value_name = "LIST", help = format!(
+        "Features of the right side, as --left (default: {})",
+        voxlab::viewer::state::DEFAULT_RIGHT_SIDE
+    ))]
     right: Option<String>,
     /// Turn the camera by YAW,PITCH degrees before the first frame.
     #[arg(long, value_name = "YAW,PITCH", value_parser = parse_pair, allow_hyphen_values = true)]

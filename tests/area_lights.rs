@@ -126,7 +126,7 @@ intensity = 300.0
 max_reflection_depth = 0
 max_refraction_depth = 0
 [features]
-area_lights = true
+shadow_model = "area"
 "#,
         "soft_shadow.toml",
     )
@@ -183,7 +183,7 @@ fn bad_sizes_and_zero_samples_are_rejected() {
     let light = |kind: &str, extra: &str| {
         format!(
             "[[lights]]\ntype = \"{kind}\"\nposition = [0, 0, 0]\nintensity = 1\n{extra}\n\
-             [features]\narea_lights = true\n"
+             [features]\nshadow_model = \"area\"\n"
         )
     };
     let cases = [

@@ -57,7 +57,7 @@ pitch_deg = 40.0
 width = 64
 height = 64
 [features]
-area_lights = true
+shadow_model = "area"
 transmittance = "{model}"
 "#,
         top = 5 + thickness,

@@ -24,7 +24,6 @@ fn overrides_equal_editing_the_file() {
         &path,
         &set(&[
             "render.width=40",
-            "features.area_lights=false",
             "features.shadow_model=sdf",
             "techniques.sdf.softness=0.5",
             "cones.step_factor=1.5",

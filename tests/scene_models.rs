@@ -389,7 +389,7 @@ fn gpu_equals_cpu_on_generated_compositions() {
             ""
         };
         let light = if rng.random_bool(0.5) {
-            "[[lights]]\ntype = \"rect\"\nposition = [10.0, 60.0, 30.0]\nnormal = [0.0, -1.0, -0.3]\nsize = [8.0, 8.0]\nintensity = 3000.0\n[features]\narea_lights = true\n[render]\nlight_samples = 2\nspp = 3\n"
+            "[[lights]]\ntype = \"rect\"\nposition = [10.0, 60.0, 30.0]\nnormal = [0.0, -1.0, -0.3]\nsize = [8.0, 8.0]\nintensity = 3000.0\n[features]\nshadow_model = \"area\"\n[render]\nlight_samples = 2\nspp = 3\n"
         } else {
             ""
         };

@@ -187,51 +187,43 @@ fn experiment_files_take_every_model_and_setting() {
         err.starts_with("n.toml:2:") && err.contains("hard, area, cone"),
         "{err}"
     );
-    // A built-in model's own switch beside shadow_model: both named.
-    for m in SHADOW_MODELS {
-        let text = format!(
-            "[features]\nshadow_model = \"{}\"\ncone_shadows = true\n",
-            m.name
-        );
-        let err = Experiment::from_str(&text, "n.toml")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            err.contains("features.shadow_model") && err.contains("cone_shadows = true"),
-            "{err}"
-        );
-    }
-    // An older switch chooses its model, `false` chooses nothing, and two switched on
-    // together are an error naming both.
+    // A model's retired switch (`area_lights = true`) is an error at its line that gives
+    // the line to write instead, true or false, alone or beside shadow_model; `--set
+    // features.shadow_model=X` then works on every file, with one key for the choice.
     let switched: Vec<&ShadowModel> = SHADOW_MODELS
         .iter()
         .copied()
         .filter(|m| m.switch.is_some())
         .collect();
+    assert!(!switched.is_empty());
     for m in &switched {
         let key = m.switch.unwrap();
-        let e = Experiment::from_str(&format!("[features]\n{key} = true\n"), "s.toml").unwrap();
-        assert_eq!(e.settings.features.shadow_model, *m);
-        let e = Experiment::from_str(&format!("[features]\n{key} = false\n"), "s.toml").unwrap();
-        assert_eq!(
-            e.settings.features.shadow_model,
-            technique::default_shadow_model()
-        );
-        for other in switched.iter().filter(|o| o.name != m.name) {
-            let text = format!(
-                "[features]\n{key} = true\n{} = true\n",
-                other.switch.unwrap()
-            );
-            let err = Experiment::from_str(&text, "two.toml")
+        for (text, says) in [
+            (
+                format!("[features]\n{key} = true\n"),
+                format!("features.shadow_model = \"{}\"", m.name),
+            ),
+            (
+                format!("[features]\nshadow_model = \"hard\"\n{key} = true\n"),
+                format!("features.shadow_model = \"{}\"", m.name),
+            ),
+            (
+                format!("[features]\n{key} = false\n"),
+                "remove the line".to_string(),
+            ),
+        ] {
+            let err = Experiment::from_str(&text, "s.toml")
                 .unwrap_err()
                 .to_string();
+            let line = text.lines().position(|l| l.starts_with(key)).unwrap() + 1;
             assert!(
-                err.starts_with("two.toml:")
-                    && err.contains(&format!("{key} = true"))
-                    && err.contains(&format!("{} = true", other.switch.unwrap())),
+                err.starts_with(&format!("s.toml:{line}: features.{key}"))
+                    && err.contains("was replaced by")
+                    && err.contains(&says),
                 "{err}"
             );
         }
+        assert!(!technique::feature_keys().contains(&key));
     }
     let err = Experiment::from_str("[techniques.nope]\nx = 1\n", "n.toml")
         .unwrap_err()

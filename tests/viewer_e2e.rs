@@ -41,7 +41,7 @@ height = 72
 light_samples = 2
 
 [features]
-area_lights = true
+shadow_model = "area"
 "#;
 
 /// A virtual X server on a display of its own, stopped on drop.

@@ -294,3 +294,25 @@ fn the_experiments_spp_caps_the_accumulation_of_both_sides() {
     let s = seed_state();
     assert_eq!(s.sides[0].max_spp, voxlab::viewer::state::DEFAULT_VIEW_SPP);
 }
+
+/// The default sides are described in one place: `voxlab view --help` and
+/// docs/viewer.md both give `DEFAULT_RIGHT_SIDE`'s words, which the test above holds
+/// to the behaviour.
+#[test]
+fn the_documented_default_sides_are_the_code_s() {
+    use voxlab::viewer::state::DEFAULT_RIGHT_SIDE;
+    let flat = |s: &str| s.split_whitespace().collect::<Vec<_>>().join(" ");
+    let docs =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/viewer.md")).unwrap();
+    assert!(
+        flat(&docs).contains(&format!("the right side is {}.", flat(DEFAULT_RIGHT_SIDE))),
+        "docs/viewer.md does not give DEFAULT_RIGHT_SIDE"
+    );
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_voxlab"))
+        .args(["view", "--help"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let help = String::from_utf8(out.stdout).unwrap();
+    assert!(flat(&help).contains(&flat(DEFAULT_RIGHT_SIDE)), "{help}");
+}

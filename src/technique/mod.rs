@@ -291,8 +291,8 @@ pub struct ShadowModel {
     /// How printed plans name it (`AREA_LIGHTS`, `SHADOW_MODEL(sdf)`); empty for the
     /// default, which the baseline's plans do not name.
     pub label: &'static str,
-    /// Its older `[features]` switch (`area_lights = true`), still read: `true` chooses
-    /// it, `false` leaves whatever else is chosen.
+    /// Its retired `[features]` switch (`area_lights = true`): a file that still has it
+    /// gets an error that gives the `shadow_model` line to write instead.
     pub switch: Option<&'static str>,
     /// Settings it reads from the shared tables, as `table.key` (`render.spp`,
     /// `cones.levels`): listed with its own `[techniques.<name>]` ones.
@@ -545,12 +545,11 @@ pub fn lighting_term(name: &str) -> Option<&'static LightingTerm> {
         .find(|t| t.name == name || t.short == name)
 }
 
-/// The `[features]` keys: `shadow_model`, `transmittance`, the shadow models' older
-/// switches, then every lighting term's.
+/// The `[features]` keys: `shadow_model`, `transmittance`, then every lighting term's
+/// (the shadow models' retired switches are refused with their replacement).
 pub fn feature_keys() -> Vec<&'static str> {
     ["shadow_model", "transmittance"]
         .into_iter()
-        .chain(SHADOW_MODELS.iter().filter_map(|m| m.switch))
         .chain(LIGHTING_TERMS.iter().map(|t| t.name))
         .collect()
 }

@@ -182,6 +182,13 @@ pub struct ViewerState {
     cache: SceneCache,
 }
 
+/// What the right side shows when `--right` does not say: the words `voxlab view
+/// --help` and docs/viewer.md use, read from here (`ViewerState::new` does it).
+pub const DEFAULT_RIGHT_SIDE: &str = "the first shadow model after the default whose plan \
+keeps it for the scene (sampled area lights where the scene has an area light of non-zero \
+size, else cone shadows), with Beer-Lambert transmittance where that model casts shadow \
+rays; the default, hard shadows, when the file already asks for exactly that";
+
 impl ViewerState {
     /// Starts from an experiment and the text it was read from (`None`: the seed).
     pub fn new(base: Experiment, text: Option<&str>, source_path: Option<PathBuf>) -> Result<Self> {
