@@ -1,5 +1,5 @@
 //! `voxlab ablate`: error against run time for every shadow model and its quality knob
-//! (DESIGN section 3), measured against a converged reference.
+//! (`docs/ablation.md`), measured against a converged reference.
 //!
 //! The reference is the reference shadow model (`crate::technique::reference_shadow_model`:
 //! stochastic area lighting) at `[ablate] reference_spp`, rendered in two

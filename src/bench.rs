@@ -751,7 +751,7 @@ pub fn voxelize_table(rows: &[VoxelizeRow]) -> String {
 /// A scene that does not need some feature, rendered by the planned (reduced) kernel
 /// and by the full one: every flag whose code leaves this scene's image unchanged
 /// forced on, the settings' whole ray stack, and the resources a plan-less tracer would
-/// hold (accumulation buffer, opacity pyramid). DESIGN section 4.
+/// hold (accumulation buffer, opacity pyramid). `docs/plan.md`.
 #[derive(Clone, Debug)]
 pub struct PlanRow {
     pub scene: String,

@@ -39,7 +39,7 @@ enum Command {
     /// Benchmark the baseline: the seed scene at several grid sizes, GPU and CPU in one
     /// run (median ms per frame, counted rays and voxel steps per second, GPU/CPU ratio).
     Bench(BenchArgs),
-    /// Stress suite (DESIGN section 5): stiff and extreme cases on the GPU and the CPU
+    /// Stress suite (`docs/stress.md`): stiff and extreme cases on the GPU and the CPU
     /// reference; prints the table and writes it as stress.md and stress.csv.
     Stress(StressArgs),
     /// Error against run time: every shadow model and quality knob against a converged

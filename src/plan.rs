@@ -1,4 +1,4 @@
-//! What a scene and its settings need from the tracer (DESIGN section 4).
+//! What a scene and its settings need from the tracer (`docs/plan.md`).
 //!
 //! A [`Plan`] decides which code the GPU kernel is composed with: code a scene cannot
 //! reach is left out of the shader (not branched around), and the ray stack is sized to

@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-/// How a shadow segment through semi-transparent voxels is attenuated (DESIGN section 1):
+/// How a shadow segment through semi-transparent voxels is attenuated (`src/trace_contract.md`):
 /// one of the registered transmittance models (`crate::technique::TRANSMITTANCES`,
 /// each in its own file). The default is the first, the baseline's `min-kt`.
 #[derive(Clone, Copy)]
@@ -38,7 +38,7 @@ impl std::fmt::Debug for Transmittance {
     }
 }
 
-/// Which rules of the ray tree the tracers follow (DESIGN section 1; the seed's code is
+/// Which rules of the ray tree the tracers follow (`src/trace_contract.md`; the seed's code is
 /// `shaders/raytracing.frag` of its repository).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Rules {
@@ -301,7 +301,7 @@ impl Default for ConeSettings {
     }
 }
 
-/// Settings that are not part of the scene (DESIGN section 1, baseline constants).
+/// Settings that are not part of the scene (`src/trace_contract.md`, baseline constants).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
     pub width: u32,

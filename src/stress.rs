@@ -1,4 +1,4 @@
-//! The stress suite (DESIGN section 5, issue 6): stiff and extreme cases rendered by the
+//! The stress suite (`docs/stress.md`, issue 6): stiff and extreme cases rendered by the
 //! GPU kernel (f32) and by the CPU reference (f64), with every pixel checked for being
 //! finite and the GPU image compared with the oracle.
 //!

@@ -3,7 +3,7 @@
 //! the reference cache (reused when nothing changed, rebuilt when something did).
 //!
 //! The points that the GPU kernel supports must render on the GPU: a missing adapter
-//! fails these tests (DESIGN section 3), it does not quietly measure the CPU.
+//! fails these tests (`docs/ablation.md`), it does not quietly measure the CPU.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -1,5 +1,5 @@
 //! Closed-form checks of the f64 reference: an empty grid, a lit unoccluded point against
-//! the Phong formula of DESIGN section 1, Snell's law, and total internal reflection.
+//! the Phong formula of `src/trace_contract.md`, Snell's law, and total internal reflection.
 
 use glam::{DVec3, IVec3, UVec3};
 use voxlab::cpu::{SampleKey, refract, trace_ray};
@@ -97,7 +97,7 @@ fn lit_unoccluded_point_equals_closed_form_phong() {
             &mut stats,
         );
 
-        // DESIGN section 1, by hand.
+        // `src/trace_contract.md`, by hand.
         let m = &scene.materials[1];
         let n = DVec3::Y;
         let to_l = light - target;

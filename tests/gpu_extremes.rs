@@ -1,4 +1,4 @@
-//! Stiff cases (DESIGN section 5) on the GPU, each against the CPU reference, and the
+//! Stiff cases (`docs/stress.md`) on the GPU, each against the CPU reference, and the
 //! promise of the plan: code it leaves out never changes the image.
 //!
 //! Tolerance as in gpu_agreement.rs: on the displayed image (clamped to [0, 1]), fewer

@@ -357,7 +357,7 @@ fn the_seed_scene_at_2048_renders_through_its_tree() {
     assert!(lit > 10, "{lit} lit pixels");
 }
 
-/// Every stress case (DESIGN section 5: eyes on lattice points and grid faces,
+/// Every stress case (`docs/stress.md`: eyes on lattice points and grid faces,
 /// axis-parallel and grazing rays, total internal reflection, far origins, extreme
 /// depths, every shadow and transmittance model, the grid at the device's side limit)
 /// rendered on the GPU with each walk that skips regions gives the dense walk's rays

@@ -1,4 +1,4 @@
-//! The whole stress suite (every DESIGN section 5 case but the large cube) passes, and
+//! The whole stress suite (every `docs/stress.md` case but the large cube) passes, and
 //! `voxlab stress` prints and writes the table.
 
 mod common;

@@ -1,4 +1,4 @@
-//! The CPU reference tracer: the model of DESIGN section 1, implemented independently
+//! The CPU reference tracer: the model of `src/trace_contract.md`, implemented independently
 //! of the WGSL kernel, in f64, parallel over rows with rayon. It is the oracle of the
 //! tests and the fallback renderer when no GPU adapter exists. It follows
 //! `src/trace_contract.md` to the letter.

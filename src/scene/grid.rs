@@ -340,7 +340,7 @@ impl Grid {
     pub fn centre(&self) -> DVec3 {
         self.origin + 0.5 * self.extent()
     }
-    /// The grid's width `W` of DESIGN section 1: its largest world extent.
+    /// The grid's width `W` of `src/trace_contract.md`: its largest world extent.
     pub fn width(&self) -> f64 {
         self.extent().max_element()
     }

@@ -28,7 +28,7 @@ pub enum AreaShape {
 
 /// An area light: a point light spread uniformly over a shape. Every point of it emits
 /// isotropically (no cosine at the emitter), so a light of size 0 is exactly the point
-/// light at its centre (DESIGN section 1's degenerate setting), and `intensity` is the
+/// light at its centre (the contract's degenerate setting), and `intensity` is the
 /// whole light's, shared equally by its samples.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AreaLight {

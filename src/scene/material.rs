@@ -3,10 +3,10 @@
 use glam::DVec3;
 
 /// Smallest kt used to derive the default absorption, so an opaque material
-/// (kt = 0) gets a large but finite sigma (DESIGN section 1).
+/// (kt = 0) gets a large but finite sigma (`src/trace_contract.md`).
 pub const MIN_KT_FOR_SIGMA: f64 = 1e-4;
 
-/// Shininess of the seed's implementation (DESIGN section 1, baseline constants).
+/// Shininess of the seed's implementation (`src/trace_contract.md`, baseline constants).
 pub const SEED_SHININESS: f64 = 150.0;
 
 #[derive(Clone, Debug, PartialEq)]

@@ -1,4 +1,4 @@
-//! The seed scene (seed report section 3.2, DESIGN section 1) at any grid size.
+//! The seed scene (seed report section 3.2, `src/trace_contract.md`) at any grid size.
 
 use glam::{DVec3, IVec3, UVec3};
 

@@ -30,8 +30,8 @@
 //! sRGB decoding: the palette is taken as the albedo, as the seed's colours are).
 //! MagicaVoxel's MATL properties map as follows; MagicaVoxel's renderer is a path
 //! tracer, so these are approximations chosen to look alike under Whitted shading:
-//! - `_glass`: transmitting, with the seed glass's kd 0.2, ks 0.7, kr 0.3 (DESIGN
-//!   Table 1); `kt` from `_trans`, else `_alpha`, else `_weight` (the key each
+//! - `_glass`: transmitting, with the seed glass's kd 0.2, ks 0.7, kr 0.3 (the seed
+//!   report's Table 1); `kt` from `_trans`, else `_alpha`, else `_weight` (the key each
 //!   MagicaVoxel version wrote), else 0.8. The index of refraction is `_ri` when
 //!   present, else `1 + _ior`: MagicaVoxel 0.99 writes `_ior` as ior - 1 (its default
 //!   material carries `_ior 0.3` beside `_ri 1.3`, see dot_vox's `axes.vox`), else 1.5.

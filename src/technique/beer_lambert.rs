@@ -4,7 +4,7 @@
 //! Jakob and Humphreys, PBRT 3rd ed., section 11.1.3). The optical depth is summed first
 //! and exponentiated once, so a huge depth gives exactly 0, never a negative or NaN
 //! value; a material with `kt = 0` is opaque; void absorbs nothing. `sigma` per
-//! material is `[[materials]] sigma`, or derived from `kt` (DESIGN section 1).
+//! material is `[[materials]] sigma`, or derived from `kt` (`src/trace_contract.md`).
 
 use glam::DVec3;
 

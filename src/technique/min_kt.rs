@@ -1,6 +1,6 @@
 //! Transmittance `min-kt`: the smallest `kt` of the materials a shadow segment passes
 //! through, the start's included; void transmits fully and nothing outside the grid
-//! absorbs (the seed's O1 compromise as its code does it; DESIGN section 1, trace
+//! absorbs (the seed's O1 compromise as its code does it; `src/trace_contract.md`, trace
 //! contract "Shading a hit", shadow ray). The default transmittance.
 
 use glam::DVec3;
