@@ -42,7 +42,7 @@ pub mod plot;
 mod text;
 use crate::gpu::GpuTracer;
 use crate::metrics::{Domain, compare};
-use crate::output::{read_exr, write_frame};
+use crate::output::{read_exr, write_frame, write_frame_with_provenance};
 use crate::plan::Plan;
 use crate::render::{Features, Frame, MAX_SAMPLES, RenderSettings, Transmittance};
 use crate::scene::{Light, PointLight, Scene};
@@ -1491,12 +1491,17 @@ pub struct AblateReport {
 /// `images/`, the references under the cache directory).
 pub const OUTPUT_FILES: &[&str] = &[
     "grid.png",
+    "grid.png.json",
     "ablation.csv",
     "ablation.csv.json",
     "plot.png",
+    "plot.png.json",
     "plot.svg",
+    "plot.svg.json",
     "table.md",
+    "table.md.json",
     "table.tex",
+    "table.tex.json",
     "experiment.toml",
     "resolved.toml",
     "run.txt",
@@ -2346,21 +2351,59 @@ fn write_outputs(
     files: &mut Vec<String>,
 ) -> Result<()> {
     let mut record = |name: &str| files.push(name.to_string());
-    write_frame(&r.frame, out.join("images/reference.png"))?;
-    write_frame(&r.frame, out.join("images/reference.exr"))?;
-    record("images/reference.png");
-    record("images/reference.exr");
+    // What made every output, beside it (`<file>.json`) and in each PNG image: the
+    // run's record (the CSV's sidecar without the columns), and for a point's image
+    // the point and its first seed.
+    let mut run_record = csv_sidecar(e, c, r, adapter, rev);
+    if let Some(map) = run_record.as_object_mut() {
+        map.remove("columns");
+        map.remove("file");
+        map.insert("made_by".into(), "voxlab ablate".into());
+    }
+    let linear = crate::render::DisplayTransform {
+        encoding: crate::render::DisplayEncoding::Linear,
+        exposure: 0.0,
+    };
+    let mut image = |frame: &Frame, name: &str, what: serde_json::Value| -> Result<()> {
+        let mut rec = run_record.clone();
+        if let Some(map) = rec.as_object_mut() {
+            map.insert("image".into(), what);
+        }
+        write_frame_with_provenance(
+            frame,
+            out.join(name),
+            &serde_json::to_string_pretty(&rec)?,
+            linear,
+        )?;
+        record(name);
+        record(&format!("{name}.json"));
+        Ok(())
+    };
+    for name in ["images/reference.png", "images/reference.exr"] {
+        image(&r.frame, name, serde_json::json!("the converged reference"))?;
+    }
     // Every seed's row in the CSV; a point's summary over its seeds everywhere else.
     for row in rows {
         let png = row.image.clone();
         let exr = png.replace(".png", ".exr");
-        write_frame(&row.frame, out.join(&png))?;
-        write_frame(&row.frame, out.join(&exr))?;
-        let flip_png = png.replace("images/", "flip/");
+        let what = serde_json::json!({
+            "model": row.model,
+            "knob": row.knob,
+            "value": row.value,
+            "shadow_model": row.shadow_model,
+            "model_settings": row.model_settings.iter().map(|(k, v)| format!("{k}={v}")).collect::<Vec<_>>(),
+            "spp": row.spp,
+            "seed": row.seed,
+            "backend": row.backend,
+            "plan": row.plan,
+        });
+        image(&row.frame, &png, what.clone())?;
+        image(&row.frame, &exr, what)?;
+    }
+    for row in rows {
+        let flip_png = row.image.replace("images/", "flip/");
         let (_, map) = flip(&r.frame, &row.frame);
         write_png(&out.join(&flip_png), &map)?;
-        record(&png);
-        record(&exr);
         record(&flip_png);
     }
     write_png(&out.join("grid.png"), &grid::grid_image(r, rows))?;
@@ -2429,5 +2472,14 @@ fn write_outputs(
     }
     write_text(&out.join("run.txt"), &run)?;
     record("run.txt");
+    // The figures and tables, once written: the run's record beside each.
+    for name in ["grid.png", "plot.png", "plot.svg", "table.md", "table.tex"] {
+        let json = format!("{name}.json");
+        write_text(
+            &out.join(&json),
+            &serde_json::to_string_pretty(&run_record)?,
+        )?;
+        record(&json);
+    }
     Ok(())
 }

@@ -162,6 +162,25 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     );
     assert_eq!(sidecar["revision"], voxlab::revision::revision());
     assert_eq!(sidecar["seeds"], 2);
+    // Every image carries what made it (a point's: its model, value and seed), and the
+    // figures and tables have the run's record beside them.
+    let first = report.summaries.iter().find(|r| r.knob == "spp").unwrap();
+    let stored: serde_json::Value = serde_json::from_str(
+        &voxlab::output::read_png_provenance(out.join(&first.image))
+            .unwrap()
+            .expect("a point's PNG holds its provenance"),
+    )
+    .unwrap();
+    assert_eq!(stored["revision"], voxlab::revision::revision());
+    assert_eq!(stored["image"]["seed"], first.seed);
+    assert_eq!(stored["image"]["value"], first.value.as_str());
+    for f in ["plot.png", "grid.png", "table.md", "images/reference.exr"] {
+        let side: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join(format!("{f}.json"))).unwrap())
+                .unwrap();
+        assert_eq!(side["revision"], voxlab::revision::revision(), "{f}");
+        assert_eq!(side["seeds"], 2, "{f}");
+    }
     let tiny = std::fs::read(dir.join("tiny.toml")).unwrap();
     assert_eq!(
         sidecar["assets"][0]["blake3"],

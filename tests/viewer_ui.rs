@@ -865,6 +865,25 @@ fn save_button_writes_each_sides_image_and_the_experiment_that_reproduces_it() {
         let toml = dir.join(format!("{name}-001-{}.toml", side.name()));
         assert_png_is(&png, frame);
         assert_export_matches(&rig, side, &toml, frames, (W, H));
+        // The image carries what made it: the experiment that reproduces it (the TOML
+        // saved beside it), the build's revision, the frames.
+        let stored: serde_json::Value = serde_json::from_str(
+            &voxlab::output::read_png_provenance(&png)
+                .unwrap()
+                .expect("the PNG holds its provenance"),
+        )
+        .unwrap();
+        assert_eq!(
+            stored["resolved_experiment"].as_str().unwrap(),
+            std::fs::read_to_string(&toml).unwrap()
+        );
+        assert_eq!(stored["revision"], voxlab::revision::revision());
+        assert_eq!(stored["frames"], frames);
+        let sidecar = std::fs::read_to_string(format!("{}.json", png.display())).unwrap();
+        assert_eq!(
+            serde_json::from_str::<serde_json::Value>(&sidecar).unwrap(),
+            stored
+        );
         // The EXR holds the radiance itself.
         let exr =
             voxlab::output::read_exr(dir.join(format!("{name}-001-{}.exr", side.name()))).unwrap();
@@ -880,8 +899,8 @@ fn save_button_writes_each_sides_image_and_the_experiment_that_reproduces_it() {
     let saved = rig.outcome.lock().unwrap().saved.clone();
     assert_eq!(
         saved.len(),
-        7,
-        "png, exr, toml per side and the difference: {saved:?}"
+        11,
+        "png, exr, toml and two provenance sidecars per side, and the difference: {saved:?}"
     );
     // A second save never overwrites the first: the next prefix.
     let first = std::fs::read(dir.join(format!("{name}-001-left.png"))).unwrap();

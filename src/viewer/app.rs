@@ -674,10 +674,36 @@ impl ViewerApp {
         let base = dir.join(format!("{stem}-{}", side.name()));
         let with = |ext: &str| PathBuf::from(format!("{}.{ext}", base.display()));
         let (png, exr, toml) = (with("png"), with("exr"), with("toml"));
-        crate::output::write_frame(&u.frame, &png)?;
-        crate::output::write_frame(&u.frame, &exr)?;
+        // What made the image, with it (the PNG's iTXt chunk) and beside it (`.json`),
+        // as `voxlab render` records it: the experiment that reproduces it, the files it
+        // reads with their hashes, the build's revision.
+        let assets: Vec<serde_json::Value> = crate::experiment::write::input_hashes(&text, &toml)
+            .into_iter()
+            .filter(|(f, _)| *f != toml)
+            .map(|(f, hash)| serde_json::json!({"path": f.display().to_string(), "blake3": hash}))
+            .collect();
+        let record = serde_json::json!({
+            "voxlab": env!("CARGO_PKG_VERSION"),
+            "revision": crate::revision::revision(),
+            "saved_by": "voxlab view",
+            "side": side.name(),
+            "frames": u.frames,
+            "width": u.frame.width,
+            "height": u.frame.height,
+            "experiment_file": toml.display().to_string(),
+            "assets": assets,
+            "resolved_experiment": text,
+        });
+        let record = serde_json::to_string_pretty(&record)?;
+        let linear = crate::render::DisplayTransform {
+            encoding: crate::render::DisplayEncoding::Linear,
+            exposure: 0.0,
+        };
+        crate::output::write_frame_with_provenance(&u.frame, &png, &record, linear)?;
+        crate::output::write_frame_with_provenance(&u.frame, &exr, &record, linear)?;
         crate::output::write_file(&toml, text.as_bytes())?;
-        let mut files = vec![png, exr, toml];
+        let sidecar = |p: &PathBuf| PathBuf::from(format!("{}.json", p.display()));
+        let mut files = vec![png.clone(), exr.clone(), toml, sidecar(&png), sidecar(&exr)];
         if let Some((reference, frame, _)) = self.pair(side)
             && let Some(error) = display::difference(&frame, &reference)
         {
