@@ -1102,12 +1102,18 @@ fn view_modes_compare_the_same_pixels_and_b_flips_the_sides() {
     assert_eq!(rig.app().display.mode, ViewMode::Difference);
     assert_eq!(rig.app().comparison(), Some(None));
     assert!(rig.has_label("difference gain"));
+    // A colour bar says what the view's colours mean: white is 1 / gain of radiance.
+    assert!(
+        rig.has_label_containing("colour bar: |L - R| radiance 0 .. 0.25"),
+        "difference view without its colour bar"
+    );
     // FLIP: the mean of the map, the one metrics::flip gives.
     rig.harness.state_mut().display.mode = ViewMode::Flip;
     rig.harness.run_steps(2);
     let want = voxlab::metrics::flip_mean(&left, &right);
     assert_eq!(rig.app().comparison(), Some(Some(want)));
     assert!(rig.has_label(&format!("FLIP mean (R vs L) {want:.4}")));
+    assert!(rig.has_label_containing("colour bar: FLIP error 0 .. 1"));
     // A new frame of one side makes a new map: while the sides accumulate, once the
     // last map is half a second old (a FLIP map costs tens of ms on the window's thread).
     rig.send_current(Side::Right, constant(W, H, 0.4), 4);

@@ -939,6 +939,21 @@ impl ViewerApp {
             if let Some((_, _, Some(f))) = &self.compare {
                 ui.label(format!("FLIP mean (R vs L) {f:.4}"));
             }
+            // What the comparison view's colours mean.
+            if let Some(bar) = display::colour_bar(d) {
+                let (rect, _) = ui.allocate_exact_size(Vec2::new(160.0, 12.0), Sense::hover());
+                let n = bar.colours.len() as f32;
+                for (k, c) in bar.colours.iter().enumerate() {
+                    let x0 = rect.left() + rect.width() * k as f32 / n;
+                    let x1 = rect.left() + rect.width() * (k + 1) as f32 / n;
+                    ui.painter().rect_filled(
+                        Rect::from_min_max(pos2(x0, rect.top()), pos2(x1, rect.bottom())),
+                        0.0,
+                        *c,
+                    );
+                }
+                ui.label(format!("colour bar: {}", bar.caption()));
+            }
         });
     }
 

@@ -214,6 +214,76 @@ pub fn flip_image(a: &Frame, b: &Frame) -> Option<(f64, ColorImage)> {
     Some((mean, image))
 }
 
+/// The colour bar of a comparison view: what its colours mean. `colours` run from `lo`
+/// to `hi` of `quantity`, as the view draws them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColourBar {
+    pub quantity: &'static str,
+    pub lo: f64,
+    pub hi: f64,
+    pub colours: Vec<Color32>,
+}
+
+impl ColourBar {
+    /// The bar's caption: the quantity and the range its colours span.
+    pub fn caption(&self) -> String {
+        format!("{} {} .. {}", self.quantity, self.lo, tidy(self.hi))
+    }
+}
+
+/// A number in few digits, for a caption.
+fn tidy(v: f64) -> String {
+    let s = format!("{v:.4}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "0" && v > 0.0 {
+        format!("{v:.2e}")
+    } else {
+        s.to_string()
+    }
+}
+
+/// The colour bar of `display`'s comparison view (`None` in the other views): FLIP's
+/// magma over 0 to 1; for the difference, grey from 0 to the radiance difference shown
+/// as white, `1 / (gain 2^exposure)`, through the display's encoding.
+pub fn colour_bar(display: &Display) -> Option<ColourBar> {
+    const STEPS: usize = 64;
+    match display.mode {
+        ViewMode::Flip => {
+            let lut = nv_flip::magma_lut().to_vec();
+            let colours = (0..STEPS)
+                .map(|k| {
+                    let i = (k * 255 / (STEPS - 1)) * 3;
+                    Color32::from_rgb(lut[i], lut[i + 1], lut[i + 2])
+                })
+                .collect();
+            Some(ColourBar {
+                quantity: "FLIP error",
+                lo: 0.0,
+                hi: 1.0,
+                colours,
+            })
+        }
+        ViewMode::Difference => {
+            let white =
+                1.0 / (f64::from(display.difference_gain) * 2f64.powf(display.exposure)).max(1e-30);
+            let mut ramp = Frame::new(STEPS as u32, 1);
+            for (k, p) in ramp.pixels.iter_mut().enumerate() {
+                // The view multiplies |L - R| by the gain, then shows it as any image.
+                let d = white * k as f64 / (STEPS - 1) as f64;
+                *p = [(d * f64::from(display.difference_gain)) as f32; 3];
+            }
+            let image = display.image(&ramp);
+            Some(ColourBar {
+                quantity: "|L - R| radiance",
+                lo: 0.0,
+                hi: white,
+                colours: image.pixels,
+            })
+        }
+        _ => None,
+    }
+}
+
 /// A stale image (of an earlier camera or setting, while the new one renders) is shown
 /// dimmed under this tint, never as current.
 pub const STALE_TINT: Color32 = Color32::from_gray(90);
@@ -221,6 +291,41 @@ pub const STALE_TINT: Color32 = Color32::from_gray(90);
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The difference bar ends in white exactly at the radiance difference the view
+    /// shows as white, at any gain and exposure; the FLIP bar is FLIP's magma map.
+    #[test]
+    fn colour_bars_say_what_the_colours_mean() {
+        for (gain, exposure) in [(4.0, 0.0), (1.0, 2.0), (100.0, -3.0)] {
+            let d = Display {
+                mode: ViewMode::Difference,
+                difference_gain: gain,
+                exposure,
+                ..Display::default()
+            };
+            let bar = colour_bar(&d).unwrap();
+            assert!((bar.hi - 1.0 / (f64::from(gain) * 2f64.powf(exposure))).abs() < 1e-12);
+            assert_eq!(*bar.colours.first().unwrap(), Color32::from_rgb(0, 0, 0));
+            assert_eq!(
+                *bar.colours.last().unwrap(),
+                Color32::from_rgb(255, 255, 255)
+            );
+            // One step below white is not white: the range is not wider than shown.
+            assert_ne!(bar.colours[bar.colours.len() - 2], Color32::WHITE);
+        }
+        let flip = colour_bar(&Display {
+            mode: ViewMode::Flip,
+            ..Display::default()
+        })
+        .unwrap();
+        assert_eq!((flip.lo, flip.hi), (0.0, 1.0));
+        // FLIP's own map: magma from near black (0, 0, 4) to its pale yellow at 1.
+        let lut = nv_flip::magma_lut().to_vec();
+        assert_eq!(flip.colours[0], Color32::from_rgb(lut[0], lut[1], lut[2]));
+        let end = flip.colours.last().unwrap();
+        assert_eq!(*end, Color32::from_rgb(lut[765], lut[766], lut[767]));
+        assert!(colour_bar(&Display::default()).is_none());
+    }
 
     #[test]
     fn fit_keeps_the_aspect_and_pixels_map_back() {
