@@ -1872,17 +1872,14 @@ fn csv_sidecar(
     adapter: &str,
     rev: &str,
 ) -> serde_json::Value {
-    let assets: Vec<serde_json::Value> = e
+    let assets = e
         .source_path
         .as_ref()
         .and_then(|p| {
             let text = crate::experiment::read_text(p).ok()?;
             Some(crate::experiment::write::input_hashes(&text, p))
         })
-        .unwrap_or_default()
-        .into_iter()
-        .map(|(f, hash)| serde_json::json!({"path": f.display().to_string(), "blake3": hash}))
-        .collect();
+        .unwrap_or_default();
     serde_json::json!({
         "file": "ablation.csv",
         "voxlab": env!("CARGO_PKG_VERSION"),

@@ -212,13 +212,7 @@ impl Image {
             Some(p) => {
                 let text = crate::experiment::read_text(p)?;
                 let text = crate::experiment::apply_overrides(&text, overrides)?;
-                let assets: Vec<serde_json::Value> =
-                    crate::experiment::write::input_hashes(&text, p)
-                        .into_iter()
-                        .map(|(f, hash)| {
-                            serde_json::json!({"path": f.display().to_string(), "blake3": hash})
-                        })
-                        .collect();
+                let assets = crate::experiment::write::input_hashes(&text, p);
                 (crate::experiment::write::scene_source(&text, p)?, assets)
             }
             None => (toml::Table::new(), Vec::new()),

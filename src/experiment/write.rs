@@ -75,15 +75,16 @@ pub fn scene_source(text: &str, path: &Path) -> Result<Table, ExperimentError> {
 /// Every file [`input_files`] names with the blake3 hash of its content (hex), as
 /// provenance records them: a stored experiment names its assets by path, and the
 /// hash says whether the file at that path is still the one it was made from. A file
-/// that cannot be read is left out.
-pub fn input_hashes(text: &str, path: &Path) -> Vec<(PathBuf, String)> {
+/// that cannot be read is left out. Each as the records write it: `{path, blake3}`.
+pub fn input_hashes(text: &str, path: &Path) -> Vec<serde_json::Value> {
     input_files(text, path)
         .into_iter()
         .filter_map(|f| {
             let file = std::fs::File::open(&f).ok()?;
             let mut h = blake3::Hasher::new();
             h.update_reader(file).ok()?;
-            Some((f, h.finalize().to_hex().to_string()))
+            let hash = h.finalize().to_hex().to_string();
+            Some(serde_json::json!({"path": f.display().to_string(), "blake3": hash}))
         })
         .collect()
 }

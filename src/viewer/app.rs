@@ -677,11 +677,8 @@ impl ViewerApp {
         // What made the image, with it (the PNG's iTXt chunk) and beside it (`.json`),
         // as `voxlab render` records it: the experiment that reproduces it, the files it
         // reads with their hashes, the build's revision.
-        let assets: Vec<serde_json::Value> = crate::experiment::write::input_hashes(&text, &toml)
-            .into_iter()
-            .filter(|(f, _)| *f != toml)
-            .map(|(f, hash)| serde_json::json!({"path": f.display().to_string(), "blake3": hash}))
-            .collect();
+        // The TOML is written after: a new stem, so it is not among them.
+        let assets = crate::experiment::write::input_hashes(&text, &toml);
         let record = serde_json::json!({
             "voxlab": env!("CARGO_PKG_VERSION"),
             "revision": crate::revision::revision(),
