@@ -12,8 +12,10 @@
 
 // The unweighted local radiance at p (shading normal n, the surface's own normal ng,
 // ray direction d) of shading material s, for the primary ray of `key` (which picks the
-// shadow model's samples). Shadow rays start off the surface along ng.
-fn local_light(p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, d: vec3<f32>, s: Material, key: SampleKey) -> vec3<f32> {
+// shadow model's samples). Shadow rays start off the surface along ng. `weight` is the
+// ray's (crate::ray_cutoff): under RAY_CUTOFF a light whose bound times it is below the
+// cutoff is not shaded.
+fn local_light(p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, d: vec3<f32>, s: Material, key: SampleKey, weight: f32) -> vec3<f32> {
     var local = vec3<f32>(0.0);
     if !(s.kd > 0.0 || s.ks > 0.0) {
         return local;
@@ -23,7 +25,13 @@ fn local_light(p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, d: vec3<f32>, s: Mater
     // Exit tested at the bottom: no idle light after the last (shaders/counters.wgsl).
     if params.num_lights > 0u {
         loop {
+#ifdef RAY_CUTOFF
+            if weight * lights[j].bound >= params.ray_cutoff {
+                local += light_term(q, p, n, d, lights[j], j, s, key);
+            }
+#else
             local += light_term(q, p, n, d, lights[j], j, s, key);
+#endif
             continuing {
                 j++;
                 break if j >= params.num_lights;

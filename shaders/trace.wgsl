@@ -4,7 +4,7 @@
 // Contract: "Primary rays", "Shading a hit", "Stack".
 //
 // Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, EMISSION, ACCUMULATE,
-// COUNT_RAYS, RAY_STACK_SIZE, LIGHTING_TERMS (the plan's terms, summed by the module
+// COUNT_RAYS, RAY_CUTOFF, RAY_STACK_SIZE, LIGHTING_TERMS (the plan's terms, summed by the module
 // src/gpu/compose.rs writes), CONES (shaders/cone.wgsl, group 1, when the shadow model
 // or a term reads the pyramids). The shadow, transmittance and light models live in their own files
 // (shading.wgsl and phong.wgsl compose them); this file only walks the ray tree of one
@@ -83,6 +83,22 @@ fn may_spawn(r: RayEntry, reflection: bool) -> bool {
     return own < select(params.max_refraction_depth, params.max_reflection_depth, reflection);
 }
 
+// A ray's weight for the ray cutoff (crate::ray_cutoff): its throughput, the same in
+// every channel (kr and kt are scalars), a product of f32 factors from 1.
+fn weight(throughput: vec3<f32>) -> f32 {
+    return max(throughput.x, max(throughput.y, throughput.z));
+}
+
+// Whether a ray of this throughput is traced: always, unless the ray cutoff is in and
+// its weight is below it (contract: "Ray cutoff").
+fn traced(throughput: vec3<f32>) -> bool {
+#ifdef RAY_CUTOFF
+    return weight(throughput) >= params.ray_cutoff;
+#else
+    return true;
+#endif
+}
+
 // Pushes the refraction ray, then the reflection ray (contract order), for a hit of
 // ray r at p with shading normal n and the surface's own normal ng (the rays start off
 // the surface along it) on material h, shaded by s.
@@ -101,7 +117,7 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Mate
 #endif
         } else {
 #ifdef REFRACTION
-            if may_spawn(r, false) {
+            if may_spawn(r, false) && traced(r.throughput * s.kt) {
                 var t: RayEntry;
                 t.origin = p - params.eps * ng;
                 t.dir = normalize(eta * d + (eta * c - sqrt(k)) * n);
@@ -115,7 +131,7 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Mate
         }
     }
 #ifdef REFLECTION
-    if w_r > 0.0 && may_spawn(r, true) {
+    if w_r > 0.0 && may_spawn(r, true) && traced(r.throughput * w_r) {
         var f: RayEntry;
         f.origin = p + params.eps * ng;
         f.dir = d - 2.0 * dot(d, n) * n;
@@ -172,7 +188,7 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
 #ifdef TRIANGLES
         shadow_medium = r.medium;
 #endif
-        radiance += r.throughput * local_light(p, n, hit.geometric, r.dir, s, key);
+        radiance += r.throughput * local_light(p, n, hit.geometric, r.dir, s, key, weight(r.throughput));
 #endif
         // The lighting terms (src/technique/: ambient occlusion, indirect light).
 #ifdef LIGHTING_TERMS

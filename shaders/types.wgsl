@@ -39,8 +39,9 @@ struct Params {
     frame_count: u32,
     // Total depth of the ray tree (RenderSettings::total_depth_limit).
     max_total_depth: u32,
-    // Unused: the ray-tree rules are compiled in (SEED_RULES, crate::plan::Plan::seed_rules).
-    pad_rules: u32,
+    // Adaptive depth control (RAY_CUTOFF, crate::ray_cutoff): rays whose weight is below
+    // it are not traced, lights whose bound times the weight is below it not shaded.
+    ray_cutoff: f32,
     // PIXEL_FILTER_* (crate::render::PixelFilter) and its width in pixels (PIXEL_FILTER).
     pixel_filter: u32,
     filter_width: f32,
@@ -82,7 +83,8 @@ struct Light {
     kind: u32,
     // colour * intensity, multiplied on the host.
     radiance: vec3<f32>,
-    pad_a: f32,
+    // The most the light adds at any hit (crate::ray_cutoff::light_bound; RAY_CUTOFF).
+    bound: f32,
     // The shape's axes in voxel units, scaled by its size on the host in f64
     // (src/gpu/mod.rs, `GpuLight`): rectangle u * width and v * height; disk u * radius
     // and v * radius; sphere radius times the world axes x, y (and z in axis_n).

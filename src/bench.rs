@@ -7,12 +7,14 @@
 //! counted frame on the GPU, so counting does not slow the timed frames), not
 //! estimated.
 
+pub mod cutoff;
+
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
 
 use crate::gpu::GpuTracer;
-use crate::render::{RayStats, RenderSettings, Surface, Traversal};
+use crate::render::{RayStats, RenderSettings, Rules, Surface, Traversal};
 use crate::scene::{Scene, seed_scene};
 
 #[derive(Clone, Debug)]
@@ -26,6 +28,10 @@ pub struct BenchOptions {
     pub cpu: bool,
     /// The walks compared at each size (`render.traversal`).
     pub traversals: Vec<Traversal>,
+    /// The ray-tree rules the seed scene is measured under at each size: voxlab's
+    /// default model, and the seed's own (the like-for-like comparison with the seed's
+    /// tracer).
+    pub rules: Vec<Rules>,
     /// Experiments benchmarked after the seed scene, each with its own scene, camera,
     /// lights, materials and render settings (rules, depth limits, techniques), at the
     /// options' image size and one sample per pixel: a row's time is one frame's.
@@ -47,6 +53,7 @@ impl Default for BenchOptions {
             cpu_runs: 3,
             cpu: true,
             traversals: Traversal::walks(),
+            rules: vec![Rules::Consistent, Rules::Seed],
             experiments: Vec::new(),
             scenes: Vec::new(),
             surfaces: vec![Surface::default()],
@@ -282,7 +289,11 @@ type BenchScene = (String, Scene, RenderSettings, Option<Duration>);
 /// The scenes of `opts`, in order: the seed scene at each size, the experiments', the
 /// generated ones; each made when it is reached.
 fn scenes(opts: &BenchOptions) -> impl Iterator<Item = Result<BenchScene>> + '_ {
-    let seeds = opts.sizes.iter().map(|&n| -> Result<BenchScene> {
+    let seeds = opts
+        .sizes
+        .iter()
+        .flat_map(|&n| opts.rules.iter().map(move |&rules| (n, rules)));
+    let seeds = seeds.map(|(n, rules)| -> Result<BenchScene> {
         let start = Instant::now();
         let scene = seed_scene(n)?;
         if scene.grid.is_sparse() {
@@ -295,7 +306,15 @@ fn scenes(opts: &BenchOptions) -> impl Iterator<Item = Result<BenchScene>> + '_ 
             );
         }
         let held = scene.grid.is_sparse().then(|| start.elapsed());
-        Ok(("seed".to_string(), scene, opts.settings.clone(), held))
+        let name = match rules {
+            Rules::Consistent => "seed".to_string(),
+            Rules::Seed => "seed (seed rules)".to_string(),
+        };
+        let settings = RenderSettings {
+            rules,
+            ..opts.settings.clone()
+        };
+        Ok((name, scene, settings, held))
     });
     let experiments = opts.experiments.iter().map(|e| -> Result<BenchScene> {
         // The experiment's own rules and techniques are what its rows measure (a

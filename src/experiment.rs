@@ -325,6 +325,7 @@ struct RawRender {
     falloff: Option<bool>,
     falloff_min_distance: Option<f64>,
     ray_offset: Option<f64>,
+    ray_cutoff: Option<f64>,
     #[serde(default, deserialize_with = "exact::option")]
     ambient: Option<[f64; 3]>,
     light_samples: Option<i64>,
@@ -1227,6 +1228,7 @@ fn build(
         ("filter_width", r.filter_width),
         ("falloff_min_distance", r.falloff_min_distance),
         ("ray_offset", r.ray_offset),
+        ("ray_cutoff", r.ray_cutoff),
     ];
     apply_fields(settings::RENDER, "render", &given, &mut settings, ctx)?;
     // serde takes each group's table as a field of RawExperiment.

@@ -70,6 +70,7 @@ pub mod metrics;
 pub mod output;
 pub mod plan;
 pub mod progress;
+pub mod ray_cutoff;
 pub mod render;
 pub mod revision;
 pub mod sampling;

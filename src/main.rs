@@ -296,6 +296,10 @@ struct BenchArgs {
     /// Leave the CPU reference out (no ratio).
     #[arg(long)]
     no_cpu: bool,
+    /// The ray-tree rules the seed scene is measured under: voxlab's (consistent) and
+    /// the seed's own, like for like with the seed's tracer. Default: both.
+    #[arg(long, value_delimiter = ',', value_parser = parse_rules)]
+    rules: Vec<voxlab::render::Rules>,
     /// Experiments to benchmark after the seed scene (each its own scene, camera and
     /// lights, at --size and depth 4/4).
     #[arg(long, num_args = 1.., value_name = "EXPERIMENT")]
@@ -330,6 +334,15 @@ struct BenchArgs {
           value_parser = clap::value_parser!(u32).range(4..=512),
           conflicts_with_all = ["voxelize", "plan", "trees"])]
     surface_fidelity: Option<Vec<u32>>,
+    /// Measure the ray cutoff instead (`[render] ray_cutoff`): each experiment (--experiments,
+    /// else every experiments/*.toml) at --size, one frame, exact tree against each of
+    /// these cutoffs: rays, time, and the largest and mean difference in display levels;
+    /// then the largest cutoff within one level (1/255) on every experiment.
+    #[arg(long, value_name = "CUTOFFS", num_args = 0..=1, value_delimiter = ',',
+          default_missing_value = "0.001,0.002,0.005,0.01,0.02,0.05",
+          value_parser = parse_cutoff,
+          conflicts_with_all = ["voxelize", "plan", "trees"])]
+    cutoffs: Option<Vec<f64>>,
     /// Benchmark the render plan instead: the reduced kernel against the full one on
     /// scenes that do not need a feature (time and device memory, as ratios), on the
     /// seed geometry at the first of --sizes.
@@ -501,6 +514,12 @@ fn parse_traversal(s: &str) -> Result<voxlab::render::Traversal, String> {
     parse_named(s, Traversal::all(), Traversal::name)
 }
 
+/// A `--rules` value.
+fn parse_rules(s: &str) -> Result<voxlab::render::Rules, String> {
+    use voxlab::render::Rules;
+    parse_named(s, vec![Rules::Consistent, Rules::Seed], Rules::name)
+}
+
 /// A `--surfaces` value: a registered surface's name.
 fn parse_surface(s: &str) -> Result<voxlab::render::Surface, String> {
     use voxlab::render::Surface;
@@ -665,6 +684,9 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         println!("{}", voxlab::viewer::bench::adaptive_table(&rows));
         return Ok(());
     }
+    if let Some(cutoffs) = &a.cutoffs {
+        return bench_cutoffs(a, cutoffs);
+    }
     if a.plan {
         let mut gpu = GpuTracer::new().context("the plan benchmark needs a GPU adapter")?;
         let n = a.sizes.first().copied().unwrap_or(64);
@@ -764,6 +786,14 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         } else {
             a.traversal.clone()
         },
+        rules: if a.rules.is_empty() {
+            vec![
+                voxlab::render::Rules::Consistent,
+                voxlab::render::Rules::Seed,
+            ]
+        } else {
+            a.rules.clone()
+        },
         experiments: a
             .experiments
             .iter()
@@ -831,6 +861,72 @@ fn cmd_bench(a: &BenchArgs) -> Result<()> {
         bail!("{}", wrong.join("\n"));
     }
     Ok(())
+}
+
+/// `voxlab bench --cutoffs`.
+fn bench_cutoffs(a: &BenchArgs, cutoffs: &[f64]) -> Result<()> {
+    let mut gpu = GpuTracer::new().context("the cutoff benchmark needs a GPU adapter")?;
+    let files = if a.experiments.is_empty() {
+        let mut files: Vec<PathBuf> = std::fs::read_dir("experiments")
+            .context("reading experiments/ (run from the repository, or name --experiments)")?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .collect();
+        files.sort();
+        files
+    } else {
+        a.experiments.clone()
+    };
+    let experiments = files
+        .iter()
+        .map(|f| Experiment::load_with(f, &a.set).map_err(anyhow::Error::from))
+        .collect::<Result<Vec<_>>>()?;
+    eprintln!("GPU: {}", gpu.adapter_summary());
+    let rows = voxlab::bench::cutoff::bench_cutoffs(
+        &mut gpu,
+        &experiments,
+        cutoffs,
+        a.size,
+        a.gpu_runs as usize,
+        |r| {
+            eprintln!(
+                "  {} at {}: {:.1} % of the rays, max {} levels",
+                r.experiment,
+                r.cutoff,
+                100.0 * r.rays as f64 / r.exact_rays.max(1) as f64,
+                r.max_levels
+            )
+        },
+    )?;
+    if a.json {
+        let head = bench_head("cutoffs", Some(&gpu.adapter_summary()), a);
+        return print_json_rows(&head, rows.iter().map(|r| r.json()));
+    }
+    println!(
+        "ray cutoff: each experiment at {0}x{0}, one frame, against its exact tree \
+         (ray_cutoff = 0); times are medians of {1} interleaved runs ({2}); GPU: {3}\n",
+        a.size,
+        a.gpu_runs,
+        gpu.timer_name(),
+        gpu.adapter_summary()
+    );
+    println!("{}", voxlab::bench::cutoff::cutoff_table(&rows));
+    match voxlab::bench::cutoff::largest_within(&rows, cutoffs, 1) {
+        Some(c) => {
+            println!("largest cutoff within 1/255 of the exact tree on every experiment: {c}")
+        }
+        None => println!("no cutoff measured stays within 1/255 on every experiment"),
+    }
+    Ok(())
+}
+
+fn parse_cutoff(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is outside [0, 1] (render.ray_cutoff's range)"))
+    }
 }
 
 /// What every `bench --json` row carries: which benchmark, the revision, the adapter and
@@ -1182,6 +1278,11 @@ fn render_one(session: &mut Session, e: &Experiment, out: &Path, opts: &RenderOp
 
 /// `render --check`: the centre crop of `frame` against the CPU reference's.
 fn check_against_cpu(e: &Experiment, frame: &Frame, side: u32, session: &Session) -> Result<()> {
+    let plan = voxlab::plan::Plan::new(&e.scene, &e.settings);
+    if plan.ray_cutoff {
+        let bounds = voxlab::ray_cutoff::Bounds::new(&e.scene, &e.settings, &plan);
+        println!("check:      {bounds}");
+    }
     if session.gpu().is_none() {
         println!("check:      the image is the CPU reference's own; nothing to check");
         return Ok(());

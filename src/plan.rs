@@ -66,6 +66,9 @@ pub struct Plan {
     /// Primary rays spread over the pixel by the pixel filter (`PIXEL_FILTER`), a new
     /// position each frame: `render.pixel_filter` is not "none".
     pub pixel_filter: bool,
+    /// The ray cutoff (`RAY_CUTOFF`, `crate::ray_cutoff`): `render.ray_cutoff` is above 0
+    /// in f32. At 0 it cuts nothing, so it is left out and the tree is the exact one.
+    pub ray_cutoff: bool,
     /// The seed's ray-tree rules (`SEED_RULES`: `render.rules = "seed"`), compiled in
     /// rather than read from a uniform: the software driver runs both sides of every
     /// branch (shaders/counters.wgsl), so the rules not in force would cost time in
@@ -275,7 +278,9 @@ pub fn diffuse_in_grid(scene: &Scene) -> bool {
 
 /// Materials a ray can shade with: every non-void index the grid holds. Void never
 /// shades (a ray passing into void is shaded by the medium it leaves).
-fn shading_materials(scene: &Scene) -> Vec<(usize, &Material)> {
+/// The materials a hit can be shaded with: every non-void material in the grid (a hit
+/// on void is shaded by its medium, never void itself).
+pub fn shading_materials(scene: &Scene) -> Vec<(usize, &Material)> {
     let used = scene.grid.materials_used();
     scene
         .materials
@@ -418,6 +423,16 @@ impl Plan {
         };
 
         let pixel_filter = settings.pixel_filter != crate::render::PixelFilter::None;
+        // A cutoff of 0 (the default) is no cut, not something left out: no reason.
+        let ray_cutoff = if crate::ray_cutoff::cutoff(settings) <= 0.0 {
+            false
+        } else if !(reflection || refraction || shadows) {
+            // Primary rays are never cut: with nothing after them there is nothing to cut.
+            reasons.push("ray cutoff: no secondary or shadow rays to cut".to_string());
+            false
+        } else {
+            true
+        };
         let seed_rules = settings.rules == crate::render::Rules::Seed;
         let sampled = shadow_model.stochastic || pixel_filter;
         let accumulate = sampled && settings.spp > 1;
@@ -489,6 +504,7 @@ impl Plan {
             accumulate,
             terms,
             pixel_filter,
+            ray_cutoff,
             seed_rules,
             pyramid,
             count_rays: false,
@@ -649,6 +665,7 @@ impl Plan {
                     accumulate: false,
                     terms: Vec::new(),
                     pixel_filter: false,
+                    ray_cutoff: false,
                     seed_rules: false,
                     pyramid: None,
                     count_rays: false,
@@ -683,6 +700,9 @@ impl Plan {
         }
         if self.seed_rules {
             defs.insert("SEED_RULES".to_string(), ShaderDefValue::Bool(true));
+        }
+        if self.ray_cutoff {
+            defs.insert("RAY_CUTOFF".to_string(), ShaderDefValue::Bool(true));
         }
         // The transmittance model's module is composed in; a model other than the
         // default keys the cache by its index.
@@ -750,11 +770,13 @@ impl fmt::Display for Plan {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let pixel_filter = self.pixel_filter.then(|| "PIXEL_FILTER".to_string());
         let seed_rules = self.seed_rules.then(|| "SEED_RULES".to_string());
+        let ray_cutoff = self.ray_cutoff.then(|| "RAY_CUTOFF".to_string());
         let on: Vec<String> = self
             .flags_on()
             .into_iter()
             .chain(pixel_filter)
             .chain(seed_rules)
+            .chain(ray_cutoff)
             .collect();
         write!(
             f,

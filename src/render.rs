@@ -322,6 +322,10 @@ pub struct RenderSettings {
     pub falloff_min_distance: f64,
     /// Secondary and shadow rays start this many voxel widths off the surface (seed: 0.001).
     pub ray_offset: f64,
+    /// Adaptive depth control (Hall and Greenberg 1983): a secondary ray whose path
+    /// weight falls below this is not traced, nor a light whose largest contribution
+    /// times the path weight does (`crate::ray_cutoff`). 0 traces the whole tree.
+    pub ray_cutoff: f64,
     pub features: Features,
     /// Samples per pixel, light and frame on each sampled area light (stratified).
     pub light_samples: u32,
@@ -370,6 +374,7 @@ impl Default for RenderSettings {
             falloff: true,
             falloff_min_distance: 0.01,
             ray_offset: 0.001,
+            ray_cutoff: 0.0,
             features: Features::default(),
             light_samples: 1,
             spp: 1,

@@ -286,6 +286,12 @@ const fn int(key: &'static str, max: u32, min: i64, default: u32, doc: &'static 
     )
 }
 
+/// `[render] ray_cutoff`'s default: 0, the exact tree. The largest cutoff that keeps every
+/// shipped experiment within 1/255 of its exact tree (`crate::ray_cutoff::WITHIN_ONE_LEVEL`)
+/// cuts 0.2 % of the rays and makes a frame 5 % slower (the test per ray and light costs
+/// more than it saves): docs/benchmarks.md, "Ray cutoff".
+pub const RAY_CUTOFF_DEFAULT: f64 = 0.0;
+
 /// `[render]`'s numbers. `max_depth` is optional (no default: the two depths alone
 /// bound the tree), so it is declared here for its range and written only when set.
 pub const RENDER: &[Field<RenderSettings>] = &[
@@ -397,6 +403,17 @@ pub const RENDER: &[Field<RenderSettings>] = &[
         ),
         get: |s| s.ray_offset,
         set: |s, v| s.ray_offset = v,
+    },
+    Field {
+        setting: Setting::new(
+            "ray_cutoff",
+            UNIT,
+            RAY_CUTOFF_DEFAULT,
+            "path weight",
+            "rays and lights whose weight along their path falls below it are not traced (0: the whole tree)",
+        ),
+        get: |s| s.ray_cutoff,
+        set: |s, v| s.ray_cutoff = v,
     },
 ];
 

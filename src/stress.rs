@@ -374,6 +374,42 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
             st,
         ));
     }
+    // The ray cutoff at its ends: 0 (the exact tree, deeper than the default), and 1,
+    // where every ray below full weight is cut and a light is shaded only where its
+    // bound reaches 1; and a cutoff among the weights total internal reflection grows
+    // (kr + kt = 1.1 per bounce inside glass).
+    for (name, what, cutoff, mut scene) in [
+        (
+            "ray-cutoff-0",
+            "ray_cutoff 0: the whole tree, depth 8/8",
+            0.0,
+            seed16(),
+        ),
+        (
+            "ray-cutoff-1",
+            "ray_cutoff 1: full-weight rays only",
+            1.0,
+            seed16(),
+        ),
+        (
+            "ray-cutoff-tir",
+            "ray_cutoff 0.05 with ior 6: TIR chains",
+            0.05,
+            seed16(),
+        ),
+    ] {
+        if name == "ray-cutoff-tir" {
+            scene.materials[seed_ids::GLASS as usize].ior = 6.0;
+        }
+        let st = RenderSettings {
+            ray_cutoff: cutoff,
+            max_reflection_depth: 8,
+            max_refraction_depth: 8,
+            max_depth: Some(10),
+            ..settings(48, 48)
+        };
+        out.push(case(name, what, scene, st));
+    }
     // Soft shadows: a rectangle light under the reference shadow model (sampled area
     // lights), stratified samples over two frames, beer-lambert.
     let mut s = seed16();

@@ -393,15 +393,34 @@ fn bench_json_prints_one_object_per_row() {
     let n = walks.len();
     assert_eq!(
         rows.len(),
-        4 * n,
-        "two sizes, two backends, every walk: {out}"
+        8 * n,
+        "two sizes, both rule sets, two backends, every walk: {out}"
     );
     for walk in &walks {
         assert_eq!(
             rows.iter().filter(|r| r["traversal"] == *walk).count(),
-            4,
+            8,
             "{out}"
         );
+    }
+    // voxlab's rules, then the seed's, at each size; the seed's trace fewer rays.
+    for (size, pair) in rows.chunks(4 * n).enumerate() {
+        let (own, seed) = pair.split_at(2 * n);
+        assert!(
+            own.iter()
+                .all(|r| !r["scene"].as_str().unwrap().contains("seed rules"))
+        );
+        assert!(
+            seed.iter()
+                .all(|r| r["scene"].as_str().unwrap().contains("seed rules"))
+        );
+        let rays = |r: &serde_json::Value| {
+            ["primary", "secondary", "shadow"]
+                .iter()
+                .map(|k| r["rays"][k].as_u64().unwrap())
+                .sum::<u64>()
+        };
+        assert!(rays(&seed[0]) < rays(&own[0]), "size {size}: {pair:?}");
     }
     for r in &rows {
         assert_eq!(r["bench"], "seed");

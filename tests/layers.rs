@@ -16,7 +16,7 @@ const LAYERS: &[(&str, &[&str])] = &[
         ],
     ),
     ("walks", &["dda", "triangles", "device"]),
-    ("techniques", &["technique", "plan"]),
+    ("techniques", &["technique", "plan", "ray_cutoff"]),
     ("experiments", &["experiment", "error"]),
     ("tracers", &["cpu", "gpu"]),
     (

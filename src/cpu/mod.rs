@@ -13,6 +13,7 @@ use crate::technique::shading::ShadowWalk;
 
 use crate::dda::cast_through;
 use crate::plan::Plan;
+use crate::ray_cutoff::{light_shaded, spawned, traced};
 use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Rules};
 use crate::scene::Scene;
 use crate::sparse::Regions;
@@ -216,6 +217,9 @@ struct StackRay {
     reflection_depth: u32,
     refraction_depth: u32,
     medium: u8,
+    /// The weight the ray cutoff compares, in f32 as the kernel's throughput
+    /// (`crate::ray_cutoff`).
+    weight: f32,
 }
 
 /// What a render builds once from the scene before tracing, as its plan asks: the cone
@@ -230,6 +234,10 @@ pub struct Prepared {
     pub regions: Option<std::sync::Arc<dyn Regions>>,
     /// The triangle surfaces, when the plan traces them.
     pub surfaces: Option<SurfaceTrace>,
+    /// The ray cutoff in force (0 when the plan has none) and the lights' bounds it
+    /// compares (`crate::ray_cutoff`).
+    pub cutoff: f32,
+    pub light_bounds: Vec<f32>,
 }
 
 impl Prepared {
@@ -250,6 +258,16 @@ impl Prepared {
             terms: plan.terms.clone(),
             regions: plan.traversal.data.map(|data| data(grid)),
             surfaces,
+            cutoff: if plan.ray_cutoff {
+                crate::ray_cutoff::cutoff(settings)
+            } else {
+                0.0
+            },
+            light_bounds: if plan.ray_cutoff {
+                crate::ray_cutoff::light_bounds(scene, settings)
+            } else {
+                Vec::new()
+            },
         }
     }
 
@@ -305,6 +323,7 @@ pub fn trace_ray_with(
         reflection_depth: 0,
         refraction_depth: 0,
         medium: scene.medium_at(eye),
+        weight: 1.0,
     });
     stats.primary += 1;
 
@@ -343,7 +362,7 @@ pub fn trace_ray_with(
                 medium: ray.medium,
             };
             let local = direct_light(
-                scene, settings, prepared, key, &at, ray.dir, shade_id, stats,
+                scene, settings, prepared, key, &at, ray.dir, shade_id, ray.weight, stats,
             );
             color += ray.throughput * local;
         }
@@ -361,6 +380,9 @@ pub fn trace_ray_with(
         }
 
         let mut reflection_weight = m.kr;
+        // The same weight in f32, as the kernel sums it, for the ray cutoff.
+        let mut reflection_factor = m.kr as f32;
+        let refraction_weight = spawned(ray.weight, m.kt as f32);
         let (a, b) = (ray.reflection_depth, ray.refraction_depth);
         if m.kt > 0.0 {
             let eta = scene.materials[ray.medium as usize].ior
@@ -370,8 +392,12 @@ pub fn trace_ray_with(
                 // except under the seed's rules, where it is lost (GLSL's refract gives
                 // the zero vector, a ray that hits nothing).
                 None if settings.rules == Rules::Seed => {}
-                None => reflection_weight += m.kt,
+                None => {
+                    reflection_weight += m.kt;
+                    reflection_factor += m.kt as f32;
+                }
                 Some(_) if !settings.may_spawn(a, b, false) => {}
+                Some(_) if !traced(refraction_weight, prepared.cutoff) => {}
                 Some(refracted) => {
                     stats.secondary += 1;
                     stack.push(StackRay {
@@ -381,11 +407,16 @@ pub fn trace_ray_with(
                         reflection_depth: a,
                         refraction_depth: b + 1,
                         medium: hit.material,
+                        weight: refraction_weight,
                     });
                 }
             }
         }
-        if reflection_weight > 0.0 && settings.may_spawn(a, b, true) {
+        let reflected_weight = spawned(ray.weight, reflection_factor);
+        if reflection_weight > 0.0
+            && settings.may_spawn(a, b, true)
+            && traced(reflected_weight, prepared.cutoff)
+        {
             stats.secondary += 1;
             stack.push(StackRay {
                 origin: p + eps * ng,
@@ -394,6 +425,7 @@ pub fn trace_ray_with(
                 reflection_depth: a + 1,
                 refraction_depth: b,
                 medium: ray.medium,
+                weight: reflected_weight,
             });
         }
     }
@@ -429,6 +461,7 @@ fn direct_light(
     at: &Surface,
     d: DVec3,
     shade_id: u8,
+    weight: f32,
     stats: &mut RayStats,
 ) -> DVec3 {
     let m = &scene.materials[shade_id as usize];
@@ -436,6 +469,12 @@ fn direct_light(
     let walk = prepared.shadow_walk(medium);
     let mut sum = DVec3::ZERO;
     for (j, light) in scene.lights.iter().enumerate() {
+        // The ray cutoff: a light that cannot add what the pixel would show is not
+        // shaded.
+        if prepared.cutoff > 0.0 && !light_shaded(weight, prepared.light_bounds[j], prepared.cutoff)
+        {
+            continue;
+        }
         // The plan's shadow model shades the whole light (crate::technique).
         let at = crate::technique::LightQuery {
             scene,

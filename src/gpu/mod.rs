@@ -71,8 +71,8 @@ struct GpuParams {
     frame_begin: u32,
     frame_count: u32,
     max_total_depth: u32,
-    // Was the ray-tree rules; the plan compiles them in (`SEED_RULES`).
-    _pad_rules: u32,
+    // `crate::ray_cutoff::cutoff` (read only when the plan has `RAY_CUTOFF`).
+    ray_cutoff: f32,
     pixel_filter: u32,
     filter_width: f32,
 }
@@ -112,7 +112,8 @@ struct GpuLight {
     position: [f32; 3],
     kind: u32,
     radiance: [f32; 3],
-    _pad0: f32,
+    // `crate::ray_cutoff::light_bounds` (0 when the plan has no `RAY_CUTOFF`).
+    bound: f32,
     axis_u: [f32; 3],
     _pad1: f32,
     axis_v: [f32; 3],
@@ -1083,8 +1084,9 @@ impl GpuTracer {
     }
 
     /// The materials and lights as `shaders/types.wgsl` lays them out: the tracer's
-    /// and the pyramid injection's.
-    fn scene_data(scene: &Scene) -> (Vec<GpuMaterial>, Vec<GpuLight>) {
+    /// and the pyramid injection's; the lights' ray-cutoff bounds from `bounds` (0
+    /// where it has none: the injection reads none).
+    fn scene_data(scene: &Scene, bounds: &[f32]) -> (Vec<GpuMaterial>, Vec<GpuLight>) {
         let materials = scene
             .materials
             .iter()
@@ -1102,8 +1104,15 @@ impl GpuTracer {
                 _pad_e: 0.0,
             })
             .collect();
-        let mut lights: Vec<GpuLight> =
-            scene.lights.iter().map(|l| Self::light(scene, l)).collect();
+        let mut lights: Vec<GpuLight> = scene
+            .lights
+            .iter()
+            .enumerate()
+            .map(|(j, l)| GpuLight {
+                bound: bounds.get(j).copied().unwrap_or(0.0),
+                ..Self::light(scene, l)
+            })
+            .collect();
         // A binding cannot be empty: a scene without lights binds one unused entry.
         if lights.is_empty() {
             lights.push(GpuLight::zeroed());
@@ -1113,8 +1122,8 @@ impl GpuTracer {
 
     /// Writes the materials and lights into their buffers (grown when too small) and
     /// returns those.
-    fn upload_scene(&mut self, scene: &Scene) -> (wgpu::Buffer, wgpu::Buffer) {
-        let (mut materials, lights) = Self::scene_data(scene);
+    fn upload_scene(&mut self, scene: &Scene, bounds: &[f32]) -> (wgpu::Buffer, wgpu::Buffer) {
+        let (mut materials, lights) = Self::scene_data(scene, bounds);
         // The tracer declares the whole table (`shaders/bindings.wgsl`): a uniform array
         // has a fixed length. The cone injection binds the same buffer as storage.
         materials.resize(
@@ -1190,7 +1199,7 @@ impl GpuTracer {
             frame_begin: 0,
             frame_count: 1,
             max_total_depth: settings.total_depth_limit(),
-            _pad_rules: 0,
+            ray_cutoff: crate::ray_cutoff::cutoff(settings),
             pixel_filter: settings.pixel_filter.code(),
             filter_width: settings.filter_width as f32,
         }
@@ -1563,7 +1572,12 @@ impl GpuTracer {
         self.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
 
-        let (mat_buf, light_buf) = self.upload_scene(scene);
+        let bounds = if plan.ray_cutoff {
+            crate::ray_cutoff::light_bounds(scene, settings)
+        } else {
+            Vec::new()
+        };
+        let (mat_buf, light_buf) = self.upload_scene(scene, &bounds);
         self.queue
             .write_buffer(&self.counters, 0, &[0u8; COUNTER_BYTES as usize]);
 

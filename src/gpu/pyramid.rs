@@ -345,7 +345,7 @@ impl GpuTracer {
     ) -> Result<GpuPyramid> {
         scene.validate()?;
         self.upload_grid(scene, true);
-        self.upload_scene(scene);
+        self.upload_scene(scene, &[]);
         let inputs = InjectInputs::new(scene, settings, layout.dims);
         self.build(&inputs, layout, radiance)
     }
@@ -361,7 +361,7 @@ impl GpuTracer {
         radiance: bool,
     ) -> Result<()> {
         let inputs = InjectInputs::new(scene, settings, layout.dims);
-        let (materials, lights) = Self::scene_data(scene);
+        let (materials, lights) = Self::scene_data(scene, &[]);
         let key = inputs.key(
             self.grid_generation(),
             layout,

@@ -35,6 +35,8 @@ pub const TERM: LightingTerm = LightingTerm {
         include_str!("../../shaders/term_ambient_occlusion.wgsl"),
     ),
     cpu: term,
+    // AO is a visibility in [0, 1].
+    bound: |b| b.ambient * b.diffuse,
 };
 
 fn term(at: &TermQuery) -> DVec3 {

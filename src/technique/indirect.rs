@@ -35,6 +35,10 @@ pub const TERM: LightingTerm = LightingTerm {
         include_str!("../../shaders/term_indirect.wgsl"),
     ),
     cpu: term,
+    // The cones composite the injected radiance with weights that sum to at most 1, and
+    // a voxel's injected radiance (albedo kd times the lights' irradiance at its faces)
+    // is at most the lights' bound at a hit.
+    bound: |b| b.settings.cones.indirect_strength * b.diffuse * b.direct,
 };
 
 fn term(at: &TermQuery) -> DVec3 {

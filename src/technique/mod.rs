@@ -535,6 +535,20 @@ pub struct LightingTerm {
     pub wgsl: (&'static str, &'static str),
     /// Its f64 reference: the radiance it adds at the hit, before throughput.
     pub cpu: fn(&TermQuery) -> DVec3,
+    /// The most it can add at one hit (any channel), before throughput: what a ray cut
+    /// by the ray cutoff can cost (`crate::ray_cutoff::Bounds`).
+    pub bound: fn(&TermBound) -> f64,
+}
+
+/// What a lighting term's bound is computed from.
+pub struct TermBound<'a> {
+    /// The scene's ambient colour, largest channel.
+    pub ambient: f64,
+    /// The most the lights add at one hit (`crate::ray_cutoff::light_bound`, summed).
+    pub direct: f64,
+    /// The largest `max(albedo) kd` of a shading material.
+    pub diffuse: f64,
+    pub settings: &'a RenderSettings,
 }
 
 /// The lighting term called `name` (or its short name).
