@@ -2402,6 +2402,23 @@ fn write_outputs(
         let (_, map) = flip(&r.frame, &row.frame);
         write_png(&out.join(&flip_png), &map)?;
         record(&flip_png);
+        // The map's record: the run's, and which two images it compares.
+        let mut rec = run_record.clone();
+        if let Some(map) = rec.as_object_mut() {
+            map.insert(
+                "image".into(),
+                serde_json::json!({
+                    "flip_map_of": row.image,
+                    "against": "images/reference.png",
+                    "model": row.model,
+                    "value": row.value,
+                    "seed": row.seed,
+                }),
+            );
+        }
+        let json = format!("{flip_png}.json");
+        write_text(&out.join(&json), &serde_json::to_string_pretty(&rec)?)?;
+        record(&json);
     }
     write_png(&out.join("grid.png"), &grid::grid_image(r, rows))?;
     record("grid.png");

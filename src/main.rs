@@ -986,8 +986,24 @@ fn cmd_stress(a: &StressArgs) -> Result<()> {
     });
     let table = voxlab::stress::markdown(&rows, &adapter);
     println!("{table}");
-    let (md, csv) = voxlab::stress::write_tables(&a.out, &rows, &adapter)?;
-    println!("wrote {} and {}", md.display(), csv.display());
+    let record = voxlab::output::record(
+        "voxlab stress",
+        &[],
+        serde_json::json!({
+            "gpu": adapter,
+            "cpu": voxlab::cpu::backend_summary(),
+            "host": voxlab::cpu::host_summary(),
+            "cube": a.cube,
+            "only": a.only,
+            "cases": rows.iter().map(|r| r.name.clone()).collect::<Vec<_>>(),
+        }),
+    );
+    let (md, csv) = voxlab::stress::write_tables(&a.out, &rows, &adapter, &record)?;
+    println!(
+        "wrote {} and {} (records: .json beside each)",
+        md.display(),
+        csv.display()
+    );
     let failed = rows
         .iter()
         .filter(|r| matches!(r.verdict(), voxlab::stress::Verdict::Fail(_)))
@@ -1013,7 +1029,7 @@ fn cmd_mesh(a: &MeshArgs) -> Result<()> {
     if let Some(p) = &a.experiment {
         let text = voxlab::experiment::apply_overrides(&voxlab::experiment::read_text(p)?, &a.set)?;
         let inputs = voxlab::experiment::write::input_files(&text, p);
-        let mut outputs = vec![a.out.clone()];
+        let mut outputs = vec![a.out.clone(), voxlab::output::sidecar_path(&a.out)];
         if ext.as_deref() == Some("obj") {
             outputs.push(a.out.with_extension("mtl"));
         }
@@ -1036,6 +1052,41 @@ fn cmd_mesh(a: &MeshArgs) -> Result<()> {
     let took = start.elapsed();
     voxlab::surface::write_mesh(&mesh, &e.scene.materials, &a.out)?;
     let d = e.scene.grid.dims();
+    // What made the mesh, beside it: the experiment (its text with the overrides, every
+    // file it reads, hashed), the build, the relaxation.
+    let (text, inputs) = match &a.experiment {
+        Some(p) => {
+            let text =
+                voxlab::experiment::apply_overrides(&voxlab::experiment::read_text(p)?, &a.set)?;
+            let inputs = voxlab::experiment::write::input_files(&text, p);
+            (text, inputs)
+        }
+        None => (String::new(), Vec::new()),
+    };
+    let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let write_record = voxlab::output::write_sidecar(
+        &a.out,
+        &voxlab::output::record(
+            "voxlab mesh",
+            &inputs,
+            serde_json::json!({
+                "experiment": e.name,
+                "experiment_text": text,
+                "overrides": a.set.iter().map(|o| o.to_string()).collect::<Vec<_>>(),
+                "relax": a.relax,
+                "dims": [d.x, d.y, d.z],
+                "vertices": mesh.positions.len(),
+                "triangles": mesh.triangles.len(),
+            }),
+        ),
+    );
+    if let Err(err) = write_record {
+        // The mesh went with its record: its MTL too.
+        if ext.as_deref() == Some("obj") {
+            let _ = std::fs::remove_file(a.out.with_extension("mtl"));
+        }
+        return Err(err.into());
+    }
     println!(
         "{}: {}x{}x{} voxels -> {} vertices, {} triangles in {} material(s), relaxed {} times, \
          {:.1} ms",
@@ -1059,7 +1110,11 @@ fn cmd_mesh(a: &MeshArgs) -> Result<()> {
             mesh.manifold_report(Some(m))
         );
     }
-    println!("wrote {}", a.out.display());
+    println!(
+        "wrote {} (record: {})",
+        a.out.display(),
+        voxlab::output::sidecar_path(&a.out).display()
+    );
     Ok(())
 }
 
@@ -1084,6 +1139,15 @@ fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
         bail!(
             "--out {} is the input mesh {}: voxelize never overwrites its input",
             a.out.display(),
+            a.mesh.display()
+        );
+    }
+    let sidecar = voxlab::output::sidecar_path(&a.out);
+    if same(&sidecar, &a.mesh) {
+        bail!(
+            "--out {}: its record {} would be the input mesh {}: voxelize never overwrites its input",
+            a.out.display(),
+            sidecar.display(),
             a.mesh.display()
         );
     }
@@ -1112,6 +1176,23 @@ fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
     }
     write_vox(&a.out, &v.grid, &v.materials)?;
     let d = v.grid.dims();
+    // What made the file, beside it: the mesh's hash, the build, the settings.
+    voxlab::output::write_sidecar(
+        &a.out,
+        &voxlab::output::record(
+            "voxlab voxelize",
+            &[&a.mesh],
+            serde_json::json!({
+                "resolution": a.resolution,
+                "dims": [d.x, d.y, d.z],
+                "voxel_size": v.grid.voxel_size(),
+                "triangles": v.triangle_count,
+                "surface_voxels": v.shell_voxels,
+                "filled_voxels": v.interior_voxels,
+                "closed": v.closed,
+            }),
+        ),
+    )?;
     println!(
         "{}: {} triangles -> {}x{}x{} voxels of size {} ({} on the surface, {} filled{}), \
          {} materials, {:.2} s; wrote {}",
@@ -1128,6 +1209,7 @@ fn cmd_voxelize(a: &VoxelizeArgs) -> Result<()> {
         start.elapsed().as_secs_f64(),
         a.out.display()
     );
+    println!("record:     {}", sidecar.display());
     Ok(())
 }
 

@@ -245,6 +245,51 @@ pub fn read_png_provenance(path: impl AsRef<Path>) -> Result<Option<String>, Out
     Ok(text)
 }
 
+/// `<path>.json`: where the provenance record of the output `path` goes.
+pub fn sidecar_path(path: &Path) -> PathBuf {
+    let mut s = path.as_os_str().to_owned();
+    s.push(".json");
+    PathBuf::from(s)
+}
+
+/// A file an output was made from, as its record names it: the path and the blake3
+/// hash of the bytes; `None` when it cannot be read.
+pub fn file_record(path: &Path) -> Option<serde_json::Value> {
+    let file = File::open(path).ok()?;
+    let mut h = blake3::Hasher::new();
+    h.update_reader(file).ok()?;
+    Some(
+        serde_json::json!({"path": path.display().to_string(), "blake3": h.finalize().to_hex().to_string()}),
+    )
+}
+
+/// The record of an output made by `made_by` (`"voxlab voxelize"`) from `inputs`: the
+/// build's revision, each input's path and hash, and the command's own `fields` (an
+/// object, merged in).
+pub fn record(made_by: &str, inputs: &[&Path], fields: serde_json::Value) -> serde_json::Value {
+    let mut r = serde_json::json!({
+        "made_by": made_by,
+        "revision": crate::revision::revision(),
+        "inputs": inputs.iter().filter_map(|p| file_record(p)).collect::<Vec<_>>(),
+    });
+    if let (Some(map), serde_json::Value::Object(extra)) = (r.as_object_mut(), fields) {
+        map.extend(extra);
+    }
+    r
+}
+
+/// Writes `record` beside the output `path`, which was just written (`<path>.json`),
+/// complete or not at all; when it cannot be written `path` is removed as well, so no
+/// output is left without its record.
+pub fn write_sidecar(path: &Path, record: &serde_json::Value) -> Result<(), OutputError> {
+    let text = serde_json::to_string_pretty(record).expect("a JSON value serialises");
+    let result = write_file(sidecar_path(path), text.as_bytes());
+    if result.is_err() {
+        let _ = std::fs::remove_file(path);
+    }
+    result
+}
+
 /// Writes `bytes` to `path` the way `write_frame` writes images: parent directories
 /// created, a temporary file renamed into place, so a failed write leaves nothing under
 /// `path` (the viewer's exported experiment files and window captures).

@@ -1092,12 +1092,21 @@ pub fn write_tables(
     dir: &std::path::Path,
     rows: &[StressRow],
     adapter: &str,
+    record: &serde_json::Value,
 ) -> Result<(std::path::PathBuf, std::path::PathBuf)> {
+    use crate::output::{bytes_fill, sidecar_path, write_together};
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let md = dir.join("stress.md");
     let cs = dir.join("stress.csv");
-    std::fs::write(&md, markdown(rows, adapter))
-        .with_context(|| format!("writing {}", md.display()))?;
-    std::fs::write(&cs, csv(rows)).with_context(|| format!("writing {}", cs.display()))?;
+    let (md_text, cs_text) = (markdown(rows, adapter), csv(rows));
+    let record = serde_json::to_string_pretty(record)?;
+    let (md_json, cs_json) = (sidecar_path(&md), sidecar_path(&cs));
+    // The tables and their records, all four or none.
+    write_together(vec![
+        (md.clone(), bytes_fill(&md, md_text.as_bytes())),
+        (cs.clone(), bytes_fill(&cs, cs_text.as_bytes())),
+        (md_json.clone(), bytes_fill(&md_json, record.as_bytes())),
+        (cs_json.clone(), bytes_fill(&cs_json, record.as_bytes())),
+    ])?;
     Ok((md, cs))
 }

@@ -181,6 +181,15 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         assert_eq!(side["revision"], voxlab::revision::revision(), "{f}");
         assert_eq!(side["seeds"], 2, "{f}");
     }
+    // A FLIP map's record names the two images it compares.
+    let flip_map = first.image.replace("images/", "flip/");
+    let side: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join(format!("{flip_map}.json"))).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(side["revision"], voxlab::revision::revision());
+    assert_eq!(side["image"]["flip_map_of"], first.image.as_str());
+    assert_eq!(side["image"]["against"], "images/reference.png");
     let tiny = std::fs::read(dir.join("tiny.toml")).unwrap();
     assert_eq!(
         sidecar["assets"][0]["blake3"],

@@ -45,6 +45,63 @@ fn voxelize_writes_a_vox_that_loads_back() {
     let back = load_vox(&out, None).unwrap();
     assert_eq!(back.grid.dims(), v.grid.dims());
     assert_eq!(back.grid.data(), v.grid.data());
+    // The record beside it: the mesh's hash, the build, the settings.
+    let rec: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("bunny.vox.json")).unwrap())
+            .unwrap();
+    assert_eq!(rec["made_by"], "voxlab voxelize");
+    assert_eq!(rec["revision"], voxlab::revision::revision());
+    assert_eq!(rec["resolution"], 40);
+    let d = v.grid.dims();
+    assert_eq!(rec["dims"], serde_json::json!([d.x, d.y, d.z]));
+    let hash = blake3::hash(&std::fs::read(bunny()).unwrap())
+        .to_hex()
+        .to_string();
+    assert_eq!(rec["inputs"][0]["blake3"], hash, "{rec}");
+}
+
+/// The record is part of the output: when it cannot be written (its name is taken by a
+/// directory) the .vox is not left behind without it; and a record that would land on
+/// the input mesh is refused before any work.
+#[test]
+fn voxelize_leaves_no_vox_without_its_record() {
+    let dir = std::env::temp_dir().join(format!("voxlab-cli-record-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("b.vox");
+    std::fs::create_dir_all(dir.join("b.vox.json")).unwrap();
+    let o = voxlab(&[
+        "voxelize".as_ref(),
+        bunny().as_os_str(),
+        "--resolution".as_ref(),
+        "8".as_ref(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{stderr}");
+    assert!(stderr.contains("b.vox.json"), "{stderr}");
+    assert!(!out.exists(), "a .vox without its record was left behind");
+
+    // An input named like the record of the output.
+    let input = dir.join("m.vox.json");
+    std::fs::copy(bunny(), &input).unwrap();
+    let before = std::fs::read(&input).unwrap();
+    let o = voxlab(&[
+        "voxelize".as_ref(),
+        input.as_os_str(),
+        "--resolution".as_ref(),
+        "8".as_ref(),
+        "--out".as_ref(),
+        dir.join("m.vox").as_os_str(),
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && stderr.contains("never overwrites its input"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+    assert!(!dir.join("m.vox").exists());
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

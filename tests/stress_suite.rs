@@ -53,6 +53,15 @@ fn stress_command_writes_markdown_and_csv() {
     assert!(md.contains("| grid-1x1x1 |") && md.contains("pass"));
     assert_eq!(csv.lines().count(), 2);
     assert!(csv.starts_with("case,what,"));
+    // Each table's record beside it: the build, the adapter, the cases.
+    for name in ["stress.md.json", "stress.csv.json"] {
+        let rec: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join(name)).unwrap()).unwrap();
+        assert_eq!(rec["made_by"], "voxlab stress", "{rec}");
+        assert_eq!(rec["revision"], voxlab::revision::revision());
+        assert_eq!(rec["cases"], serde_json::json!(["grid-1x1x1"]), "{rec}");
+        assert!(rec["gpu"].as_str().is_some_and(|g| !g.is_empty()), "{rec}");
+    }
     let bad = Command::new(env!("CARGO_BIN_EXE_voxlab"))
         .args(["stress", "--only", "no-such-case", "--out"])
         .arg(&out)

@@ -181,6 +181,23 @@ fn voxlab_mesh_writes_obj_and_ply_that_load_again() {
     let loaded = voxlab::scene::load_mesh(&obj).unwrap();
     assert_eq!(loaded.triangles.len(), mesh.triangles.len());
     assert!(dir.join("deer.mtl").is_file());
+    // Its record beside it: the build, the relaxation, and every file the experiment
+    // reads with its hash (the experiment and its .vox).
+    let rec: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("deer.obj.json")).unwrap()).unwrap();
+    assert_eq!(rec["made_by"], "voxlab mesh");
+    assert_eq!(rec["revision"], voxlab::revision::revision());
+    assert_eq!(rec["relax"], DEFAULT_RELAX);
+    assert_eq!(rec["triangles"], mesh.triangles.len());
+    let inputs = rec["inputs"].as_array().unwrap();
+    assert!(inputs.len() >= 2, "{rec}");
+    for i in inputs {
+        let path = i["path"].as_str().unwrap();
+        let hash = blake3::hash(&std::fs::read(path).unwrap())
+            .to_hex()
+            .to_string();
+        assert_eq!(i["blake3"], hash, "{rec}");
+    }
     // PLY: the header's counts, then exactly the binary body they imply.
     let ply = dir.join("deer.ply");
     let (ok, _, err) = voxlab(&["mesh", exp, "--out", ply.to_str().unwrap(), "--relax", "3"]);

@@ -257,6 +257,18 @@ fn scripted_viewer_saves_what_render_reproduces() {
         "the two sides rendered the same image"
     );
 
+    // The capture's record: the build and the files saved with it.
+    let rec: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(save.join("e2e-001-window.png.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(rec["revision"], voxlab::revision::revision());
+    let with = rec["saved_with"].as_array().unwrap();
+    assert!(
+        with.iter()
+            .any(|p| p.as_str().unwrap().ends_with("e2e-001-left.png")),
+        "{rec}"
+    );
     // The window capture is the window: larger than the image, and not blank.
     let capture = read_png(save.join("e2e-001-window.png")).unwrap();
     assert!(

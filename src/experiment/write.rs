@@ -79,13 +79,7 @@ pub fn scene_source(text: &str, path: &Path) -> Result<Table, ExperimentError> {
 pub fn input_hashes(text: &str, path: &Path) -> Vec<serde_json::Value> {
     input_files(text, path)
         .into_iter()
-        .filter_map(|f| {
-            let file = std::fs::File::open(&f).ok()?;
-            let mut h = blake3::Hasher::new();
-            h.update_reader(file).ok()?;
-            let hash = h.finalize().to_hex().to_string();
-            Some(serde_json::json!({"path": f.display().to_string(), "blake3": hash}))
-        })
+        .filter_map(|f| crate::output::file_record(&f))
         .collect()
 }
 

@@ -742,11 +742,21 @@ impl ViewerApp {
             saved.push(path);
         }
         let capture = dir.join(format!("{stem}-window.png"));
+        // The capture's record: the build and the files saved with it, whose own
+        // records say what each side rendered.
+        let record = crate::output::record(
+            "voxlab view (window capture)",
+            &[],
+            serde_json::json!({
+                "saved_with": saved.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+            }),
+        );
         let done = self.capture_done.clone();
         *done.lock().expect("capture lock") = None;
         let repaint = ctx.clone();
         ctx.request_screenshot(move |image| {
             let result = write_capture(&image, &capture)
+                .and_then(|()| Ok(crate::output::write_sidecar(&capture, &record)?))
                 .map(|()| capture.clone())
                 .map_err(|e| format!("{e:#}"));
             *done.lock().expect("capture lock") = Some(result);
