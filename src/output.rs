@@ -187,9 +187,7 @@ pub fn write_frame_with_provenance(
 ) -> Result<(), OutputError> {
     let path = path.as_ref();
     let format = OutputFormat::from_path(path)?;
-    let mut sidecar = path.as_os_str().to_os_string();
-    sidecar.push(".json");
-    let sidecar = PathBuf::from(sidecar);
+    let sidecar = sidecar_path(path);
     let image = move |tmp: &Path| match format {
         OutputFormat::Exr => write_exr(frame, path, tmp),
         OutputFormat::Png => {

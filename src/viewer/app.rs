@@ -699,7 +699,7 @@ impl ViewerApp {
         crate::output::write_frame_with_provenance(&u.frame, &png, &record, linear)?;
         crate::output::write_frame_with_provenance(&u.frame, &exr, &record, linear)?;
         crate::output::write_file(&toml, text.as_bytes())?;
-        let sidecar = |p: &PathBuf| PathBuf::from(format!("{}.json", p.display()));
+        let sidecar = |p: &PathBuf| crate::output::sidecar_path(p);
         let mut files = vec![png.clone(), exr.clone(), toml, sidecar(&png), sidecar(&exr)];
         if let Some((reference, frame, _)) = self.pair(side)
             && let Some(error) = display::difference(&frame, &reference)
