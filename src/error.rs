@@ -27,6 +27,8 @@ pub enum ErrorKind {
     Device,
     /// An output that could not be written.
     Output,
+    /// A render stopped on request (its [`Watch`](crate::progress::Watch)): no image.
+    Interrupted,
     /// Anything else (the message says what).
     Other,
 }

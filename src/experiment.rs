@@ -351,6 +351,44 @@ impl Experiment {
         }
     }
 
+    /// Replaces the scene's voxels and palette (`materials`, index 0 void, every index
+    /// the grid uses defined): a volume of one's own. What the file left to the seed's
+    /// defaults follows the grid: a camera aimed at the old grid's centre at the seed's
+    /// distance is aimed at the new one's at the new distance, and the seed's lights for
+    /// the old grid become the seed's lights for the new one; what the file set stays.
+    /// The triangles of a voxelized mesh go with the old grid. The experiment no longer
+    /// renders from its file: `source_path` is cleared, and its records carry the grid's
+    /// hash.
+    pub fn set_grid(&mut self, grid: Grid, materials: Vec<Material>) -> crate::Result<()> {
+        let scene_error = |m: String| crate::Error::new(crate::ErrorKind::Scene, m);
+        let (old_c, old_w) = (self.scene.grid.centre(), self.scene.grid.width());
+        let (c, w) = (grid.centre(), grid.width());
+        let mut scene = Scene {
+            grid,
+            materials,
+            mesh: None,
+            ..self.scene.clone()
+        };
+        let seed_old = seed_camera(old_c, old_w);
+        if scene.camera.target == seed_old.target {
+            scene.camera.target = c;
+        }
+        if scene.camera.distance == seed_old.distance {
+            scene.camera.distance = seed_camera(c, w).distance;
+        }
+        if scene.lights == seed_lights(old_c, old_w) {
+            scene.lights = seed_lights(c, w);
+        }
+        scene.validate().map_err(|e| scene_error(e.0))?;
+        crate::plan::check_surface(&scene, &self.settings)
+            .map_err(|e| scene_error(format!("render.surface: {e}")))?;
+        crate::plan::check_traversal(&scene, &self.settings)
+            .map_err(|e| scene_error(format!("render.traversal: {e}")))?;
+        self.scene = scene;
+        self.source_path = None;
+        Ok(())
+    }
+
     /// Reads and validates an experiment file.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, ExperimentError> {
         let path = path.as_ref();
@@ -386,6 +424,39 @@ impl Experiment {
             .map_err(|e| with_allowed_range(ctx.serde_error(&e), text, path))?;
         build(raw, &ctx, Some(cache))
     }
+}
+
+/// A whole palette from `[[materials]]` tables alone: entry `i` is material `i + 1`
+/// (0 is void), each checked as an experiment file's `[[materials]]` are, starting from
+/// void's neutral values rather than the seed's. What the Python `Grid.from_numpy`
+/// reads its `palette` with; `path` names the text in messages.
+pub fn palette_from_str(
+    text: &str,
+    path: impl AsRef<Path>,
+) -> Result<Vec<Material>, ExperimentError> {
+    #[derive(Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct RawPalette {
+        #[serde(default)]
+        materials: Vec<RawMaterial>,
+    }
+    let path = path.as_ref();
+    let ctx = Ctx::new(text, path);
+    let raw: RawPalette =
+        toml::from_str(text).map_err(|e| with_allowed_range(ctx.serde_error(&e), text, path))?;
+    let void = crate::scene::seed_palette().swap_remove(0);
+    let palette = build_materials(Some(vec![void]), &raw.materials, &ctx)?;
+    if palette.len() > crate::scene::MAX_MATERIALS {
+        return Err(ctx.invalid(
+            "materials",
+            format!(
+                "{} materials; at most {} besides void (u8 indices)",
+                raw.materials.len(),
+                crate::scene::MAX_MATERIALS - 1
+            ),
+        ));
+    }
+    Ok(palette)
 }
 
 /// One `--set KEY=VALUE`: a dotted key of the experiment file (`render.width`,

@@ -94,8 +94,11 @@ struct InfoArgs {
 #[derive(Args, Debug)]
 struct TechniquesArgs {
     /// Print the markdown table docs/techniques.md holds.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "json")]
     markdown: bool,
+    /// Print the listing as JSON records (what the Python `voxlab.techniques()` gives).
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args, Debug)]
@@ -566,7 +569,9 @@ fn main() -> ExitCode {
         Some(Command::Techniques(args)) => {
             print!(
                 "{}",
-                if args.markdown {
+                if args.json {
+                    format!("{:#}\n", voxlab::technique::listing_json())
+                } else if args.markdown {
                     voxlab::technique::listing_markdown()
                 } else {
                     voxlab::technique::listing_text()

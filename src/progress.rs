@@ -2,15 +2,52 @@
 //! place once a render has run for a second; elsewhere (a log, a pipe) only when asked
 //! (`--progress`), as whole lines. Never on standard output, which carries the report
 //! or the `--json` records.
+//!
+//! A [`Watch`] lets another thread follow a render and stop it: the Python bindings
+//! drive a progress bar from it and stop the render on Ctrl-C.
 
 use std::io::{IsTerminal, Write};
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// How often a line is written at most.
 const INTERVAL: Duration = Duration::from_millis(250);
 /// On a terminal, a render shorter than this prints nothing.
 const QUIET_START: Duration = Duration::from_secs(1);
+
+/// A render followed from another thread: the units done and to do, as the tracer
+/// reports them, and a request to stop that the tracers honour between rows (CPU) or
+/// dispatches (GPU).
+#[derive(Debug, Default)]
+pub struct Watch {
+    done: AtomicU64,
+    total: AtomicU64,
+    stop: AtomicBool,
+}
+
+impl Watch {
+    pub fn new() -> Arc<Self> {
+        Arc::new(Self::default())
+    }
+
+    /// `(done, total)` units of the render so far (`(0, 0)` before the first report).
+    pub fn done(&self) -> (u64, u64) {
+        (
+            self.done.load(Ordering::Relaxed),
+            self.total.load(Ordering::Relaxed),
+        )
+    }
+
+    /// Asks the render to stop: it returns an error of kind `Interrupted`, no image.
+    pub fn stop(&self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+
+    pub fn stopped(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+}
 
 /// A reporter of `done / total` units of work (frames, rows), shared by the threads of a
 /// render (`Sync`).
@@ -21,6 +58,9 @@ pub struct Progress {
     /// Forced (`--progress`): every interval, from the start, as whole lines.
     forced: bool,
     terminal: bool,
+    /// Whether lines are printed at all (a watched render may print none).
+    print: bool,
+    watch: Option<Arc<Watch>>,
     state: Mutex<State>,
 }
 
@@ -42,6 +82,8 @@ impl Progress {
             start: Instant::now(),
             forced,
             terminal,
+            print: true,
+            watch: None,
             state: Mutex::new(State {
                 last: None,
                 printed: false,
@@ -50,8 +92,43 @@ impl Progress {
         })
     }
 
+    /// A reporter that prints nothing and tells `watch`, which may stop the render.
+    pub fn watched(watch: Arc<Watch>, unit: &'static str) -> Self {
+        Self {
+            label: String::new(),
+            unit,
+            start: Instant::now(),
+            forced: false,
+            terminal: false,
+            print: false,
+            watch: Some(watch),
+            state: Mutex::new(State {
+                last: None,
+                printed: false,
+                finished: false,
+            }),
+        }
+    }
+
+    /// Whether the render may be asked to stop (it has a [`Watch`]).
+    pub fn can_stop(&self) -> bool {
+        self.watch.is_some()
+    }
+
+    /// Whether the render was asked to stop (by its [`Watch`]).
+    pub fn stopped(&self) -> bool {
+        self.watch.as_ref().is_some_and(|w| w.stopped())
+    }
+
     /// Reports that `done` of `total` units are finished.
     pub fn update(&self, done: u64, total: u64) {
+        if let Some(w) = &self.watch {
+            w.total.store(total, Ordering::Relaxed);
+            w.done.fetch_max(done, Ordering::Relaxed);
+        }
+        if !self.print {
+            return;
+        }
         let now = Instant::now();
         let elapsed = now - self.start;
         let Ok(mut s) = self.state.lock() else {

@@ -5,12 +5,14 @@
 //! prints and stores beside every image.
 
 use std::path::Path;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crate::error::{Error, ErrorKind, Result};
 use crate::experiment::{Experiment, Override};
 use crate::gpu::GpuTracer;
 use crate::plan::Plan;
+use crate::progress::{Progress, Watch};
 use crate::render::{DisplayTransform, Frame, RayStats};
 
 /// Which tracer a session renders with.
@@ -105,16 +107,43 @@ impl Session {
     /// As [`render`](Self::render), with a progress line on stderr (`forced`: even when
     /// stderr is not a terminal).
     pub fn render_with_progress(&mut self, e: &Experiment, forced: bool) -> Result<Image> {
+        self.render_reporting(e, |unit| Progress::new(&e.name, unit, forced))
+    }
+
+    /// As [`render`](Self::render), followed by `watch` from another thread: its
+    /// progress read there, and [`Watch::stop`] ends the render early with an error of
+    /// kind [`ErrorKind::Interrupted`] (within a row of the CPU reference or a dispatch
+    /// of the GPU kernel).
+    pub fn render_watched(&mut self, e: &Experiment, watch: &Arc<Watch>) -> Result<Image> {
+        self.render_reporting(e, |unit| Some(Progress::watched(watch.clone(), unit)))
+            .map_err(|err| {
+                if watch.stopped() {
+                    Error::new(
+                        ErrorKind::Interrupted,
+                        format!("{}: render stopped on request", e.name),
+                    )
+                } else {
+                    err
+                }
+            })
+    }
+
+    fn render_reporting(
+        &mut self,
+        e: &Experiment,
+        progress: impl Fn(&'static str) -> Option<Progress>,
+    ) -> Result<Image> {
         let wall = Instant::now();
         let (out, plan, timer) = match &mut self.tracer {
             Tracer::Gpu(t) => {
-                let progress = crate::progress::Progress::new(&e.name, "frames", forced);
-                t.set_progress(progress.map(std::sync::Arc::new));
+                let progress = progress("frames");
+                t.set_progress(progress.map(Arc::new));
                 let out = t.render(&e.scene, &e.settings);
                 t.set_progress(None);
                 let mut out = out.map_err(|err| {
                     Error::new(ErrorKind::Device, format!("GPU render failed: {err:#}"))
                 })?;
+
                 // Device time from timestamp queries, where the adapter has them.
                 if let Some(device) = t.last_gpu_time() {
                     out.trace_time = device;
@@ -129,9 +158,12 @@ impl Session {
                 // The CPU's plan is derived the same way, for the record: it needs no
                 // shader variant, but the scene's needs are the same.
                 let plan = Plan::new(&e.scene, &e.settings);
-                let progress = crate::progress::Progress::new(&e.name, "rows", forced);
+                let progress = progress("rows");
                 let out =
                     crate::cpu::render_with_progress(&e.scene, &e.settings, progress.as_ref());
+                if progress.is_some_and(|p| p.stopped()) {
+                    return Err(Error::new(ErrorKind::Interrupted, "render stopped"));
+                }
                 (out, plan, "wall")
             }
         };
@@ -245,6 +277,13 @@ impl Image {
                 "shadow": s.shadow,
                 "voxel_steps": s.voxel_steps,
                 "counted": s.total_rays() > 0,
+            },
+            // The voxels rendered, whatever made them (a file, a generator, an array).
+            "grid": {
+                "dims": e.scene.grid.dims().to_array(),
+                "voxel_size": e.scene.grid.voxel_size(),
+                "origin": e.scene.grid.origin().to_array(),
+                "blake3": e.scene.grid.content_hash().to_hex().to_string(),
             },
             "finite": self.frame.all_finite(),
             "output": output.map(|p| p.display().to_string()),

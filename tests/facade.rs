@@ -105,3 +105,138 @@ fn one_session_per_backend_renders_the_same_image() {
     assert_eq!(again.scene, e.scene);
     assert_eq!(again.settings, e.settings);
 }
+
+/// A watched render stopped from another thread ends with `Interrupted` and no image,
+/// on both tracers, and the session renders again afterwards.
+#[test]
+fn a_watched_render_stops_on_request_and_the_session_goes_on() {
+    use voxlab::progress::Watch;
+    let mut e = Experiment::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/area_lights.toml"
+    ))
+    .unwrap();
+    (e.settings.width, e.settings.height, e.settings.spp) = (64, 64, 256);
+    for backend in [Backend::Cpu, Backend::Gpu] {
+        let mut session = Session::new(backend).expect("the suite needs a GPU adapter");
+        let watch = Watch::new();
+        let stopper = {
+            let watch = watch.clone();
+            std::thread::spawn(move || {
+                // Once the render has started (reported some progress), stop it.
+                while watch.done().1 == 0 {
+                    std::thread::sleep(std::time::Duration::from_millis(1));
+                }
+                watch.stop();
+            })
+        };
+        let err = session.render_watched(&e, &watch).unwrap_err();
+        stopper.join().unwrap();
+        assert_eq!(err.kind(), ErrorKind::Interrupted, "{backend:?}: {err}");
+        let (done, total) = watch.done();
+        assert!(done < total, "{backend:?}: stopped after {done} of {total}");
+        // Nothing of the stopped render survives into the next.
+        let mut small = e.clone();
+        (
+            small.settings.width,
+            small.settings.height,
+            small.settings.spp,
+        ) = (8, 8, 2);
+        let watch = Watch::new();
+        let image = session.render_watched(&small, &watch).unwrap();
+        assert_eq!(watch.done().0, watch.done().1);
+        let again = session.render(&small).unwrap();
+        assert_eq!(image.frame.pixels, again.frame.pixels, "{backend:?}");
+    }
+}
+
+/// `Experiment::set_grid`: what the file left to the seed follows the new grid, what it
+/// set stays; a palette that does not cover the voxels is refused.
+#[test]
+fn a_grid_of_ones_own_replaces_the_scene() {
+    use glam::{DVec3, UVec3};
+    use voxlab::scene::seed::{seed_camera, seed_lights};
+    let mut grid = voxlab::Grid::new(UVec3::new(4, 2, 6), 0.5, DVec3::new(1.0, 0.0, -2.0)).unwrap();
+    grid.set(glam::IVec3::new(1, 0, 1), 3);
+    let mut e = Experiment::seed_default();
+    e.set_grid(grid.clone(), voxlab::scene::seed_palette())
+        .unwrap();
+    let (c, w) = (grid.centre(), grid.width());
+    assert_eq!(e.scene.camera.target, c);
+    assert_eq!(e.scene.camera.distance, seed_camera(c, w).distance);
+    assert_eq!(e.scene.lights, seed_lights(c, w));
+    assert!(e.source_path.is_none());
+
+    let mut set = Experiment::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/area_lights.toml"
+    ))
+    .unwrap();
+    let lights = set.scene.lights.clone();
+    set.set_grid(grid.clone(), voxlab::scene::seed_palette())
+        .unwrap();
+    assert_eq!(set.scene.lights, lights, "the file's lights stay");
+    assert!(set.source_path.is_none());
+
+    let err = e
+        .set_grid(grid, voxlab::scene::seed_palette()[..2].to_vec())
+        .unwrap_err();
+    assert_eq!(err.kind(), ErrorKind::Scene);
+    assert!(err.to_string().contains("material 3"), "{err}");
+}
+
+/// A palette from `[[materials]]` alone: entry i is material i + 1, checked as a file's.
+#[test]
+fn a_palette_from_materials_tables() {
+    let p = voxlab::experiment::palette_from_str(
+        "[[materials]]\nname = \"a\"\nkd = 0.5\n[[materials]]\nname = \"b\"\nkr = 1.0\n",
+        "palette",
+    )
+    .unwrap();
+    let names: Vec<&str> = p.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["void", "a", "b"]);
+    assert_eq!((p[1].kd, p[2].kr), (0.5, 1.0));
+    let err = Error::from(
+        voxlab::experiment::palette_from_str("[[materials]]\nname = \"a\"\nkd = -1\n", "palette")
+            .unwrap_err(),
+    );
+    assert_eq!(err.key(), Some("materials[0].kd"));
+    assert_eq!(err.line(), Some(3));
+    let err = Error::from(
+        voxlab::experiment::palette_from_str("[[materials]]\nname = \"void\"\n", "p").unwrap_err(),
+    );
+    assert!(err.to_string().contains("void"), "{err}");
+}
+
+/// `voxlab techniques --json`'s records carry every setting `--markdown` lists, with
+/// its declared type and range.
+#[test]
+fn the_technique_records_match_the_listing() {
+    let records = voxlab::technique::listing_json();
+    let rows = voxlab::technique::listing();
+    let records = records.as_array().unwrap();
+    assert_eq!(records.len(), rows.len());
+    for (r, row) in records.iter().zip(&rows) {
+        assert_eq!(r["name"], row.name);
+        assert_eq!(r["slot"], row.slot.name());
+        let keys: Vec<&str> = r["settings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s["key"].as_str().unwrap())
+            .collect();
+        assert_eq!(
+            keys,
+            row.settings.iter().map(String::as_str).collect::<Vec<_>>()
+        );
+    }
+    let area = records.iter().find(|r| r["name"] == "area").unwrap();
+    let samples = area["settings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["key"] == "render.light_samples")
+        .unwrap();
+    assert_eq!(samples["type"], "int");
+    assert_eq!(samples["min"], 1.0);
+}

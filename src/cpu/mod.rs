@@ -156,6 +156,10 @@ fn trace_region(
         .into_par_iter()
         .map(|j| {
             let mut stats = RayStats::default();
+            // A stopped render skips its remaining rows; the caller discards the image.
+            if progress.is_some_and(|p| p.stopped()) {
+                return (vec![[0.0; 3]; columns.len()], stats);
+            }
             let row = columns
                 .clone()
                 .map(|i| {

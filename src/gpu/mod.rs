@@ -133,6 +133,8 @@ const LIGHT_SPHERE: u32 = 3;
 /// dispatch runs long enough to trip a driver's watchdog, and the frame slices stay
 /// at most 16 MiB.
 const PIXEL_FRAMES_PER_DISPATCH: u64 = 1 << 20;
+/// Into how many dispatches a render that may be stopped splits each one.
+const WATCHED_SPLIT: u32 = 16;
 
 /// Frames of one dispatch at most: each is one invocation per pixel along the
 /// dispatch's z (at most 65535 workgroups), and the accumulation kernel loops over them
@@ -1562,7 +1564,15 @@ impl GpuTracer {
         let pixels = settings.width as u64 * settings.height as u64;
         let todo = frames.end - frames.start;
         let per_dispatch = if plan.accumulate {
-            frames_per_dispatch(pixels, todo)
+            let most = frames_per_dispatch(pixels, todo);
+            // A render that may be stopped checks between dispatches: smaller ones let it
+            // stop within a fraction of the whole (a 64x64 image's 256 frames are one
+            // dispatch otherwise). The frames are summed in the same order either way.
+            if self.progress.as_ref().is_some_and(|p| p.can_stop()) {
+                most.div_ceil(WATCHED_SPLIT).max(1)
+            } else {
+                most
+            }
         } else {
             1
         };
@@ -1780,6 +1790,9 @@ impl GpuTracer {
             if let Some(p) = &self.progress {
                 self.wait()?;
                 p.update(u64::from(begin - frames.start), u64::from(todo));
+                if p.stopped() && begin < frames.end {
+                    anyhow::bail!("stopped after {} of {todo} frames", begin - frames.start);
+                }
             }
         }
         self.wait()?;

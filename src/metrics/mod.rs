@@ -132,16 +132,23 @@ fn magma(map: &[f32], w: u32, h: u32) -> image::RgbImage {
 /// (`flip::flip_map`): its mean, and the error map coloured with FLIP's magma LUT.
 /// [`flip_8bit`] is the same on 8-bit images.
 pub fn flip(reference: &Frame, test: &Frame) -> (f64, image::RgbImage) {
+    let (mean, map) = flip_at(reference, test, FLIP_PPD);
+    (mean, magma(&map, reference.width, reference.height))
+}
+
+/// [`flip`] at `ppd` pixels per degree: its mean and the per-pixel error in [0, 1],
+/// row-major (the Python `flip()`). The frames must have one size.
+pub fn flip_at(reference: &Frame, test: &Frame, ppd: f32) -> (f64, Vec<f32>) {
     let (w, h) = (reference.width, reference.height);
     let map = flip::flip_map(
         &display_srgb(reference),
         &display_srgb(test),
         w as usize,
         h as usize,
-        FLIP_PPD,
+        ppd,
     );
     let mean = map.iter().map(|&v| f64::from(v)).sum::<f64>() / map.len().max(1) as f64;
-    (mean, magma(&map, w, h))
+    (mean, map)
 }
 
 /// The mean of [`flip`].

@@ -834,6 +834,81 @@ pub fn listing_markdown() -> String {
     out
 }
 
+/// The declaration of `key`, one of `r.settings`, with the table it is in
+/// (`[techniques.sdf]`, `[render]`); `None` for a key that is no number.
+fn declared_setting(r: &ListingRow, key: &str) -> Option<(String, &'static Setting)> {
+    let own = shadow_model(r.name).and_then(|m| {
+        let k = key.strip_prefix(&format!("techniques.{}.", m.name))?;
+        Some((format!("[techniques.{}]", m.name), m.setting(k)?))
+    });
+    own.or_else(|| {
+        let (table, k) = key.split_once('.')?;
+        // `render.*` keys are the render table's fields; the others a shared group's.
+        let declared = match table {
+            "render" => crate::settings::RENDER
+                .iter()
+                .find(|f| f.setting.key == k)
+                .map(|f| &f.setting),
+            _ => shared_setting(key),
+        };
+        Some((format!("[{table}]"), declared?))
+    })
+}
+
+/// The listing as records (`voxlab techniques --json`, the Python `techniques()`): per
+/// technique its name, slot, switch and summary (with the paper it follows), and each
+/// setting's key, type, default (`null` where it has none), range and unit.
+pub fn listing_json() -> serde_json::Value {
+    let finite = |v: f64| v.is_finite().then_some(v);
+    let rows: Vec<serde_json::Value> = listing()
+        .iter()
+        .map(|r| {
+            let settings: Vec<serde_json::Value> = r
+                .settings
+                .iter()
+                .map(|key| match declared_setting(r, key) {
+                    Some((_, s)) => {
+                        let (kind, min, max, min_open, max_open) = match s.kind {
+                            crate::settings::Kind::Int { min, max } => {
+                                ("int", min as f64, max as f64, false, false)
+                            }
+                            crate::settings::Kind::Float {
+                                min,
+                                max,
+                                min_open,
+                                max_open,
+                            } => ("float", min, max, min_open, max_open),
+                        };
+                        // f64::MAX stands for "no bound".
+                        let bound = |v: f64| (v.abs() < f64::MAX).then_some(v);
+                        serde_json::json!({
+                            "key": key,
+                            "type": kind,
+                            "default": finite(s.default),
+                            "min": bound(min),
+                            "max": bound(max),
+                            "min_open": min_open,
+                            "max_open": max_open,
+                            "range": s.range_text().trim_start_matches("must be "),
+                            "unit": s.unit,
+                            "doc": s.doc,
+                        })
+                    }
+                    None => serde_json::json!({ "key": key }),
+                })
+                .collect();
+            serde_json::json!({
+                "name": r.name,
+                "slot": r.slot.name(),
+                "switch": r.switch,
+                "summary": r.summary,
+                "settings": settings,
+            })
+        })
+        .collect();
+    serde_json::Value::Array(rows)
+}
+
 /// The listing as plain text, with each plug-in setting's type, default and range.
 pub fn listing_text() -> String {
     let mut out = String::new();
@@ -846,15 +921,7 @@ pub fn listing_text() -> String {
             r.summary
         );
         for key in &r.settings {
-            let own = shadow_model(r.name).and_then(|m| {
-                let k = key.strip_prefix(&format!("techniques.{}.", m.name))?;
-                Some((format!("[techniques.{}]", m.name), m.setting(k)?))
-            });
-            let declared = own.or_else(|| {
-                let (table, _) = key.split_once('.')?;
-                Some((format!("[{table}]"), shared_setting(key)?))
-            });
-            out += &match declared {
+            out += &match declared_setting(&r, key) {
                 Some((table, s)) => format!(
                     "  {table} {} = {} ({}; {})\n",
                     s.key,
