@@ -31,6 +31,11 @@ if ! command -v Xvfb >/dev/null || [ -n "$missing_lib" ]; then
     echo "tests/run.sh: installing Xvfb and the X client libraries for the viewer's end-to-end test"
     need+=(xvfb libx11-6 libx11-xcb1 libxcursor1 libxrandr2 libxi6 libxkbcommon-x11-0)
 fi
+# The Python bindings' tests need a venv (Debian splits the venv module out of python3).
+if ! command -v python3 >/dev/null || ! python3 -c 'import venv, ensurepip' 2>/dev/null; then
+    echo "tests/run.sh: installing python3 and python3-venv for the Python bindings' tests"
+    need+=(python3 python3-venv)
+fi
 if [ ${#need[@]} -gt 0 ]; then
     sudo=""
     if [ "$(id -u)" -ne 0 ]; then
@@ -59,3 +64,15 @@ fi
 # Release mode: the f64 reference renders real images in the tests, and the README's
 # render command builds the same artifacts.
 cargo test --release --locked "$@"
+
+# The Python package (python/): built into a venv of its own with maturin, then its
+# pytest suite (GPU = CPU through Python, numpy round trips, errors, provenance, the
+# example notebook). The pinned packages come from PyPI.
+venv=target/python-venv
+if [ ! -x "$venv/bin/python" ]; then
+    python3 -m venv "$venv"
+fi
+"$venv/bin/python" -m pip install -q --disable-pip-version-check -r python/requirements-test.txt
+(cd python && VIRTUAL_ENV="$PWD/../$venv" PATH="$PWD/../$venv/bin:$PATH" \
+    maturin develop --release --locked -q)
+"$venv/bin/python" -m pytest -q python/tests

@@ -1,0 +1,114 @@
+"""Every error of a bad file, text, dict or override is a VoxlabError (a ValueError)
+with the command line's message, file, line and key."""
+
+import pytest
+
+import voxlab as vx
+
+from conftest import EXPERIMENTS, cli
+
+
+def cli_error(*args) -> str:
+    proc = cli("render", *args, "--backend", "cpu", "--out", "unused.png", check=False)
+    assert proc.returncode != 0, "the command line accepted it"
+    lines = [l for l in proc.stderr.splitlines() if l.startswith("error: ")]
+    assert lines, proc.stderr
+    return lines[0][len("error: "):]
+
+
+BAD_FILES = {
+    "range": ("[render]\nwidth = 0\n", "render.width", 2),
+    "unknown key": ("[render]\nwidht = 5\n", "render.widht", 2),
+    "type": ('[render]\nspp = "many"\n', "render.spp", 2),
+    "syntax": ("[render\nwidth = 5\n", None, 1),
+    "choice": ('[features]\nshadow_model = "fuzzy"\n', "features.shadow_model", 2),
+    "light": ('[[lights]]\ntype = "point"\nposition = [0, 1]\nintensity = 1.0\n', "lights[0].position", 3),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_a_bad_file_raises_the_command_lines_error(case, tmp_path):
+    text, key, line = BAD_FILES[case]
+    path = tmp_path / f"{case.replace(' ', '_')}.toml"
+    path.write_text(text)
+    with pytest.raises(vx.VoxlabError) as e:
+        vx.load(path)
+    assert isinstance(e.value, ValueError)
+    assert str(e.value) == cli_error(path)
+    assert e.value.file == str(path)
+    if key is not None:
+        assert e.value.key == key
+    assert e.value.line == line
+    # The same text given as a string: the same message, named by `name`.
+    with pytest.raises(vx.VoxlabError) as t:
+        vx.load(text, name=str(path))
+    assert str(t.value) == str(e.value)
+
+
+OVERRIDES = [
+    {"render.width": 0},
+    {"render.widht": 5},
+    {"render.spp": "many"},
+    {"features.shadow_model": "fuzzy"},
+    {"techniques.sdf.softness": -1.0},
+    {"lights[7].intensity": 2.0},
+    {"render.width": float("nan")},
+    {"render.ray_cutoff": 1e300},
+]
+
+
+@pytest.mark.parametrize("overrides", OVERRIDES, ids=lambda o: ",".join(o))
+def test_a_bad_override_raises_the_command_lines_error(overrides):
+    path = EXPERIMENTS / "baseline.toml"
+    with pytest.raises(vx.VoxlabError) as e:
+        vx.load(path, set=overrides)
+    args = []
+    for k, v in overrides.items():
+        args += ["--set", f"{k}={vx._toml_value(k, v)}"]
+    assert str(e.value) == cli_error(path, *args)
+
+
+def test_a_bad_dict_names_its_key():
+    with pytest.raises(vx.VoxlabError) as e:
+        vx.load({"render": {"width": 16, "height": -3}})
+    assert e.value.key == "render.height"
+    assert "1..=16384" in str(e.value)
+    with pytest.raises(vx.VoxlabError, match="render.spp: None has no TOML value"):
+        vx.load({"render": {"spp": None}})
+    with pytest.raises(vx.VoxlabError, match=r"lights\[1\].color\[1\]: None"):
+        vx.load({"lights": [{"type": "point"}, {"color": [1, None, 1]}]})
+    with pytest.raises(vx.VoxlabError, match="Out of range float"):
+        vx.load({"render": {"filter_width": float("inf")}})
+    with pytest.raises(vx.VoxlabError, match="has no TOML value"):
+        vx.load(EXPERIMENTS / "baseline.toml", set={"render.width": object()})
+
+
+def test_a_missing_file_and_a_file_of_the_wrong_kind(tmp_path):
+    with pytest.raises(vx.VoxlabError) as e:
+        vx.load(tmp_path / "missing.toml")
+    assert str(e.value) == cli_error(tmp_path / "missing.toml")
+    png = tmp_path / "image.toml"
+    png.write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR" + bytes(range(256)))
+    with pytest.raises(vx.VoxlabError) as e:
+        vx.load(png)
+    assert str(e.value) == cli_error(png)
+    with pytest.raises(vx.VoxlabError):
+        vx.load(tmp_path)  # a directory
+
+
+def test_a_dict_loads_like_its_file():
+    d = {
+        "scene": {"generator": "seed", "size": 8},
+        "render": {"width": 12, "height": 10, "spp": 3},
+        "features": {"transmittance": "beer-lambert"},
+    }
+    e = vx.load(d, name="mine")
+    assert (e.width, e.height, e.spp, e.name) == (12, 10, 3, "mine")
+    assert e.grid.shape == (8, 8, 8)
+
+
+def test_bad_sessions_and_render_arguments():
+    with pytest.raises(vx.VoxlabError, match='"gpu" or "cpu"'):
+        vx.Session("tpu")
+    with pytest.raises(TypeError):
+        vx.Session("cpu").render("experiments/baseline.toml")

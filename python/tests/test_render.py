@@ -1,0 +1,147 @@
+"""Sessions and images: the record re-renders through the command line, saving is all
+or nothing, Ctrl-C stops a render, the GIL is released, progress is reported."""
+
+import json
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+from PIL import Image as PILImage
+
+import voxlab as vx
+
+from conftest import EXPERIMENTS, cli, small
+
+
+def test_image_fields(cpu):
+    e = small("area_lights.toml", spp=2)
+    im = cpu.render(e)
+    assert im.radiance.shape == (16, 24, 3) and im.radiance.dtype == np.float32
+    assert (im.width, im.height, im.frames) == (24, 16, 2)
+    assert not im.radiance.flags.writeable
+    assert im.rays["primary"] == 24 * 16 * 2 and im.rays["shadow"] > 0
+    assert im.time_ms > 0 and im.wall_ms >= im.time_ms
+    p = im.provenance
+    assert p["width"] == 24 and p["spp"] == 2 and p["plan"] == im.plan
+    assert p["overrides"] == ["render.width=24", "render.height=16", "render.spp=2"]
+    assert p["source"] == str(EXPERIMENTS / "area_lights.toml")
+
+
+@pytest.mark.parametrize("backend", ["cpu", "gpu"])
+def test_the_record_re_renders_the_same_image_through_the_command_line(backend, tmp_path, request):
+    session = request.getfixturevalue(backend)
+    e = small("area_lights.toml", spp=2, **{"features.transmittance": "beer-lambert"})
+    im = session.render(e, set={"render.seed": 7})
+    mine = tmp_path / "python.png"
+    im.save(mine)
+    record = json.loads((tmp_path / "python.png.json").read_text())
+    assert record["output"] == str(mine)
+    resolved = tmp_path / "resolved.toml"
+    resolved.write_text(record["resolved_experiment"])
+    theirs = tmp_path / "cli.png"
+    cli("render", resolved, "--backend", backend, "--out", theirs)
+    a = np.asarray(PILImage.open(mine))
+    b = np.asarray(PILImage.open(theirs))
+    if backend == "cpu":
+        assert np.array_equal(a, b)
+    else:
+        # The device's own floating point: the GPU tests' tolerance on 8-bit values.
+        d = np.abs(a.astype(int) - b.astype(int)).max(axis=2)
+        assert np.mean(d > 2) <= 0.005
+
+
+def test_save_is_all_or_nothing(cpu, tmp_path):
+    im = cpu.render(small("baseline.toml"))
+    with pytest.raises(vx.VoxlabError):
+        im.save(tmp_path / "image.bmp")  # a format voxlab does not write
+    (tmp_path / "dir.png").mkdir()
+    with pytest.raises(vx.VoxlabError):
+        im.save(tmp_path / "dir.png")
+    (tmp_path / "file").write_text("not a directory")
+    with pytest.raises(vx.VoxlabError):
+        im.save(tmp_path / "file" / "x.png")
+    with pytest.raises(vx.VoxlabError):
+        im.save(tmp_path / "x.png", display="gamma")
+    with pytest.raises(vx.VoxlabError):
+        im.save(tmp_path / "x.png", exposure=float("nan"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.png", "file"]
+    im.save(tmp_path / "x.exr")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.png", "file", "x.exr", "x.exr.json"]
+
+
+def long_render():
+    """A CPU render of many seconds (area lights, 96x96, 64 frames)."""
+    return small("area_lights.toml", 96, 96, spp=64)
+
+
+def test_ctrl_c_stops_a_render_within_a_second_and_the_session_goes_on(cpu):
+    e = long_render()
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    start = time.monotonic()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        cpu.render(e, progress=False)
+    stopped = time.monotonic() - start - 0.5
+    timer.join()
+    # Within a row of the reference (a row of 96 pixels x 64 frames); the whole render
+    # takes far longer.
+    assert stopped < 2.0, f"stopped {stopped:.2f} s after Ctrl-C"
+    again = cpu.render(small("baseline.toml"))
+    assert np.isfinite(again.radiance).all()
+
+
+def test_ctrl_c_stops_a_gpu_render_and_the_session_goes_on(gpu):
+    e = small("area_lights.toml", 256, 256, spp=4096)
+    timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        gpu.render(e, progress=False)
+    timer.join()
+    a = gpu.render(small("baseline.toml")).radiance
+    assert np.isfinite(a).all()
+
+
+def test_the_gil_is_released_while_rendering(cpu):
+    ticks = []
+    done = threading.Event()
+
+    def count():
+        while not done.is_set():
+            ticks.append(1)
+            time.sleep(0.001)
+
+    t = threading.Thread(target=count)
+    t.start()
+    try:
+        cpu.render(small("area_lights.toml", 48, 48, spp=8))
+    finally:
+        done.set()
+        t.join()
+    assert len(ticks) > 20
+
+
+def test_progress_reaches_its_total(cpu):
+    seen = []
+    cpu.render(small("area_lights.toml", 64, 64, spp=16), progress=lambda d, t: seen.append((d, t)))
+    assert seen and seen[-1][0] == seen[-1][1] == 64  # rows of the CPU reference
+    assert all(a[0] <= b[0] for a, b in zip(seen, seen[1:]))
+
+
+def test_an_error_in_the_progress_callback_stops_the_render(cpu):
+    def broken(done, total):
+        raise RuntimeError("callback failed")
+
+    with pytest.raises(RuntimeError, match="callback failed"):
+        cpu.render(long_render(), progress=broken)
+
+
+def test_spp_and_set_override_the_experiment(cpu):
+    e = small("area_lights.toml")
+    im = cpu.render(e, spp=3, set={"render.light_samples": 2})
+    assert im.frames == 3 and im.provenance["light_samples"] == 2
+    assert e.spp == 16  # the experiment itself is unchanged
+    with pytest.raises(vx.VoxlabError, match="render.spp"):
+        cpu.render(e, spp=0)
