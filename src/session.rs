@@ -144,15 +144,20 @@ impl Session {
                     Error::new(ErrorKind::Device, format!("GPU render failed: {err:#}"))
                 })?;
 
-                // Device time from timestamp queries, where the adapter has them.
-                if let Some(device) = t.last_gpu_time() {
-                    out.trace_time = device;
-                }
+                // Device time from timestamp queries, where the adapter has them and the
+                // render's passes fit a query set.
+                let timer = match t.last_gpu_time() {
+                    Some(device) => {
+                        out.trace_time = device;
+                        t.timer_name()
+                    }
+                    None => "wall time around a synchronised submit",
+                };
                 let plan = t
                     .last_plan()
                     .cloned()
                     .unwrap_or_else(|| Plan::new(&e.scene, &e.settings));
-                (out, plan, t.timer_name())
+                (out, plan, timer)
             }
             Tracer::Cpu { .. } => {
                 // The CPU's plan is derived the same way, for the record: it needs no

@@ -132,6 +132,30 @@ fn a_watched_render_stops_on_request_and_the_session_goes_on() {
         };
         let err = session.render_watched(&e, &watch).unwrap_err();
         stopper.join().unwrap();
+        // More passes than a timestamp query set holds (4096 frames at 256x256, one
+        // frame per dispatch when watched): timed by the wall clock, never a panic. (The
+        // CPU reference would take minutes to report its first row of it.)
+        if backend == Backend::Gpu {
+            let mut many = e.clone();
+            (many.settings.width, many.settings.height, many.settings.spp) = (256, 256, 4096);
+            let big = Watch::new();
+            let stopper_big = {
+                let big = big.clone();
+                std::thread::spawn(move || {
+                    while big.done().1 == 0 {
+                        std::thread::sleep(std::time::Duration::from_millis(1));
+                    }
+                    big.stop();
+                })
+            };
+            let stopped = session.render_watched(&many, &big).unwrap_err();
+            stopper_big.join().unwrap();
+            assert_eq!(
+                stopped.kind(),
+                ErrorKind::Interrupted,
+                "{backend:?}: {stopped}"
+            );
+        }
         assert_eq!(err.kind(), ErrorKind::Interrupted, "{backend:?}: {err}");
         let (done, total) = watch.done();
         assert!(done < total, "{backend:?}: stopped after {done} of {total}");

@@ -1716,7 +1716,10 @@ impl GpuTracer {
         // accumulation the accumulation kernel's.
         let dispatches = todo.div_ceil(per_dispatch);
         let passes = dispatches * if reduce.is_some() { 2 } else { 1 };
-        let queries = self.timestamps.then(|| {
+        // A query set holds at most QUERY_SET_MAX_QUERIES: a render of more passes (many
+        // frames of a large image, one dispatch each) is timed by the wall clock.
+        let timed = self.timestamps && 2 * passes <= wgpu::QUERY_SET_MAX_QUERIES;
+        let queries = timed.then(|| {
             self.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("voxlab trace timestamps"),
                 ty: wgpu::QueryType::Timestamp,
