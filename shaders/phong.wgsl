@@ -14,18 +14,21 @@
 #import voxlab::shadow::transmittance
 #endif
 
-// Transmittance (RGB) of the shadow segment from q to the emitter at x.
+// Transmittance (RGB) of the shadow segment from q to the emitter at x. It ends eps
+// short of the emitter (as it starts eps off the surface): a light on a voxel's face is
+// seen from the face's open side, not by rounding. As shading::shadow_transmittance.
 fn shadow_to(q: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
     let to_light = x - q;
-    let len = length(to_light);
+    let dist = length(to_light);
+    let len = dist - params.eps;
     if !(len > 0.0) {
         return vec3<f32>(1.0);
     }
 #ifdef TRIANGLES
     // Through the triangle surfaces.
-    return surface_transmittance(q, to_light / len, len, shadow_medium);
+    return surface_transmittance(q, to_light / dist, len, shadow_medium);
 #else
-    return transmittance(q, to_light / len, len);
+    return transmittance(q, to_light / dist, len);
 #endif
 }
 

@@ -256,6 +256,7 @@ fn first_hits_and_chords_equal_brute_force_through_vertices_and_edges() {
                     regions: None,
                     surfaces: Some(&trace),
                     medium: VOID,
+                    end_offset: 0.0,
                 };
                 let t = shadow_transmittance(
                     &scene,

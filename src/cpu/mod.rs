@@ -242,6 +242,8 @@ pub struct Prepared {
     /// compares (`crate::ray_cutoff`).
     pub cutoff: f32,
     pub light_bounds: Vec<f32>,
+    /// How far short of its light a shadow segment ends (world units).
+    pub shadow_end_offset: f64,
 }
 
 impl Prepared {
@@ -272,6 +274,7 @@ impl Prepared {
             } else {
                 Vec::new()
             },
+            shadow_end_offset: settings.ray_offset * scene.grid.voxel_size(),
         }
     }
 
@@ -281,6 +284,7 @@ impl Prepared {
             regions: self.regions.as_deref(),
             surfaces: self.surfaces.as_ref(),
             medium,
+            end_offset: self.shadow_end_offset,
         }
     }
 

@@ -19,6 +19,10 @@ pub struct ShadowWalk<'a> {
     pub regions: Option<&'a dyn Regions>,
     pub surfaces: Option<&'a SurfaceTrace>,
     pub medium: u8,
+    /// How far short of its light a segment ends (world units): the ray offset, so that
+    /// a light on a voxel's face is seen from the face's open side, not by rounding
+    /// (contract, "Shading a hit").
+    pub end_offset: f64,
 }
 
 /// One point emitter at `x` of radiance `radiance` (colour times intensity) seen from the
@@ -92,6 +96,12 @@ pub fn shadow_transmittance(
     light: DVec3,
     stats: &mut RayStats,
 ) -> DVec3 {
+    let to_light = light - q;
+    let len = to_light.length();
+    if len <= walk.end_offset {
+        return DVec3::ONE;
+    }
+    let light = q + to_light * ((len - walk.end_offset) / len);
     let regions = walk.regions;
     if let Some(s) = walk.surfaces {
         return s.transmittance(scene, regions, model, q, light, walk.medium, stats);
