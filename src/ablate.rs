@@ -1082,6 +1082,7 @@ fn reference(
         seconds += r.time.as_secs_f64();
         frames.push(r.frame);
         progress.advance(progress.reference_cost(s.spp));
+        progress.check()?;
         progress.line(&format!("reference half of {} spp rendered", s.spp));
     }
     let noise_rmse = compare(&frames[0], &frames[1], Domain::Linear, 0.0)
@@ -1311,6 +1312,7 @@ fn measure(
                 setups.push(setup);
             }
             progress.advance(progress.point_cost(s.spp.max(1)));
+            progress.check()?;
             last = Some(r);
         }
         let r = last.expect("runs >= 1");
@@ -1409,9 +1411,19 @@ struct Meter {
     /// Estimated microseconds per frame of the reference and of a point.
     reference_us: f64,
     point_us: f64,
+    /// Told the work done (in the bar's units), and asked whether to stop.
+    watch: Option<std::sync::Arc<crate::progress::Watch>>,
 }
 
 impl Meter {
+    /// An error when the sweep was asked to stop (between renders).
+    fn check(&self) -> Result<()> {
+        if self.watch.as_ref().is_some_and(|w| w.stopped()) {
+            bail!("ablate stopped on request");
+        }
+        Ok(())
+    }
+
     fn reference_cost(&self, frames: u32) -> u64 {
         (f64::from(frames) * self.reference_us).ceil() as u64
     }
@@ -1445,6 +1457,9 @@ impl Meter {
     /// Records `cost` more done.
     fn advance(&self, cost: u64) {
         self.bar.inc(cost);
+        if let Some(w) = &self.watch {
+            w.report(self.bar.position(), self.bar.length().unwrap_or(0));
+        }
         if let Some(what) = self.bar.message().split(';').next() {
             self.bar.set_message(self.status(what));
         }
@@ -1467,6 +1482,9 @@ pub struct AblateOptions {
     pub progress: bool,
     /// Off a terminal, print the progress as lines (`voxlab ablate --progress`).
     pub log: bool,
+    /// Follows the sweep from another thread and may stop it between renders (the
+    /// Python bindings' Ctrl-C): the images and references done stay, no table is written.
+    pub watch: Option<std::sync::Arc<crate::progress::Watch>>,
 }
 
 /// What a run measured and wrote.
@@ -1656,6 +1674,7 @@ pub fn run(
         start: Instant::now(),
         reference_us,
         point_us,
+        watch: opts.watch.clone(),
     };
     let sweep_cost = progress.point_cost(point_frames);
     progress
@@ -1683,6 +1702,7 @@ pub fn run(
     // References of the points with a scene of their own, by scene.
     let mut own_references: Vec<(std::sync::Arc<Scene>, Reference)> = Vec::new();
     for p in &points {
+        progress.check()?;
         let own = match &p.scene {
             None => None,
             Some(scene) => {

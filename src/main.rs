@@ -637,6 +637,7 @@ fn cmd_ablate(a: &AblateArgs) -> Result<()> {
         cache_dir: a.cache.clone(),
         progress: true,
         log: a.progress,
+        watch: None,
     };
     let report = ablate::run(&e, &config, Some(&text), &opts)?;
     println!("{}", report.table);

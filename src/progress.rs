@@ -39,6 +39,12 @@ impl Watch {
         )
     }
 
+    /// Records that `done` of `total` units are finished.
+    pub fn report(&self, done: u64, total: u64) {
+        self.total.store(total, Ordering::Relaxed);
+        self.done.fetch_max(done, Ordering::Relaxed);
+    }
+
     /// Asks the render to stop: it returns an error of kind `Interrupted`, no image.
     pub fn stop(&self) {
         self.stop.store(true, Ordering::Relaxed);
@@ -123,8 +129,7 @@ impl Progress {
     /// Reports that `done` of `total` units are finished.
     pub fn update(&self, done: u64, total: u64) {
         if let Some(w) = &self.watch {
-            w.total.store(total, Ordering::Relaxed);
-            w.done.fetch_max(done, Ordering::Relaxed);
+            w.report(done, total);
         }
         if !self.print {
             return;

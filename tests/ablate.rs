@@ -61,6 +61,7 @@ fn run(e: &Experiment, c: &AblateConfig, out: &Path, cache: &Path) -> AblateRepo
             cache_dir: Some(cache.to_path_buf()),
             progress: false,
             log: false,
+            watch: None,
         },
     )
     .unwrap()

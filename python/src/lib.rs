@@ -472,8 +472,6 @@ struct Session {
     inner: voxlab::Session,
 }
 
-type Outcome = voxlab::Result<voxlab::Image>;
-
 #[pymethods]
 impl Session {
     #[new]
@@ -499,9 +497,8 @@ impl Session {
         self.inner.label()
     }
 
-    /// Renders `experiment` on a worker thread with the GIL released. Every 50 ms the
-    /// calling thread checks for signals (Ctrl-C stops the render within a row or a
-    /// dispatch, and raises KeyboardInterrupt) and calls `progress(done, total)`.
+    /// Renders `experiment` on a worker thread with the GIL released (see
+    /// [`run_watched`]: Ctrl-C stops it, `progress(done, total)` is called).
     #[pyo3(signature = (experiment, progress=None))]
     fn render(
         &mut self,
@@ -510,62 +507,10 @@ impl Session {
         progress: Option<Py<PyAny>>,
     ) -> PyResult<Image> {
         let e = experiment.inner.clone();
-        let watch = Watch::new();
-        let slot: Arc<(Mutex<Option<Outcome>>, Condvar)> = Arc::default();
         let session = &mut self.inner;
-        let mut stop_reason: Option<PyErr> = None;
-        let outcome = std::thread::scope(|s| {
-            let (e, worker_watch, worker_slot) = (e.clone(), watch.clone(), slot.clone());
-            s.spawn(move || {
-                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    session.render_watched(&e, &worker_watch)
-                }))
-                .unwrap_or_else(|_| {
-                    Err(voxlab::Error::new(
-                        ErrorKind::Other,
-                        "the render panicked (a bug: please report it)",
-                    ))
-                });
-                let (lock, ready) = &*worker_slot;
-                if let Ok(mut r) = lock.lock() {
-                    *r = Some(result);
-                }
-                ready.notify_all();
-            });
-            loop {
-                let done = py.detach(|| {
-                    let (lock, ready) = &*slot;
-                    let guard = lock.lock().ok()?;
-                    let (mut guard, _) = ready
-                        .wait_timeout_while(guard, Duration::from_millis(50), |r| r.is_none())
-                        .ok()?;
-                    guard.take()
-                });
-                if let Some(r) = done {
-                    return r;
-                }
-                if stop_reason.is_none() {
-                    if let Err(e) = py.check_signals() {
-                        watch.stop();
-                        stop_reason = Some(e);
-                    } else if let Some(cb) = &progress {
-                        let (d, t) = watch.done();
-                        if let Err(e) = cb.call1(py, (d, t)) {
-                            watch.stop();
-                            stop_reason = Some(e);
-                        }
-                    }
-                }
-            }
-        });
-        if let Some(reason) = stop_reason {
-            return Err(reason);
-        }
-        let mut image = outcome.map_err(to_py)?;
-        if let Some(cb) = &progress {
-            let (_, t) = watch.done();
-            cb.call1(py, (t, t))?;
-        }
+        let mut image = run_watched(py, progress.as_ref(), |watch| {
+            session.render_watched(&e, watch)
+        })?;
         let (w, h) = (image.width() as usize, image.height() as usize);
         let pixels = std::mem::take(&mut image.frame.pixels);
         let radiance = PyArray1::from_vec(py, flatten(pixels)).reshape([h, w, 3])?;
@@ -581,6 +526,73 @@ impl Session {
     fn __repr__(&self) -> String {
         format!("Session({:?})", self.inner.label())
     }
+}
+
+/// Runs `work` on a worker thread with the GIL released. Every 50 ms the calling
+/// thread checks for signals (Ctrl-C asks `work`'s [`Watch`] to stop, and
+/// KeyboardInterrupt is raised once it has) and calls `progress(done, total)` (an
+/// exception it raises stops the work too, and is raised); at the end `progress(total,
+/// total)`.
+fn run_watched<T: Send>(
+    py: Python<'_>,
+    progress: Option<&Py<PyAny>>,
+    work: impl FnOnce(&Arc<Watch>) -> voxlab::Result<T> + Send,
+) -> PyResult<T> {
+    let watch = Watch::new();
+    let slot: Arc<(Mutex<Option<voxlab::Result<T>>>, Condvar)> = Arc::default();
+    let mut stop_reason: Option<PyErr> = None;
+    let outcome = std::thread::scope(|s| {
+        let (worker_watch, worker_slot) = (watch.clone(), slot.clone());
+        s.spawn(move || {
+            let result =
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(&worker_watch)))
+                    .unwrap_or_else(|_| {
+                        Err(voxlab::Error::new(
+                            ErrorKind::Other,
+                            "voxlab panicked (a bug: please report it)",
+                        ))
+                    });
+            let (lock, ready) = &*worker_slot;
+            if let Ok(mut r) = lock.lock() {
+                *r = Some(result);
+            }
+            ready.notify_all();
+        });
+        loop {
+            let done = py.detach(|| {
+                let (lock, ready) = &*slot;
+                let guard = lock.lock().ok()?;
+                let (mut guard, _) = ready
+                    .wait_timeout_while(guard, Duration::from_millis(50), |r| r.is_none())
+                    .ok()?;
+                guard.take()
+            });
+            if let Some(r) = done {
+                return r;
+            }
+            if stop_reason.is_none() {
+                if let Err(e) = py.check_signals() {
+                    watch.stop();
+                    stop_reason = Some(e);
+                } else if let Some(cb) = progress {
+                    let (d, t) = watch.done();
+                    if let Err(e) = cb.call1(py, (d, t)) {
+                        watch.stop();
+                        stop_reason = Some(e);
+                    }
+                }
+            }
+        }
+    });
+    if let Some(reason) = stop_reason {
+        return Err(reason);
+    }
+    let value = outcome.map_err(to_py)?;
+    if let Some(cb) = progress {
+        let (_, t) = watch.done();
+        cb.call1(py, (t, t))?;
+    }
+    Ok(value)
 }
 
 /// `[r, g, b]` pixels as one flat vector, without a copy where the allocator allows.
@@ -840,19 +852,20 @@ fn flip_default_ppd() -> f32 {
     voxlab::metrics::FLIP_PPD
 }
 
-/// Runs `voxlab ablate` on an experiment file (its `[ablate]` table): the files it wrote,
-/// relative to `out`.
+/// Runs `voxlab ablate` on an experiment file (its `[ablate]` table) on a worker thread
+/// (Ctrl-C stops it between renders): the files it wrote, relative to `out`.
 #[pyfunction]
-#[pyo3(signature = (path, set, out, cache=None))]
+#[pyo3(signature = (path, set, out, cache=None, progress=None))]
 fn ablate(
     py: Python<'_>,
     path: PathBuf,
     set: Vec<String>,
     out: PathBuf,
     cache: Option<PathBuf>,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<Vec<String>> {
     let set = overrides(&set)?;
-    py.detach(|| {
+    run_watched(py, progress.as_ref(), |watch| {
         let (e, config, source) =
             voxlab::ablate::load_with(&path, &set).map_err(voxlab::Error::from)?;
         let opts = voxlab::ablate::AblateOptions {
@@ -860,11 +873,18 @@ fn ablate(
             cache_dir: cache,
             progress: false,
             log: false,
+            watch: Some(watch.clone()),
         };
-        let report = voxlab::ablate::run(&e, &config, Some(&source), &opts)?;
-        Ok::<_, voxlab::Error>(report.files)
+        let report = voxlab::ablate::run(&e, &config, Some(&source), &opts);
+        match report {
+            Ok(r) => Ok(r.files),
+            Err(_) if watch.stopped() => Err(voxlab::Error::new(
+                ErrorKind::Interrupted,
+                "ablate stopped on request",
+            )),
+            Err(err) => Err(err.into()),
+        }
     })
-    .map_err(to_py)
 }
 
 #[pymodule]

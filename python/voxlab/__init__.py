@@ -149,6 +149,20 @@ def _tqdm() -> Any:
     return tqdm
 
 
+def _progress_callback(progress: Any, label: str) -> tuple:
+    """(callback, bar to close) for a `progress` argument: a callable as it is, False
+    none, None a tqdm bar when tqdm is installed."""
+    if callable(progress):
+        return progress, None
+    if progress is False:
+        return None, None
+    tqdm = _tqdm()
+    if tqdm is None:
+        return None, None
+    bar = _Bar(label, tqdm)
+    return bar, bar
+
+
 class Session(_native.Session):
     """One tracer kept open across renders: the GPU kernel ("gpu", the first adapter
     wgpu finds) or the f64 CPU reference ("cpu"). Each kernel variant is compiled and
@@ -179,14 +193,7 @@ class Session(_native.Session):
             extra["render.spp"] = spp
         if extra:
             experiment = experiment.with_overrides(_overrides(extra))
-        bar = None
-        if callable(progress):
-            callback = progress
-        elif progress is False:
-            callback = None
-        else:
-            tqdm = _tqdm()
-            callback = bar = _Bar(experiment.name, tqdm) if tqdm is not None else None
+        callback, bar = _progress_callback(progress, experiment.name)
         try:
             image = super().render(experiment, callback)
         finally:
@@ -251,11 +258,14 @@ def ablate(
     set: Optional[Mapping[str, Any]] = None,
     *,
     cache: Optional[PathLike] = None,
+    progress: Union[bool, Callable[[int, int], Any], None] = None,
 ) -> AblateResult:
     """`voxlab ablate` on an experiment file (its [ablate] table; an Experiment loaded
     from a file brings its overrides): error against time of every shadow model and
     knob, written under `out` (images, grid, CSV, plot, tables). Returns the CSV's rows
-    and the paths of the files written."""
+    and the paths of the files written. The GIL is released; Ctrl-C stops the sweep
+    between renders (KeyboardInterrupt; the images and cached references done stay, no
+    table is written). `progress` as for `Session.render` (units: estimated work)."""
     sets = _overrides(set)
     if isinstance(experiment, Experiment):
         if experiment.source is None:
@@ -269,9 +279,14 @@ def ablate(
     else:
         path = os.fspath(experiment)
     out = Path(out)
-    files = _native.ablate(
-        path, sets, os.fspath(out), None if cache is None else os.fspath(cache)
-    )
+    callback, bar = _progress_callback(progress, f"ablate {Path(path).stem}")
+    try:
+        files = _native.ablate(
+            path, sets, os.fspath(out), None if cache is None else os.fspath(cache), callback
+        )
+    finally:
+        if bar is not None:
+            bar.close()
     with open(out / "ablation.csv", newline="") as f:
         rows = [{k: _number(v) for k, v in row.items()} for row in csv.DictReader(f)]
     try:

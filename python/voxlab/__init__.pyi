@@ -187,6 +187,7 @@ def ablate(
     set: Optional[Mapping[str, Any]] = None,
     *,
     cache: Optional[_PathLike] = None,
+    progress: Union[bool, Callable[[int, int], Any], None] = None,
 ) -> AblateResult:
     """`voxlab ablate`: error against time of every shadow model and knob of the file's
-    [ablate] table, written under `out`."""
+    [ablate] table, written under `out`. Ctrl-C stops it between renders."""
