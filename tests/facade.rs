@@ -106,6 +106,19 @@ fn one_session_per_backend_renders_the_same_image() {
     assert_eq!(again.settings, e.settings);
 }
 
+/// A thread that stops `watch`'s render once it has started (reported some progress).
+fn stop_once_started(
+    watch: &std::sync::Arc<voxlab::progress::Watch>,
+) -> std::thread::JoinHandle<()> {
+    let watch = watch.clone();
+    std::thread::spawn(move || {
+        while watch.done().1 == 0 {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        watch.stop();
+    })
+}
+
 /// A watched render stopped from another thread ends with `Interrupted` and no image,
 /// on both tracers, and the session renders again afterwards.
 #[test]
@@ -120,16 +133,7 @@ fn a_watched_render_stops_on_request_and_the_session_goes_on() {
     for backend in [Backend::Cpu, Backend::Gpu] {
         let mut session = Session::new(backend).expect("the suite needs a GPU adapter");
         let watch = Watch::new();
-        let stopper = {
-            let watch = watch.clone();
-            std::thread::spawn(move || {
-                // Once the render has started (reported some progress), stop it.
-                while watch.done().1 == 0 {
-                    std::thread::sleep(std::time::Duration::from_millis(1));
-                }
-                watch.stop();
-            })
-        };
+        let stopper = stop_once_started(&watch);
         let err = session.render_watched(&e, &watch).unwrap_err();
         stopper.join().unwrap();
         // More passes than a timestamp query set holds (4096 frames at 256x256, one
@@ -139,15 +143,7 @@ fn a_watched_render_stops_on_request_and_the_session_goes_on() {
             let mut many = e.clone();
             (many.settings.width, many.settings.height, many.settings.spp) = (256, 256, 4096);
             let big = Watch::new();
-            let stopper_big = {
-                let big = big.clone();
-                std::thread::spawn(move || {
-                    while big.done().1 == 0 {
-                        std::thread::sleep(std::time::Duration::from_millis(1));
-                    }
-                    big.stop();
-                })
-            };
+            let stopper_big = stop_once_started(&big);
             let stopped = session.render_watched(&many, &big).unwrap_err();
             stopper_big.join().unwrap();
             assert_eq!(

@@ -327,3 +327,39 @@ fn a_cut_render_is_rendered_again_with_more_steps_per_iteration() {
         assert_eq!(gpu.dda_unroll(), 8, "raised again for the large one");
     }
 }
+
+/// A render that can be stopped (a `Watch`, as the Python bindings give every render)
+/// splits its dispatches 16 ways and waits between them: the same image bit for bit, at
+/// sizes and frame counts that give one dispatch, several, and one frame per dispatch.
+#[test]
+fn a_watched_render_equals_an_unwatched_one() {
+    use std::sync::Arc;
+    use voxlab::progress::{Progress, Watch};
+    let mut rng = StdRng::seed_from_u64(19);
+    let mut gpu = tracer();
+    for (i, (side, spp)) in [(8, 96), (24, 40), (64, 300), (200, 7)]
+        .into_iter()
+        .enumerate()
+    {
+        let scene = random_scene(&mut rng, UVec3::new(7, 5, 9), 3);
+        let mut settings = RenderSettings {
+            width: side,
+            height: side * 3 / 4,
+            spp,
+            light_samples: rng.random_range(1..4),
+            ..Default::default()
+        };
+        settings.features.shadow_model = &voxlab::technique::area::MODEL;
+        let plain = gpu.render(&scene, &settings).expect("render").frame;
+        let watch = Watch::new();
+        gpu.set_progress(Some(Arc::new(Progress::watched(watch.clone(), "frames"))));
+        let watched = gpu.render(&scene, &settings).expect("watched render").frame;
+        gpu.set_progress(None);
+        assert_eq!(watch.done(), (u64::from(spp), u64::from(spp)), "case {i}");
+        assert!(
+            watched == plain,
+            "case {i}: {side}x{} at {spp} frames differs",
+            side * 3 / 4
+        );
+    }
+}
