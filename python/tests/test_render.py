@@ -145,3 +145,16 @@ def test_spp_and_set_override_the_experiment(cpu):
     assert e.spp == 16  # the experiment itself is unchanged
     with pytest.raises(vx.VoxlabError, match="render.spp"):
         cpu.render(e, spp=0)
+
+
+def test_save_fails_whole_on_an_odd_name_or_a_blocked_record(cpu, tmp_path):
+    """An over-long name, and a record that cannot be written after the image could
+    (`x.png.json` is a directory): an error, and nothing of the save is left."""
+    im = cpu.render(small("baseline.toml", 8, 8))
+    with pytest.raises(vx.VoxlabError):
+        im.save(tmp_path / ("n" * 300 + ".png"))
+    (tmp_path / "x.png.json").mkdir()
+    with pytest.raises(vx.VoxlabError):
+        im.save(tmp_path / "x.png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.png.json"]
+    assert not any((tmp_path / "x.png.json").iterdir())
