@@ -9,6 +9,7 @@
 #import voxlab::counters::loop_cut
 #import voxlab::sampling::{SampleKey, light_sample}
 #import voxlab::phong::point_contribution
+#import voxlab::emission::emitted
 
 const TAU: f32 = 6.283185307179586;
 
@@ -44,7 +45,7 @@ fn sampled_light(
     key: SampleKey,
 ) -> vec3<f32> {
     if light.kind == LIGHT_POINT {
-        return point_contribution(q, p, n, d, light.position, light.radiance, s);
+        return point_contribution(q, p, n, d, light.position, emitted(light, light.position, p), s);
     }
     let count = max(params.light_samples, 1u);
     var sum = vec3<f32>(0.0);
@@ -52,7 +53,8 @@ fn sampled_light(
     // count >= 1: the exit is tested at the bottom (shaders/counters.wgsl).
     loop {
         let st = light_sample(params.seed, key, j, k, count);
-        sum += point_contribution(q, p, n, d, sample_point(light, st), light.radiance, s);
+        let x = sample_point(light, st);
+        sum += point_contribution(q, p, n, d, x, emitted(light, x, p), s);
         continuing {
             k++;
             break if k >= count;

@@ -11,6 +11,7 @@
 //   grid-local coordinates (voxel units), as the tracer.
 
 #import voxlab::types::{BIG, Material, Light}
+#import voxlab::emission::emitted
 
 struct InjectParams {
     dims: vec3<u32>,
@@ -168,7 +169,7 @@ fn radiance_base(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if vis <= 0.0 {
                     continue;
                 }
-                var e = light.radiance;
+                var e = emitted(light, light.position, c);
                 if ip.falloff != 0u {
                     e = e / max(dl * dl * ip.voxel_size * ip.voxel_size, ip.falloff_min_dist_sq);
                 }

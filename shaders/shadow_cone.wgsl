@@ -7,6 +7,7 @@
 #import voxlab::counters::count_shadow
 #import voxlab::sampling::SampleKey
 #import voxlab::phong::unshadowed
+#import voxlab::emission::emitted
 #import voxlab::cone::{cone, light_radius, shadow_visibility}
 
 fn light_term(
@@ -31,7 +32,7 @@ fn light_term(
     }
     let v = shadow_visibility(p, n, light.position, th);
     if v > 0.0 {
-        return v * unshadowed(p, n, d, light.position, light.radiance, s);
+        return v * unshadowed(p, n, d, light.position, emitted(light, light.position, p), s);
     }
     return vec3<f32>(0.0);
 }

@@ -5,6 +5,7 @@
 #import voxlab::types::{Material, Light}
 #import voxlab::sampling::SampleKey
 #import voxlab::phong::point_contribution
+#import voxlab::emission::emitted
 
 fn light_term(
     q: vec3<f32>,
@@ -16,5 +17,5 @@ fn light_term(
     s: Material,
     key: SampleKey,
 ) -> vec3<f32> {
-    return point_contribution(q, p, n, d, light.position, light.radiance, s);
+    return point_contribution(q, p, n, d, light.position, emitted(light, light.position, p), s);
 }

@@ -6,12 +6,13 @@
 // integral F is dimensionless and the area is divided by voxel_size^2.
 #define_import_path voxlab::shadow_model
 
-#import voxlab::types::{Material, Light, LIGHT_RECT}
+#import voxlab::types::{Material, Light, LIGHT_RECT, EMISSION_LAMBERTIAN}
 #import voxlab::bindings::params
 #import voxlab::counters::{count_shadow, loop_cut}
 #import voxlab::sampling::{SampleKey, light_sample}
 #import voxlab::area_lights::{sample_point, sampled_light}
 #import voxlab::phong::shadow_to
+#import voxlab::emission::emitted_share
 
 // crate::technique::ratio::SMALL_LIGHT
 const SMALL_LIGHT: f32 = 1e-3;
@@ -68,7 +69,9 @@ fn edge_field(i: u32, normal: vec3<f32>) -> vec3<f32> {
 // n . F over the rectangle (centre c, axes au, av, unit normal ne) clipped to the
 // half-space in front of p (module notes of src/technique/ratio.rs). No loops: at most
 // 5 corners, 3 fan triangles and 5 edges, written out.
-fn clipped_field(p: vec3<f32>, n: vec3<f32>, c: vec3<f32>, au: vec3<f32>, av: vec3<f32>, ne: vec3<f32>) -> f32 {
+// The rectangle (centre c, axes au, av) relative to p, clipped to the half-space in
+// front of p, into `poly`.
+fn clip_rect(p: vec3<f32>, n: vec3<f32>, c: vec3<f32>, au: vec3<f32>, av: vec3<f32>) {
     let c0 = c - 0.5 * au - 0.5 * av - p;
     let c1 = c + 0.5 * au - 0.5 * av - p;
     let c2 = c + 0.5 * au + 0.5 * av - p;
@@ -78,6 +81,10 @@ fn clipped_field(p: vec3<f32>, n: vec3<f32>, c: vec3<f32>, au: vec3<f32>, av: ve
     clip_edge(c1, c2, n);
     clip_edge(c2, c3, n);
     clip_edge(c3, c0, n);
+}
+
+fn clipped_field(p: vec3<f32>, n: vec3<f32>, c: vec3<f32>, au: vec3<f32>, av: vec3<f32>, ne: vec3<f32>) -> f32 {
+    clip_rect(p, n, c, au, av);
     if poly_len < 3u {
         return 0.0;
     }
@@ -93,6 +100,33 @@ fn clipped_field(p: vec3<f32>, n: vec3<f32>, c: vec3<f32>, au: vec3<f32>, av: ve
     field += edge_field(0u, ne) + edge_field(1u, ne) + edge_field(2u, ne);
     field += edge_field(3u, ne) + edge_field(4u, ne);
     return dot(n, field);
+}
+
+// gamma n . (a x b) / |a x b| of edge i of the clipped polygon (Lambert's formula).
+fn lambert_edge(i: u32, n: vec3<f32>) -> f32 {
+    if i >= poly_len {
+        return 0.0;
+    }
+    let a = poly[i];
+    let b = poly[(i + 1u) % poly_len];
+    let g = cross(a, b);
+    let len = length(g);
+    if !(len > 0.0) {
+        return 0.0;
+    }
+    return atan2(len, dot(a, b)) * dot(n, g) / len;
+}
+
+// The projected solid angle of the rectangle clipped to the hemisphere of n, for a
+// Lambertian rectangle (crate::technique::ratio::projected_solid_angle).
+fn projected_solid_angle(p: vec3<f32>, n: vec3<f32>, c: vec3<f32>, au: vec3<f32>, av: vec3<f32>) -> f32 {
+    clip_rect(p, n, c, au, av);
+    if poly_len < 3u {
+        return 0.0;
+    }
+    let sum = lambert_edge(0u, n) + lambert_edge(1u, n) + lambert_edge(2u, n)
+        + lambert_edge(3u, n) + lambert_edge(4u, n);
+    return 0.5 * abs(sum);
 }
 
 fn light_term(
@@ -129,7 +163,7 @@ fn light_term(
         if dl > 0.0 {
             l = to / dl;
         }
-        let e = 1.0 / max(dl * dl * vs2, params.falloff_min_dist_sq);
+        let e = emitted_share(light, x, p) / max(dl * dl * vs2, params.falloff_min_dist_sq);
         let nl = dot(n, l);
         let f = e * max(nl, 0.0);
         let rd = dot(l - 2.0 * nl * n, d);
@@ -158,7 +192,13 @@ fn light_term(
     }
     let normal_area = cross(light.axis_u, light.axis_v);
     let area = length(normal_area);
-    let irradiance = clipped_field(p, n, light.position, light.axis_u, light.axis_v, normal_area / area)
-        / (area * vs2);
+    let ne = normal_area / area;
+    var irradiance = 0.0;
+    if light.emission != EMISSION_LAMBERTIAN {
+        irradiance = clipped_field(p, n, light.position, light.axis_u, light.axis_v, ne);
+    } else if dot(ne, p - light.position) > 0.0 {
+        irradiance = projected_solid_angle(p, n, light.position, light.axis_u, light.axis_v);
+    }
+    irradiance /= area * vs2;
     return light.radiance * (s.kd * irradiance * ratio + specular / f32(count));
 }

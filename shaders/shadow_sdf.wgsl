@@ -8,6 +8,7 @@
 #import voxlab::counters::{count_shadow, loop_cut}
 #import voxlab::sampling::SampleKey
 #import voxlab::phong::{shadow_to, unshadowed}
+#import voxlab::emission::emitted
 #import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, max_steps}
 
 // `softness` of [techniques.sdf] (src/technique/sdf.rs): the host writes it into the
@@ -117,5 +118,5 @@ fn light_term(
     if pen == 0.0 {
         return vec3<f32>(0.0);
     }
-    return t * pen * unshadowed(p, n, d, x, light.radiance, s);
+    return t * pen * unshadowed(p, n, d, x, emitted(light, x, p), s);
 }

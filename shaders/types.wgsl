@@ -77,6 +77,11 @@ const LIGHT_RECT: u32 = 1u;
 const LIGHT_DISK: u32 = 2u;
 const LIGHT_SPHERE: u32 = 3u;
 
+// Emission of a light's points: the same intensity every way, or Lambertian from the
+// side axis_n faces (then axis_n is set even for a light of kind LIGHT_POINT).
+const EMISSION_ISOTROPIC: u32 = 0u;
+const EMISSION_LAMBERTIAN: u32 = 1u;
+
 struct Light {
     // Centre.
     position: vec3<f32>,
@@ -89,7 +94,8 @@ struct Light {
     // (src/gpu/mod.rs, `GpuLight`): rectangle u * width and v * height; disk u * radius
     // and v * radius; sphere radius times the world axes x, y (and z in axis_n).
     axis_u: vec3<f32>,
-    pad_b: f32,
+    // EMISSION_*: how each point of a rect or disk emits (src/scene/light.rs `Emission`).
+    emission: u32,
     axis_v: vec3<f32>,
     pad_c: f32,
     axis_n: vec3<f32>,

@@ -29,7 +29,7 @@ use crate::surface::SurfaceMesh;
 use crate::render::{Features, RenderSettings};
 use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
 use crate::scene::{
-    AreaLight, AreaShape, DENSE_MAX_VOXELS, Grid, Light, MAX_SPARSE_SIDE, MAX_VOXEL_SIZE,
+    AreaLight, AreaShape, DENSE_MAX_VOXELS, Emission, Grid, Light, MAX_SPARSE_SIDE, MAX_VOXEL_SIZE,
     MIN_VOXEL_SIZE, Material, PointLight, SEED_SHININESS, Scene, Storage,
 };
 
@@ -293,6 +293,8 @@ struct RawLight {
     radius: Option<f64>,
     /// Rectangles and disks: turn about the normal.
     rotation_deg: Option<f64>,
+    /// Rectangles and disks: "isotropic" (default) or "lambertian".
+    emission: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -1609,8 +1611,8 @@ fn build_light(
 ) -> Result<Light, ExperimentError> {
     let allowed: &[&str] = match l.kind {
         LightType::Point => &[],
-        LightType::Rect => &["normal", "size", "rotation_deg"],
-        LightType::Disk => &["normal", "radius", "rotation_deg"],
+        LightType::Rect => &["normal", "size", "rotation_deg", "emission"],
+        LightType::Disk => &["normal", "radius", "rotation_deg", "emission"],
         LightType::Sphere => &["radius"],
     };
     for (name, given) in [
@@ -1618,6 +1620,7 @@ fn build_light(
         ("size", l.size.is_some()),
         ("radius", l.radius.is_some()),
         ("rotation_deg", l.rotation_deg.is_some()),
+        ("emission", l.emission.is_some()),
     ] {
         if given && !allowed.contains(&name) {
             let mut keys = vec!["type", "position", "color", "intensity"];
@@ -1720,7 +1723,20 @@ fn build_light(
         )?),
         None => 0.0,
     };
+    let emission = match l.emission.as_deref() {
+        None => Emission::default(),
+        Some(name) => Emission::from_name(name).ok_or_else(|| {
+            ctx.invalid(
+                &key("emission"),
+                format!(
+                    "must be one of {}; got {name:?}",
+                    Emission::NAMES.map(|n| format!("{n:?}")).join(", ")
+                ),
+            )
+        })?,
+    };
     Ok(Light::Area(AreaLight {
+        emission,
         shape,
         position,
         normal,

@@ -414,6 +414,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
     // lights), stratified samples over two frames, beer-lambert.
     let mut s = seed16();
     s.lights.push(Light::Area(AreaLight {
+        emission: Default::default(),
         shape: AreaShape::Rect {
             width: 6.0,
             height: 4.0,
@@ -495,6 +496,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
         {
             let position = c + w * DVec3::new(0.6 * k as f64 - 0.6, 0.9, 0.8);
             s.lights.push(Light::Area(AreaLight {
+                emission: Default::default(),
                 shape,
                 position,
                 normal: (c - position).normalize(),

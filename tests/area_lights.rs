@@ -12,6 +12,7 @@ fn as_area_lights(scene: &mut Scene, shape: AreaShape) {
     for l in &mut scene.lights {
         let Light::Point(p) = l.clone() else { continue };
         *l = Light::Area(AreaLight {
+            emission: Default::default(),
             shape,
             position: p.position,
             normal: (c - p.position).normalize(),
@@ -227,6 +228,7 @@ fn bad_sizes_and_zero_samples_are_rejected() {
 fn sphere_light_inside_an_opaque_voxel_is_finite() {
     let mut scene = seed_scene(16).unwrap();
     scene.lights = vec![Light::Area(AreaLight {
+        emission: Default::default(),
         shape: AreaShape::Sphere { radius: 0.8 },
         position: DVec3::new(0.5, 0.5, 8.0),
         normal: DVec3::Y,

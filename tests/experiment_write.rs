@@ -126,6 +126,7 @@ fn odd_experiment() -> Experiment {
             intensity: 123.456789,
         }),
         Light::Area(AreaLight {
+            emission: Default::default(),
             shape: AreaShape::Rect {
                 width: 0.1,
                 height: 7.0,
@@ -137,6 +138,7 @@ fn odd_experiment() -> Experiment {
             intensity: 1e-3,
         }),
         Light::Area(AreaLight {
+            emission: Default::default(),
             shape: AreaShape::Disk { radius: 2.75 },
             position: DVec3::new(4.0, 18.0, -6.0),
             normal: unit(DVec3::new(0.3, -0.5, 0.2)),
@@ -145,6 +147,7 @@ fn odd_experiment() -> Experiment {
             intensity: 256.0,
         }),
         Light::Area(AreaLight {
+            emission: Default::default(),
             shape: AreaShape::Sphere { radius: 0.0 },
             position: DVec3::new(-1e-7, 5.0, 1e7),
             normal: -DVec3::Y,
@@ -252,11 +255,11 @@ fn odd_values_round_trip() {
     assert_eq!(keys(0), "color,intensity,position,type");
     assert_eq!(
         keys(1),
-        "color,intensity,normal,position,rotation_deg,size,type"
+        "color,emission,intensity,normal,position,rotation_deg,size,type"
     );
     assert_eq!(
         keys(2),
-        "color,intensity,normal,position,radius,rotation_deg,type"
+        "color,emission,intensity,normal,position,radius,rotation_deg,type"
     );
     assert_eq!(keys(3), "color,intensity,position,radius,type");
     // A material without sigma has no sigma key (absent: derived from kt).
@@ -296,6 +299,7 @@ fn normals_that_normalize_would_move_round_trip() {
             moved += 1;
         }
         e.scene.lights.push(Light::Area(AreaLight {
+            emission: Default::default(),
             shape: AreaShape::Disk { radius: 1.0 },
             position: DVec3::new(8.0, 20.0, 8.0),
             normal: n,

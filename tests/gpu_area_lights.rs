@@ -36,6 +36,7 @@ fn as_area_lights(scene: &mut Scene, shape: fn(f64) -> AreaShape, size: f64) {
     for l in &mut scene.lights {
         let Light::Point(p) = l.clone() else { continue };
         *l = Light::Area(AreaLight {
+            emission: Default::default(),
             shape: shape(size),
             position: p.position,
             normal: (c - p.position).normalize(),
@@ -253,6 +254,7 @@ fn sphere_light_inside_an_opaque_voxel_is_finite() {
         0.0
     );
     scene.lights = vec![Light::Area(AreaLight {
+        emission: Default::default(),
         // Radius 0.8: part of the sphere lies outside the voxel (and outside the grid).
         shape: AreaShape::Sphere { radius: 0.8 },
         position: centre,
@@ -286,6 +288,7 @@ fn sphere_light_inside_an_opaque_voxel_is_finite() {
     // Entirely inside the voxel: every sample is shadowed, the image is the unlit one.
     scene.lights[0] = match &scene.lights[0] {
         Light::Area(a) => Light::Area(AreaLight {
+            emission: Default::default(),
             shape: AreaShape::Sphere { radius: 0.2 },
             ..a.clone()
         }),

@@ -84,6 +84,7 @@ fn random_scene(rng: &mut StdRng, dims: UVec3, lights: usize) -> Scene {
                 intensity,
             }),
             Some(shape) => Light::Area(AreaLight {
+                emission: Default::default(),
                 shape,
                 position,
                 normal: (c - position).normalize(),

@@ -29,6 +29,7 @@ fn area_scene(spp: u32) -> (Scene, RenderSettings) {
     for l in &mut scene.lights {
         let Light::Point(p) = l.clone() else { continue };
         *l = Light::Area(AreaLight {
+            emission: Default::default(),
             shape: AreaShape::Rect {
                 width: 4.0,
                 height: 3.0,

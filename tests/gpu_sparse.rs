@@ -179,6 +179,7 @@ fn sampled_area_lights_over_many_frames_per_dispatch() {
     let mut scene = seed_scene(40).unwrap();
     let c = scene.grid.centre();
     scene.lights = vec![Light::Area(AreaLight {
+        emission: Default::default(),
         shape: AreaShape::Rect {
             width: 12.0,
             height: 8.0,

@@ -34,6 +34,7 @@ fn timestamp_queries_time_the_trace_within_its_wall_time() {
     let mut area = scene.clone();
     area.lights
         .push(voxlab::scene::Light::Area(voxlab::scene::AreaLight {
+            emission: Default::default(),
             shape: voxlab::scene::AreaShape::Sphere { radius: 2.0 },
             position: glam::DVec3::new(8.0, 20.0, 12.0),
             normal: glam::DVec3::NEG_Y,

@@ -17,6 +17,7 @@ use voxlab::scene::{AreaLight, AreaShape, Light, seed_ids, seed_palette};
 fn add_area_light(scene: &mut voxlab::scene::Scene) {
     let c = scene.grid.centre();
     scene.lights.push(Light::Area(AreaLight {
+        emission: Default::default(),
         shape: AreaShape::Rect {
             width: 6.0,
             height: 4.0,

@@ -108,6 +108,7 @@ fn unoccluded_diffuse_light_is_free_of_noise() {
         grid,
         materials: palette,
         lights: vec![Light::Area(AreaLight {
+            emission: Default::default(),
             shape: AreaShape::Rect {
                 width: 6.0,
                 height: 3.0,
@@ -159,6 +160,7 @@ fn converges_to_the_area_lights_reference() {
     for l in &mut scene.lights {
         let Light::Point(p) = l.clone() else { continue };
         *l = Light::Area(AreaLight {
+            emission: Default::default(),
             shape: AreaShape::Rect {
                 width: 2.0,
                 height: 1.5,

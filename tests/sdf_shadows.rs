@@ -110,6 +110,7 @@ fn penumbrae_grow_from_the_hard_shadow() {
         grid,
         materials: palette,
         lights: vec![Light::Area(AreaLight {
+            emission: Default::default(),
             shape: AreaShape::Rect {
                 width: 4.0,
                 height: 4.0,

@@ -32,6 +32,7 @@ fn scene_at(n: u32, size: f64) -> Scene {
     for l in &mut s.lights {
         let Light::Point(p) = l.clone() else { continue };
         *l = Light::Area(AreaLight {
+            emission: Default::default(),
             shape: AreaShape::Rect {
                 width: size,
                 height: 0.75 * size,

@@ -16,6 +16,7 @@ fn shadows_agree_with_the_oracle_at_every_depth_limit() {
     let mut soft = seed_scene(16).unwrap();
     soft.lights.truncate(1);
     soft.lights.push(Light::Area(AreaLight {
+        emission: Default::default(),
         shape: AreaShape::Rect {
             width: 8.0,
             height: 5.0,

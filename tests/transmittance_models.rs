@@ -210,6 +210,7 @@ fn every_model_gpu_equals_cpu() {
                 // Sampled area light over several frames per dispatch.
                 let c = scene.grid.centre();
                 scene.lights.push(Light::Area(AreaLight {
+                    emission: Default::default(),
                     shape: AreaShape::Rect {
                         width: 5.0,
                         height: 3.0,

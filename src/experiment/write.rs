@@ -249,11 +249,13 @@ pub fn light_table(l: &Light) -> Table {
                     Value::Array(vec![width.into(), height.into()]),
                 );
                 t.insert("rotation_deg".into(), degrees(a.rotation).into());
+                t.insert("emission".into(), a.emission.name().into());
             }
             AreaShape::Disk { radius } => {
                 t.insert("normal".into(), v3(a.normal));
                 t.insert("radius".into(), radius.into());
                 t.insert("rotation_deg".into(), degrees(a.rotation).into());
+                t.insert("emission".into(), a.emission.name().into());
             }
             AreaShape::Sphere { radius } => {
                 t.insert("radius".into(), radius.into());

@@ -17,10 +17,17 @@ pub const TYPES_MODULE: (&str, &str) = (
     include_str!("../../shaders/types.wgsl"),
 );
 
+/// `voxlab::emission`: imported by the tracer and the radiance injection.
+pub const EMISSION_MODULE: (&str, &str) = (
+    "shaders/emission.wgsl",
+    include_str!("../../shaders/emission.wgsl"),
+);
+
 /// Importable modules in dependency order (each imports only modules above it).
 /// Embedded at build time so the tracer does not depend on the working directory.
 const MODULES: &[(&str, &str)] = &[
     TYPES_MODULE,
+    EMISSION_MODULE,
     (
         "shaders/bindings.wgsl",
         include_str!("../../shaders/bindings.wgsl"),

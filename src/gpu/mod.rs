@@ -20,7 +20,7 @@ use crate::plan::{Plan, ShaderDefs};
 use crate::render::{
     Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings,
 };
-use crate::scene::{AreaShape, Light, Scene};
+use crate::scene::{AreaShape, Emission, Light, Scene};
 
 /// Side of the square workgroup (`@workgroup_size(8, 8, 1)` in `shaders/trace.wgsl`).
 const WORKGROUP: u32 = 8;
@@ -115,7 +115,7 @@ struct GpuLight {
     // `crate::ray_cutoff::light_bounds` (0 when the plan has no `RAY_CUTOFF`).
     bound: f32,
     axis_u: [f32; 3],
-    _pad1: f32,
+    emission: u32,
     axis_v: [f32; 3],
     _pad2: f32,
     axis_n: [f32; 3],
@@ -127,6 +127,8 @@ const LIGHT_POINT: u32 = 0;
 const LIGHT_RECT: u32 = 1;
 const LIGHT_DISK: u32 = 2;
 const LIGHT_SPHERE: u32 = 3;
+/// `EMISSION_LAMBERTIAN` of `shaders/types.wgsl`.
+const EMISSION_LAMBERTIAN: u32 = 1;
 
 /// Pixel-frames traced by one dispatch at most: a render of many frames is split into
 /// dispatches of whole frames (the sums carry over in the buffers), so no single
@@ -1220,13 +1222,18 @@ impl GpuTracer {
             ..GpuLight::zeroed()
         };
         // Every area light of non-zero size goes with its shape: the shadow model decides
-        // whether to read it (hard shadows take its centre).
+        // whether to read it (hard shadows take its centre). A Lambertian light carries
+        // its normal whatever its size, for the emitter's cosine.
         let Light::Area(a) = light else { return g };
+        let local = |v: DVec3| f3(v / grid.voxel_size());
+        let (u, v, n) = a.frame();
+        if a.emission == Emission::Lambertian {
+            g.emission = EMISSION_LAMBERTIAN;
+            g.axis_n = local(n);
+        }
         if !light.is_area() {
             return g;
         }
-        let local = |v: DVec3| f3(v / grid.voxel_size());
-        let (u, v, n) = a.frame();
         let (kind, axes) = match a.shape {
             AreaShape::Rect { width, height } => (LIGHT_RECT, [u * width, v * height, n]),
             AreaShape::Disk { radius } => (LIGHT_DISK, [u * radius, v * radius, n]),

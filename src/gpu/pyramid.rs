@@ -141,9 +141,15 @@ pub(super) struct BuildPipelines {
 
 impl BuildPipelines {
     fn new(device: &wgpu::Device) -> Result<Self> {
-        let inject =
-            super::compose::compose(&[super::compose::TYPES_MODULE], INJECT, HashMap::new())
-                .map_err(|e| anyhow!("composing {}: {e}", INJECT.0))?;
+        let inject = super::compose::compose(
+            &[
+                super::compose::TYPES_MODULE,
+                super::compose::EMISSION_MODULE,
+            ],
+            INJECT,
+            HashMap::new(),
+        )
+        .map_err(|e| anyhow!("composing {}: {e}", INJECT.0))?;
         super::validate(&inject).map_err(|e| anyhow!("validating {}: {e}", INJECT.0))?;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("inject"),

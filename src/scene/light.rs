@@ -26,13 +26,52 @@ pub enum AreaShape {
     },
 }
 
-/// An area light: a point light spread uniformly over a shape. Every point of it emits
-/// isotropically (no cosine at the emitter), so a light of size 0 is exactly the point
-/// light at its centre (the contract's degenerate setting), and `intensity` is the
-/// whole light's, shared equally by its samples.
+/// How each point of a rectangle or disk light sends its light out.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Emission {
+    /// The same intensity in every direction, to both sides (no cosine at the emitter):
+    /// a light of size 0 is exactly the point light at its centre, the seed's baseline
+    /// light, which is why this stays the default (README, "Area lights").
+    #[default]
+    Isotropic,
+    /// Uniform radiance `L = I / A` leaving the side the normal faces, none behind it:
+    /// the diffuse area emitter of pbrt-v4 (`DiffuseAreaLight`) and Mitsuba 3 (`area`).
+    /// The light's intensity along its normal is `I`, at angle `theta` it is
+    /// `I cos(theta)`, and its power `pi I` (an isotropic light's is `4 pi I`).
+    Lambertian,
+}
+
+impl Emission {
+    /// The names `[[lights]] emission` takes, in the order of the variants.
+    pub const NAMES: [&'static str; 2] = ["isotropic", "lambertian"];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Emission::Isotropic => Self::NAMES[0],
+            Emission::Lambertian => Self::NAMES[1],
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Emission> {
+        match name {
+            "isotropic" => Some(Emission::Isotropic),
+            "lambertian" => Some(Emission::Lambertian),
+            _ => None,
+        }
+    }
+}
+
+/// An area light: a point light spread uniformly over a shape, each point emitting as
+/// `emission` says, and `intensity` the whole light's, shared equally by its samples.
+/// An isotropic light of size 0 is exactly the point light at its centre (the
+/// contract's degenerate setting); a Lambertian one is that point with the emitter's
+/// cosine.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AreaLight {
     pub shape: AreaShape,
+    /// Rectangles and disks only: a sphere light is isotropic (the parser refuses a
+    /// Lambertian sphere).
+    pub emission: Emission,
     pub position: DVec3,
     /// Normal of a rectangle or disk (unit); ignored by spheres.
     pub normal: DVec3,
@@ -68,6 +107,28 @@ impl Light {
             Light::Point(p) => p.intensity,
             Light::Area(a) => a.intensity,
         }
+    }
+    /// The share of the light's `color * intensity` that its point `x` sends toward `p`:
+    /// 1 for point lights and isotropic area lights; for a Lambertian one the emitter's
+    /// cosine `max(n . (p - x) / |p - x|, 0)` (0 at `x` itself).
+    pub fn emitted_towards(&self, x: DVec3, p: DVec3) -> f64 {
+        match self {
+            Light::Area(a) if a.emission == Emission::Lambertian => {
+                let w = p - x;
+                let len = w.length();
+                if len > 0.0 {
+                    (a.normal.normalize().dot(w) / len).max(0.0)
+                } else {
+                    0.0
+                }
+            }
+            _ => 1.0,
+        }
+    }
+    /// `color * intensity` times `emitted_towards(x, p)`: what a point emitter at `x`
+    /// standing for the light (or for its share of it) sends toward `p`.
+    pub fn radiance_towards(&self, x: DVec3, p: DVec3) -> DVec3 {
+        self.color() * self.intensity() * self.emitted_towards(x, p)
     }
     /// An area light with a non-zero extent (one that needs sampling).
     pub fn is_area(&self) -> bool {

@@ -14,7 +14,7 @@ pub use grid::{
     DENSE_MAX_VOXELS, FACES, Grid, MAX_SPARSE_SIDE, MAX_VOXEL_SIZE, MAX_VOXELS, MIN_VOXEL_SIZE,
     Storage, VOID,
 };
-pub use light::{AreaLight, AreaShape, Light, PointLight};
+pub use light::{AreaLight, AreaShape, Emission, Light, PointLight};
 pub use material::{MIN_KT_FOR_SIGMA, Material, SEED_SHININESS, seed_ids, seed_palette};
 pub use mesh::{Resolution, VoxelizeOptions, Voxelized, load_mesh, voxelize_mesh};
 pub use seed::{seed_scene, seed_scene_dims};

@@ -71,11 +71,11 @@ pub fn sampled(at: &LightQuery, stats: &mut RayStats) -> DVec3 {
     match at.light {
         Light::Area(a) if at.light.is_area() => {
             let s = at.settings;
-            let radiance = at.light.color() * at.light.intensity();
             let count = s.light_samples.max(1);
             let mut sum = DVec3::ZERO;
             for k in 0..count {
                 let (u, v) = light_sample(s.seed, at.key.pixel, at.key.frame, at.index, k, count);
+                let x = a.sample_point(u, v);
                 sum += crate::technique::shading::point_contribution(
                     at.scene,
                     &at.walk,
@@ -85,8 +85,8 @@ pub fn sampled(at: &LightQuery, stats: &mut RayStats) -> DVec3 {
                     at.p,
                     at.n,
                     at.d,
-                    a.sample_point(u, v),
-                    radiance,
+                    x,
+                    at.light.radiance_towards(x, at.p),
                     stats,
                 );
             }

@@ -10,6 +10,8 @@
 //! angle the light subtends, `tan(theta / 2) = R / dist` with `R` its radius in voxels
 //! (`crate::technique::cones::march::light_radius`: a rectangle's half-diagonal) and `dist` from the
 //! hit to `x`; `cones.aperture_deg` for point lights. Each light counts one shadow ray.
+//! A Lambertian light's `E` takes the emitter's cosine at the centre
+//! (`Light::radiance_towards`): the cone approximates the light by a uniform disk.
 //! It casts no shadow ray through the transmittance model: the pyramid's opacity
 //! already holds the materials' transmittance, so the plan leaves the model out.
 
@@ -139,7 +141,7 @@ impl CpuShadow for Cone {
         let th = light_tan_half(at.light, r, (ll - pl).length(), c.point_tan_half);
         let v = shadow_visibility(&c.pyramid, &c.params, pl, at.n, ll, th);
         if v > 0.0 {
-            let radiance = at.light.color() * at.light.intensity();
+            let radiance = at.light.radiance_towards(at.light.position(), at.p);
             v * crate::technique::shading::unshadowed(
                 at.settings,
                 at.material,

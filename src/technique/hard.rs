@@ -51,7 +51,7 @@ impl CpuShadow for Hard {
 /// The light at its centre, as one point emitter: the hard shadow, which the other
 /// models fall back to for point lights.
 pub fn at_centre(at: &LightQuery, stats: &mut RayStats) -> DVec3 {
-    let radiance = at.light.color() * at.light.intensity();
+    let x = at.light.position();
     crate::technique::shading::point_contribution(
         at.scene,
         &at.walk,
@@ -61,8 +61,8 @@ pub fn at_centre(at: &LightQuery, stats: &mut RayStats) -> DVec3 {
         at.p,
         at.n,
         at.d,
-        at.light.position(),
-        radiance,
+        x,
+        at.light.radiance_towards(x, at.p),
         stats,
     )
 }

@@ -20,6 +20,13 @@
 //!   this is the field integral of the emitter, not Lambert's form factor; both are
 //!   polygon formulas of the same kind. `d_min` (`falloff_min_distance`) is not in the
 //!   closed form: it matters only within `d_min` of the light.
+//! - A Lambertian rectangle (`emission = "lambertian"`, radiance `I / A` from its front):
+//!   `f_k` takes the emitter's cosine too, `f_k = cos_e,k max(n.l_k, 0) / max(d_k^2,
+//!   d_min^2)`, and so does each sample's specular term; `U = (I c / A) P`, with `P` the
+//!   projected solid angle of the clipped rectangle, Lambert's polygon formula
+//!   `P = 1/2 |sum_edges gamma_e n . (a x b) / |a x b||` (`gamma_e` the angle the edge
+//!   `a b` subtends; J. Arvo, "The Irradiance Jacobian for Partially Occluded
+//!   Polyhedral Sources", SIGGRAPH 1994, equation 9), 0 behind the light.
 //! - A rectangle seen at under `SMALL_LIGHT` (size over distance) takes the samples'
 //!   mean `sum f_k / N` for `U`, which makes it exactly the area model: a vanishing
 //!   light reaches the hard shadow.
@@ -38,7 +45,7 @@ use glam::DVec3;
 use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
 use crate::render::RayStats;
 use crate::sampling::light_sample;
-use crate::scene::{AreaShape, Light};
+use crate::scene::{AreaShape, Emission, Light};
 use crate::technique::shading::shadow_transmittance;
 
 pub const MODEL: ShadowModel = ShadowModel {
@@ -106,7 +113,8 @@ impl CpuShadow for Ratio {
             let to = x - at.p;
             let dl = to.length();
             let l = if dl > 0.0 { to / dl } else { at.n };
-            let e = 1.0 / (dl * dl).max(s.falloff_min_distance.powi(2));
+            let e =
+                at.light.emitted_towards(x, at.p) / (dl * dl).max(s.falloff_min_distance.powi(2));
             let nl = at.n.dot(l);
             let f = e * nl.max(0.0);
             let rd = (l - 2.0 * nl * at.n).dot(at.d);
@@ -135,7 +143,13 @@ impl CpuShadow for Ratio {
             a.position - 0.5 * axis_u + 0.5 * axis_v,
         ];
         let normal = axis_u.cross(axis_v).normalize();
-        let irradiance = clipped_field(at.p, at.n, &corners, normal) / area;
+        let irradiance = match a.emission {
+            Emission::Isotropic => clipped_field(at.p, at.n, &corners, normal),
+            Emission::Lambertian if normal.dot(at.p - a.position) > 0.0 => {
+                projected_solid_angle(at.p, at.n, &corners)
+            }
+            Emission::Lambertian => 0.0,
+        } / area;
         radiance * (m.kd * irradiance * ratio + specular / count as f64)
     }
 }
@@ -150,18 +164,7 @@ pub const SMALL_LIGHT: f64 = 1e-3;
 /// about its unit normal `normal`) clipped to the half-space `n . (x - p) >= 0`: the
 /// closed form of `int max(n . l, 0) / r^2 dA` (module documentation).
 pub fn clipped_field(p: DVec3, n: DVec3, corners: &[DVec3], normal: DVec3) -> f64 {
-    // Sutherland-Hodgman against one plane, relative to p; the order is kept.
-    let mut poly: Vec<DVec3> = Vec::with_capacity(corners.len() + 1);
-    for (i, &c) in corners.iter().enumerate() {
-        let (a, b) = (c - p, corners[(i + 1) % corners.len()] - p);
-        let (da, db) = (n.dot(a), n.dot(b));
-        if da >= 0.0 {
-            poly.push(a);
-        }
-        if (da >= 0.0) != (db >= 0.0) {
-            poly.push(a + da / (da - db) * (b - a));
-        }
-    }
+    let poly = clip_to_hemisphere(p, n, corners);
     if poly.len() < 3 {
         return 0.0;
     }
@@ -181,6 +184,43 @@ pub fn clipped_field(p: DVec3, n: DVec3, corners: &[DVec3], normal: DVec3) -> f6
         field -= outward * edge_log(a, b, len);
     }
     n.dot(field)
+}
+
+/// The convex polygon `corners`, relative to `p`, clipped to `n . x >= 0`
+/// (Sutherland-Hodgman against one plane; the order is kept).
+fn clip_to_hemisphere(p: DVec3, n: DVec3, corners: &[DVec3]) -> Vec<DVec3> {
+    let mut poly: Vec<DVec3> = Vec::with_capacity(corners.len() + 1);
+    for (i, &c) in corners.iter().enumerate() {
+        let (a, b) = (c - p, corners[(i + 1) % corners.len()] - p);
+        let (da, db) = (n.dot(a), n.dot(b));
+        if da >= 0.0 {
+            poly.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            poly.push(a + da / (da - db) * (b - a));
+        }
+    }
+    poly
+}
+
+/// `int cos_e max(n . l, 0) / r^2 dA` over the convex polygon `corners` as seen from `p`
+/// with normal `n`: the projected solid angle of the polygon clipped to the
+/// hemisphere of `n`, by Lambert's formula (module documentation). Either winding.
+pub fn projected_solid_angle(p: DVec3, n: DVec3, corners: &[DVec3]) -> f64 {
+    let poly = clip_to_hemisphere(p, n, corners);
+    if poly.len() < 3 {
+        return 0.0;
+    }
+    let mut sum = 0.0;
+    for i in 0..poly.len() {
+        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+        let g = a.cross(b);
+        let len = g.length();
+        if len > 0.0 {
+            sum += len.atan2(a.dot(b)) * n.dot(g) / len;
+        }
+    }
+    0.5 * sum.abs()
 }
 
 /// `int ds / r` along the segment from `a` to `b` (relative to the point):

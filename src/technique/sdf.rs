@@ -20,7 +20,9 @@
 //!   distance from `q` to the middle of its crossing of `v`, `len` the segment's length,
 //!   `R` the light's radius (`cpu::cone::light_radius`: a rectangle's half-diagonal)
 //!   and `s` the setting `softness`. `len / (s R)` is Quilez's `k`: the penumbra a light
-//!   of angular radius `R / len` casts.
+//!   of angular radius `R / len` casts. A Lambertian light's `E` takes the emitter's
+//!   cosine at the centre (`Light::radiance_towards`): the model approximates its
+//!   unshadowed light by the centre's and its penumbra by a uniform disk's.
 //! - A point light (`R = 0`) or `softness = 0` is the hard shadow exactly (`P = 1`,
 //!   no walk), and `P -> 1` as `R -> 0` since `D >= 1/2` on every voxel a lit segment
 //!   crosses: a vanishing light reaches the baseline.
@@ -261,7 +263,7 @@ impl CpuShadow for Sdf {
     fn light_term(&self, at: &LightQuery, stats: &mut RayStats) -> DVec3 {
         let (scene, s) = (at.scene, at.settings);
         let x = at.light.position();
-        let radiance = at.light.color() * at.light.intensity();
+        let radiance = at.light.radiance_towards(x, at.p);
         stats.shadow += 1;
         let t = shadow_transmittance(scene, &at.walk, s.features.transmittance, at.q, x, stats);
         if t == DVec3::ZERO {

@@ -20,7 +20,7 @@ use super::worker::{Job, Report, Update};
 use crate::experiment::Experiment;
 use crate::metrics::{Domain, compare};
 use crate::render::Frame;
-use crate::scene::{AreaShape, Light};
+use crate::scene::{AreaShape, Emission, Light};
 
 /// One row of a declared setting (`crate::technique::Setting`): a drag value over its
 /// declared range; true when it changed to a value the declaration's check accepts.
@@ -1799,6 +1799,13 @@ fn light_edit(
                             a.normal = n;
                             changed = true;
                         }
+                        ui.end_row();
+                        ui.label("emission");
+                        ui.horizontal(|ui| {
+                            for e in [Emission::Isotropic, Emission::Lambertian] {
+                                changed |= ui.radio_value(&mut a.emission, e, e.name()).changed();
+                            }
+                        });
                         ui.end_row();
                     }
                     // A disk looks the same turned about its normal: only a rect has a

@@ -530,7 +530,13 @@ impl LightKind {
                 radius: 0.5 * extent,
             },
         };
+        // A rectangle or disk keeps how it emits; a sphere is isotropic (AreaLight).
+        let emission = match light {
+            Light::Area(a) if self != LightKind::Sphere => a.emission,
+            _ => Default::default(),
+        };
         Light::Area(AreaLight {
+            emission,
             shape,
             position,
             normal,

@@ -239,7 +239,7 @@ pub fn inject_voxel(scene: &Scene, settings: &RenderSettings, v: IVec3) -> DVec3
             if vis <= 0.0 {
                 continue;
             }
-            let radiance = light.color() * light.intensity();
+            let radiance = light.radiance_towards(lp, c);
             let e = if settings.falloff {
                 radiance / (dl * dl).max(settings.falloff_min_distance.powi(2))
             } else {
