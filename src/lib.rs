@@ -63,6 +63,7 @@ pub mod dda;
 pub mod device;
 pub mod error;
 pub mod experiment;
+pub mod export;
 pub mod gpu;
 pub mod info;
 pub mod input;

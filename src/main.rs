@@ -64,8 +64,36 @@ enum Command {
     /// The smooth surface of an experiment's voxels, per material (Naive Surface Nets,
     /// relaxed in its cells), written as OBJ (+ MTL) or binary PLY.
     Mesh(MeshArgs),
+    /// The experiment's scene for an independent renderer: `--to mitsuba DIR` writes a
+    /// Mitsuba 3 scene.xml and PLY meshes (docs/mitsuba.md lists what maps exactly).
+    Export(ExportArgs),
     // Further subcommands go here, one variant each, with their own Args struct and
     // `cmd_*` function.
+}
+
+#[derive(Args, Debug)]
+struct ExportArgs {
+    /// The experiment file (TOML); without one, the seed scene.
+    experiment: Option<PathBuf>,
+    /// The renderer to write for.
+    #[arg(long, value_enum)]
+    to: ExportTarget,
+    /// The directory to write scene.xml, meshes/ and scene.xml.json into (created when
+    /// missing).
+    dir: PathBuf,
+    /// Refuse any part of the scene the renderer can hold only approximately (each is
+    /// listed with its key).
+    #[arg(long)]
+    strict: bool,
+    /// Override any key of the experiment file (repeatable; as `render --set`).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<voxlab::experiment::Override>,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum ExportTarget {
+    /// Mitsuba 3 (scene format 3.0.0).
+    Mitsuba,
 }
 
 #[derive(Args, Debug)]
@@ -566,6 +594,7 @@ fn main() -> ExitCode {
         Some(Command::View(args)) => cmd_view(args),
         Some(Command::Info(args)) => voxlab::info::describe(&args.file).map(|t| print!("{t}")),
         Some(Command::Mesh(args)) => cmd_mesh(&args),
+        Some(Command::Export(args)) => cmd_export(&args),
         Some(Command::Techniques(args)) => {
             print!(
                 "{}",
@@ -1015,6 +1044,34 @@ fn cmd_stress(a: &StressArgs) -> Result<()> {
         .filter(|r| matches!(r.verdict(), voxlab::stress::Verdict::Fail(_)))
         .count();
     anyhow::ensure!(failed == 0, "{failed} stress case(s) failed");
+    Ok(())
+}
+
+fn cmd_export(a: &ExportArgs) -> Result<()> {
+    let ExportTarget::Mitsuba = a.to;
+    let (e, text) = match &a.experiment {
+        Some(p) => {
+            let text =
+                voxlab::experiment::apply_overrides(&voxlab::experiment::read_text(p)?, &a.set)?;
+            (Experiment::load_with(p, &a.set)?, text)
+        }
+        None => (
+            Experiment::from_str_with("", "seed", &a.set)?,
+            String::new(),
+        ),
+    };
+    let scene = voxlab::export::write_mitsuba(&e, &text, &a.dir, a.strict)?;
+    println!(
+        "{}: {} ({} triangles in {} mesh(es)), {} approximation(s)",
+        e.name,
+        a.dir.join("scene.xml").display(),
+        scene.triangles,
+        scene.files.len() - 1,
+        scene.approximations.len()
+    );
+    for ap in &scene.approximations {
+        println!("  approximation: {}: {}", ap.key, ap.mapping);
+    }
     Ok(())
 }
 

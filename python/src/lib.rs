@@ -243,6 +243,29 @@ impl Experiment {
         }
     }
 
+    /// Writes the scene for Mitsuba 3 into `dir` (`voxlab export --to mitsuba`): all or
+    /// nothing, never over the experiment's inputs. Returns the approximations made, as
+    /// (key, mapping) pairs; with `strict`, any approximation is an error.
+    #[pyo3(signature = (dir, strict=false))]
+    fn export_mitsuba(
+        &self,
+        py: Python<'_>,
+        dir: PathBuf,
+        strict: bool,
+    ) -> PyResult<Vec<(String, String)>> {
+        let text = voxlab::experiment::apply_overrides(&self.text, &self.overrides)
+            .map_err(|e| to_py(e.into()))?;
+        let inner = Arc::clone(&self.inner);
+        let scene = py
+            .detach(move || voxlab::export::write_mitsuba(&inner, &text, &dir, strict))
+            .map_err(to_py)?;
+        Ok(scene
+            .approximations
+            .into_iter()
+            .map(|a| (a.key, a.mapping))
+            .collect())
+    }
+
     /// The plan both tracers follow for this experiment, as `render --check` prints it.
     #[getter]
     fn plan(&self) -> String {

@@ -67,6 +67,11 @@ class Experiment:
         """A copy whose voxels and palette are `grid`'s. A camera and lights the file
         left to the seed's defaults follow the new grid; ones it set stay. The copy no
         longer renders from its file (`source` is None)."""
+    def export_mitsuba(self, dir: _PathLike, strict: bool = False) -> list[tuple[str, str]]:
+        """Writes the scene for Mitsuba 3 into `dir`: scene.xml, meshes/*.ply and
+        scene.xml.json (as `voxlab export --to mitsuba`), all or nothing and never over
+        the experiment's inputs. Returns the approximations made as (key, mapping)
+        pairs (docs/mitsuba.md); `strict=True` raises VoxlabError on any."""
     @property
     def name(self) -> str: ...
     @property

@@ -1,0 +1,158 @@
+"""voxlab against an independent renderer: scenes exported by `voxlab export --to
+mitsuba` (Experiment.export_mitsuba), rendered by Mitsuba 3 (scalar_rgb, CPU) and by
+voxlab's area model, agree within their combined noise where the export is exact, and
+a voxlab that dropped the emitter's cosine would be caught.
+
+Agreement is a statistical test on independent runs of each renderer: per pixel,
+z = (mean_voxlab - mean_mitsuba) / sqrt(se_voxlab^2 + se_mitsuba^2) from RUNS seeds
+each; at most 1 % of pixels may lie beyond 5 sigma (the standard errors come from
+RUNS samples, so their own error is ~25 %), and the mean signed difference over the
+image must be within 4 of its standard errors (with 1e-4 of the mean added for f32
+rounding, which is all there is where neither image has noise). Both renderers average the same pixel
+square (box filter), so silhouette pixels are compared too.
+"""
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import mitsuba as mi
+import numpy as np
+import pytest
+
+import voxlab as vx
+from conftest import EXPERIMENTS, cli
+
+mi.set_variant("scalar_rgb")
+
+RUNS = 8
+VOXLAB_SPP = 32
+MITSUBA_SPP = 128
+
+
+def voxlab_runs(session, experiment, runs=RUNS, spp=VOXLAB_SPP, **set):
+    return np.array(
+        [
+            session.render(experiment, spp=spp, set={"render.seed": 1000 + k, **set}).radiance
+            for k in range(runs)
+        ]
+    )
+
+
+def mitsuba_runs(xml: Path, runs=RUNS, spp=MITSUBA_SPP):
+    scene = mi.load_file(str(xml))
+    return np.array([np.array(mi.render(scene, spp=spp, seed=k))[..., :3] for k in range(runs)])
+
+
+def compare(v, m, mask=None):
+    """Per-pixel z scores and the mean signed difference of two stacks of runs."""
+    mv, mm = v.mean(0), m.mean(0)
+    var = v.var(0, ddof=1) / len(v) + m.var(0, ddof=1) / len(m)
+    d = mv - mm
+    if mask is None:
+        mask = np.ones(d.shape[:2], bool)
+    d, var = d[mask], var[mask]
+    # Where neither renderer has noise (the background, a fully lit face under a point
+    # light), the images must agree to float rounding.
+    z = np.where(var > 0, np.abs(d) / np.sqrt(np.maximum(var, 1e-30)), np.abs(d) / 1e-5)
+    mean_d = d.mean()
+    # Plus float rounding: both renderers sum in f32 (1e-4 of the image's mean).
+    mean_se = np.hypot(np.sqrt(var.sum()) / d.size, 1e-4 * abs(mm.mean()))
+    return {
+        "over_5_sigma": float((z > 5).mean()),
+        "mean_diff": float(mean_d),
+        "mean_diff_sigmas": float(abs(mean_d) / max(mean_se, 1e-9)),
+        "pixels": int(d.size // 3) if d.ndim == 1 else int(d.shape[0]),
+        "mean_voxlab": float(mv.mean()),
+        "mean_mitsuba": float(mm.mean()),
+    }
+
+
+def agrees(r):
+    return r["over_5_sigma"] <= 0.01 and r["mean_diff_sigmas"] <= 4.0
+
+
+@pytest.mark.parametrize("name", ["rect_blocks.toml", "disk_blocks.toml"])
+def test_exact_exports_agree_with_mitsuba(gpu, tmp_path, name):
+    exp = vx.load(EXPERIMENTS / "mitsuba" / name)
+    # Exact: strict refuses nothing.
+    assert exp.export_mitsuba(tmp_path / "scene", strict=True) == []
+    m = mitsuba_runs(tmp_path / "scene" / "scene.xml")
+    v = voxlab_runs(gpu, exp)
+    r = compare(v, m)
+    print(name, r)
+    assert agrees(r), r
+    # The test has power: a voxlab that dropped the emitter's cosine (an isotropic
+    # light of the same intensity) is told apart.
+    iso = voxlab_runs(gpu, exp, **{"lights[0].emission": "isotropic"})
+    r_iso = compare(iso, m)
+    print(name, "isotropic", r_iso)
+    assert not agrees(r_iso), r_iso
+
+
+def test_glass_block_is_approximate_and_agrees_where_glass_does_not_reach(gpu, tmp_path):
+    exp = vx.load(EXPERIMENTS / "mitsuba" / "glass_block.toml")
+    with pytest.raises(vx.VoxlabError) as strict:
+        exp.export_mitsuba(tmp_path / "strict", strict=True)
+    assert "materials[glass].kt" in str(strict.value)
+    assert not (tmp_path / "strict").exists()
+    approximations = dict(exp.export_mitsuba(tmp_path / "scene"))
+    assert "materials[glass].kt" in approximations
+    m = mitsuba_runs(tmp_path / "scene" / "scene.xml")
+    v = voxlab_runs(gpu, exp, runs=2)
+    # The pixels the glass does not reach: voxlab renders them alike with the glass as
+    # void (not seen, no shadow, nothing through it).
+    no_glass = vx.load(
+        EXPERIMENTS / "mitsuba" / "glass_block.toml", set={"scene.boxes[1].material": "void"}
+    )
+    w = voxlab_runs(gpu, no_glass, runs=1)
+    untouched = np.all(np.abs(v.mean(0) - w[0]) < 1e-6, axis=2)
+    assert 0.5 < untouched.mean() < 0.95, untouched.mean()
+    r = compare(v, m, untouched)
+    print("glass, untouched pixels", r)
+    assert agrees(r), r
+    # Where the glass reaches, the approximation shows: a measured difference.
+    reached = compare(v, m, ~untouched)
+    print("glass, pixels the glass reaches", reached)
+    assert abs(reached["mean_diff"]) > 1e-3
+
+
+def test_export_writes_a_scene_mitsuba_and_xml_read(tmp_path):
+    exp = vx.load(EXPERIMENTS / "mitsuba" / "disk_blocks.toml")
+    exp.export_mitsuba(tmp_path / "out")
+    root = ET.parse(tmp_path / "out" / "scene.xml").getroot()
+    assert root.tag == "scene" and root.get("version") == "3.0.0"
+    plys = sorted(p.name for p in (tmp_path / "out" / "meshes").iterdir())
+    # One mesh per material, named by its palette index (floor, red, blue).
+    palette = exp.grid.palette
+    assert plys == sorted(f"material{palette.index(n)}.ply" for n in ["floor", "red", "blue"])
+    # Every mesh is the material's faces: Mitsuba's surface area of each matches the
+    # voxel faces the experiment exposes.
+    scene = mi.load_file(str(tmp_path / "out" / "scene.xml"))
+    areas = sorted(s.surface_area() for s in scene.shapes() if not s.is_emitter())
+    floor = 2 * 24 * 24 + 4 * 24 - 4 * 4 - 8 * 4  # top and bottom, sides, minus feet
+    red_tall = 4 * 4 + 4 * 4 * 8  # top + four sides (its foot is on the floor)
+    red_small = 2 * 2 + 4 * 2 * 3  # on the blue block
+    blue = 2 * 8 * 4 + 2 * 8 * 2 + 2 * 4 * 2 - 2 * 2 - 8 * 4
+    assert areas == sorted([floor, red_tall + red_small, blue]), areas
+
+
+def test_export_refuses_hostile_targets(tmp_path):
+    src = EXPERIMENTS / "mitsuba" / "rect_blocks.toml"
+    # A directory that is a file.
+    f = tmp_path / "file"
+    f.write_text("keep")
+    proc = cli("export", src, "--to", "mitsuba", f, check=False)
+    assert proc.returncode != 0 and "is a file" in proc.stderr, proc.stderr
+    assert f.read_text() == "keep"
+    # The experiment's own file as an output: an experiment named scene.xml.
+    own = tmp_path / "own"
+    own.mkdir()
+    (own / "scene.xml").write_text(src.read_text())
+    proc = cli("export", own / "scene.xml", "--to", "mitsuba", own, check=False)
+    assert proc.returncode != 0 and "never overwrites its input" in proc.stderr, proc.stderr
+    assert (own / "scene.xml").read_text() == src.read_text()
+    assert sorted(p.name for p in own.iterdir()) == ["scene.xml"]
+    # An unknown target.
+    proc = cli("export", src, "--to", "pbrt", tmp_path / "x", check=False)
+    assert proc.returncode != 0 and "mitsuba" in proc.stderr
+    assert not (tmp_path / "x").exists()

@@ -1,0 +1,824 @@
+//! Export to an independent reference renderer: an experiment's scene as a Mitsuba 3
+//! scene (`scene.xml` and binary PLY meshes), so a voxlab estimate can be measured
+//! against a renderer the literature trusts (`voxlab export EXPERIMENT --to mitsuba DIR`,
+//! docs/mitsuba.md).
+//!
+//! What maps exactly, and what only approximately ([`Approximation`], refused under
+//! `strict`):
+//! - Geometry: the voxels' faces between different media, merged per material and
+//!   direction into maximal rectangles (greedy meshing, M. Lysenko, "Meshing in a
+//!   Minecraft Game", 2012), wound counter-clockwise seen from the side the face is
+//!   seen from; or, when the experiment traces triangles, its triangles with their
+//!   shading normals. Exact.
+//! - Units: voxlab's diffuse term is `kd albedo E (n . l)` (Phong as the seed writes it,
+//!   no `1 / pi`), Mitsuba's `diffuse` BSDF is `rho / pi`: every emitter is exported
+//!   `pi` times brighter, and `rho = kd albedo`. Every path of the Whitted model has one
+//!   diffuse connection, so this is exact.
+//! - Lights: a point light is Mitsuba's `point` (intensity `pi I c`); a Lambertian rect
+//!   or disk is a `rectangle` or `disk` with an `area` emitter of radiance
+//!   `pi I c / A`, facing the same way. Exact (with falloff on, beyond `d_min`). An
+//!   isotropic rect or disk has no Mitsuba equivalent: it becomes the Lambertian
+//!   emitter with the power its front half sends (`L = 2 pi I c / A`); a sphere light
+//!   (isotropic in voxlab) a Lambertian `sphere` that lights an unoccluded point alike
+//!   (`L = pi I c / R^2`) but casts a different penumbra.
+//! - Materials: diffuse (`kr = kt = 0`) is `diffuse`; a mirror (`kd = 0`, `kt = 0`) a
+//!   `conductor` of `specular_reflectance = kr`; diffuse plus mirror a `blendbsdf` of
+//!   the two when `kd + kr <= 1`. Exact. A Phong highlight (`ks > 0`) is dropped, and a
+//!   transparent material (`kt > 0`) is a `dielectric` of its `ior` with
+//!   `specular_transmittance = kt` (Beer-Lambert's absorption is not exported): Mitsuba weighs reflection and refraction by Fresnel's
+//!   equations and its shadows do not pass through glass, where voxlab's fixed `kr`,
+//!   `kt` and semi-transparent shadows do.
+//! - Camera: `perspective` at the orbit camera's eye, target and up, the vertical field
+//!   of view, the image's size; pixel `(i, j)` covers the same square. voxlab's
+//!   `pixel_filter = "box"` (`filter_width = 0.5`) is Mitsuba's `box` filter exactly;
+//!   pixel centres (`"none"`) and other filters are approximated by the box.
+//! - Integrator: `path` with `max_depth = 2` (direct light only, as the Whitted model
+//!   lights a diffuse hit) and `hide_emitters` (voxlab's lights are not seen). A scene
+//!   with mirrors or glass needs longer paths, which also carry the diffuse
+//!   interreflection voxlab leaves out: an approximation.
+//! - Left out, as approximations: the ambient term, emissive voxels (voxlab shows them
+//!   and they light nothing), the lighting terms (AO, indirect), falloff turned off,
+//!   `d_min` where a light comes within it of a surface.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use glam::{DVec3, IVec3};
+
+use crate::experiment::Experiment;
+use crate::render::PixelFilter;
+use crate::scene::{AreaShape, Emission, Grid, Light, Material, VOID};
+use crate::surface::SurfaceMesh;
+
+/// A part of the scene Mitsuba cannot hold exactly, and what the export does instead.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Approximation {
+    /// The experiment's key it comes from (`lights[0].emission`, `materials[glass].ks`).
+    pub key: String,
+    /// What the export writes instead, and what differs.
+    pub mapping: String,
+}
+
+/// Files of a Mitsuba scene, relative to the scene's directory, and the approximations
+/// made (each also a comment in `scene.xml`).
+#[derive(Clone, Debug, Default)]
+pub struct MitsubaScene {
+    pub files: Vec<(PathBuf, Vec<u8>)>,
+    pub approximations: Vec<Approximation>,
+    /// Triangles written, over every mesh.
+    pub triangles: usize,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    #[error(
+        "{file}: --strict: {count} part(s) of the scene have no exact Mitsuba equivalent:\n{list}"
+    )]
+    Strict {
+        file: String,
+        count: usize,
+        list: String,
+    },
+    #[error("{file}: the scene's triangles: {message}")]
+    Triangles { file: String, message: String },
+    #[error("{file}: {what}")]
+    TooLarge { file: String, what: String },
+    #[error("{file}: {key}: {what}")]
+    OutOfRange {
+        file: String,
+        key: String,
+        what: String,
+    },
+}
+
+/// Voxels of the largest grid exported: the faces are found by visiting every voxel
+/// (six passes), which stays within seconds up to here.
+pub const MAX_EXPORT_VOXELS: u64 = 1 << 27;
+/// Triangles of the largest export (~0.6 GB of PLY): a grid whose faces would need more
+/// (a checkerboard of materials, say) is refused before anything is written.
+pub const MAX_EXPORT_TRIANGLES: usize = 1 << 24;
+
+/// The Mitsuba 3 scene of `e` (module documentation). With `strict`, any
+/// approximation is an error listing them all.
+pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError> {
+    let file = e
+        .source_path
+        .as_ref()
+        .map_or_else(|| e.name.clone(), |p| p.display().to_string());
+    let scene = &e.scene;
+    let s = &e.settings;
+    let d = scene.grid.dims().as_u64vec3();
+    let voxels = d.x * d.y * d.z;
+    if voxels > MAX_EXPORT_VOXELS {
+        return Err(ExportError::TooLarge {
+            file,
+            what: format!(
+                "a grid of {}x{}x{} = {voxels} voxels; export visits every voxel and takes \
+                 grids of at most {MAX_EXPORT_VOXELS}",
+                d.x, d.y, d.z
+            ),
+        });
+    }
+    let mut out = MitsubaScene::default();
+    let mut approx = |key: &str, mapping: String| {
+        out.approximations.push(Approximation {
+            key: key.to_string(),
+            mapping,
+        })
+    };
+    let mut xml = String::new();
+    let _ = writeln!(
+        xml,
+        "<!-- voxlab export of {}: docs/mitsuba.md -->",
+        esc(&file)
+    );
+    let _ = writeln!(xml, "<scene version=\"3.0.0\">");
+
+    // Integrator: direct light only unless specular chains are needed.
+    let used = used_materials(&scene.grid);
+    let specular = scene
+        .materials
+        .iter()
+        .enumerate()
+        .any(|(i, m)| i != VOID as usize && used[i] && (m.kr > 0.0 || m.kt > 0.0));
+    let depth = if specular {
+        approx(
+            "materials",
+            "mirrors or glass: Mitsuba's path tracer follows them to max_depth and also \
+             carries the diffuse interreflection that voxlab's Whitted model leaves out"
+                .into(),
+        );
+        2 + s.max_reflection_depth + s.max_refraction_depth
+    } else {
+        2
+    };
+    let _ = writeln!(
+        xml,
+        "  <integrator type=\"path\">\n    <integer name=\"max_depth\" value=\"{depth}\"/>\n    \
+         <boolean name=\"hide_emitters\" value=\"true\"/>\n  </integrator>"
+    );
+
+    // Camera.
+    let f = scene.camera.frame();
+    match s.pixel_filter {
+        PixelFilter::Box if s.filter_width == 0.5 => {}
+        other => approx(
+            "render.pixel_filter",
+            format!(
+                "{other:?} (filter_width {}) rendered with Mitsuba's box filter over the pixel",
+                s.filter_width
+            ),
+        ),
+    }
+    let _ = writeln!(
+        xml,
+        "  <sensor type=\"perspective\">\n    <string name=\"fov_axis\" value=\"y\"/>\n    \
+         <float name=\"fov\" value=\"{}\"/>\n    <transform name=\"to_world\">\n      \
+         <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n    </transform>\n    \
+         <sampler type=\"independent\">\n      <integer name=\"sample_count\" value=\"{}\"/>\n    \
+         </sampler>\n    <film type=\"hdrfilm\">\n      <integer name=\"width\" value=\"{}\"/>\n      \
+         <integer name=\"height\" value=\"{}\"/>\n      <string name=\"pixel_format\" value=\"rgb\"/>\n      \
+         <rfilter type=\"box\"/>\n    </film>\n  </sensor>",
+        scene.camera.vfov.to_degrees(),
+        v3(f.eye),
+        v3(f.eye + f.forward),
+        v3(f.up),
+        s.spp.max(1),
+        s.width,
+        s.height
+    );
+
+    if scene.ambient != DVec3::ZERO {
+        approx(
+            "render.ambient",
+            "the ambient term (added to every pixel) is left out".into(),
+        );
+    }
+    if !s.features.terms.is_empty() {
+        approx(
+            "features",
+            "lighting terms (ambient occlusion, indirect light) are left out: Mitsuba \
+             renders the direct light"
+                .into(),
+        );
+    }
+    if !s.falloff {
+        approx(
+            "render.falloff",
+            "falloff off: Mitsuba's lights always fall off as 1/d^2".into(),
+        );
+    }
+
+    // Materials.
+    for (i, m) in scene.materials.iter().enumerate() {
+        if i == VOID as usize || !used[i] {
+            continue;
+        }
+        let key = |k: &str| format!("materials[{}].{k}", m.name);
+        if m.ks > 0.0 {
+            approx(&key("ks"), "the Phong highlight is left out".into());
+        }
+        if m.emission != DVec3::ZERO {
+            approx(
+                &key("emission"),
+                "emissive voxels are not exported (voxlab shows them; they light nothing)".into(),
+            );
+        }
+        if m.kt > 0.0 {
+            approx(
+                &key("kt"),
+                format!(
+                    "glass as Mitsuba's dielectric (ior {}): Fresnel-weighted reflection and \
+                     refraction instead of kr and kt, and no light through it in shadows",
+                    m.ior
+                ),
+            );
+        }
+        if m.kd > 0.0 && m.kr > 0.0 && m.kt == 0.0 && m.kd + m.kr > 1.0 {
+            approx(
+                &key("kr"),
+                format!(
+                    "kd + kr = {} > 1: the blend of diffuse and mirror is scaled to 1",
+                    m.kd + m.kr
+                ),
+            );
+        }
+        let _ = writeln!(xml, "{}", bsdf(i, m));
+    }
+
+    // Geometry.
+    let meshes: Vec<MaterialTriangles> = match s.surface.0.triangles {
+        Some(triangles) => {
+            let mesh = triangles(scene).map_err(|e| ExportError::Triangles {
+                file: file.clone(),
+                message: e.to_string(),
+            })?;
+            per_material(&mesh)
+        }
+        None => greedy_faces(&scene.grid, &scene.materials, MAX_EXPORT_TRIANGLES)
+            .ok_or_else(|| ExportError::TooLarge {
+                file: file.clone(),
+                what: format!(
+                    "the voxels' faces need more than {MAX_EXPORT_TRIANGLES} triangles \
+                     after merging"
+                ),
+            })?
+            .into_iter()
+            .map(|(m, tris)| (m, tris, Vec::new()))
+            .collect(),
+    };
+    for (m, tris, normals) in &meshes {
+        let name = PathBuf::from("meshes").join(format!("material{m}.ply"));
+        let _ = writeln!(
+            xml,
+            "  <shape type=\"ply\">\n    <string name=\"filename\" value=\"meshes/material{m}.ply\"/>\n    \
+             <boolean name=\"face_normals\" value=\"{}\"/>\n    <ref id=\"material{m}\"/>\n  </shape>",
+            normals.is_empty()
+        );
+        out.triangles += tris.len();
+        out.files.push((name, ply(tris, normals)));
+    }
+
+    // Lights.
+    let quads: Vec<[DVec3; 3]> = meshes
+        .iter()
+        .flat_map(|(_, t, _)| t.iter().copied())
+        .collect();
+    for (j, light) in scene.lights.iter().enumerate() {
+        let key = |k: &str| format!("lights[{j}].{k}");
+        let c = light.color() * light.intensity() * std::f64::consts::PI;
+        let reach = match light {
+            Light::Point(_) => 0.0,
+            Light::Area(a) => match a.shape {
+                AreaShape::Rect { width, height } => 0.5 * width.hypot(height),
+                AreaShape::Disk { radius } | AreaShape::Sphere { radius } => radius,
+            },
+        };
+        if s.falloff && s.falloff_min_distance > 0.0 {
+            let near = quads
+                .iter()
+                .map(|t| point_triangle_distance(light.position(), t))
+                .fold(f64::INFINITY, f64::min);
+            if near - reach < s.falloff_min_distance {
+                approx(
+                    "render.falloff_min_distance",
+                    format!(
+                        "light {j} comes within falloff_min_distance of a surface, where \
+                         voxlab clamps 1/d^2 and Mitsuba does not"
+                    ),
+                );
+            }
+        }
+        // Mitsuba reads 32-bit floats: a value beyond them would be infinite there.
+        let too_bright = |v: DVec3, what: &str| {
+            if v.max_element() > f32::MAX as f64 {
+                Err(ExportError::OutOfRange {
+                    file: file.clone(),
+                    key: key("intensity"),
+                    what: format!(
+                        "the exported {what} {} is beyond Mitsuba's 32-bit floats (at most {:e})",
+                        v.max_element(),
+                        f32::MAX
+                    ),
+                })
+            } else {
+                Ok(())
+            }
+        };
+        too_bright(c, "intensity (pi I color)")?;
+        match light {
+            Light::Point(p) => {
+                let _ = writeln!(
+                    xml,
+                    "  <emitter type=\"point\">\n    <point name=\"position\" value=\"{}\"/>\n    \
+                     <rgb name=\"intensity\" value=\"{}\"/>\n  </emitter>",
+                    v3(p.position),
+                    v3(c)
+                );
+            }
+            Light::Area(a) if a.is_degenerate() => {
+                if a.emission == Emission::Lambertian {
+                    approx(
+                        &key("emission"),
+                        "a Lambertian light of size 0 (a cosine spot) as a point light".into(),
+                    );
+                }
+                let _ = writeln!(
+                    xml,
+                    "  <emitter type=\"point\">\n    <point name=\"position\" value=\"{}\"/>\n    \
+                     <rgb name=\"intensity\" value=\"{}\"/>\n  </emitter>",
+                    v3(a.position),
+                    v3(c)
+                );
+            }
+            Light::Area(a) => {
+                let (u, v, n) = a.frame();
+                let (kind, area, su, sv) = match a.shape {
+                    AreaShape::Rect { width, height } => {
+                        ("rectangle", width * height, 0.5 * width, 0.5 * height)
+                    }
+                    AreaShape::Disk { radius } => (
+                        "disk",
+                        std::f64::consts::PI * radius * radius,
+                        radius,
+                        radius,
+                    ),
+                    AreaShape::Sphere { radius } => ("sphere", 0.0, radius, radius),
+                };
+                let radiance = match (a.shape, a.emission) {
+                    (AreaShape::Sphere { radius }, _) => {
+                        approx(
+                            &key("type"),
+                            "voxlab's sphere light emits isotropically from each point; \
+                             Mitsuba's sphere is Lambertian (the same unoccluded light, a \
+                             different penumbra)"
+                                .into(),
+                        );
+                        c / (radius * radius)
+                    }
+                    (_, Emission::Lambertian) => c / area,
+                    (_, Emission::Isotropic) => {
+                        approx(
+                            &key("emission"),
+                            "isotropic emission as a Lambertian emitter of the power its \
+                             front half sends (L = 2 I / A); nothing behind it"
+                                .into(),
+                        );
+                        2.0 * c / area
+                    }
+                };
+                too_bright(radiance, "radiance")?;
+                let transform = if kind == "sphere" {
+                    format!(
+                        "<point name=\"center\" value=\"{}\"/>\n    <float name=\"radius\" value=\"{}\"/>",
+                        v3(a.position),
+                        su
+                    )
+                } else {
+                    // Columns: u, v scaled to the half extents, the normal, the centre.
+                    let (x, y) = (u * su, v * sv);
+                    format!(
+                        "<transform name=\"to_world\">\n      <matrix value=\"{} {} {} {} {} {} {} {} {} {} {} {} 0 0 0 1\"/>\n    </transform>",
+                        x.x,
+                        y.x,
+                        n.x,
+                        a.position.x,
+                        x.y,
+                        y.y,
+                        n.y,
+                        a.position.y,
+                        x.z,
+                        y.z,
+                        n.z,
+                        a.position.z
+                    )
+                };
+                let _ = writeln!(
+                    xml,
+                    "  <shape type=\"{kind}\">\n    {transform}\n    <bsdf type=\"diffuse\">\n      \
+                     <rgb name=\"reflectance\" value=\"0, 0, 0\"/>\n    </bsdf>\n    \
+                     <emitter type=\"area\">\n      <rgb name=\"radiance\" value=\"{}\"/>\n    \
+                     </emitter>\n  </shape>",
+                    v3(radiance)
+                );
+            }
+        }
+    }
+    for a in &out.approximations {
+        let _ = writeln!(
+            xml,
+            "  <!-- approximation: {}: {} -->",
+            esc(&a.key),
+            esc(&a.mapping)
+        );
+    }
+    let _ = writeln!(xml, "</scene>");
+    if strict && !out.approximations.is_empty() {
+        let list = out
+            .approximations
+            .iter()
+            .map(|a| format!("  {}: {}", a.key, a.mapping))
+            .collect::<Vec<_>>()
+            .join("\n");
+        return Err(ExportError::Strict {
+            file,
+            count: out.approximations.len(),
+            list,
+        });
+    }
+    out.files
+        .insert(0, (PathBuf::from("scene.xml"), xml.into_bytes()));
+    Ok(out)
+}
+
+fn v3(v: DVec3) -> String {
+    format!("{}, {}, {}", v.x, v.y, v.z)
+}
+
+/// Text for an XML comment or attribute.
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+        .replace("--", "- -")
+}
+
+/// Which palette entries some voxel uses.
+fn used_materials(grid: &Grid) -> [bool; 256] {
+    let mut used = [false; 256];
+    let d = grid.dims().as_ivec3();
+    for z in 0..d.z {
+        for y in 0..d.y {
+            for x in 0..d.x {
+                used[grid.get(IVec3::new(x, y, z)) as usize] = true;
+            }
+        }
+    }
+    used
+}
+
+/// The Mitsuba BSDF of material `i` (id `material{i}`), by the module's mapping.
+fn bsdf(i: usize, m: &Material) -> String {
+    let rgb = |v: DVec3| format!("<rgb name=\"reflectance\" value=\"{}\"/>", v3(v));
+    let id = format!("material{i}");
+    if m.kt > 0.0 {
+        return format!(
+            "  <bsdf type=\"dielectric\" id=\"{id}\">\n    <float name=\"int_ior\" value=\"{}\"/>\n    \
+             <float name=\"ext_ior\" value=\"1\"/>\n    \
+             <spectrum name=\"specular_transmittance\" value=\"{}\"/>\n  </bsdf>",
+            m.ior.max(1.0 + 1e-6),
+            m.kt.min(1.0)
+        );
+    }
+    let diffuse = m.albedo * m.kd;
+    if m.kr <= 0.0 {
+        return format!(
+            "  <bsdf type=\"twosided\" id=\"{id}\">\n    <bsdf type=\"diffuse\">\n      {}\n    </bsdf>\n  </bsdf>",
+            rgb(diffuse)
+        );
+    }
+    let mirror = |kr: f64| {
+        format!(
+            "<bsdf type=\"conductor\">\n      <string name=\"material\" value=\"none\"/>\n      \
+             <spectrum name=\"specular_reflectance\" value=\"{kr}\"/>\n    </bsdf>"
+        )
+    };
+    if m.kd <= 0.0 {
+        return format!(
+            "  <bsdf type=\"twosided\" id=\"{id}\">\n    {}\n  </bsdf>",
+            mirror(m.kr.min(1.0))
+        );
+    }
+    // (1 - w) rho_d + w rho_m = kd albedo + kr with w = kr / s, rho_d = s albedo and
+    // rho_m = s, s = kd + kr (at most 1: a larger s is scaled to 1, an approximation).
+    let s = m.kd + m.kr;
+    let w = m.kr / s;
+    format!(
+        "  <bsdf type=\"twosided\" id=\"{id}\">\n    <bsdf type=\"blendbsdf\">\n      \
+         <float name=\"weight\" value=\"{w}\"/>\n      <bsdf type=\"diffuse\">\n        {}\n      </bsdf>\n      {}\n    </bsdf>\n  </bsdf>",
+        rgb(m.albedo * s.min(1.0)),
+        mirror(s.min(1.0))
+    )
+}
+
+/// The triangles of a traced mesh, with their shading normals, per material.
+type MaterialTriangles = (u8, Vec<[DVec3; 3]>, Vec<[DVec3; 3]>);
+
+fn per_material(mesh: &SurfaceMesh) -> Vec<MaterialTriangles> {
+    mesh.materials()
+        .into_iter()
+        .map(|m| {
+            let (mut tris, mut normals) = (Vec::new(), Vec::new());
+            for (t, _) in mesh
+                .triangles
+                .iter()
+                .zip(&mesh.triangle_material)
+                .filter(|(_, k)| **k == m)
+            {
+                tris.push(t.map(|i| mesh.positions[i as usize]));
+                normals.push(t.map(|i| mesh.normals[i as usize]));
+            }
+            (m, tris, normals)
+        })
+        .collect()
+}
+
+/// Whether the face of voxel material `a` toward its neighbour `b` is a surface of
+/// `a`: `a` is not void, differs from `b`, and is seen from `b` (void, or glass in
+/// front of an opaque material); between two different glasses the lower index owns
+/// the face.
+fn owns_face(a: u8, b: u8, materials: &[Material]) -> bool {
+    if a == VOID || a == b {
+        return false;
+    }
+    if b == VOID {
+        return true;
+    }
+    let clear = |m: u8| materials[m as usize].kt > 0.0;
+    match (clear(a), clear(b)) {
+        (false, false) => false,
+        (false, true) => true,
+        (true, false) => false,
+        (true, true) => a < b,
+    }
+}
+
+/// The faces of the grid's voxels between different media, merged per material and
+/// direction into maximal rectangles (greedy meshing), two triangles each, in world
+/// coordinates, wound counter-clockwise seen from the side the face is seen from.
+/// `None` once more than `max_triangles` would be needed.
+pub fn greedy_faces(
+    grid: &Grid,
+    materials: &[Material],
+    max_triangles: usize,
+) -> Option<Vec<(u8, Vec<[DVec3; 3]>)>> {
+    let mut count = 0usize;
+    let dims = grid.dims().as_ivec3();
+    let (origin, vs) = (grid.origin(), grid.voxel_size());
+    let mut per: Vec<Vec<[DVec3; 3]>> = vec![Vec::new(); 256];
+    for d in 0..3 {
+        let (u, v) = ((d + 1) % 3, (d + 2) % 3);
+        let (nu, nv) = (dims[u] as usize, dims[v] as usize);
+        let mut mask = vec![0u16; nu * nv];
+        for sign in [-1i32, 1] {
+            for x in 0..dims[d] {
+                for j in 0..nv {
+                    for i in 0..nu {
+                        let mut a = IVec3::ZERO;
+                        a[d] = x;
+                        a[u] = i as i32;
+                        a[v] = j as i32;
+                        let mut b = a;
+                        b[d] += sign;
+                        let (ma, mb) = (grid.get(a), grid.get(b));
+                        mask[j * nu + i] = if owns_face(ma, mb, materials) {
+                            ma as u16 + 1
+                        } else {
+                            0
+                        };
+                    }
+                }
+                let plane = (x + i32::from(sign > 0)) as f64;
+                for j in 0..nv {
+                    let mut i = 0;
+                    while i < nu {
+                        let m = mask[j * nu + i];
+                        if m == 0 {
+                            i += 1;
+                            continue;
+                        }
+                        let mut w = 1;
+                        while i + w < nu && mask[j * nu + i + w] == m {
+                            w += 1;
+                        }
+                        let mut h = 1;
+                        'grow: while j + h < nv {
+                            for k in 0..w {
+                                if mask[(j + h) * nu + i + k] != m {
+                                    break 'grow;
+                                }
+                            }
+                            h += 1;
+                        }
+                        for jj in 0..h {
+                            for k in 0..w {
+                                mask[(j + jj) * nu + i + k] = 0;
+                            }
+                        }
+                        let corner = |cu: usize, cv: usize| {
+                            let mut p = DVec3::ZERO;
+                            p[d] = plane;
+                            p[u] = cu as f64;
+                            p[v] = cv as f64;
+                            origin + vs * p
+                        };
+                        let q = [
+                            corner(i, j),
+                            corner(i + w, j),
+                            corner(i + w, j + h),
+                            corner(i, j + h),
+                        ];
+                        // e_u x e_v = e_d: this order faces +d.
+                        let tris = if sign > 0 {
+                            [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]
+                        } else {
+                            [[q[0], q[2], q[1]], [q[0], q[3], q[2]]]
+                        };
+                        count += 2;
+                        if count > max_triangles {
+                            return None;
+                        }
+                        per[(m - 1) as usize].extend_from_slice(&tris);
+                        i += w;
+                    }
+                }
+            }
+        }
+    }
+    Some(
+        per.into_iter()
+            .enumerate()
+            .filter(|(_, t)| !t.is_empty())
+            .map(|(m, t)| (m as u8, t))
+            .collect(),
+    )
+}
+
+/// Binary little-endian PLY of triangles (three vertices each), with vertex normals
+/// when given.
+fn ply(tris: &[[DVec3; 3]], normals: &[[DVec3; 3]]) -> Vec<u8> {
+    let with_normals = !normals.is_empty();
+    let mut header = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment voxlab export\nelement vertex {}\n\
+         property float x\nproperty float y\nproperty float z\n",
+        3 * tris.len()
+    );
+    if with_normals {
+        header += "property float nx\nproperty float ny\nproperty float nz\n";
+    }
+    header += &format!(
+        "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        tris.len()
+    );
+    let mut out = header.into_bytes();
+    for (k, t) in tris.iter().enumerate() {
+        for (c, p) in t.iter().enumerate() {
+            for x in p.to_array() {
+                out.extend_from_slice(&(x as f32).to_le_bytes());
+            }
+            if with_normals {
+                for x in normals[k][c].to_array() {
+                    out.extend_from_slice(&(x as f32).to_le_bytes());
+                }
+            }
+        }
+    }
+    for k in 0..tris.len() as i32 {
+        out.push(3);
+        for i in 0..3 {
+            out.extend_from_slice(&(3 * k + i).to_le_bytes());
+        }
+    }
+    out
+}
+
+/// Distance from `p` to the triangle `t` (Ericson, "Real-Time Collision Detection",
+/// 5.1.5, by the closest point).
+fn point_triangle_distance(p: DVec3, t: &[DVec3; 3]) -> f64 {
+    let [a, b, c] = *t;
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return (p - a).length();
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return (p - b).length();
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return (p - (a + d1 / (d1 - d3) * ab)).length();
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return (p - c).length();
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return (p - (a + d2 / (d2 - d6) * ac)).length();
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return (p - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).length();
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let (v, w) = (vb * denom, vc * denom);
+    (p - (a + ab * v + ac * w)).length()
+}
+
+/// Writes [`mitsuba`]'s scene into `dir` (created when missing): `scene.xml`, its
+/// meshes under `meshes/`, and `scene.xml.json`, the record of what made them (the
+/// experiment's text and inputs hashed, the build, the approximations). All or nothing:
+/// every file is filled under a temporary name and renamed only when all are complete.
+/// Refused before anything is written: `dir` an existing file, or any output that is
+/// one of the experiment's own inputs. `text` is the experiment's text as parsed (with
+/// its overrides), for the record and for the inputs it names.
+pub fn write_mitsuba(
+    e: &Experiment,
+    text: &str,
+    dir: &std::path::Path,
+    strict: bool,
+) -> crate::Result<MitsubaScene> {
+    use crate::error::{Error, ErrorKind};
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::new(
+            ErrorKind::Output,
+            format!(
+                "{}: export writes a directory (scene.xml and meshes/), and this is a file",
+                dir.display()
+            ),
+        ));
+    }
+    let scene = mitsuba(e, strict).map_err(|err| {
+        let kind = match err {
+            ExportError::Strict { .. } => ErrorKind::Invalid,
+            ExportError::Triangles { .. } | ExportError::TooLarge { .. } => ErrorKind::Scene,
+            ExportError::OutOfRange { .. } => ErrorKind::Invalid,
+        };
+        Error::new(kind, err.to_string())
+    })?;
+    let xml = dir.join("scene.xml");
+    let mut outputs: Vec<PathBuf> = scene.files.iter().map(|(p, _)| dir.join(p)).collect();
+    outputs.push(crate::output::sidecar_path(&xml));
+    let inputs = match &e.source_path {
+        Some(p) => crate::experiment::write::input_files(text, p),
+        None => Vec::new(),
+    };
+    if let Some((o, i)) = crate::experiment::write::overwrites(&outputs, &inputs) {
+        return Err(Error::new(
+            ErrorKind::Output,
+            format!(
+                "{}: export would write {}, which is the experiment's input {}; export never \
+                 overwrites its input",
+                dir.display(),
+                o.display(),
+                i.display()
+            ),
+        ));
+    }
+    let input_refs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let record = crate::output::record(
+        "voxlab export --to mitsuba",
+        &input_refs,
+        serde_json::json!({
+            "experiment": e.name,
+            "experiment_text": text,
+            "strict": strict,
+            "triangles": scene.triangles,
+            "files": scene.files.iter().map(|(p, _)| p.display().to_string()).collect::<Vec<_>>(),
+            "approximations": scene.approximations.iter()
+                .map(|a| serde_json::json!({"key": a.key, "mapping": a.mapping}))
+                .collect::<Vec<_>>(),
+        }),
+    );
+    let record_text = serde_json::to_string_pretty(&record).expect("a JSON value serialises");
+    let record_path = crate::output::sidecar_path(&xml);
+    let mut fills: Vec<(PathBuf, crate::output::Fill<'_>)> = scene
+        .files
+        .iter()
+        .map(|(p, bytes)| {
+            let path = dir.join(p);
+            let fill = crate::output::bytes_fill(&path, bytes);
+            (path, fill)
+        })
+        .collect();
+    fills.push((
+        record_path.clone(),
+        crate::output::bytes_fill(&record_path, record_text.as_bytes()),
+    ));
+    crate::output::write_together(fills)?;
+    Ok(scene)
+}

@@ -1,0 +1,344 @@
+//! `voxlab export --to mitsuba` (src/export.rs): the merged faces are exactly the
+//! voxel faces between different media, wound toward the side they are seen from; the
+//! approximations are listed and `--strict` refuses them; the command writes all or
+//! nothing and never over its input. Mitsuba's own reading and rendering of the
+//! exports is tested from Python (python/tests/test_mitsuba.py).
+
+use std::collections::HashSet;
+use std::process::Command;
+
+use glam::{DVec3, IVec3, UVec3};
+use rand::{RngExt, SeedableRng};
+use voxlab::experiment::Experiment;
+use voxlab::export::{greedy_faces, mitsuba};
+use voxlab::scene::{Grid, Material, VOID, seed_palette};
+
+fn voxlab() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_voxlab"))
+}
+
+/// A unit face: the voxel that owns it and the direction it faces (axis, sign).
+type Face = (IVec3, usize, i32);
+
+/// The faces the export must write: of voxel a toward b, when a is not void, differs
+/// from b, and b is void or glass in front of an opaque a (between two glasses, the
+/// lower index).
+fn expected_faces(grid: &Grid, materials: &[Material]) -> HashSet<(Face, u8)> {
+    let d = grid.dims().as_ivec3();
+    let clear = |m: u8| materials[m as usize].kt > 0.0;
+    let mut faces = HashSet::new();
+    for z in 0..d.z {
+        for y in 0..d.y {
+            for x in 0..d.x {
+                let a = IVec3::new(x, y, z);
+                let ma = grid.get(a);
+                for axis in 0..3 {
+                    for sign in [-1, 1] {
+                        let mut b = a;
+                        b[axis] += sign;
+                        let mb = grid.get(b);
+                        let owns = ma != VOID
+                            && ma != mb
+                            && (mb == VOID
+                                || (!clear(ma) && clear(mb))
+                                || (clear(ma) && clear(mb) && ma < mb));
+                        if owns {
+                            faces.insert(((a, axis, sign), ma));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    faces
+}
+
+/// The unit faces the exported triangles cover (each quad is two triangles in a row),
+/// and a check that each faces the way its owner's outside is.
+fn covered_faces(grid: &Grid, per: &[(u8, Vec<[DVec3; 3]>)]) -> Vec<(Face, u8)> {
+    let mut out = Vec::new();
+    for (m, tris) in per {
+        assert_eq!(tris.len() % 2, 0);
+        for quad in tris.chunks(2) {
+            let n = (quad[0][1] - quad[0][0])
+                .cross(quad[0][2] - quad[0][0])
+                .normalize();
+            let n2 = (quad[1][1] - quad[1][0])
+                .cross(quad[1][2] - quad[1][0])
+                .normalize();
+            assert!(
+                (n - n2).length() < 1e-9,
+                "the quad's two triangles disagree"
+            );
+            let axis = n.abs().max_position();
+            let sign = n[axis].signum() as i32;
+            let pts: Vec<DVec3> = quad.iter().flatten().map(|&p| grid.to_local(p)).collect();
+            let lo = pts.iter().fold(DVec3::INFINITY, |a, &b| a.min(b));
+            let hi = pts.iter().fold(DVec3::NEG_INFINITY, |a, &b| a.max(b));
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            let plane = lo[axis].round() as i32;
+            let owner_layer = if sign > 0 { plane - 1 } else { plane };
+            for i in lo[u].round() as i32..hi[u].round() as i32 {
+                for j in lo[v].round() as i32..hi[v].round() as i32 {
+                    let mut a = IVec3::ZERO;
+                    a[axis] = owner_layer;
+                    a[u] = i;
+                    a[v] = j;
+                    out.push(((a, axis, sign), *m));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Random grids of opaque, glass and void voxels, dense and offset and scaled: the
+/// merged quads cover every face the rule asks for exactly once, and nothing else.
+#[test]
+fn merged_faces_are_the_faces_between_media() {
+    let mut materials = seed_palette();
+    let glass = materials.iter().position(|m| m.kt > 0.0).unwrap() as u8;
+    let mut other_glass = materials[glass as usize].clone();
+    other_glass.name = "other glass".into();
+    materials.push(other_glass);
+    let ids: Vec<u8> = vec![VOID, VOID, VOID, 1, 2, glass, (materials.len() - 1) as u8];
+    let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+    for case in 0..40 {
+        let dims = UVec3::new(
+            rng.random_range(1..9),
+            rng.random_range(1..9),
+            rng.random_range(1..9),
+        );
+        let mut grid =
+            Grid::new(dims, 0.25 + case as f64 * 0.1, DVec3::new(-3.0, 1.5, 0.25)).unwrap();
+        // Blocks of one material so merging has something to merge.
+        let block = rng.random_range(1..4);
+        for z in 0..dims.z as i32 {
+            for y in 0..dims.y as i32 {
+                for x in 0..dims.x as i32 {
+                    let key = (x / block, y / block, z / block);
+                    let h = (key.0 * 73856093) ^ (key.1 * 19349663) ^ (key.2 * 83492791) ^ case;
+                    let m = ids[(h.unsigned_abs() as usize + rng.random_range(0..2)) % ids.len()];
+                    grid.set(IVec3::new(x, y, z), m);
+                }
+            }
+        }
+        let per = greedy_faces(&grid, &materials, usize::MAX).unwrap();
+        let covered = covered_faces(&grid, &per);
+        let unique: HashSet<_> = covered.iter().copied().collect();
+        assert_eq!(
+            unique.len(),
+            covered.len(),
+            "case {case}: a face written twice"
+        );
+        assert_eq!(unique, expected_faces(&grid, &materials), "case {case}");
+        let unit_faces = covered.len();
+        let triangles: usize = per.iter().map(|(_, t)| t.len()).sum();
+        assert!(
+            triangles <= 2 * unit_faces,
+            "case {case}: merging added triangles"
+        );
+    }
+    // A solid box merges to one quad per side.
+    let mut grid = Grid::new(UVec3::new(5, 4, 3), 1.0, DVec3::ZERO).unwrap();
+    for z in 0..3 {
+        for y in 0..4 {
+            for x in 0..5 {
+                grid.set(IVec3::new(x, y, z), 1);
+            }
+        }
+    }
+    let per = greedy_faces(&grid, &materials, usize::MAX).unwrap();
+    assert_eq!(per.len(), 1);
+    assert_eq!(per[0].1.len(), 12);
+    // The limit on triangles is a refusal, not a truncation.
+    assert!(greedy_faces(&grid, &materials, 11).is_none());
+}
+
+const DIFFUSE: &str = r#"
+[scene]
+generator = "empty"
+dims = [8, 4, 8]
+
+[[scene.boxes]]
+min = [0, 0, 0]
+max = [8, 1, 8]
+material = "matte"
+
+[[materials]]
+name = "matte"
+albedo = [0.5, 0.6, 0.7]
+kd = 1.0
+ks = 0.0
+kr = 0.0
+kt = 0.0
+
+[[lights]]
+type = "rect"
+position = [4.0, 6.0, 4.0]
+size = [2.0, 1.0]
+intensity = 50.0
+emission = "lambertian"
+
+[render]
+ambient = [0.0, 0.0, 0.0]
+pixel_filter = "box"
+filter_width = 0.5
+"#;
+
+/// An exact scene exports with no approximation, the units the module states (lights
+/// pi times brighter, radiance over the area) and one mesh; every approximation has
+/// its key, and strict refuses them all at once.
+#[test]
+fn approximations_are_listed_and_strict_refuses_them() {
+    let e = Experiment::from_str(DIFFUSE, "diffuse.toml").unwrap();
+    let out = mitsuba(&e, true).unwrap();
+    assert!(out.approximations.is_empty(), "{:?}", out.approximations);
+    let xml = String::from_utf8(out.files[0].1.clone()).unwrap();
+    let l = 50.0 * std::f64::consts::PI / 2.0;
+    assert!(xml.contains(&format!("value=\"{l}, {l}, {l}\"")), "{xml}");
+    assert!(xml.contains("<rectangle") || xml.contains("type=\"rectangle\""));
+    assert!(xml.contains("<integer name=\"max_depth\" value=\"2\"/>"));
+    assert_eq!(out.files.len(), 2);
+
+    let text = DIFFUSE
+        .replace("ks = 0.0", "ks = 0.3")
+        .replace("emission = \"lambertian\"", "emission = \"isotropic\"")
+        .replace("ambient = [0.0, 0.0, 0.0]", "ambient = [0.1, 0.1, 0.1]")
+        .replace("pixel_filter = \"box\"", "pixel_filter = \"none\"");
+    let e = Experiment::from_str(&text, "approx.toml").unwrap();
+    let keys: Vec<String> = mitsuba(&e, false)
+        .unwrap()
+        .approximations
+        .into_iter()
+        .map(|a| a.key)
+        .collect();
+    for key in [
+        "materials[matte].ks",
+        "lights[0].emission",
+        "render.ambient",
+        "render.pixel_filter",
+    ] {
+        assert!(keys.iter().any(|k| k == key), "{key} not in {keys:?}");
+    }
+    let msg = mitsuba(&e, true).unwrap_err().to_string();
+    assert!(msg.starts_with("approx: --strict:"), "{msg}");
+    for key in &keys {
+        assert!(msg.contains(key.as_str()), "{msg} lacks {key}");
+    }
+}
+
+struct Scratch(std::path::PathBuf);
+impl Scratch {
+    fn path(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+/// The command: writes scene.xml, meshes and a record; refuses a file as the
+/// directory, its own input as an output, and a failure midway leaves nothing.
+#[test]
+fn the_command_writes_all_or_nothing() {
+    let root = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("export-command");
+    let _ = std::fs::remove_dir_all(&root);
+    std::fs::create_dir_all(&root).unwrap();
+    let dir = Scratch(root);
+    let exp = dir.path().join("diffuse.toml");
+    std::fs::write(&exp, DIFFUSE).unwrap();
+    let out = dir.path().join("mitsuba");
+    let run = voxlab()
+        .args(["export", exp.to_str().unwrap(), "--to", "mitsuba"])
+        .arg(&out)
+        .arg("--strict")
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("0 approximation(s)"), "{stdout}");
+    let record: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("scene.xml.json")).unwrap()).unwrap();
+    assert_eq!(record["made_by"], "voxlab export --to mitsuba");
+    assert!(out.join("meshes").read_dir().unwrap().count() == 1);
+
+    // meshes/ is a file: the meshes cannot be written, and no scene.xml is left.
+    let blocked = dir.path().join("blocked");
+    std::fs::create_dir(&blocked).unwrap();
+    std::fs::write(blocked.join("meshes"), "in the way").unwrap();
+    let run = voxlab()
+        .args(["export", exp.to_str().unwrap(), "--to", "mitsuba"])
+        .arg(&blocked)
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    let mut left: Vec<String> = std::fs::read_dir(&blocked)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["meshes"], "a failed export left files behind");
+
+    // Strict with an approximation: an error naming the key, nothing written.
+    let approx = dir.path().join("approx.toml");
+    std::fs::write(&approx, DIFFUSE.replace("ks = 0.0", "ks = 0.5")).unwrap();
+    let target = dir.path().join("strict");
+    let run = voxlab()
+        .args([
+            "export",
+            approx.to_str().unwrap(),
+            "--to",
+            "mitsuba",
+            "--strict",
+        ])
+        .arg(&target)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !run.status.success() && stderr.contains("materials[matte].ks"),
+        "{stderr}"
+    );
+    assert!(!target.exists());
+
+    // A value Mitsuba's 32-bit floats cannot hold is refused with its key, not written
+    // as infinity; the largest that fits is written.
+    let huge = dir.path().join("huge.toml");
+    std::fs::write(
+        &huge,
+        DIFFUSE.replace("intensity = 50.0", "intensity = 1e300"),
+    )
+    .unwrap();
+    let target = dir.path().join("huge");
+    let run = voxlab()
+        .args(["export", huge.to_str().unwrap(), "--to", "mitsuba"])
+        .arg(&target)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "1e300 exported");
+    assert!(
+        stderr.contains("huge.toml") && stderr.contains("lights[0].intensity"),
+        "{stderr}"
+    );
+    assert!(!target.exists());
+    std::fs::write(
+        &huge,
+        DIFFUSE.replace("intensity = 50.0", "intensity = 1e37"),
+    )
+    .unwrap();
+    let run = voxlab()
+        .args(["export", huge.to_str().unwrap(), "--to", "mitsuba"])
+        .arg(&target)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let xml = std::fs::read_to_string(target.join("scene.xml")).unwrap();
+    assert!(!xml.contains("inf") && !xml.contains("NaN"), "{xml}");
+}
