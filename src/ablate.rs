@@ -37,6 +37,7 @@ use serde::Deserialize;
 
 use crate::experiment::{Experiment, ExperimentError, write};
 
+pub mod external;
 mod grid;
 pub mod plot;
 mod text;
@@ -119,6 +120,19 @@ pub struct AblateConfig {
     /// `[ablate] sweep`: a curve over the values of any experiment key, each point the
     /// experiment with `--set key=value` (its settings, parsed and checked as the file).
     pub sweeps: Vec<KeySweep>,
+    /// `[ablate] reference = "path.exr"` with `reference_by = "..."`: a converged image
+    /// another renderer made (relative paths from the experiment file's directory).
+    /// Every point is also measured against it, and the distance of voxlab's own
+    /// reference to it is reported as that reference's bias.
+    pub external: Option<ExternalSpec>,
+}
+
+/// An external reference as `[ablate]` names it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExternalSpec {
+    pub path: PathBuf,
+    /// Which renderer made it, at what settings: the plots and tables say so.
+    pub by: String,
 }
 
 /// One curve of `[ablate] sweep`: a key of the experiment file and its values.
@@ -176,6 +190,7 @@ impl Default for AblateConfig {
                 .map(|(list, _, default)| (list.to_string(), default.to_vec()))
                 .collect(),
             sweeps: Vec::new(),
+            external: None,
         }
     }
 }
@@ -192,6 +207,8 @@ struct RawAblate {
     transmittance: Option<Vec<String>>,
     backend: Option<String>,
     reference_backend: Option<String>,
+    reference: Option<String>,
+    reference_by: Option<String>,
     sweep: Option<toml::Table>,
     #[serde(flatten)]
     lists: BTreeMap<String, toml::Value>,
@@ -207,6 +224,8 @@ const ABLATE_KEYS: &[&str] = &[
     "transmittance",
     "backend",
     "reference_backend",
+    "reference",
+    "reference_by",
     "sweep",
 ];
 
@@ -432,6 +451,41 @@ impl AblateConfig {
         }
         if let Some(v) = &raw.reference_backend {
             c.reference_backend = backend("reference_backend", v, false)?;
+        }
+        match (&raw.reference, &raw.reference_by) {
+            (None, None) => {}
+            (Some(_), None) => {
+                return Err(loc.invalid(
+                    "reference",
+                    "needs reference_by: the renderer that made it and how \
+                     (\"Mitsuba 3.9.1, scalar_rgb, 4096 spp\"), which the plots name",
+                ));
+            }
+            (None, Some(_)) => {
+                return Err(loc.invalid(
+                    "reference_by",
+                    "names the renderer of `reference`, which is not given",
+                ));
+            }
+            (Some(file), Some(by)) => {
+                if !file.to_ascii_lowercase().ends_with(".exr") {
+                    return Err(loc.invalid(
+                        "reference",
+                        "must be an OpenEXR file (.exr): a reference is linear radiance, and \
+                         PNG and other 8-bit formats hold display-encoded colour",
+                    ));
+                }
+                if by.trim().is_empty() || by.len() > 200 || by.contains('\n') {
+                    return Err(
+                        loc.invalid("reference_by", "must be one line of 1 to 200 characters")
+                    );
+                }
+                let dir = path.as_ref().parent().unwrap_or(Path::new(""));
+                c.external = Some(ExternalSpec {
+                    path: dir.join(file),
+                    by: by.trim().to_string(),
+                });
+            }
         }
         // Float lists: every entry in range, strictly ascending; empty is allowed.
         let floats = |key: &str,
@@ -1190,6 +1244,9 @@ pub struct Row {
     pub image: String,
     #[doc(hidden)]
     pub frame: Frame,
+    /// The errors against the external reference (`[ablate] reference`), for the rows
+    /// of the experiment's own scene.
+    pub external: Option<external::Errors>,
 }
 
 pub use crate::metrics::flip;
@@ -1318,11 +1375,6 @@ fn measure(
         let r = last.expect("runs >= 1");
         let mut row = point_row(point, scene, &s, r, reference, &times, &setups, noise_rmse)?;
         row.seed_index = k;
-        // Only the first seed's image is kept and written: the others are measured.
-        if k > 0 {
-            row.image.clear();
-            row.frame = Frame::new(0, 0);
-        }
         rows.push(row);
     }
     Ok(rows)
@@ -1393,6 +1445,7 @@ fn point_row(
         plan: r.plan.to_string(),
         image: format!("images/{}.png", point.slug()),
         frame: r.frame,
+        external: None,
     })
 }
 
@@ -1501,6 +1554,9 @@ pub struct AblateReport {
     pub files: Vec<String>,
     /// The markdown table (also in `table.md`).
     pub table: String,
+    /// The external reference (`[ablate] reference`), its bias line, and the rows of
+    /// the experiment's own scene measured against it (`ablation-external.csv`).
+    pub external: Option<(external::External, Vec<Row>)>,
 }
 
 /// Runs the whole ablation of `e` and writes its outputs under `opts.out_dir`.
@@ -1610,6 +1666,28 @@ pub fn run(
     let out = &opts.out_dir;
     let cache_dir = opts.cache_dir.clone().unwrap_or_else(|| out.join("cache"));
     refuse_to_overwrite_inputs(e, source, out, &cache_dir)?;
+    // The external reference is checked before anything long runs.
+    let mut external = match &c.external {
+        Some(spec) => Some(external::load(spec, e.settings.width, e.settings.height)?),
+        None => None,
+    };
+    if let Some(x) = &external {
+        let outputs: Vec<PathBuf> = OUTPUT_FILES
+            .iter()
+            .chain(EXTERNAL_FILES)
+            .map(|f| out.join(f))
+            .collect();
+        if let Some((o, _)) =
+            crate::experiment::write::overwrites(&outputs, std::slice::from_ref(&x.spec.path))
+        {
+            bail!(
+                "--out {}: ablate would write {}, which is the external reference \
+                 (ablate.reference); choose another output directory",
+                out.display(),
+                o.display()
+            );
+        }
+    }
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     std::fs::create_dir_all(&cache_dir)
         .with_context(|| format!("creating {}", cache_dir.display()))?;
@@ -1698,6 +1776,11 @@ pub fn run(
         reference.path.display(),
         reference.noise_rmse
     ));
+    if let Some(x) = &mut external {
+        x.measure(&reference);
+        // Printed whatever the progress mode: it is a finding, not progress.
+        eprintln!("reference bias: {}", x.bias_line(&reference));
+    }
     let mut rows = Vec::new();
     // References of the points with a scene of their own, by scene.
     let mut own_references: Vec<(std::sync::Arc<Scene>, Reference)> = Vec::new();
@@ -1728,6 +1811,14 @@ pub fn run(
         let against = own.unwrap_or(&reference);
         for mut row in measure(e, c, &mut tracers, p, against, &progress)? {
             row.own_reference = own.map(|r| r.noise_rmse);
+            if let (Some(x), None) = (&external, own) {
+                row.external = Some(external::errors(x, &row.frame));
+            }
+            // Only the first seed's image is kept and written: the others are measured.
+            if row.seed_index > 0 {
+                row.image.clear();
+                row.frame = Frame::new(0, 0);
+            }
             progress.line(&format!(
                 "{} seed {}: {:.2} ms ({}), rmse {:.3e}, flip {:.4}",
                 p.label(),
@@ -1745,6 +1836,10 @@ pub fn run(
     let git_revision = crate::revision::revision().to_string();
     let mut files = Vec::new();
     let summaries = summarize(&rows);
+    let external = external.map(|x| {
+        let rows = external::rows(&rows);
+        (x, rows)
+    });
     write_outputs(
         e,
         c,
@@ -1757,6 +1852,9 @@ pub fn run(
         out,
         &mut files,
     )?;
+    if let Some((x, ext_rows)) = &external {
+        write_external(e, &reference, x, ext_rows, out, &mut files)?;
+    }
     let table = std::fs::read_to_string(out.join("table.md"))?;
     Ok(AblateReport {
         reference,
@@ -1766,7 +1864,50 @@ pub fn run(
         git_revision,
         files,
         table,
+        external,
     })
+}
+
+/// The files a run with an external reference writes besides [`OUTPUT_FILES`].
+pub const EXTERNAL_FILES: &[&str] = &[
+    "ablation-external.csv",
+    "plot-external.png",
+    "plot-external.svg",
+    "external.txt",
+];
+
+/// The outputs against the external reference: its CSV (the same columns), its plot
+/// (titled with the renderer that made it, the bias line under it in `external.txt`).
+fn write_external(
+    e: &Experiment,
+    r: &Reference,
+    x: &external::External,
+    rows: &[Row],
+    out: &Path,
+    files: &mut Vec<String>,
+) -> Result<()> {
+    write_text(&out.join("ablation-external.csv"), &csv(rows, r))?;
+    let summaries = summarize(rows);
+    let title = format!(
+        "{}: error against time, reference by {} ({}x{})",
+        e.name, x.spec.by, e.settings.width, e.settings.height
+    );
+    let (png, svg) = plot::plot(&summaries, &title, None)?;
+    write_png(&out.join("plot-external.png"), &png)?;
+    write_text(&out.join("plot-external.svg"), &svg)?;
+    let text = format!(
+        "external reference: {} ({}, blake3 {})\nreference bias: {}\n\n\
+         ablation-external.csv and plot-external.png measure every point of the \
+         experiment's own scene against it (the curves with scenes of their own keep \
+         voxlab's references). Its noise is unknown: RMSE - noise is the RMSE.\n",
+        x.spec.path.display(),
+        x.spec.by,
+        x.blake3,
+        x.bias_line(r)
+    );
+    write_text(&out.join("external.txt"), &text)?;
+    files.extend(EXTERNAL_FILES.iter().map(|f| f.to_string()));
+    Ok(())
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1923,6 +2064,11 @@ fn csv_sidecar(
             "flip_floor": r.flip_floor,
             "reused": r.reused,
         },
+        // The external reference, when given: its file (hashed) and its renderer.
+        "external_reference": c.external.as_ref().map(|x| serde_json::json!({
+            "by": x.by,
+            "file": crate::output::file_record(&x.path),
+        })),
         "rows": "one per point and seed; table.md, table.tex and the plot give each point's mean over its seeds with the half-width of its 95 % interval (Student's t)",
         "columns": CSV_SCHEMA
             .iter()

@@ -987,3 +987,190 @@ fn ablate_prints_its_plan_and_progress_lines_with_a_moving_estimate() {
     );
     assert_eq!(percent(steps.last().unwrap()), 100, "{stderr}");
 }
+
+/// `[ablate] reference` (another renderer's image): checked before anything renders
+/// (an EXR of the experiment's size, finite and non-negative, with `reference_by`,
+/// never an output), then every point of the experiment's scene is also measured
+/// against it and voxlab's own reference gets its distance to it as a bias.
+#[test]
+fn an_external_reference_is_checked_and_measured_against() {
+    let dir = scratch("external");
+    let small = "[ablate]\nreference_spp = 64\nspp = [1, 4]\nseeds = 2\nruns = 1\nwarmup = 0\n\
+                 cone_step_factor = []\ncone_aperture_deg = []\ntransmittance = []\n";
+    // The "other renderer": voxlab's CPU at 256 spp, written as an EXR.
+    let (e, _) = load(&dir, &experiment_text(300.0, small));
+    let mut s = e.settings.clone();
+    s.spp = 256;
+    s.seed = 77;
+    s.features.set_shadow_model("area");
+    let frame = voxlab::cpu::render(&e.scene, &s).frame;
+    voxlab::output::write_frame(&frame, dir.join("other.exr")).unwrap();
+    let with = |extra: &str| format!("{small}{extra}");
+    let config_error = |extra: &str| {
+        let path = dir.join("tiny.toml");
+        std::fs::write(&path, experiment_text(300.0, &with(extra))).unwrap();
+        ablate::load(&path).unwrap_err().to_string()
+    };
+    let msg = config_error("reference = \"other.exr\"\n");
+    assert!(
+        msg.contains("ablate.reference") && msg.contains("reference_by"),
+        "{msg}"
+    );
+    let msg = config_error("reference_by = \"Mitsuba\"\n");
+    assert!(msg.contains("ablate.reference_by"), "{msg}");
+    let msg = config_error("reference = \"other.png\"\nreference_by = \"x\"\n");
+    assert!(
+        msg.contains("OpenEXR") && msg.contains("tiny.toml"),
+        "{msg}"
+    );
+    let msg = config_error("reference = \"other.exr\"\nreference_by = \"\"\n");
+    assert!(msg.contains("ablate.reference_by"), "{msg}");
+
+    // Checked at run time, before any render: missing, wrong size, NaN, negative.
+    let run_error = |file: &str| {
+        let (e, c) = load(
+            &dir,
+            &experiment_text(
+                300.0,
+                &with(&format!(
+                    "reference = \"{file}\"\nreference_by = \"test\"\n"
+                )),
+            ),
+        );
+        let out = dir.join("out-bad");
+        let err = ablate::run(
+            &e,
+            &c,
+            None,
+            &AblateOptions {
+                out_dir: out.clone(),
+                cache_dir: None,
+                progress: false,
+                log: false,
+                watch: None,
+            },
+        )
+        .err()
+        .map(|e| format!("{e:#}"))
+        .unwrap_or_default();
+        assert!(
+            !out.join("cache").exists() || out.join("cache").read_dir().unwrap().count() == 0,
+            "{file}: a reference was rendered before the check"
+        );
+        err
+    };
+    let msg = run_error("missing.exr");
+    assert!(
+        msg.contains("missing.exr") && msg.contains("ablate.reference"),
+        "{msg}"
+    );
+    let mut wrong = voxlab::render::Frame::new(16, 32);
+    wrong.pixels.iter_mut().for_each(|p| *p = [0.5; 3]);
+    voxlab::output::write_frame(&wrong, dir.join("wrong.exr")).unwrap();
+    let msg = run_error("wrong.exr");
+    assert!(msg.contains("16x32") && msg.contains("32x32"), "{msg}");
+    for (name, bad) in [("nan.exr", f32::NAN), ("negative.exr", -1.0)] {
+        let mut f = frame.clone();
+        f.pixels[33] = [0.1, bad, 0.1];
+        voxlab::output::write_frame(&f, dir.join(name)).unwrap();
+        let msg = run_error(name);
+        assert!(
+            msg.contains("pixel (1, 1)") && msg.contains(name),
+            "{name}: {msg}"
+        );
+    }
+
+    // Measured: voxlab's reference and every point of the scene against it.
+    let (e, c) = load(
+        &dir,
+        &experiment_text(
+            300.0,
+            &with("reference = \"other.exr\"\nreference_by = \"voxlab cpu, 256 spp\"\n"),
+        ),
+    );
+    let out = dir.join("out");
+    // The external reference among the outputs is refused.
+    let clash = dir.join("clash");
+    std::fs::create_dir_all(&clash).unwrap();
+    std::fs::copy(dir.join("other.exr"), clash.join("plot-external.png")).unwrap();
+    let mut c_clash = c.clone();
+    c_clash.external.as_mut().unwrap().path = clash.join("plot-external.png");
+    let err = ablate::run(
+        &e,
+        &c_clash,
+        None,
+        &AblateOptions {
+            out_dir: clash.clone(),
+            cache_dir: None,
+            progress: false,
+            log: false,
+            watch: None,
+        },
+    )
+    .err()
+    .map(|e| e.to_string())
+    .unwrap_or_default();
+    assert!(err.contains("external reference"), "{err}");
+
+    let report = run(&e, &c, &out, &dir.join("cache"));
+    let (x, rows) = report.external.as_ref().expect("an external report");
+    // Both are converged images of the same model: the distance is the two noises
+    // (the 256-spp image's is half the 64-spp reference's), no bias.
+    let noise = report.reference.noise_rmse;
+    assert!(
+        x.bias_rmse > 0.5 * noise && x.bias_rmse < 2.0 * noise,
+        "{} against noise {noise}",
+        x.bias_rmse
+    );
+    let own_rows = report
+        .rows
+        .iter()
+        .filter(|r| r.own_reference.is_none())
+        .count();
+    assert_eq!(rows.len(), own_rows);
+    for (r, own) in rows
+        .iter()
+        .zip(report.rows.iter().filter(|r| r.own_reference.is_none()))
+    {
+        assert!(r.rmse.is_finite() && r.rmse > 0.0);
+        assert_eq!(
+            (&r.model, &r.value, r.seed),
+            (&own.model, &own.value, own.seed)
+        );
+    }
+    for f in ablate::EXTERNAL_FILES {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let text = std::fs::read_to_string(out.join("external.txt")).unwrap();
+    assert!(
+        text.contains("voxlab cpu, 256 spp") && text.contains("reference bias"),
+        "{text}"
+    );
+    let (header, csv_rows) = read_csv(&out.join("ablation-external.csv"));
+    assert_eq!(header, CSV_COLUMNS);
+    assert_eq!(csv_rows.len(), own_rows);
+    let sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("ablation.csv.json")).unwrap()).unwrap();
+    assert_eq!(sidecar["external_reference"]["by"], "voxlab cpu, 256 spp");
+    assert!(sidecar["external_reference"]["file"]["blake3"].is_string());
+
+    // A reference of another model (hard shadows) shows as a bias far above the noise.
+    let mut hard = e.settings.clone();
+    hard.spp = 1;
+    let frame = voxlab::cpu::render(&e.scene, &hard).frame;
+    voxlab::output::write_frame(&frame, dir.join("hard.exr")).unwrap();
+    let (e, c) = load(
+        &dir,
+        &experiment_text(
+            300.0,
+            &with("reference = \"hard.exr\"\nreference_by = \"hard\"\n"),
+        ),
+    );
+    let report = run(&e, &c, &dir.join("out-hard"), &dir.join("cache"));
+    let (x, _) = report.external.as_ref().unwrap();
+    assert!(
+        x.bias_rmse > 2.0 * report.reference.noise_rmse,
+        "{}",
+        x.bias_rmse
+    );
+}

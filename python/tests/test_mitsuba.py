@@ -156,3 +156,50 @@ def test_export_refuses_hostile_targets(tmp_path):
     proc = cli("export", src, "--to", "pbrt", tmp_path / "x", check=False)
     assert proc.returncode != 0 and "mitsuba" in proc.stderr
     assert not (tmp_path / "x").exists()
+
+
+def test_ablate_measures_against_a_mitsuba_reference(tmp_path):
+    """The loop a researcher runs: export, converge in Mitsuba, ablate against it. The
+    bias of voxlab's own reference against Mitsuba's is the two references' noise (the
+    scene is exact), and every point of the scene gets its error against both."""
+    src = EXPERIMENTS / "mitsuba" / "rect_blocks.toml"
+    exp = vx.load(src)
+    assert exp.export_mitsuba(tmp_path / "scene", strict=True) == []
+    scene = mi.load_file(str(tmp_path / "scene" / "scene.xml"))
+    exr = tmp_path / "mitsuba.exr"
+    mi.Bitmap(mi.render(scene, spp=2048, seed=3)).write(str(exr))
+    sweep = {
+        "ablate.reference_spp": 512,
+        "ablate.reference_backend": "gpu",
+        "ablate.spp": [1, 4, 16],
+        "ablate.seeds": 2,
+        "ablate.runs": 1,
+        "ablate.warmup": 0,
+        "ablate.cone_step_factor": [],
+        "ablate.cone_aperture_deg": [],
+        "ablate.transmittance": [],
+        "ablate.reference": str(exr),
+        "ablate.reference_by": "Mitsuba 3.9.1 scalar_rgb, 2048 spp",
+    }
+    result = vx.ablate(src, tmp_path / "ablate", set=sweep)
+    out = tmp_path / "ablate"
+    text = (out / "external.txt").read_text()
+    assert "Mitsuba 3.9.1 scalar_rgb, 2048 spp" in text
+    own = [r for r in result.rows.to_dict("records") if r["model"].startswith("stochastic")]
+    import csv
+
+    with open(out / "ablation-external.csv", newline="") as f:
+        ext = [r for r in csv.DictReader(f) if r["model"].startswith("stochastic")]
+    assert len(ext) == len(own) > 0
+    # At the highest spp, voxlab's error against Mitsuba is its error against its own
+    # reference to within the two references' noise: no bias.
+    top = max(int(r["spp"]) for r in ext)
+    e_own = np.mean([r["rmse"] for r in own if r["spp"] == top])
+    e_ext = np.mean([float(r["rmse"]) for r in ext if int(r["spp"]) == top])
+    print("rmse at", top, "spp against voxlab's reference", e_own, "against Mitsuba's", e_ext)
+    assert abs(e_ext - e_own) < 0.5 * e_own, (e_own, e_ext)
+    # The bias line: voxlab's 512-spp reference against Mitsuba's within a few of its
+    # own noise.
+    rmse = float(text.split("RMSE ")[1].split(" ")[0])
+    noise = float(text.split("its own noise ")[1].split(")")[0])
+    assert rmse < 3 * noise, text
