@@ -58,6 +58,7 @@ pub mod ratio;
 pub mod sdf;
 pub mod shading;
 pub mod smooth;
+pub mod solid_angle;
 pub mod sparse;
 pub mod voxels;
 
@@ -78,6 +79,7 @@ pub const SHADOW_MODELS: &[&ShadowModel] = &[
     &cone::MODEL,
     &ratio::MODEL,
     &sdf::MODEL,
+    &solid_angle::MODEL,
 ];
 
 /// Lighting terms, in the order they are listed and offered. One line each.
