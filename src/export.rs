@@ -25,14 +25,16 @@
 //!   `conductor` of `specular_reflectance = kr`; diffuse plus mirror a `blendbsdf` of
 //!   the two when `kd + kr <= 1`. Exact. A Phong highlight (`ks > 0`) is dropped, and a
 //!   transparent material (`kt > 0`) is a `dielectric` of its `ior` with
-//!   `specular_transmittance = kt` (Beer-Lambert's absorption is not exported): Mitsuba weighs reflection and refraction by Fresnel's
+//!   `specular_transmittance = kt` and, under a transmittance model with distance in it
+//!   (`TransmittanceModel::interior_extinction`: Beer-Lambert), a homogeneous absorbing
+//!   interior (then the integrator is `volpath`): Mitsuba weighs reflection and refraction by Fresnel's
 //!   equations and its shadows do not pass through glass, where voxlab's fixed `kr`,
 //!   `kt` and semi-transparent shadows do.
 //! - Camera: `perspective` at the orbit camera's eye, target and up, the vertical field
 //!   of view, the image's size; pixel `(i, j)` covers the same square. voxlab's
 //!   `pixel_filter = "box"` (`filter_width = 0.5`) is Mitsuba's `box` filter exactly;
 //!   pixel centres (`"none"`) and other filters are approximated by the box.
-//! - Integrator: `path` with `max_depth = 2` (direct light only, as the Whitted model
+//! - Integrator: `path` (`volpath` when a glass has an absorbing interior) with `max_depth = 2` (direct light only, as the Whitted model
 //!   lights a diffuse hit) and `hide_emitters` (voxlab's lights are not seen). A scene
 //!   with mirrors or glass needs longer paths, which also carry the diffuse
 //!   interreflection voxlab leaves out: an approximation.
@@ -141,6 +143,20 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
         .iter()
         .enumerate()
         .any(|(i, m)| i != VOID as usize && used[i] && (m.kr > 0.0 || m.kt > 0.0));
+    // A transparent material whose transmittance model has a distance in it gets a
+    // homogeneous absorbing interior, which Mitsuba's volumetric path tracer reads.
+    let interior = |m: &Material| {
+        (m.kt > 0.0)
+            .then(|| {
+                (s.features.transmittance.model().interior_extinction)(m, scene.grid.voxel_size())
+            })
+            .flatten()
+    };
+    let media = scene
+        .materials
+        .iter()
+        .enumerate()
+        .any(|(i, m)| i != VOID as usize && used[i] && interior(m).is_some());
     let depth = if specular {
         approx(
             "materials",
@@ -154,8 +170,9 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
     };
     let _ = writeln!(
         xml,
-        "  <integrator type=\"path\">\n    <integer name=\"max_depth\" value=\"{depth}\"/>\n    \
-         <boolean name=\"hide_emitters\" value=\"true\"/>\n  </integrator>"
+        "  <integrator type=\"{}\">\n    <integer name=\"max_depth\" value=\"{depth}\"/>\n    \
+         <boolean name=\"hide_emitters\" value=\"true\"/>\n  </integrator>",
+        if media { "volpath" } else { "path" }
     );
 
     // Camera.
@@ -244,6 +261,26 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
             );
         }
         let _ = writeln!(xml, "{}", bsdf(i, m));
+        if let Some(sigma) = interior(m) {
+            // Mitsuba reads an RGB sigma_t in [0, 1] times `scale`, a 32-bit float.
+            let scale = sigma.max_element().max(f64::MIN_POSITIVE);
+            if scale > f32::MAX as f64 {
+                return Err(ExportError::OutOfRange {
+                    file: file.clone(),
+                    key: key("sigma"),
+                    what: format!(
+                        "an extinction of {scale:e} per unit is beyond Mitsuba's 32-bit floats"
+                    ),
+                });
+            }
+            let _ = writeln!(
+                xml,
+                "  <medium type=\"homogeneous\" id=\"interior{i}\">\n    \
+                 <rgb name=\"sigma_t\" value=\"{}\"/>\n    <float name=\"scale\" value=\"{scale}\"/>\n    \
+                 <rgb name=\"albedo\" value=\"0, 0, 0\"/>\n  </medium>",
+                v3(sigma / scale)
+            );
+        }
     }
 
     // Geometry.
@@ -269,10 +306,15 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
     };
     for (m, tris, normals) in &meshes {
         let name = PathBuf::from("meshes").join(format!("material{m}.ply"));
+        let medium = if interior(&scene.materials[*m as usize]).is_some() {
+            format!("\n    <ref name=\"interior\" id=\"interior{m}\"/>")
+        } else {
+            String::new()
+        };
         let _ = writeln!(
             xml,
             "  <shape type=\"ply\">\n    <string name=\"filename\" value=\"meshes/material{m}.ply\"/>\n    \
-             <boolean name=\"face_normals\" value=\"{}\"/>\n    <ref id=\"material{m}\"/>\n  </shape>",
+             <boolean name=\"face_normals\" value=\"{}\"/>\n    <ref id=\"material{m}\"/>{medium}\n  </shape>",
             normals.is_empty()
         );
         out.triangles += tris.len();

@@ -342,3 +342,46 @@ fn the_command_writes_all_or_nothing() {
     let xml = std::fs::read_to_string(target.join("scene.xml")).unwrap();
     assert!(!xml.contains("inf") && !xml.contains("NaN"), "{xml}");
 }
+
+/// Glass under Beer-Lambert gets a homogeneous absorbing interior (its sigma, per world
+/// unit) and the volumetric integrator; under min-kt, whose kt is per crossing, none.
+/// A sigma beyond 32-bit floats is refused with its key.
+#[test]
+fn beer_lambert_glass_gets_an_absorbing_interior() {
+    let glass = DIFFUSE.replace(
+        "[[lights]]",
+        "[[scene.boxes]]\nmin = [2, 1, 2]\nmax = [4, 3, 4]\nmaterial = \"clear\"\n\n\
+         [[materials]]\nname = \"clear\"\nkd = 0.0\nks = 0.0\nkr = 0.1\nkt = 0.9\nior = 1.5\n\
+         sigma = [0.5, 0.25, 0.125]\n\n[[lights]]",
+    );
+    let e = Experiment::from_str(
+        &format!("{glass}\n[features]\ntransmittance = \"beer-lambert\"\n"),
+        "bl.toml",
+    )
+    .unwrap();
+    let xml = String::from_utf8(mitsuba(&e, false).unwrap().files[0].1.clone()).unwrap();
+    assert!(xml.contains("type=\"volpath\""), "{xml}");
+    assert!(
+        xml.contains("<rgb name=\"sigma_t\" value=\"1, 0.5, 0.25\"/>"),
+        "{xml}"
+    );
+    assert!(
+        xml.contains("<float name=\"scale\" value=\"0.5\"/>"),
+        "{xml}"
+    );
+    assert!(xml.contains("<ref name=\"interior\""), "{xml}");
+    let e = Experiment::from_str(&glass, "minkt.toml").unwrap();
+    let xml = String::from_utf8(mitsuba(&e, false).unwrap().files[0].1.clone()).unwrap();
+    assert!(
+        xml.contains("type=\"path\"") && !xml.contains("<medium"),
+        "{xml}"
+    );
+    let huge = glass.replace("sigma = [0.5, 0.25, 0.125]", "sigma = [1e300, 0.0, 0.0]");
+    let e = Experiment::from_str(
+        &format!("{huge}\n[features]\ntransmittance = \"beer-lambert\"\n"),
+        "huge.toml",
+    )
+    .unwrap();
+    let msg = mitsuba(&e, false).unwrap_err().to_string();
+    assert!(msg.contains("materials[clear].sigma"), "{msg}");
+}

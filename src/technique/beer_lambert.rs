@@ -37,6 +37,8 @@ pub const MODEL: TransmittanceModel = TransmittanceModel {
     start: AbsorbState::default,
     pass,
     result,
+    // T = exp(-sigma len): a homogeneous medium of extinction sigma, absorbing only.
+    interior_extinction: |m, voxel_size| Some(m.absorption(voxel_size)),
     voxel_transmittance: |m, voxel_size| {
         if m.kt <= 0.0 {
             0.0

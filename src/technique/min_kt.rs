@@ -28,6 +28,8 @@ pub const MODEL: TransmittanceModel = TransmittanceModel {
     pass,
     result: |s, _| s.value,
     voxel_transmittance: |m, _| m.kt,
+    // kt is per crossing, not per distance: no medium holds it.
+    interior_extinction: |_, _| None,
 };
 
 /// The smallest kt so far (every channel alike); over once it reaches 0.

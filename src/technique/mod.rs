@@ -480,6 +480,11 @@ pub struct TransmittanceModel {
     /// The transmittance across one voxel of a material, for the cone pyramids'
     /// opacity `1 - T` (`crate::technique::cones::pyramid::material_alpha`).
     pub voxel_transmittance: fn(&Material, voxel_size: f64) -> f64,
+    /// What an exporter to a renderer with participating media writes inside a
+    /// transparent material (`crate::export`): the extinction coefficient per world
+    /// unit of a homogeneous absorbing interior, or `None` when the model has no
+    /// distance in it.
+    pub interior_extinction: fn(&Material, voxel_size: f64) -> Option<DVec3>,
 }
 
 /// What a lighting term's CPU implementation is asked at one diffuse-or-not hit.
