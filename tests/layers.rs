@@ -21,7 +21,9 @@ const LAYERS: &[(&str, &[&str])] = &[
     ("tracers", &["cpu", "gpu"]),
     (
         "applications",
-        &["session", "ablate", "bench", "stress", "info", "viewer"],
+        &[
+            "session", "ablate", "bench", "stress", "info", "viewer", "export",
+        ],
     ),
 ];
 
