@@ -281,6 +281,33 @@ fn the_command_writes_all_or_nothing() {
     left.sort();
     assert_eq!(left, ["meshes"], "a failed export left files behind");
 
+    // An over-long directory name: an error naming it, nothing created; an odd but
+    // valid one (spaces, non-ASCII) is written as any other.
+    let long = dir.path().join("d".repeat(300));
+    let run = voxlab()
+        .args(["export", exp.to_str().unwrap(), "--to", "mitsuba"])
+        .arg(&long)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !run.status.success() && stderr.contains("too long"),
+        "{stderr}"
+    );
+    assert!(!long.exists());
+    let odd = dir.path().join("odd name é ✓");
+    let run = voxlab()
+        .args(["export", exp.to_str().unwrap(), "--to", "mitsuba"])
+        .arg(&odd)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(odd.join("scene.xml").is_file() && odd.join("scene.xml.json").is_file());
+
     // Strict with an approximation: an error naming the key, nothing written.
     let approx = dir.path().join("approx.toml");
     std::fs::write(&approx, DIFFUSE.replace("ks = 0.0", "ks = 0.5")).unwrap();
