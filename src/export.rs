@@ -368,31 +368,27 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
             }
         };
         too_bright(c, "intensity (pi I color)")?;
+        // A point light, or an area light of size 0, is Mitsuba's point light.
+        if !light.is_area() {
+            if let Light::Area(a) = light
+                && a.emission == Emission::Lambertian
+            {
+                approx(
+                    &key("emission"),
+                    "a Lambertian light of size 0 (a cosine spot) as a point light".into(),
+                );
+            }
+            let _ = writeln!(
+                xml,
+                "  <emitter type=\"point\">\n    <point name=\"position\" value=\"{}\"/>\n    \
+                 <rgb name=\"intensity\" value=\"{}\"/>\n  </emitter>",
+                v3(light.position()),
+                v3(c)
+            );
+            continue;
+        }
         match light {
-            Light::Point(p) => {
-                let _ = writeln!(
-                    xml,
-                    "  <emitter type=\"point\">\n    <point name=\"position\" value=\"{}\"/>\n    \
-                     <rgb name=\"intensity\" value=\"{}\"/>\n  </emitter>",
-                    v3(p.position),
-                    v3(c)
-                );
-            }
-            Light::Area(a) if a.is_degenerate() => {
-                if a.emission == Emission::Lambertian {
-                    approx(
-                        &key("emission"),
-                        "a Lambertian light of size 0 (a cosine spot) as a point light".into(),
-                    );
-                }
-                let _ = writeln!(
-                    xml,
-                    "  <emitter type=\"point\">\n    <point name=\"position\" value=\"{}\"/>\n    \
-                     <rgb name=\"intensity\" value=\"{}\"/>\n  </emitter>",
-                    v3(a.position),
-                    v3(c)
-                );
-            }
+            Light::Point(_) => unreachable!("a point light is not an area light"),
             Light::Area(a) => {
                 let (u, v, n) = a.frame();
                 let (kind, area, su, sv) = match a.shape {

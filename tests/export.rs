@@ -5,7 +5,8 @@
 //! exports is tested from Python (python/tests/test_mitsuba.py).
 
 use std::collections::HashSet;
-use std::process::Command;
+use std::path::Path;
+use std::process::{Command, Output};
 
 use glam::{DVec3, IVec3, UVec3};
 use rand::{RngExt, SeedableRng};
@@ -15,6 +16,18 @@ use voxlab::scene::{Grid, Material, VOID, seed_palette};
 
 fn voxlab() -> Command {
     Command::new(env!("CARGO_BIN_EXE_voxlab"))
+}
+
+/// `voxlab export EXPERIMENT --to mitsuba DIR [extra...]`, run to completion.
+fn export(experiment: &Path, dir: &Path, extra: &[&str]) -> Output {
+    voxlab()
+        .arg("export")
+        .arg(experiment)
+        .args(["--to", "mitsuba"])
+        .arg(dir)
+        .args(extra)
+        .output()
+        .unwrap()
 }
 
 /// A unit face: the voxel that owns it and the direction it faces (axis, sign).
@@ -246,12 +259,7 @@ fn the_command_writes_all_or_nothing() {
     let exp = dir.path().join("diffuse.toml");
     std::fs::write(&exp, DIFFUSE).unwrap();
     let out = dir.path().join("mitsuba");
-    let run = voxlab()
-        .args(["export", exp.to_str().unwrap(), "--to", "mitsuba"])
-        .arg(&out)
-        .arg("--strict")
-        .output()
-        .unwrap();
+    let run = export(&exp, &out, &["--strict"]);
     assert!(
         run.status.success(),
         "{}",
@@ -268,11 +276,7 @@ fn the_command_writes_all_or_nothing() {
     let blocked = dir.path().join("blocked");
     std::fs::create_dir(&blocked).unwrap();
     std::fs::write(blocked.join("meshes"), "in the way").unwrap();
-    let run = voxlab()
-        .args(["export", exp.to_str().unwrap(), "--to", "mitsuba"])
-        .arg(&blocked)
-        .output()
-        .unwrap();
+    let run = export(&exp, &blocked, &[]);
     assert!(!run.status.success());
     let mut left: Vec<String> = std::fs::read_dir(&blocked)
         .unwrap()
@@ -284,11 +288,7 @@ fn the_command_writes_all_or_nothing() {
     // An over-long directory name: an error naming it, nothing created; an odd but
     // valid one (spaces, non-ASCII) is written as any other.
     let long = dir.path().join("d".repeat(300));
-    let run = voxlab()
-        .args(["export", exp.to_str().unwrap(), "--to", "mitsuba"])
-        .arg(&long)
-        .output()
-        .unwrap();
+    let run = export(&exp, &long, &[]);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(
         !run.status.success() && stderr.contains("too long"),
@@ -296,11 +296,7 @@ fn the_command_writes_all_or_nothing() {
     );
     assert!(!long.exists());
     let odd = dir.path().join("odd name é ✓");
-    let run = voxlab()
-        .args(["export", exp.to_str().unwrap(), "--to", "mitsuba"])
-        .arg(&odd)
-        .output()
-        .unwrap();
+    let run = export(&exp, &odd, &[]);
     assert!(
         run.status.success(),
         "{}",
@@ -339,11 +335,7 @@ fn the_command_writes_all_or_nothing() {
     )
     .unwrap();
     let target = dir.path().join("huge");
-    let run = voxlab()
-        .args(["export", huge.to_str().unwrap(), "--to", "mitsuba"])
-        .arg(&target)
-        .output()
-        .unwrap();
+    let run = export(&huge, &target, &[]);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(!run.status.success(), "1e300 exported");
     assert!(
@@ -356,11 +348,7 @@ fn the_command_writes_all_or_nothing() {
         DIFFUSE.replace("intensity = 50.0", "intensity = 1e37"),
     )
     .unwrap();
-    let run = voxlab()
-        .args(["export", huge.to_str().unwrap(), "--to", "mitsuba"])
-        .arg(&target)
-        .output()
-        .unwrap();
+    let run = export(&huge, &target, &[]);
     assert!(
         run.status.success(),
         "{}",
