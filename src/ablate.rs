@@ -31,7 +31,7 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Deserialize;
 
@@ -40,10 +40,11 @@ use crate::experiment::{Experiment, ExperimentError, write};
 pub mod external;
 mod grid;
 pub mod plot;
+pub mod tasks;
 mod text;
 use crate::gpu::GpuTracer;
 use crate::metrics::{Domain, compare};
-use crate::output::{read_exr, write_frame, write_frame_with_provenance};
+use crate::output::write_frame_with_provenance;
 use crate::plan::Plan;
 use crate::render::{Features, Frame, MAX_SAMPLES, RenderSettings, Transmittance};
 use crate::scene::{Light, PointLight, Scene};
@@ -1029,11 +1030,17 @@ fn reference_halves(e: &Experiment, c: &AblateConfig) -> [RenderSettings; 2] {
     [half(0, a), half(1, c.reference_spp - a)]
 }
 
-/// The cache key: everything that changes the reference's pixels. The destructuring
-/// below stops compiling when `Scene` gains a field, so the key cannot forget it;
-/// materials, lights, camera and settings enter through their `Debug` form, which
-/// names every field (a Rust release that prints them differently only costs a rebuild).
+/// The cache key: everything that changes the reference's pixels ([`content_key`]).
 pub fn reference_key(scene: &Scene, halves: &[RenderSettings; 2], backend: &str) -> String {
+    content_key("reference", scene, &format!("halves {halves:?}"), backend)
+}
+
+/// A blake3 key of `scene`, of `what` is made of it, of `settings` (their `Debug` text)
+/// and of the renderer `backend`. The destructuring below stops compiling when `Scene`
+/// gains a field, so the key cannot forget it; materials, lights and camera enter
+/// through their `Debug` form, which names every field (a Rust release that prints them
+/// differently only costs a rebuild).
+pub(crate) fn content_key(what: &str, scene: &Scene, settings: &str, backend: &str) -> String {
     let Scene {
         grid,
         materials,
@@ -1044,7 +1051,7 @@ pub fn reference_key(scene: &Scene, halves: &[RenderSettings; 2], backend: &str)
     } = scene;
     let mut h = blake3::Hasher::new();
     let mut text = format!(
-        "voxlab ablate reference\nmodel {MODEL_VERSION}\nbackend {backend}\n\
+        "voxlab ablate {what}\nmodel {MODEL_VERSION}\nbackend {backend}\n\
          grid {:?} {:?} {:?}\n",
         grid.dims(),
         grid.voxel_size(),
@@ -1066,7 +1073,7 @@ pub fn reference_key(scene: &Scene, halves: &[RenderSettings; 2], backend: &str)
     let _ = write!(
         text,
         "\nmaterials {materials:?}\nlights {lights:?}\ncamera {camera:?}\nambient {ambient:?}\n\
-         halves {halves:?}\n"
+         {settings}\n"
     );
     h.update(text.as_bytes());
     h.finalize().to_hex().to_string()
@@ -1091,98 +1098,6 @@ fn backend_label(tracers: &Tracers, choice: BackendChoice) -> String {
         // The CPU image does not depend on the thread count (pixels are independent).
         _ => "cpu f64".to_string(),
     }
-}
-
-fn reference(
-    e: &Experiment,
-    c: &AblateConfig,
-    tracers: &mut Tracers,
-    cache_dir: &Path,
-    progress: &Meter,
-) -> Result<Reference> {
-    let halves = reference_halves(e, c);
-    let backend = backend_label(tracers, c.reference_backend);
-    let key = reference_key(&e.scene, &halves, &backend);
-    let short = &key[..16];
-    let exr = cache_dir.join(format!("reference-{short}.exr"));
-    let meta_path = cache_dir.join(format!("reference-{short}.toml"));
-    let (w, h) = (e.settings.width, e.settings.height);
-
-    let cached = (|| -> Option<(Frame, ReferenceMeta)> {
-        let meta: ReferenceMeta =
-            toml::from_str(&std::fs::read_to_string(&meta_path).ok()?).ok()?;
-        let frame = read_exr(&exr).ok()?;
-        (meta.key == key && (frame.width, frame.height) == (w, h)).then_some((frame, meta))
-    })();
-    if let Some((frame, meta)) = cached {
-        return Ok(Reference {
-            frame,
-            key,
-            path: exr,
-            reused: true,
-            spp: c.reference_spp,
-            backend: meta.backend,
-            noise_rmse: meta.noise_rmse,
-            flip_floor: meta.flip_floor,
-            seconds: meta.seconds,
-        });
-    }
-
-    progress.working_on(&format!("reference, {} spp on {backend}", c.reference_spp));
-    let mut frames = Vec::new();
-    let mut seconds = 0.0;
-    for s in &halves {
-        let r = tracers.render(c.reference_backend, &e.scene, s)?;
-        seconds += r.time.as_secs_f64();
-        frames.push(r.frame);
-        progress.advance(progress.reference_cost(s.spp));
-        progress.check()?;
-        progress.line(&format!("reference half of {} spp rendered", s.spp));
-    }
-    let noise_rmse = compare(&frames[0], &frames[1], Domain::Linear, 0.0)
-        .expect("halves have one size")
-        .rmse
-        / 2.0;
-    // Weighted by each half's spp so an odd reference_spp is still the plain mean.
-    let (na, nb) = (halves[0].spp as f32, halves[1].spp as f32);
-    let mut frame = Frame::new(w, h);
-    for ((o, a), b) in frame
-        .pixels
-        .iter_mut()
-        .zip(&frames[0].pixels)
-        .zip(&frames[1].pixels)
-    {
-        for k in 0..3 {
-            o[k] = (a[k] * na + b[k] * nb) / (na + nb);
-        }
-    }
-    let flip_floor = frames
-        .iter()
-        .map(|half| crate::metrics::flip_mean(&frame, half))
-        .sum::<f64>()
-        / 2.0;
-    write_frame(&frame, &exr)?;
-    let meta = ReferenceMeta {
-        key: key.clone(),
-        spp: c.reference_spp,
-        backend: backend.clone(),
-        noise_rmse,
-        flip_floor,
-        seconds,
-        model_version: MODEL_VERSION,
-    };
-    write_text(&meta_path, &toml::to_string(&meta)?)?;
-    Ok(Reference {
-        frame,
-        key,
-        path: exr,
-        reused: false,
-        spp: c.reference_spp,
-        backend,
-        noise_rmse,
-        flip_floor,
-        seconds,
-    })
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1247,6 +1162,9 @@ pub struct Row {
     /// The errors against the external reference (`[ablate] reference`), for the rows
     /// of the experiment's own scene.
     pub external: Option<external::Errors>,
+    /// The adapter (or CPU) that rendered and timed this row: a sweep spread over
+    /// workers may have several.
+    pub adapter: String,
 }
 
 pub use crate::metrics::flip;
@@ -1320,84 +1238,45 @@ fn median_ms(times: &[Duration]) -> f64 {
     }
 }
 
-/// `point` rendered with each of `c.seeds` seeds: a row per seed.
-fn measure(
-    e: &Experiment,
-    c: &AblateConfig,
-    tracers: &mut Tracers,
-    point: &Point,
-    reference: &Reference,
-    progress: &Meter,
-) -> Result<Vec<Row>> {
-    let noise_rmse = reference.noise_rmse;
-    let reference = &reference.frame;
-    progress.working_on(&point.label());
-    let s = &point.settings;
-    let converted;
-    let own = point.scene.as_deref().unwrap_or(&e.scene);
-    let scene = if point.lights_as_points {
-        converted = lights_as_points(own);
-        &converted
-    } else {
-        own
-    };
-    let mut choice = c.backend;
-    let mut rows = Vec::new();
-    for k in 0..c.seeds {
-        let s = RenderSettings {
-            seed: s.seed.wrapping_add(k),
-            ..s.clone()
-        };
-        let mut times = Vec::new();
-        let mut setups = Vec::new();
-        let mut last = None;
-        // Warm-up renders before the first seed only: later seeds reuse its pipelines.
-        let warmup = if k == 0 { c.warmup } else { 0 };
-        for i in 0..(warmup + c.runs) {
-            let r = tracers.render(choice, scene, &s)?;
-            let setup = tracers.setup_time(&r, scene, &s)?;
-            // The first render settles the backend, so later runs do not retry the GPU.
-            if choice == BackendChoice::Auto {
-                choice = if r.backend == "gpu" {
-                    BackendChoice::Gpu
-                } else {
-                    BackendChoice::Cpu
-                };
-            }
-            if i >= warmup {
-                times.push(r.time);
-                setups.push(setup);
-            }
-            progress.advance(progress.point_cost(s.spp.max(1)));
-            progress.check()?;
-            last = Some(r);
-        }
-        let r = last.expect("runs >= 1");
-        let mut row = point_row(point, scene, &s, r, reference, &times, &setups, noise_rmse)?;
-        row.seed_index = k;
-        rows.push(row);
-    }
-    Ok(rows)
-}
-
-/// The row of one seed of `point`: its last render `r` against `reference`, the timed
-/// runs' `times` and `setups`.
-#[allow(clippy::too_many_arguments)]
+/// The row of one seed of `point`: its last render and timed runs `r` against
+/// `reference`.
 fn point_row(
     point: &Point,
     scene: &Scene,
     s: &RenderSettings,
-    r: Rendered,
+    r: tasks::SeedRender,
     reference: &Frame,
-    times: &[Duration],
-    setups: &[Duration],
     noise_rmse: f64,
 ) -> Result<Row> {
     let d = compare(reference, &r.frame, Domain::Linear, 0.0)
         .ok_or_else(|| anyhow!("point and reference differ in size"))?;
     let (flip_mean, _) = flip(reference, &r.frame);
-    let totals: Vec<Duration> = times.iter().zip(setups).map(|(t, u)| *t + *u).collect();
-    let m = r.plan.shadow_model;
+    let times: Vec<Duration> = r
+        .times_ns
+        .iter()
+        .map(|&t| Duration::from_nanos(t))
+        .collect();
+    let setups: Vec<Duration> = r
+        .setups_ns
+        .iter()
+        .map(|&t| Duration::from_nanos(t))
+        .collect();
+    if times.is_empty() || times.len() != setups.len() {
+        bail!(
+            "{}: {} times and {} setup times",
+            point.label(),
+            times.len(),
+            setups.len()
+        );
+    }
+    let totals: Vec<Duration> = times.iter().zip(&setups).map(|(t, u)| *t + *u).collect();
+    let m = crate::technique::shadow_model(&r.shadow_model)
+        .ok_or_else(|| anyhow!("{}: no shadow model {:?}", point.label(), r.shadow_model))?;
+    let backend = match r.backend.as_str() {
+        "gpu" => "gpu",
+        "cpu" => "cpu",
+        other => bail!("{}: backend {other:?}", point.label()),
+    };
     let model_settings = m
         .shared_settings
         .iter()
@@ -1419,9 +1298,9 @@ fn point_row(
         model_settings,
         model_note: m.describe.and_then(|f| f(scene, s)),
         transmittance: s.features.transmittance.name(),
-        backend: r.backend,
+        backend,
         fallback: r.fallback,
-        timer: match (r.backend, r.timestamps, r.plan.pyramid.is_some()) {
+        timer: match (backend, r.timestamps, r.pyramid) {
             ("gpu", true, false) => "timestamp queries",
             ("gpu", true, true) => "timestamp queries + pyramid build",
             ("gpu", false, false) => "wall around a synchronised submit",
@@ -1430,8 +1309,8 @@ fn point_row(
         },
         ms_median: median_ms(&totals),
         ms_runs: totals.iter().map(|t| t.as_secs_f64() * 1e3).collect(),
-        trace_ms_median: median_ms(times),
-        setup_ms_median: median_ms(setups),
+        trace_ms_median: median_ms(&times),
+        setup_ms_median: median_ms(&setups),
         lights_as_points: point.lights_as_points,
         rmse: d.rmse,
         rmse_corrected: (d.rmse * d.rmse - noise_rmse * noise_rmse).max(0.0).sqrt(),
@@ -1442,10 +1321,11 @@ fn point_row(
         seed_index: 0,
         interval: None,
         own_reference: None,
-        plan: r.plan.to_string(),
+        plan: r.plan,
         image: format!("images/{}.png", point.slug()),
         frame: r.frame,
         external: None,
+        adapter: String::new(),
     })
 }
 
@@ -1469,6 +1349,19 @@ struct Meter {
 }
 
 impl Meter {
+    /// A meter that shows nothing and never stops the work (a worker's, whose driver
+    /// follows the sweep).
+    fn silent() -> Self {
+        Self {
+            bar: ProgressBar::hidden(),
+            lines: false,
+            start: Instant::now(),
+            reference_us: 1.0,
+            point_us: 1.0,
+            watch: None,
+        }
+    }
+
     /// An error when the sweep was asked to stop (between renders).
     fn check(&self) -> Result<()> {
         if self.watch.as_ref().is_some_and(|w| w.stopped()) {
@@ -1538,6 +1431,9 @@ pub struct AblateOptions {
     /// Follows the sweep from another thread and may stop it between renders (the
     /// Python bindings' Ctrl-C): the images and references done stay, no table is written.
     pub watch: Option<std::sync::Arc<crate::progress::Watch>>,
+    /// Take the points an earlier run of the same sweep left in the cache directory
+    /// (`voxlab ablate --resume`): only the missing ones are rendered.
+    pub resume: bool,
 }
 
 /// What a run measured and wrote.
@@ -1654,74 +1550,44 @@ pub fn run(
     source: Option<&str>,
     opts: &AblateOptions,
 ) -> Result<AblateReport> {
-    let has_area = e.scene.lights.iter().any(|l| l.is_area());
-    if !has_area && c.sweeps.is_empty() {
-        bail!(
-            "{}: the shadow models' curves need an area light (type rect, disk or sphere): \
-             the reference is stochastic area lighting. Without one, give [ablate] sweep = \
-             {{ \"key\" = [values] }} to measure other knobs against the converged image",
-            e.name
-        );
-    }
-    let out = &opts.out_dir;
-    let cache_dir = opts.cache_dir.clone().unwrap_or_else(|| out.join("cache"));
-    refuse_to_overwrite_inputs(e, source, out, &cache_dir)?;
-    // The external reference is checked before anything long runs.
-    let mut external = match &c.external {
-        Some(spec) => Some(external::load(spec, e.settings.width, e.settings.height)?),
-        None => None,
-    };
-    if let Some(x) = &external {
-        let outputs: Vec<PathBuf> = OUTPUT_FILES
-            .iter()
-            .chain(EXTERNAL_FILES)
-            .map(|f| out.join(f))
-            .collect();
-        if let Some((o, _)) =
-            crate::experiment::write::overwrites(&outputs, std::slice::from_ref(&x.spec.path))
-        {
-            bail!(
-                "--out {}: ablate would write {}, which is the external reference \
-                 (ablate.reference); choose another output directory",
-                out.display(),
-                o.display()
-            );
+    // The checks that need no tracer come first: nothing is opened or rendered for a
+    // sweep that cannot run.
+    tasks::Driver::check(e, c, source, opts)?;
+    let mut worker = tasks::Worker::new(c)?;
+    let adapter = worker.adapter();
+    let mut driver = tasks::Driver::new(e, c, source, opts, &worker.reference_label(c))?;
+    // One band per reference half: the whole image, as a single process renders it.
+    let todo = driver.tasks(1);
+    let cost = |t: &tasks::Task, reference_us: f64, point_us: f64| -> f64 {
+        match t {
+            tasks::Task::ReferenceTile {
+                reference, half, ..
+            } => f64::from(driver.schedule.references[*reference].halves[*half].spp) * reference_us,
+            tasks::Task::Point { index } => {
+                let spp = driver.schedule.points[*index].settings.spp.max(1);
+                f64::from(spp * (c.warmup + c.seeds * c.runs)) * point_us
+            }
         }
-    }
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    std::fs::create_dir_all(&cache_dir)
-        .with_context(|| format!("creating {}", cache_dir.display()))?;
-
-    // Without an area light every shadow model gives the hard image: only the baseline
-    // and the key sweeps are measured.
-    let points = if has_area {
-        points(e, c)
-    } else {
-        baseline_points(e, c)
-            .into_iter()
-            .chain(key_sweep_points(e, c))
-            .collect()
     };
-    let mut tracers = Tracers::new(c)?;
-    let adapter = tracers.adapter();
-
-    let point_frames: u32 = points
+    let (reference_us, point_us) = calibrate(e, c, worker.tracers_mut())?;
+    let estimate: f64 = todo.iter().map(|t| cost(t, reference_us, point_us)).sum();
+    let reference_estimate: f64 = todo
         .iter()
-        .map(|p| p.settings.spp.max(1) * (c.warmup + c.seeds * c.runs))
+        .filter(|t| matches!(t, tasks::Task::ReferenceTile { .. }))
+        .map(|t| cost(t, reference_us, point_us))
         .sum();
-    let (reference_us, point_us) = calibrate(e, c, &mut tracers)?;
-    let estimate = f64::from(c.reference_spp) * reference_us + f64::from(point_frames) * point_us;
     let minutes = |us: f64| {
         let s = (us / 1e6).round() as u64;
         format!("{}m {:02}s", s / 60, s % 60)
     };
+    let points = driver.schedule.points.len();
     // The plan, before anything long starts.
     eprintln!(
         "ablate {}: {} points x {} seeds x {} runs (+{} warm-up) at {}x{} on {}; reference {} spp \
-         on {} (reused when cached); about {} in all ({} of it the reference), by a 1-spp \
+         on {} (reused when cached){}; about {} in all ({} of it the reference), by a 1-spp \
          calibration render of each",
         e.name,
-        points.len(),
+        points,
         c.seeds,
         c.runs,
         c.warmup,
@@ -1730,8 +1596,13 @@ pub fn run(
         c.backend.name(),
         c.reference_spp,
         c.reference_backend.name(),
+        if opts.resume {
+            format!("; {} of the points resumed from the cache", driver.resumed)
+        } else {
+            String::new()
+        },
         minutes(estimate),
-        minutes(f64::from(c.reference_spp) * reference_us),
+        minutes(reference_estimate),
     );
     let bar = if opts.progress && std::io::stderr().is_terminal() {
         let pb = ProgressBar::new(1);
@@ -1754,118 +1625,52 @@ pub fn run(
         point_us,
         watch: opts.watch.clone(),
     };
-    let sweep_cost = progress.point_cost(point_frames);
-    progress
-        .bar
-        .set_length(sweep_cost + progress.reference_cost(c.reference_spp));
-
-    let reference = reference(e, c, &mut tracers, &cache_dir, &progress)?;
-    if reference.reused {
-        // The bar counted the reference's frames; they are not rendered.
-        progress.bar.set_length(sweep_cost);
-    }
-    progress.line(&format!(
-        "reference: {} spp on {}, {} ({}), noise rmse {:.3e}",
-        reference.spp,
-        reference.backend,
-        if reference.reused {
-            "reused from cache"
-        } else {
-            "rendered"
-        },
-        reference.path.display(),
-        reference.noise_rmse
-    ));
-    if let Some(x) = &mut external {
-        x.measure(&reference);
-        // Printed whatever the progress mode: it is a finding, not progress.
-        eprintln!("reference bias: {}", x.bias_line(&reference));
-    }
-    let mut rows = Vec::new();
-    // References of the points with a scene of their own, by scene.
-    let mut own_references: Vec<(std::sync::Arc<Scene>, Reference)> = Vec::new();
-    for p in &points {
+    progress.bar.set_length(estimate.ceil().max(1.0) as u64);
+    for t in &todo {
         progress.check()?;
-        let own = match &p.scene {
-            None => None,
-            Some(scene) => {
-                let known = own_references.iter().position(|(s, _)| **s == **scene);
-                let i = match known {
-                    Some(i) => i,
-                    None => {
-                        progress
-                            .bar
-                            .inc_length(progress.reference_cost(c.reference_spp));
-                        let pe = Experiment {
-                            scene: scene.as_ref().clone(),
-                            ..e.clone()
-                        };
-                        let r = self::reference(&pe, c, &mut tracers, &cache_dir, &progress)?;
-                        own_references.push((scene.clone(), r));
-                        own_references.len() - 1
-                    }
-                };
-                Some(&own_references[i].1)
-            }
-        };
-        let against = own.unwrap_or(&reference);
-        for mut row in measure(e, c, &mut tracers, p, against, &progress)? {
-            row.own_reference = own.map(|r| r.noise_rmse);
-            if let (Some(x), None) = (&external, own) {
-                row.external = Some(external::errors(x, &row.frame));
-            }
-            // Only the first seed's image is kept and written: the others are measured.
-            if row.seed_index > 0 {
-                row.image.clear();
-                row.frame = Frame::new(0, 0);
-            }
-            progress.line(&format!(
-                "{} seed {}: {:.2} ms ({}), rmse {:.3e}, flip {:.4}",
-                p.label(),
-                row.seed,
-                row.ms_median,
-                row.backend,
-                row.rmse,
-                row.flip_mean
+        if let tasks::Task::ReferenceTile {
+            reference, half, ..
+        } = t
+        {
+            let spp = driver.schedule.references[*reference].halves[*half].spp;
+            progress.working_on(&format!(
+                "reference, {} spp on {}",
+                c.reference_spp,
+                c.reference_backend.name()
             ));
-            rows.push(row);
+            let output = worker.run_metered(e, c, &driver.schedule, t, &progress)?;
+            driver.put(output)?;
+            progress.line(&format!("reference half of {spp} spp rendered"));
+            if let Some(r) = driver.reference(*reference) {
+                progress.line(&format!(
+                    "reference: {} spp on {}, rendered ({}), noise rmse {:.3e}",
+                    r.spp,
+                    r.backend,
+                    r.path.display(),
+                    r.noise_rmse
+                ));
+            }
+            continue;
         }
+        let output = worker.run_metered(e, c, &driver.schedule, t, &progress)?;
+        if let tasks::TaskOutput::Point(p) = &output {
+            let label = driver.schedule.points[p.index].label();
+            for s in &p.seeds {
+                let ms = s.times_ns.iter().zip(&s.setups_ns).map(|(a, b)| a + b);
+                let mut ms: Vec<f64> = ms.map(|t| t as f64 / 1e6).collect();
+                ms.sort_by(f64::total_cmp);
+                progress.line(&format!(
+                    "{label} seed {}: {:.2} ms ({})",
+                    s.seed,
+                    ms[ms.len() / 2],
+                    s.backend
+                ));
+            }
+        }
+        driver.put(output)?;
     }
     progress.bar.finish_and_clear();
-
-    let git_revision = crate::revision::revision().to_string();
-    let mut files = Vec::new();
-    let summaries = summarize(&rows);
-    let external = external.map(|x| {
-        let rows = external::rows(&rows);
-        (x, rows)
-    });
-    write_outputs(
-        e,
-        c,
-        source,
-        &reference,
-        &rows,
-        &summaries,
-        &adapter,
-        &git_revision,
-        out,
-        &mut files,
-    )?;
-    if let Some((x, ext_rows)) = &external {
-        write_external(e, &reference, x, ext_rows, out, &mut files)?;
-    }
-    let table = std::fs::read_to_string(out.join("table.md"))?;
-    Ok(AblateReport {
-        reference,
-        rows,
-        summaries,
-        adapter,
-        git_revision,
-        files,
-        table,
-        external,
-    })
+    driver.finish(&adapter)
 }
 
 /// The files a run with an external reference writes besides [`OUTPUT_FILES`].
@@ -1930,7 +1735,7 @@ fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
 
 /// Every column of `ablation.csv` and what it holds: the header, and the column
 /// definitions its sidecar `ablation.csv.json` gives.
-pub const CSV_SCHEMA: [(&str, &str); 29] = [
+pub const CSV_SCHEMA: [(&str, &str); 30] = [
     ("model", "the curve the point belongs to"),
     (
         "knob",
@@ -2011,11 +1816,15 @@ pub const CSV_SCHEMA: [(&str, &str); 29] = [
         "fallback",
         "why backend auto rendered on the CPU, if it did",
     ),
+    (
+        "adapter",
+        "the adapter (or CPU) that rendered and timed the row: a sweep spread over workers may have several",
+    ),
 ];
 
 /// The header of `ablation.csv` (`CSV_SCHEMA`'s names).
-pub const CSV_COLUMNS: [&str; 29] = {
-    let mut out = [""; 29];
+pub const CSV_COLUMNS: [&str; 30] = {
+    let mut out = [""; 30];
     let mut i = 0;
     while i < out.len() {
         out[i] = CSV_SCHEMA[i].0;
@@ -2127,6 +1936,7 @@ fn csv(rows: &[Row], r: &Reference) -> String {
                 .map(|f| f.lines().next().unwrap_or(""))
                 .unwrap_or("")
                 .to_string(),
+            row.adapter.clone(),
         ];
         let fields: Vec<String> = fields.iter().map(|f| csv_field(f)).collect();
         out += &fields.join(",");

@@ -294,10 +294,15 @@ struct AblateArgs {
     /// Output directory. Default: out/ablate/<experiment name>.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
-    /// Where converged references are cached (by a hash of what they depend on).
-    /// Default: <out>/cache.
+    /// Where converged references and the points done are kept (by a hash of what
+    /// they depend on). Default: <out>/cache.
     #[arg(long, value_name = "DIR")]
     cache: Option<PathBuf>,
+    /// Take the points an earlier run of the same sweep left in the cache (one that
+    /// was stopped): only the missing ones are rendered, the others keep their
+    /// measured times.
+    #[arg(long)]
+    resume: bool,
     /// Override any key of the file, [ablate] included (e.g. `--set ablate.runs=1`,
     /// `--set render.width=64`); repeatable, checked exactly like the file.
     #[arg(long = "set", value_name = "KEY=VALUE")]
@@ -667,6 +672,7 @@ fn cmd_ablate(a: &AblateArgs) -> Result<()> {
         progress: true,
         log: a.progress,
         watch: None,
+        resume: a.resume,
     };
     let report = ablate::run(&e, &config, Some(&text), &opts)?;
     println!("{}", report.table);

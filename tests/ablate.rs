@@ -62,6 +62,7 @@ fn run(e: &Experiment, c: &AblateConfig, out: &Path, cache: &Path) -> AblateRepo
             progress: false,
             log: false,
             watch: None,
+            resume: false,
         },
     )
     .unwrap()
@@ -1048,6 +1049,7 @@ fn an_external_reference_is_checked_and_measured_against() {
                 progress: false,
                 log: false,
                 watch: None,
+                resume: false,
             },
         )
         .err()
@@ -1105,6 +1107,7 @@ fn an_external_reference_is_checked_and_measured_against() {
             progress: false,
             log: false,
             watch: None,
+            resume: false,
         },
     )
     .err()
