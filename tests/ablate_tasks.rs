@@ -96,6 +96,8 @@ fn a_reference_in_bands_equals_the_one_piece_reference_bit_for_bit() {
     );
     run_tasks(&e, &c, &mut whole, 1, |t| t);
     let one = whole.reference(0).unwrap().clone();
+    let report = whole.finish("test").unwrap();
+    assert_eq!(report.rows.len(), report.summaries.len() * 2);
     for bands in [2, 7, 20, 64] {
         let mut banded = Driver::new(
             &e,
@@ -127,16 +129,18 @@ fn a_reference_in_bands_equals_the_one_piece_reference_bit_for_bit() {
             "{bands} bands differ from the one-piece reference"
         );
         assert_eq!(r.noise_rmse.to_bits(), one.noise_rmse.to_bits());
-        // The points are the same whichever way the reference came.
+        // The points measure the same whichever way the reference came, and each row
+        // names what rendered it.
         let a = banded.finish("test").unwrap();
-        assert!(
-            a.rows
-                .iter()
-                .all(|r| r.adapter.contains("cpu") || r.adapter.contains("none"))
-        );
+        assert_eq!(a.rows.len(), report.rows.len());
+        for (x, y) in a.rows.iter().zip(&report.rows) {
+            assert_eq!(
+                (x.rmse.to_bits(), x.flip_mean.to_bits()),
+                (y.rmse.to_bits(), y.flip_mean.to_bits())
+            );
+            assert!(x.adapter.starts_with("CPU reference (f64"), "{}", x.adapter);
+        }
     }
-    let report = whole.finish("test").unwrap();
-    assert_eq!(report.rows.len(), report.summaries.len() * 2);
 }
 
 #[test]
@@ -202,7 +206,7 @@ fn the_driver_refuses_outputs_of_another_sweep_and_bands_twice() {
     driver.put(out.clone()).unwrap();
     let err = driver.put(out).unwrap_err().to_string();
     assert!(err.contains("twice"), "{err}");
-    // A point rendered for a sweep at another size.
+    // A band and a point rendered for a sweep at another size.
     let other = dir.join("other");
     std::fs::create_dir_all(&other).unwrap();
     std::fs::write(
@@ -218,6 +222,10 @@ fn the_driver_refuses_outputs_of_another_sweep_and_bands_twice() {
         .find(|t| matches!(t, Task::Point { .. }))
         .unwrap();
     let foreign = worker.run(&e2, &c2, &d2.schedule, &p).unwrap();
+    let err = driver.put(foreign).unwrap_err().to_string();
+    assert!(err.contains("another sweep"), "{err}");
+    let band = d2.tasks(4)[1].clone();
+    let foreign = Worker::cpu().run(&e2, &c2, &d2.schedule, &band).unwrap();
     let err = driver.put(foreign).unwrap_err().to_string();
     assert!(err.contains("another sweep"), "{err}");
     // Finishing with tasks missing names what is missing.

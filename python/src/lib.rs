@@ -15,7 +15,7 @@ use numpy::{
 };
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyBytes, PyDict};
 use voxlab::experiment::{Override, SceneCache};
 use voxlab::progress::Watch;
 use voxlab::render::{DisplayEncoding, DisplayTransform, Frame};
@@ -878,7 +878,7 @@ fn flip_default_ppd() -> f32 {
 /// Runs `voxlab ablate` on an experiment file (its `[ablate]` table) on a worker thread
 /// (Ctrl-C stops it between renders): the files it wrote, relative to `out`.
 #[pyfunction]
-#[pyo3(signature = (path, set, out, cache=None, progress=None))]
+#[pyo3(signature = (path, set, out, cache=None, progress=None, resume=false))]
 fn ablate(
     py: Python<'_>,
     path: PathBuf,
@@ -886,6 +886,7 @@ fn ablate(
     out: PathBuf,
     cache: Option<PathBuf>,
     progress: Option<Py<PyAny>>,
+    resume: bool,
 ) -> PyResult<Vec<String>> {
     let set = overrides(&set)?;
     run_watched(py, progress.as_ref(), |watch| {
@@ -897,6 +898,7 @@ fn ablate(
             progress: false,
             log: false,
             watch: Some(watch.clone()),
+            resume,
         };
         let report = voxlab::ablate::run(&e, &config, Some(&source), &opts);
         match report {
@@ -910,6 +912,192 @@ fn ablate(
     })
 }
 
+/// A sweep spread over other processes: the driver's side (`voxlab.distributed`). It
+/// lists the tasks still to do, takes their encoded outputs, and writes what `ablate`
+/// writes; the references and the points done are kept in its cache directory (the
+/// workers never touch it).
+#[pyclass(module = "voxlab", name = "AblateDriver")]
+struct AblateDriver {
+    inner: Option<voxlab::ablate::tasks::Driver>,
+}
+
+impl AblateDriver {
+    fn driver(&mut self) -> PyResult<&mut voxlab::ablate::tasks::Driver> {
+        self.inner
+            .as_mut()
+            .ok_or_else(|| err(ErrorKind::Other, "this sweep has finished already"))
+    }
+}
+
+#[pymethods]
+impl AblateDriver {
+    /// `reference_label`: the reference's renderer as a worker names it
+    /// (`AblateWorker.reference_label`), part of its cache key.
+    #[new]
+    #[pyo3(signature = (path, set, out, reference_label, cache=None, resume=false))]
+    fn new(
+        path: PathBuf,
+        set: Vec<String>,
+        out: PathBuf,
+        reference_label: &str,
+        cache: Option<PathBuf>,
+        resume: bool,
+    ) -> PyResult<Self> {
+        let set = overrides(&set)?;
+        let (e, c, source) = voxlab::ablate::load_with(&path, &set).map_err(|e| to_py(e.into()))?;
+        let opts = voxlab::ablate::AblateOptions {
+            out_dir: out,
+            cache_dir: cache,
+            progress: false,
+            log: false,
+            watch: None,
+            resume,
+        };
+        let d = voxlab::ablate::tasks::Driver::new(&e, &c, Some(&source), &opts, reference_label)
+            .map_err(|e| to_py(e.into()))?;
+        Ok(Self { inner: Some(d) })
+    }
+
+    /// The tasks still to do as JSON (`{"kind": "reference-tile", "reference", "half",
+    /// "rows": [start, end]}` or `{"kind": "point", "index"}`), each reference half in
+    /// `bands` bands of rows.
+    fn tasks(&mut self, bands: u32) -> PyResult<Vec<String>> {
+        let d = self.driver()?;
+        Ok(d.tasks(bands)
+            .iter()
+            .map(|t| serde_json::to_string(t).expect("a task serialises"))
+            .collect())
+    }
+
+    /// Points taken from the cache (`resume`).
+    #[getter]
+    fn resumed(&mut self) -> PyResult<usize> {
+        Ok(self.driver()?.resumed)
+    }
+
+    /// Points in the sweep.
+    #[getter]
+    fn points(&mut self) -> PyResult<usize> {
+        Ok(self.driver()?.schedule.points.len())
+    }
+
+    /// What a task is, as the progress names it.
+    fn describe(&mut self, task: &str) -> PyResult<String> {
+        let d = self.driver()?;
+        let t: voxlab::ablate::tasks::Task = serde_json::from_str(task)
+            .map_err(|e| err(ErrorKind::Invalid, format!("task {task:?}: {e}")))?;
+        Ok(match t {
+            voxlab::ablate::tasks::Task::Point { index } => d
+                .schedule
+                .points
+                .get(index)
+                .map_or_else(|| format!("point {index}"), |p| p.label()),
+            voxlab::ablate::tasks::Task::ReferenceTile { half, rows, .. } => {
+                format!("reference half {half}, rows {}..{}", rows[0], rows[1])
+            }
+        })
+    }
+
+    /// Takes a task's encoded output (`AblateWorker.run`'s bytes).
+    fn put(&mut self, py: Python<'_>, output: &[u8]) -> PyResult<()> {
+        let d = self.driver()?;
+        py.detach(|| {
+            let out = voxlab::ablate::tasks::TaskOutput::decode(output)?;
+            d.put(out)
+        })
+        .map_err(|e| to_py(e.into()))
+    }
+
+    /// Measures every point and writes the outputs: the files written, relative to
+    /// `out`. `adapter` names the workers' adapters for the run's record.
+    fn finish(&mut self, py: Python<'_>, adapter: &str) -> PyResult<Vec<String>> {
+        let d = self
+            .inner
+            .take()
+            .ok_or_else(|| err(ErrorKind::Other, "this sweep has finished already"))?;
+        let report = py
+            .detach(|| d.finish(adapter))
+            .map_err(|e| to_py(e.into()))?;
+        Ok(report.files)
+    }
+}
+
+/// A sweep's worker: one tracer kept open across tasks (its pipelines compile once),
+/// the experiment read from `path` with `set` as the driver read it.
+#[pyclass(module = "voxlab", name = "AblateWorker")]
+struct AblateWorker {
+    worker: voxlab::ablate::tasks::Worker,
+    e: voxlab::Experiment,
+    c: voxlab::ablate::AblateConfig,
+    schedule: voxlab::ablate::tasks::Schedule,
+}
+
+#[pymethods]
+impl AblateWorker {
+    /// `cpu_only`: no GPU is opened (a worker for the CPU reference's bands).
+    #[new]
+    #[pyo3(signature = (path, set, cpu_only=false))]
+    fn new(py: Python<'_>, path: PathBuf, set: Vec<String>, cpu_only: bool) -> PyResult<Self> {
+        let set = overrides(&set)?;
+        py.detach(|| {
+            let (e, c, _) = voxlab::ablate::load_with(&path, &set)?;
+            let worker = if cpu_only {
+                voxlab::ablate::tasks::Worker::cpu()
+            } else {
+                voxlab::ablate::tasks::Worker::new(&c)?
+            };
+            let schedule = voxlab::ablate::tasks::Schedule::new(&e, &c);
+            Ok::<_, voxlab::Error>(Self {
+                worker,
+                e,
+                c,
+                schedule,
+            })
+        })
+        .map_err(to_py)
+    }
+
+    /// The adapter the rows this worker renders record.
+    #[getter]
+    fn adapter(&self) -> String {
+        self.worker.adapter()
+    }
+
+    /// The points' backend as `[ablate] backend` asks: `auto`, `gpu` or `cpu`.
+    #[getter]
+    fn backend(&self) -> &'static str {
+        self.c.backend.name()
+    }
+
+    /// `[ablate] reference_backend`: `cpu` or `gpu`.
+    #[getter]
+    fn reference_backend(&self) -> &'static str {
+        self.c.reference_backend.name()
+    }
+
+    /// The reference's renderer as its cache key names it.
+    #[getter]
+    fn reference_label(&self) -> String {
+        self.worker.reference_label(&self.c)
+    }
+
+    /// Does a task (`AblateDriver.tasks`' JSON) with the GIL released: its encoded output.
+    fn run<'py>(&mut self, py: Python<'py>, task: &str) -> PyResult<Bound<'py, PyBytes>> {
+        let t: voxlab::ablate::tasks::Task = serde_json::from_str(task)
+            .map_err(|e| err(ErrorKind::Invalid, format!("task {task:?}: {e}")))?;
+        let Self {
+            worker,
+            e,
+            c,
+            schedule,
+        } = self;
+        let bytes = py
+            .detach(|| worker.run(e, c, schedule, &t).map(|o| o.encode()))
+            .map_err(|e| to_py(e.into()))?;
+        Ok(PyBytes::new(py, &bytes))
+    }
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("VoxlabError", m.py().get_type::<VoxlabError>())?;
@@ -918,6 +1106,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Grid>()?;
     m.add_class::<Session>()?;
     m.add_class::<Image>()?;
+    m.add_class::<AblateDriver>()?;
+    m.add_class::<AblateWorker>()?;
     m.add_function(wrap_pyfunction!(load_path, m)?)?;
     m.add_function(wrap_pyfunction!(load_text, m)?)?;
     m.add_function(wrap_pyfunction!(load_json, m)?)?;

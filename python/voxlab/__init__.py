@@ -55,8 +55,15 @@ def _error(message: str, key: Optional[str] = None) -> VoxlabError:
     return e
 
 
+class _RawToml(str):
+    """A `--set` value as typed on a command line (`python -m voxlab`): TOML text,
+    passed through unchanged and checked by the parser."""
+
+
 def _toml_value(key: str, v: Any) -> str:
     """A Python value as a TOML literal, for `--set KEY=VALUE`."""
+    if isinstance(v, _RawToml):
+        return str(v)
     if isinstance(v, np.generic):
         v = v.item()
     if isinstance(v, bool):
@@ -236,11 +243,14 @@ def techniques() -> list:
 
 class AblateResult(NamedTuple):
     """What `ablate` measured: the CSV's rows (a DataFrame when pandas is installed,
-    else a list of dicts) and the files it wrote."""
+    else a list of dicts) and the files it wrote; with executor="ray", the tasks this
+    run did and the points it took from the cache (`resume`)."""
 
     rows: Any
     files: list
     out: Path
+    tasks: Optional[int] = None
+    resumed: Optional[int] = None
 
 
 def _number(text: str) -> Any:
@@ -259,13 +269,24 @@ def ablate(
     *,
     cache: Optional[PathLike] = None,
     progress: Union[bool, Callable[[int, int], Any], None] = None,
+    resume: bool = False,
+    executor: str = "local",
+    address: Optional[str] = None,
+    workers: Optional[int] = None,
+    bands: Optional[int] = None,
 ) -> AblateResult:
     """`voxlab ablate` on an experiment file (its [ablate] table; an Experiment loaded
     from a file brings its overrides): error against time of every shadow model and
     knob, written under `out` (images, grid, CSV, plot, tables). Returns the CSV's rows
     and the paths of the files written. The GIL is released; Ctrl-C stops the sweep
     between renders (KeyboardInterrupt; the images and cached references done stay, no
-    table is written). `progress` as for `Session.render` (units: estimated work)."""
+    table is written). `progress` as for `Session.render` (units: estimated work; with
+    Ray, tasks). `resume`: take the points an earlier run left in the cache.
+
+    `executor="ray"` spreads the reference's bands of rows and the points over a Ray
+    cluster (`address`, or a local one; `workers` point workers, default one per GPU
+    or CPU; `bands` per reference half): the same rows and images as a local run,
+    timings aside (each row records its worker's adapter). docs/ray.md."""
     sets = _overrides(set)
     if isinstance(experiment, Experiment):
         if experiment.source is None:
@@ -279,11 +300,32 @@ def ablate(
     else:
         path = os.fspath(experiment)
     out = Path(out)
+    cache_path = None if cache is None else os.fspath(cache)
+    if executor not in ("local", "ray"):
+        raise _error(f'executor {executor!r}: must be "local" or "ray"', key="executor")
+    if executor == "local" and (address, workers, bands) != (None, None, None):
+        raise _error('address, workers and bands are options of executor="ray"', key="executor")
     callback, bar = _progress_callback(progress, f"ablate {Path(path).stem}")
+    tasks = resumed = None
     try:
-        files = _native.ablate(
-            path, sets, os.fspath(out), None if cache is None else os.fspath(cache), callback
-        )
+        if executor == "ray":
+            from .distributed import ablate_on_ray
+
+            files, tasks, resumed = ablate_on_ray(
+                os.fspath(path),
+                sets,
+                os.fspath(out),
+                cache_path,
+                address=address,
+                workers=workers,
+                bands=bands,
+                resume=resume,
+                progress=callback,
+            )
+        else:
+            files = _native.ablate(
+                path, sets, os.fspath(out), cache_path, callback, resume
+            )
     finally:
         if bar is not None:
             bar.close()
@@ -295,5 +337,7 @@ def ablate(
         pass
     else:
         rows = pandas.DataFrame(rows)
-    return AblateResult(rows=rows, files=[out / f for f in files], out=out)
+    return AblateResult(
+        rows=rows, files=[out / f for f in files], out=out, tasks=tasks, resumed=resumed
+    )
 

@@ -185,6 +185,10 @@ class AblateResult(NamedTuple):
     files: list[Path]
     """Every file written."""
     out: Path
+    tasks: Optional[int]
+    """executor="ray": the tasks this run did (reference bands and points)."""
+    resumed: Optional[int]
+    """executor="ray": the points taken from the cache (`resume`)."""
 
 def ablate(
     experiment: Union[_PathLike, Experiment],
@@ -193,6 +197,14 @@ def ablate(
     *,
     cache: Optional[_PathLike] = None,
     progress: Union[bool, Callable[[int, int], Any], None] = None,
+    resume: bool = False,
+    executor: str = "local",
+    address: Optional[str] = None,
+    workers: Optional[int] = None,
+    bands: Optional[int] = None,
 ) -> AblateResult:
     """`voxlab ablate`: error against time of every shadow model and knob of the file's
-    [ablate] table, written under `out`. Ctrl-C stops it between renders."""
+    [ablate] table, written under `out`. Ctrl-C stops it between renders. `resume`
+    takes the points an earlier run left in the cache. `executor="ray"` spreads the
+    reference's bands and the points over a Ray cluster (`address`, else a local one;
+    `workers`, `bands`): the same rows and images, timings aside (docs/ray.md)."""

@@ -53,6 +53,10 @@ pub struct Schedule {
     pub point_reference: Vec<usize>,
     /// Each point's content key (`point_key`): the name of its kept output.
     pub point_keys: Vec<String>,
+    /// A hash of every point's key and every reference's scene and settings: a band
+    /// rendered for another sweep (an experiment file changed between the driver and
+    /// a worker) is refused by it.
+    pub fingerprint: String,
 }
 
 impl Schedule {
@@ -95,12 +99,20 @@ impl Schedule {
             };
             point_reference.push(i);
         }
-        let point_keys = points.iter().map(|p| point_key(e, c, p)).collect();
+        let point_keys: Vec<String> = points.iter().map(|p| point_key(e, c, p)).collect();
+        let mut h = blake3::Hasher::new();
+        for k in &point_keys {
+            h.update(k.as_bytes());
+        }
+        for r in &references {
+            h.update(reference_key(&r.scene, &r.halves, "").as_bytes());
+        }
         Self {
             points,
             references,
             point_reference,
             point_keys,
+            fingerprint: h.finalize().to_hex().to_string(),
         }
     }
 }
@@ -147,6 +159,8 @@ pub enum Task {
 /// A band of a reference half.
 #[derive(Clone, Debug)]
 pub struct Tile {
+    /// The sweep's [`Schedule::fingerprint`].
+    pub sweep: String,
     pub reference: usize,
     pub half: usize,
     pub rows: Range<u32>,
@@ -198,6 +212,7 @@ pub enum TaskOutput {
 #[serde(tag = "kind", rename_all = "kebab-case")]
 enum Header {
     Tile {
+        sweep: String,
         reference: usize,
         half: usize,
         rows: [u32; 2],
@@ -224,6 +239,7 @@ impl TaskOutput {
         let (header, frames): (Header, Vec<&Frame>) = match self {
             Self::Tile(t) => (
                 Header::Tile {
+                    sweep: t.sweep.clone(),
                     reference: t.reference,
                     half: t.half,
                     rows: [t.rows.start, t.rows.end],
@@ -304,12 +320,14 @@ impl TaskOutput {
         };
         let out = match header {
             Header::Tile {
+                sweep,
                 reference,
                 half,
                 rows,
                 seconds,
                 size,
             } => Self::Tile(Tile {
+                sweep,
                 reference,
                 half,
                 rows: rows[0]..rows[1],
@@ -366,6 +384,16 @@ impl Worker {
         Ok(Self {
             tracers: Tracers::new(c)?,
         })
+    }
+
+    /// A worker without a GPU, for the CPU reference's bands (a cluster's CPU tasks).
+    pub fn cpu() -> Self {
+        Self {
+            tracers: Tracers {
+                gpu: None,
+                gpu_error: Some("a CPU worker (reference bands)".into()),
+            },
+        }
     }
 
     pub(super) fn tracers_mut(&mut self) -> &mut Tracers {
@@ -433,6 +461,7 @@ impl Worker {
                     progress.reference_cost(s.spp) * u64::from(rows[1] - rows[0]) / u64::from(h),
                 );
                 Ok(TaskOutput::Tile(Tile {
+                    sweep: schedule.fingerprint.clone(),
                     reference,
                     half,
                     rows: rows[0]..rows[1],
@@ -447,10 +476,21 @@ impl Worker {
                     .ok_or_else(|| anyhow!("no point {index} in this sweep"))?;
                 let scene = point_scene(e, p);
                 let seeds = self.measure(c, p, &scene, progress)?;
+                // What rendered it: the GPU's adapter, or the CPU reference and the
+                // processor it ran on (a worker's thread count shapes its times).
+                let adapter = if seeds.iter().all(|s| s.backend == "gpu") {
+                    self.adapter()
+                } else {
+                    format!(
+                        "{} on {}",
+                        crate::cpu::backend_summary(),
+                        crate::cpu::host_summary()
+                    )
+                };
                 Ok(TaskOutput::Point(PointRenders {
                     index,
                     key: schedule.point_keys[index].clone(),
-                    adapter: self.adapter(),
+                    adapter,
                     seeds,
                 }))
             }
@@ -735,6 +775,13 @@ impl Driver {
 
     fn put_tile(&mut self, t: Tile) -> Result<()> {
         let (w, h) = (self.e.settings.width, self.e.settings.height);
+        if t.sweep != self.schedule.fingerprint {
+            bail!(
+                "a band of reference {} was made for another sweep (the experiment changed \
+                 between the driver and a worker?)",
+                t.reference
+            );
+        }
         let Some(ReferenceSlot::Pending(p)) = self.references.get_mut(t.reference) else {
             bail!("reference {} is not waiting for bands", t.reference);
         };
