@@ -100,6 +100,50 @@ def reference_exr(cache: Path) -> bytes:
     return exr.read_bytes()
 
 
+def test_an_address_nobody_answers_is_an_error_not_a_wait(sweep, tmp_path):
+    """ray.init retries an unreachable head for minutes: the address is tried first.
+    (First in the file: the module's cluster is not started yet.)"""
+    src, _ = sweep
+    # A port nothing listens on (bound, then closed).
+    import socket
+
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    assert not ray.is_initialized()
+    start = time.monotonic()
+    for address, message in (
+        (f"127.0.0.1:{port}", "no Ray cluster answers"),
+        ("127.0.0.1", "expected HOST:PORT"),
+        ("127.0.0.1:99999", "expected HOST:PORT"),
+    ):
+        with pytest.raises(vx.VoxlabError, match=message):
+            vx.ablate(src, tmp_path / "x", executor="ray", address=address)
+    assert time.monotonic() - start < 30
+    assert not ray.is_initialized()
+    assert not (tmp_path / "x").exists()
+
+
+def test_python_m_voxlab_ablate_runs_on_ray(sweep, tmp_path):
+    src, d = sweep
+    proc = subprocess.run(
+        [sys.executable, "-m", "voxlab", "ablate", str(src), "--out", str(tmp_path / "cli"),
+         "--executor", "ray", "--workers", "2", "--set", "ablate.seeds=2"],
+        capture_output=True, text=True, timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "tasks on Ray" in proc.stdout
+    assert_same_sweep(d / "local", tmp_path / "cli")
+    bad = subprocess.run(
+        [sys.executable, "-m", "voxlab", "ablate", str(src), "--out", str(tmp_path / "bad"),
+         "--set", "ablate.seeds=0"],
+        capture_output=True, text=True, timeout=600,
+    )
+    assert bad.returncode == 1 and "seeds" in bad.stderr, bad.stderr
+    assert not (tmp_path / "bad" / "ablation.csv").exists()
+
+
 def test_a_ray_sweep_equals_the_local_run_and_its_banded_reference_is_exact(cluster, sweep):
     src, d = sweep
     result = vx.ablate(
@@ -204,23 +248,9 @@ def test_bad_executor_options_are_refused(sweep, tmp_path):
         vx.ablate(src, tmp_path / "x", executor="dask")
     with pytest.raises(vx.VoxlabError, match="executor"):
         vx.ablate(src, tmp_path / "x", workers=2)
+    for bad in (0, -1, 2.5, True, 10**9):
+        with pytest.raises(vx.VoxlabError, match="workers"):
+            vx.ablate(src, tmp_path / "x", executor="ray", workers=bad)
+        with pytest.raises(vx.VoxlabError, match="bands"):
+            vx.ablate(src, tmp_path / "x", executor="ray", bands=bad)
     assert not (tmp_path / "x").exists()
-
-
-def test_python_m_voxlab_ablate_runs_on_ray(sweep, tmp_path):
-    src, d = sweep
-    proc = subprocess.run(
-        [sys.executable, "-m", "voxlab", "ablate", str(src), "--out", str(tmp_path / "cli"),
-         "--executor", "ray", "--workers", "2", "--set", "ablate.seeds=2"],
-        capture_output=True, text=True, timeout=600,
-    )
-    assert proc.returncode == 0, proc.stderr
-    assert "tasks on Ray" in proc.stdout
-    assert_same_sweep(d / "local", tmp_path / "cli")
-    bad = subprocess.run(
-        [sys.executable, "-m", "voxlab", "ablate", str(src), "--out", str(tmp_path / "bad"),
-         "--set", "ablate.seeds=0"],
-        capture_output=True, text=True, timeout=600,
-    )
-    assert bad.returncode == 1 and "seeds" in bad.stderr, bad.stderr
-    assert not (tmp_path / "bad" / "ablation.csv").exists()

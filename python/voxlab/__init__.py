@@ -305,6 +305,11 @@ def ablate(
         raise _error(f'executor {executor!r}: must be "local" or "ray"', key="executor")
     if executor == "local" and (address, workers, bands) != (None, None, None):
         raise _error('address, workers and bands are options of executor="ray"', key="executor")
+    for name, value in (("workers", workers), ("bands", bands)):
+        if value is not None and (
+            isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 4096
+        ):
+            raise _error(f"{name} = {value!r}: an integer in 1..=4096", key=name)
     callback, bar = _progress_callback(progress, f"ablate {Path(path).stem}")
     tasks = resumed = None
     try:

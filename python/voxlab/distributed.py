@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 from typing import Any, Callable, Optional
 
 from . import _native
@@ -82,6 +83,31 @@ def _run_band(path: str, sets: tuple, task: str) -> bytes:
     return _band_worker(path, sets).run(task)
 
 
+# Seconds to wait for a cluster's head to answer before saying it cannot be reached:
+# ray.init retries an unreachable address for minutes.
+CONNECT_TIMEOUT_S = 10.0
+
+
+def _reachable(address: str) -> None:
+    """A VoxlabError unless HOST:PORT accepts a connection within CONNECT_TIMEOUT_S
+    ("auto", and "ray://" client addresses, are Ray's to resolve: they fail fast)."""
+    if address == "auto" or "://" in address:
+        return
+    host, sep, port = address.rpartition(":")
+    if not sep or not port.isdigit() or not 0 < int(port) < 65536:
+        raise _native.VoxlabError(
+            f"address {address!r}: expected HOST:PORT (the head's GCS port, 6379 by "
+            'default), "auto", or ray://HOST:PORT'
+        )
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=CONNECT_TIMEOUT_S).close()
+    except OSError as e:
+        raise _native.VoxlabError(
+            f"address {address!r}: no Ray cluster answers there ({e}); start one with "
+            "`ray start --head` (docs/ray.md)"
+        ) from None
+
+
 def _unwrap(err: BaseException) -> BaseException:
     """The VoxlabError inside a Ray task error, so the caller sees what a local run
     would raise."""
@@ -121,8 +147,14 @@ def ablate_on_ray(
     if not ray.is_initialized():
         kwargs: dict = {"include_dashboard": False, "log_to_driver": False}
         if address is not None:
+            _reachable(address)
             kwargs["address"] = address
-        ray.init(**kwargs)
+        try:
+            ray.init(**kwargs)
+        except ConnectionError as e:
+            raise _native.VoxlabError(
+                f"address {address!r}: {e} (docs/ray.md: ray start --head)"
+            ) from None
         started = True
     actors: list = []
     try:
