@@ -236,130 +236,26 @@ struct RawFile {
     ablate: Option<RawAblate>,
 }
 
-/// Finds keys of `[ablate]` in the text, for `file:line: key = value: what` messages in
-/// the style of `crate::experiment`.
-struct Locator<'a> {
-    file: String,
-    text: &'a str,
-    doc: Option<toml_edit::Document<String>>,
-}
+/// Keys of `[ablate]` as the experiment's locator names them (`ablate.<key>`).
+struct Locator<'a>(crate::experiment::Ctx<'a>);
 
 impl<'a> Locator<'a> {
     fn new(text: &'a str, path: &Path) -> Self {
-        Self {
-            file: path.display().to_string(),
-            text,
-            doc: toml_edit::Document::parse(text.to_string()).ok(),
-        }
+        Self(crate::experiment::Ctx::new(text, path))
     }
 
-    fn line_of(&self, offset: usize) -> usize {
-        self.text.as_bytes()[..offset.min(self.text.len())]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-            + 1
-    }
-
-    fn table(&self) -> Option<(Option<std::ops::Range<usize>>, Vec<KeySpan>)> {
-        let doc = self.doc.as_ref()?;
-        let (_, item) = doc.as_table().get_key_value("ablate")?;
-        let entries = |iter: &mut dyn Iterator<Item = (&toml_edit::Key, &toml_edit::Item)>| {
-            iter.map(|(k, v)| KeySpan {
-                name: k.get().to_string(),
-                key: k.span(),
-                value: v.span(),
-            })
-            .collect()
-        };
-        match item {
-            toml_edit::Item::Table(t) => Some((
-                t.span(),
-                entries(&mut t.iter().filter_map(|(k, _)| t.get_key_value(k))),
-            )),
-            toml_edit::Item::Value(toml_edit::Value::InlineTable(t)) => Some((
-                t.span(),
-                entries(&mut t.iter().filter_map(|(k, _)| t.get_key_value(k))),
-            )),
-            _ => None,
-        }
-    }
-
-    /// Line and written value of `ablate.<key>` (the table's line if the key is absent).
-    fn find(&self, key: &str) -> (Option<usize>, Option<String>) {
-        let Some((header, keys)) = self.table() else {
-            return (None, None);
-        };
-        match keys.iter().find(|k| k.name == key) {
-            Some(k) => (
-                k.key
-                    .clone()
-                    .or(k.value.clone())
-                    .map(|s| self.line_of(s.start)),
-                k.value
-                    .clone()
-                    .and_then(|s| self.text.get(s))
-                    .map(|s| s.trim().to_string()),
-            ),
-            None => (header.map(|s| self.line_of(s.start)), None),
-        }
+    /// The line of `ablate.<key>` (the table's line if the key is absent).
+    fn line(&self, key: &str) -> Option<usize> {
+        self.0.line_of_key(&format!("ablate.{key}"))
     }
 
     fn invalid(&self, key: &str, requirement: impl std::fmt::Display) -> ExperimentError {
-        let (line, value) = self.find(key);
-        ExperimentError::Invalid {
-            file: self.file.clone(),
-            line,
-            key: format!("ablate.{key}"),
-            message: match value {
-                Some(v) => format!(" = {v}: {requirement}"),
-                None => format!(": {requirement}"),
-            },
-        }
+        self.0.invalid(&format!("ablate.{key}"), requirement)
     }
 
     fn serde_error(&self, e: &toml::de::Error) -> ExperimentError {
-        let line = e.span().map(|s| self.line_of(s.start));
-        let msg = e
-            .message()
-            .trim()
-            .replace("expected i64", "expected an integer");
-        // The key whose key or value span holds the error, if any.
-        let key = e.span().and_then(|err| {
-            let (_, keys) = self.table()?;
-            keys.into_iter()
-                .find(|k| {
-                    [&k.key, &k.value]
-                        .into_iter()
-                        .flatten()
-                        .any(|s| s.start <= err.start && err.start < s.end.max(s.start + 1))
-                })
-                .map(|k| k.name)
-        });
-        if let Some(rest) = msg.strip_prefix("unknown field `") {
-            let (name, expected) = rest.split_once('`').unwrap_or((rest, ""));
-            let allowed: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
-            return ExperimentError::UnknownKey {
-                file: self.file.clone(),
-                line,
-                key: format!("ablate.{name}"),
-                allowed: allowed.join(", "),
-            };
-        }
-        let key = key.map_or("ablate".to_string(), |k| format!("ablate.{k}"));
-        ExperimentError::Invalid {
-            file: self.file.clone(),
-            line,
-            key,
-            message: format!(": {msg}"),
-        }
+        self.0.serde_error(e)
     }
-}
-
-struct KeySpan {
-    name: String,
-    key: Option<std::ops::Range<usize>>,
-    value: Option<std::ops::Range<usize>>,
 }
 
 impl AblateConfig {
@@ -512,8 +408,8 @@ impl AblateConfig {
         for (name, value) in &raw.lists {
             let Some((_, key, _)) = shared_lists().find(|(list, _, _)| list == name) else {
                 return Err(ExperimentError::UnknownKey {
-                    file: loc.file.clone(),
-                    line: loc.find(name).0,
+                    file: loc.0.file.clone(),
+                    line: loc.line(name),
                     key: format!("ablate.{name}"),
                     allowed: ABLATE_KEYS
                         .iter()

@@ -754,9 +754,11 @@ impl SceneCache {
     }
 }
 
-/// What error messages need: the file's name, and the text to find lines in.
-struct Ctx<'a> {
-    file: String,
+/// What error messages need: the file's name, and the text to find lines in. The one
+/// TOML locator: the experiment's parser and `[ablate]`'s (`crate::ablate`) both name
+/// `file:line: key = value: requirement` through it.
+pub(crate) struct Ctx<'a> {
+    pub(crate) file: String,
     stem: String,
     text: &'a str,
     /// `None` only if toml_edit rejects what toml accepted; lines are then left out.
@@ -764,7 +766,7 @@ struct Ctx<'a> {
 }
 
 impl<'a> Ctx<'a> {
-    fn new(text: &'a str, path: &Path) -> Self {
+    pub(crate) fn new(text: &'a str, path: &Path) -> Self {
         Self {
             file: path.display().to_string(),
             stem: path
@@ -832,8 +834,13 @@ impl<'a> Ctx<'a> {
         self.text.get(span).map(|s| s.trim().to_string())
     }
 
+    /// The line of the value at `path` (or of the nearest enclosing table the file has).
+    pub(crate) fn line_of_key(&self, path: &str) -> Option<usize> {
+        self.span_of(path).map(|s| self.line_of(s.start))
+    }
+
     /// `key = value: what is allowed`, at the key's line.
-    fn invalid(&self, key: &str, requirement: impl fmt::Display) -> ExperimentError {
+    pub(crate) fn invalid(&self, key: &str, requirement: impl fmt::Display) -> ExperimentError {
         // Quoted values are cut: a 10 MB `name` must not make a 10 MB message.
         let requirement = crate::input::excerpt(&requirement.to_string(), 400);
         let message = match self.raw_value(key) {
@@ -853,7 +860,7 @@ impl<'a> Ctx<'a> {
 
     /// Converts serde's error (type mismatches, unknown or missing keys, bad syntax) into
     /// ours, naming the key at its span.
-    fn serde_error(&self, e: &toml::de::Error) -> ExperimentError {
+    pub(crate) fn serde_error(&self, e: &toml::de::Error) -> ExperimentError {
         let span = e.span();
         let line = span.as_ref().map(|s| self.line_of(s.start));
         // Serde names Rust types; a researcher writing TOML thinks in integers and numbers.
