@@ -8,9 +8,9 @@
 //!
 //! A shadow or transmittance model brings its own plan rule (`crate::technique`); the
 //! plan calls it and composes the model's module. To add a feature of the kernel itself:
-//! add a field, decide it in [`Plan::new`] with a reason when it is left out, name its
-//! shader def in [`Plan::shader_defs`], and list it in [`Plan::FLAGS`] so the composition
-//! test covers it.
+//! add a field, decide it in [`Plan::new`] with a reason when it is left out, and add
+//! its row to [`KERNEL_FLAGS`] (its shader def, printed name and whether the
+//! composition test enumerates it): the shader defs, the printing and the tests read it.
 //!
 //! Lighting terms, like shadow and transmittance models, bring their plan rules; every
 //! combination of them with every combination of [`Plan::FLAGS`] would be 4 times as
@@ -309,16 +309,97 @@ fn tir_possible(scene: &Scene) -> bool {
     })
 }
 
+/// A boolean feature of the kernel: its shader def and the [`Plan`] field that holds
+/// it. [`KERNEL_FLAGS`] is the one table that the plan's printing, its shader defs (and
+/// so the pipeline cache's key) and the tests' enumeration read.
+#[derive(Clone, Copy)]
+pub struct KernelFlag {
+    /// The shader def (`#ifdef REFLECTION`) and the plan's printed name.
+    pub name: &'static str,
+    /// In [`Plan::FLAGS`]: the tests compose every combination of these
+    /// ([`Plan::all_variants`]). The others select a small, separately tested piece
+    /// (the pixel filter's jitter, the seed's rules, the ray cutoff).
+    pub enumerated: bool,
+    get: fn(&Plan) -> bool,
+    set: fn(&mut Plan, bool),
+}
+
+/// Every kernel flag, in the order plans print them.
+pub const KERNEL_FLAGS: [KernelFlag; 9] = [
+    KernelFlag {
+        name: "REFLECTION",
+        enumerated: true,
+        get: |p| p.reflection,
+        set: |p, on| p.reflection = on,
+    },
+    KernelFlag {
+        name: "REFRACTION",
+        enumerated: true,
+        get: |p| p.refraction,
+        set: |p, on| p.refraction = on,
+    },
+    KernelFlag {
+        name: "SHADOWS",
+        enumerated: true,
+        get: |p| p.shadows,
+        set: |p, on| p.shadows = on,
+    },
+    KernelFlag {
+        name: "EMISSION",
+        enumerated: true,
+        get: |p| p.emission,
+        set: |p, on| p.emission = on,
+    },
+    KernelFlag {
+        name: "ACCUMULATE",
+        enumerated: true,
+        get: |p| p.accumulate,
+        set: |p, on| p.accumulate = on,
+    },
+    KernelFlag {
+        name: "COUNT_RAYS",
+        enumerated: true,
+        get: |p| p.count_rays,
+        set: |p, on| p.count_rays = on,
+    },
+    KernelFlag {
+        name: "PIXEL_FILTER",
+        enumerated: false,
+        get: |p| p.pixel_filter,
+        set: |p, on| p.pixel_filter = on,
+    },
+    KernelFlag {
+        name: "SEED_RULES",
+        enumerated: false,
+        get: |p| p.seed_rules,
+        set: |p, on| p.seed_rules = on,
+    },
+    KernelFlag {
+        name: "RAY_CUTOFF",
+        enumerated: false,
+        get: |p| p.ray_cutoff,
+        set: |p, on| p.ray_cutoff = on,
+    },
+];
+
 impl Plan {
-    /// Shader flags in the order they are printed and enumerated by tests.
-    pub const FLAGS: [&'static str; 6] = [
-        "REFLECTION",
-        "REFRACTION",
-        "SHADOWS",
-        "EMISSION",
-        "ACCUMULATE",
-        "COUNT_RAYS",
-    ];
+    /// The enumerated flags of [`KERNEL_FLAGS`], in their order.
+    pub const FLAGS: [&'static str; 6] = {
+        let mut out = [""; 6];
+        let (mut i, mut n) = (0, 0);
+        while i < KERNEL_FLAGS.len() {
+            if KERNEL_FLAGS[i].enumerated {
+                out[n] = KERNEL_FLAGS[i].name;
+                n += 1;
+            }
+            i += 1;
+        }
+        assert!(
+            n == out.len(),
+            "Plan::FLAGS holds every enumerated kernel flag"
+        );
+        out
+    };
 
     /// The plan for rendering `scene` with `settings`, without ray counting.
     pub fn new(scene: &Scene, settings: &RenderSettings) -> Self {
@@ -619,30 +700,21 @@ impl Plan {
             .collect()
     }
 
-    /// The value of a flag of [`Plan::FLAGS`] by name.
+    /// The value of a flag of [`KERNEL_FLAGS`] by name (false for a name it lacks).
     pub fn flag(&self, name: &str) -> bool {
-        match name {
-            "REFLECTION" => self.reflection,
-            "REFRACTION" => self.refraction,
-            "SHADOWS" => self.shadows,
-            "EMISSION" => self.emission,
-            "ACCUMULATE" => self.accumulate,
-            "COUNT_RAYS" => self.count_rays,
-            _ => false,
-        }
+        KERNEL_FLAGS
+            .iter()
+            .find(|f| f.name == name)
+            .is_some_and(|f| (f.get)(self))
     }
 
-    /// Sets a flag of [`Plan::FLAGS`] by name (for tests that enumerate variants).
+    /// Sets a flag of [`KERNEL_FLAGS`] by name (for tests that enumerate variants).
     pub fn set_flag(&mut self, name: &str, on: bool) {
-        match name {
-            "REFLECTION" => self.reflection = on,
-            "REFRACTION" => self.refraction = on,
-            "SHADOWS" => self.shadows = on,
-            "EMISSION" => self.emission = on,
-            "ACCUMULATE" => self.accumulate = on,
-            "COUNT_RAYS" => self.count_rays = on,
-            _ => panic!("unknown plan flag {name}"),
-        }
+        let f = KERNEL_FLAGS
+            .iter()
+            .find(|f| f.name == name)
+            .unwrap_or_else(|| panic!("unknown plan flag {name}"));
+        (f.set)(self, on);
     }
 
     /// Every combination of flags and transmittance models with the given stack size
@@ -690,19 +762,8 @@ impl Plan {
     /// and the stack size as an integer def. Also the key of the pipeline cache.
     pub fn shader_defs(&self) -> ShaderDefs {
         let mut defs = ShaderDefs::new();
-        for f in Self::FLAGS {
-            if self.flag(f) {
-                defs.insert(f.to_string(), ShaderDefValue::Bool(true));
-            }
-        }
-        if self.pixel_filter {
-            defs.insert("PIXEL_FILTER".to_string(), ShaderDefValue::Bool(true));
-        }
-        if self.seed_rules {
-            defs.insert("SEED_RULES".to_string(), ShaderDefValue::Bool(true));
-        }
-        if self.ray_cutoff {
-            defs.insert("RAY_CUTOFF".to_string(), ShaderDefValue::Bool(true));
+        for f in KERNEL_FLAGS.iter().filter(|f| (f.get)(self)) {
+            defs.insert(f.name.to_string(), ShaderDefValue::Bool(true));
         }
         // The transmittance model's module is composed in; a model other than the
         // default keys the cache by its index.
@@ -768,16 +829,11 @@ impl Plan {
 
 impl fmt::Display for Plan {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let pixel_filter = self.pixel_filter.then(|| "PIXEL_FILTER".to_string());
-        let seed_rules = self.seed_rules.then(|| "SEED_RULES".to_string());
-        let ray_cutoff = self.ray_cutoff.then(|| "RAY_CUTOFF".to_string());
-        let on: Vec<String> = self
-            .flags_on()
-            .into_iter()
-            .chain(pixel_filter)
-            .chain(seed_rules)
-            .chain(ray_cutoff)
-            .collect();
+        let unenumerated = KERNEL_FLAGS
+            .iter()
+            .filter(|f| !f.enumerated && (f.get)(self))
+            .map(|f| f.name.to_string());
+        let on: Vec<String> = self.flags_on().into_iter().chain(unenumerated).collect();
         write!(
             f,
             "plan: [{}] ray stack {}",
