@@ -63,20 +63,7 @@ fn transmittance(q: vec3<f32>, d: vec3<f32>, len: f32) -> vec3<f32> {
     var done = false;
     var i = 0u;
     loop {
-        done = shadow_step(&s, &w, &absorb, len);
-#if DDA_UNROLL >= 2
-        if !done { done = shadow_step(&s, &w, &absorb, len); }
-#endif
-#if DDA_UNROLL >= 4
-        if !done { done = shadow_step(&s, &w, &absorb, len); }
-        if !done { done = shadow_step(&s, &w, &absorb, len); }
-#endif
-#if DDA_UNROLL >= 8
-        if !done { done = shadow_step(&s, &w, &absorb, len); }
-        if !done { done = shadow_step(&s, &w, &absorb, len); }
-        if !done { done = shadow_step(&s, &w, &absorb, len); }
-        if !done { done = shadow_step(&s, &w, &absorb, len); }
-#endif
+        #walk_steps done = shadow_step(&s, &w, &absorb, len);
         continuing {
             i += #{DDA_UNROLL}u;
             break if done || i >= n;

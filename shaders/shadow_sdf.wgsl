@@ -66,20 +66,7 @@ fn penumbra(q: vec3<f32>, d: vec3<f32>, len: f32, k: f32) -> f32 {
     var done = false;
     var i = 0u;
     loop {
-        done = penumbra_step(&s, &t0, &p, len, k);
-#if DDA_UNROLL >= 2
-        if !done { done = penumbra_step(&s, &t0, &p, len, k); }
-#endif
-#if DDA_UNROLL >= 4
-        if !done { done = penumbra_step(&s, &t0, &p, len, k); }
-        if !done { done = penumbra_step(&s, &t0, &p, len, k); }
-#endif
-#if DDA_UNROLL >= 8
-        if !done { done = penumbra_step(&s, &t0, &p, len, k); }
-        if !done { done = penumbra_step(&s, &t0, &p, len, k); }
-        if !done { done = penumbra_step(&s, &t0, &p, len, k); }
-        if !done { done = penumbra_step(&s, &t0, &p, len, k); }
-#endif
+        #walk_steps done = penumbra_step(&s, &t0, &p, len, k);
         continuing {
             i += #{DDA_UNROLL}u;
             break if done || i >= n;

@@ -119,20 +119,7 @@ fn surface_transmittance(q: vec3<f32>, d: vec3<f32>, len: f32, medium: u32) -> v
     var i = 0u;
     if !done {
         loop {
-            done = surface_step(&s, &w, &absorb, r, len);
-#if DDA_UNROLL >= 2
-            if !done { done = surface_step(&s, &w, &absorb, r, len); }
-#endif
-#if DDA_UNROLL >= 4
-            if !done { done = surface_step(&s, &w, &absorb, r, len); }
-            if !done { done = surface_step(&s, &w, &absorb, r, len); }
-#endif
-#if DDA_UNROLL >= 8
-            if !done { done = surface_step(&s, &w, &absorb, r, len); }
-            if !done { done = surface_step(&s, &w, &absorb, r, len); }
-            if !done { done = surface_step(&s, &w, &absorb, r, len); }
-            if !done { done = surface_step(&s, &w, &absorb, r, len); }
-#endif
+            #walk_steps done = surface_step(&s, &w, &absorb, r, len);
             if s.at_cell {
                 s.at_cell = false;
                 pass_cell(&s, &w, &absorb, r, s.cell_t, len);

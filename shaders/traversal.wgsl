@@ -323,23 +323,12 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
     // masks), so each walk also pays up to DDA_UNROLL - 1 idle steps. The exit is tested
     // at the bottom, so no pass runs after the last lane's walk is over (shaders/
     // counters.wgsl).
+    // `#walk_steps` writes the unrolled steps (src/gpu/compose.rs, expand_walk_steps),
+    // the one template of this walk and the shadow walks.
     var done = false;
     var i = 0u;
     loop {
-        done = cast_step(&s, &h, medium, t_limit);
-#if DDA_UNROLL >= 2
-        if !done { done = cast_step(&s, &h, medium, t_limit); }
-#endif
-#if DDA_UNROLL >= 4
-        if !done { done = cast_step(&s, &h, medium, t_limit); }
-        if !done { done = cast_step(&s, &h, medium, t_limit); }
-#endif
-#if DDA_UNROLL >= 8
-        if !done { done = cast_step(&s, &h, medium, t_limit); }
-        if !done { done = cast_step(&s, &h, medium, t_limit); }
-        if !done { done = cast_step(&s, &h, medium, t_limit); }
-        if !done { done = cast_step(&s, &h, medium, t_limit); }
-#endif
+        #walk_steps done = cast_step(&s, &h, medium, t_limit);
 #ifdef TRIANGLES
         if s.at_cell {
             s.at_cell = false;

@@ -118,8 +118,9 @@ pub(super) fn compose(
 ) -> Result<naga::Module, String> {
     let mut composer = Composer::default();
     for (path, source) in modules {
+        let source = expand_walk_steps(source);
         if let Err(e) = composer.add_composable_module(ComposableModuleDescriptor {
-            source,
+            source: &source,
             file_path: path,
             shader_defs: defs.clone(),
             ..Default::default()
@@ -127,13 +128,53 @@ pub(super) fn compose(
             return Err(e.emit_to_string(&composer));
         }
     }
+    let entry_source = expand_walk_steps(entry.1);
     let module = composer.make_naga_module(NagaModuleDescriptor {
-        source: entry.1,
+        source: &entry_source,
         file_path: entry.0,
         shader_defs: defs,
         ..Default::default()
     });
     module.map_err(|e| e.emit_to_string(&composer))
+}
+
+/// The directive that writes a walk's unrolled steps, so the four walks (`cast_ray`, the
+/// shadow walks, the distance-field penumbra) share one template: a line
+/// `#walk_steps done = step(args);` becomes that statement, then `if !done { done =
+/// step(args); }` repeated to `DDA_UNROLL` steps (1, 2, 4 or 8) under naga_oil's `#if`.
+/// The expansion adds lines, so a composition error's line number in a file that uses
+/// the directive counts them.
+const WALK_STEPS: &str = "#walk_steps ";
+
+/// `source` with every [`WALK_STEPS`] line expanded (unchanged, and not copied, when it
+/// has none).
+pub(super) fn expand_walk_steps(source: &str) -> std::borrow::Cow<'_, str> {
+    if !source.contains(WALK_STEPS) {
+        return std::borrow::Cow::Borrowed(source);
+    }
+    let mut out = String::with_capacity(source.len() + 1024);
+    for line in source.lines() {
+        let trimmed = line.trim_start();
+        let Some(statement) = trimmed.strip_prefix(WALK_STEPS) else {
+            out += line;
+            out.push('\n');
+            continue;
+        };
+        let indent = &line[..line.len() - trimmed.len()];
+        let flag = statement
+            .split_once(" = ")
+            .map_or("done", |(name, _)| name.trim());
+        let again = format!("{indent}if !{flag} {{ {} }}\n", statement.trim());
+        out += &format!("{indent}{}\n", statement.trim());
+        for (at_least, repeats) in [(2, 1), (4, 2), (8, 4)] {
+            out += &format!("#if DDA_UNROLL >= {at_least}\n");
+            for _ in 0..repeats {
+                out += &again;
+            }
+            out += "#endif\n";
+        }
+    }
+    std::borrow::Cow::Owned(out)
 }
 
 /// `voxlab::lighting_terms` for `plan`: `fn lighting_terms(p, n, s) -> vec3<f32>`, the
@@ -198,6 +239,30 @@ pub fn validate(module: &naga::Module) -> Result<naga::valid::ModuleInfo, String
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn walk_steps_unroll_to_one_two_four_and_eight_steps() {
+        let src = "fn f() {\n    loop {\n        #walk_steps done = step(&s, 1.0);\n    }\n}\n";
+        let out = expand_walk_steps(src);
+        let calls = out.matches("step(&s, 1.0)").count();
+        assert_eq!(calls, 1 + 1 + 2 + 4, "{out}");
+        assert_eq!(out.matches("if !done { done = step(&s, 1.0); }").count(), 7);
+        assert!(out.contains("\n        done = step(&s, 1.0);\n#if DDA_UNROLL >= 2\n"));
+        assert!(!out.contains("#walk_steps"));
+        // Without the directive, the source is passed through as it is.
+        let plain = "fn g() {}\n";
+        assert!(matches!(
+            expand_walk_steps(plain),
+            std::borrow::Cow::Borrowed(_)
+        ));
+        // No file under shaders/ writes the unrolled steps by hand any more.
+        for (path, text) in MODULES.iter().chain(SHADOW_MODULES) {
+            assert!(
+                !text.contains("#if DDA_UNROLL >= 2"),
+                "{path} unrolls by hand"
+            );
+        }
+    }
 
     /// Composes `plan`'s kernel and writes it as SPIR-V, as wgpu's Vulkan backend does
     /// when it makes the pipeline: naga's SPIR-V writer refuses (panics on) some IR its
