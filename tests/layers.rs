@@ -22,7 +22,7 @@ const LAYERS: &[(&str, &[&str])] = &[
     (
         "applications",
         &[
-            "session", "ablate", "bench", "stress", "info", "viewer", "export",
+            "session", "ablate", "bench", "stress", "info", "viewer", "export", "commands",
         ],
     ),
 ];
