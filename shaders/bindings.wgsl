@@ -40,6 +40,12 @@ fn voxel_material(v: vec3<i32>) -> u32 {
     return (voxels[i >> 2u] >> (8u * (i & 3u))) & 255u;
 }
 
+// Setting `i` (declared order) of the plan's shadow model: every setting a model
+// declares arrives here, packed by the host (src/technique/mod.rs, gpu_settings).
+fn technique_setting(i: u32) -> f32 {
+    return params.technique[i];
+}
+
 fn voxel_inside(v: vec3<i32>) -> bool {
     return all(v >= vec3<i32>(0)) && all(v < vec3<i32>(params.dims));
 }

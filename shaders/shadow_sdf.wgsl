@@ -4,17 +4,16 @@
 #define_import_path voxlab::shadow_model
 
 #import voxlab::types::{Material, Light, LIGHT_POINT, LIGHT_RECT}
-#import voxlab::bindings::{params, technique_data, voxel_inside}
+#import voxlab::bindings::{params, technique_data, technique_setting, voxel_inside}
 #import voxlab::counters::{count_shadow, loop_cut}
 #import voxlab::sampling::SampleKey
 #import voxlab::phong::{shadow_to, unshadowed}
 #import voxlab::emission::emitted
 #import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, max_steps}
 
-// `softness` of [techniques.sdf] (src/technique/sdf.rs): the host writes it into the
-// first word after the field.
+// `softness` of [techniques.sdf] (src/technique/sdf.rs): its first declared setting.
 fn softness() -> f32 {
-    return technique_data[params.dims.x * params.dims.y * params.dims.z];
+    return technique_setting(0u);
 }
 
 fn field(v: vec3<i32>) -> f32 {

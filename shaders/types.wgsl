@@ -45,6 +45,9 @@ struct Params {
     // PIXEL_FILTER_* (crate::render::PixelFilter) and its width in pixels (PIXEL_FILTER).
     pixel_filter: u32,
     filter_width: f32,
+    // The plan's shadow model's settings in declared order (src/technique/mod.rs,
+    // ShadowModel::gpu_settings); read them with bindings::technique_setting.
+    technique: vec4<f32>,
 }
 
 // crate::render::PixelFilter::code.

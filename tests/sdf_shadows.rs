@@ -227,8 +227,7 @@ fn the_device_builds_the_same_field() {
             .into_iter()
             .map(|d| d.min(f32::MAX as f64) as f32)
             .collect();
-        assert_eq!(device.len(), cpu.len() + 1, "case {case}");
-        assert_eq!(device[cpu.len()], 1.5, "softness after the field");
+        assert_eq!(device.len(), cpu.len(), "case {case}");
         for (i, (g, c)) in device.iter().zip(&cpu).enumerate() {
             assert!(
                 g == c || (g - c).abs() <= 1e-6 * c.abs(),

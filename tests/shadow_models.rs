@@ -69,6 +69,30 @@ fn declarations_are_sound() {
     let mut titles = std::collections::HashSet::new();
     for m in SHADOW_MODELS {
         assert!(!m.summary.is_empty() && m.summary.len() < 200, "{}", m.name);
+        // Every setting reaches the kernel through params.technique, in declared order.
+        assert!(
+            m.settings.len() <= technique::MAX_GPU_SETTINGS,
+            "{}: {} settings, params.technique holds {}",
+            m.name,
+            m.settings.len(),
+            technique::MAX_GPU_SETTINGS
+        );
+        let mut s = RenderSettings::default();
+        for (i, st) in m.settings.iter().enumerate() {
+            s.technique_params
+                .set(m.name, st.key, st.default + 1.0 + i as f64);
+        }
+        let packed = m.gpu_settings(&s);
+        for (i, st) in m.settings.iter().enumerate() {
+            assert_eq!(
+                packed[i],
+                (st.default + 1.0 + i as f64) as f32,
+                "{}.{}",
+                m.name,
+                st.key
+            );
+        }
+        assert!(packed[m.settings.len()..].iter().all(|&v| v == 0.0));
         assert!(
             !m.title.is_empty() && m.title.len() < 40 && titles.insert(m.title),
             "{}: the viewer lists it by a short title of its own",

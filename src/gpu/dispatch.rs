@@ -212,6 +212,7 @@ impl GpuTracer {
         let todo = frames.end - frames.start;
         let per_dispatch = self.frames_per_submission(plan.accumulate, pixels, todo);
         let mut params = Self::params(scene, settings);
+        params.technique = plan.shadow_model.gpu_settings(settings);
         params.frame_begin = frames.start;
         params.frame_count = per_dispatch;
         self.queue

@@ -78,6 +78,8 @@ struct GpuParams {
     ray_cutoff: f32,
     pixel_filter: u32,
     filter_width: f32,
+    // The plan's shadow model's settings (`ShadowModel::gpu_settings`).
+    technique: [f32; crate::technique::MAX_GPU_SETTINGS],
 }
 
 /// `ReduceParams` of `shaders/accumulate.wgsl`.
@@ -157,7 +159,7 @@ const LOOPS_CUT: usize = 8;
 const REDUCE_WORKGROUP: u32 = 64;
 
 // The WGSL uniform struct is 144 bytes (9 rows of 16).
-const _: () = assert!(std::mem::size_of::<GpuParams>() == 144);
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 160);
 const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuLight>() == 80);
 

@@ -368,6 +368,7 @@ impl GpuTracer {
             ray_cutoff: crate::ray_cutoff::cutoff(settings),
             pixel_filter: settings.pixel_filter.code(),
             filter_width: settings.filter_width as f32,
+            technique: [0.0; crate::technique::MAX_GPU_SETTINGS],
         }
     }
 

@@ -320,7 +320,23 @@ impl ShadowModel {
             .unwrap_or_else(|| panic!("{} has no setting {key}", self.name));
         settings.technique_params.get(self.name, s)
     }
+
+    /// Its settings as the kernel reads them: `params.technique` (shaders/types.wgsl),
+    /// in declared order, as f32, zero past the last. Every setting a model declares
+    /// reaches its WGSL this way, with no packing of its own (`technique_setting(i)`,
+    /// shaders/bindings.wgsl).
+    pub fn gpu_settings(&self, settings: &RenderSettings) -> [f32; MAX_GPU_SETTINGS] {
+        let mut out = [0.0; MAX_GPU_SETTINGS];
+        for (o, s) in out.iter_mut().zip(self.settings) {
+            *o = settings.technique_params.get(self.name, s) as f32;
+        }
+        out
+    }
 }
+
+/// The most settings a shadow model may declare: the size of `params.technique`
+/// (shaders/types.wgsl). The registry's tests check every model against it.
+pub const MAX_GPU_SETTINGS: usize = 4;
 
 /// What a curve of `voxlab ablate` sweeps.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -73,8 +73,8 @@ pub const MODEL: ShadowModel = ShadowModel {
         "shaders/shadow_sdf.wgsl",
         include_str!("../../shaders/shadow_sdf.wgsl"),
     ),
-    // The field, built on the device, then `softness` (shaders/shadow_sdf.wgsl reads it
-    // after the field).
+    // The field, built on the device (`softness` reaches the kernel with every model's
+    // settings, ShadowModel::gpu_settings).
     gpu_data: Some(GpuData::Device(build_on_device)),
     cpu: |scene, settings| {
         Box::new(Sdf {
@@ -289,7 +289,7 @@ impl CpuShadow for Sdf {
 const EDT: &str = include_str!("../../shaders/sdf_edt.wgsl");
 
 /// Builds `D` on the device (one envelope pass per axis, then the finishing pass) into a
-/// buffer of `voxels + 1` floats, the last one `softness`; an error when the driver's
+/// buffer of `voxels` floats; an error when the driver's
 /// loop limit cut a line short.
 fn build_on_device(b: &GpuBuild) -> anyhow::Result<wgpu::Buffer> {
     use wgpu::util::DeviceExt;
@@ -341,7 +341,7 @@ fn build_on_device(b: &GpuBuild) -> anyhow::Result<wgpu::Buffer> {
     let storage_usage = wgpu::BufferUsages::STORAGE;
     let field = buffer(
         "sdf field",
-        (voxels + 1) * 4,
+        voxels * 4,
         storage_usage | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
     );
     let other = buffer("sdf field (pass)", voxels * 4, storage_usage);
@@ -432,7 +432,5 @@ fn build_on_device(b: &GpuBuild) -> anyhow::Result<wgpu::Buffer> {
             dims.z
         );
     }
-    let softness = MODEL.value(b.settings, "softness") as f32;
-    queue.write_buffer(&field, voxels * 4, bytemuck::bytes_of(&softness));
     Ok(field)
 }
