@@ -143,6 +143,47 @@ impl GpuTracer {
         })
     }
 
+    /// The error of a render the driver's loop limit cut short: which driver, why, and
+    /// what to lower (the image would be wrong, so none is returned).
+    fn loops_cut_error(
+        &self,
+        cut: u32,
+        pixel_frames: u64,
+        scene: &Scene,
+        settings: &RenderSettings,
+        plan: &Plan,
+    ) -> anyhow::Error {
+        let info = self.adapter.get_info();
+        anyhow::Error::new(LoopsCut).context(format!(
+            "{} of {} pixel-frames of this image were cut short by the driver ({}, {}): \
+             Mesa's software driver (llvmpipe, lavapipe) ends every loop of an \
+             invocation after 65535 loop iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS, \
+             counted over the 8 or 16 SIMD lanes that run together), and one frame of \
+             these pixels needs more (depth limits {}/{}, {} light sample(s), {} \
+             light(s), grid {}x{}x{}; {} voxel steps per loop iteration). The image \
+             would be wrong, so none is returned: lower light_samples, the depth limits \
+             (or max_depth) or the grid size, or render with --backend cpu or on a \
+             hardware GPU",
+            cut,
+            pixel_frames,
+            info.name,
+            info.driver_info,
+            settings.max_reflection_depth,
+            settings.max_refraction_depth,
+            settings.light_samples,
+            scene.lights.len(),
+            scene.grid.dims().x,
+            scene.grid.dims().y,
+            scene.grid.dims().z,
+            plan.dda_unroll,
+        ))
+    }
+
+    /// Renders `frames` of `plan`: uploads under error scopes, bindings, pyramids, the
+    /// timed dispatches, readback, counters and memory. Still one function of about 330
+    /// lines because the error scopes, the buffers it binds and the query set live from
+    /// the first upload to the readback; the pieces that stand alone are the methods
+    /// above and `ray_stats`, `resolve_frame` below.
     pub(super) fn render_range_once(
         &mut self,
         scene: &Scene,
@@ -413,58 +454,26 @@ impl GpuTracer {
         };
         let counts: Vec<u32> = self.read(&self.counters_readback, COUNTER_BYTES)?;
         if counts[LOOPS_CUT] > 0 {
-            let info = self.adapter.get_info();
-            return Err(anyhow::Error::new(LoopsCut).context(format!(
-                "{} of {} pixel-frames of this image were cut short by the driver ({}, {}): \
-                 Mesa's software driver (llvmpipe, lavapipe) ends every loop of an \
-                 invocation after 65535 loop iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS, \
-                 counted over the 8 or 16 SIMD lanes that run together), and one frame of \
-                 these pixels needs more (depth limits {}/{}, {} light sample(s), {} \
-                 light(s), grid {}x{}x{}; {} voxel steps per loop iteration). The image \
-                 would be wrong, so none is returned: lower light_samples, the depth limits \
-                 (or max_depth) or the grid size, or render with --backend cpu or on a \
-                 hardware GPU",
+            return Err(self.loops_cut_error(
                 counts[LOOPS_CUT],
                 pixels * todo as u64,
-                info.name,
-                info.driver_info,
-                settings.max_reflection_depth,
-                settings.max_refraction_depth,
-                settings.light_samples,
-                scene.lights.len(),
-                scene.grid.dims().x,
-                scene.grid.dims().y,
-                scene.grid.dims().z,
-                plan.dda_unroll,
-            )));
+                scene,
+                settings,
+                &plan,
+            ));
         }
-        let c = |i: usize| counts[2 * i] as u64 | (counts[2 * i + 1] as u64) << 32;
         let stats = if count {
-            RayStats {
-                primary: c(0),
-                secondary: c(1),
-                shadow: c(2),
-                voxel_steps: c(3),
-                triangle_tests: 0,
-            }
+            ray_stats(&counts)
         } else {
             RayStats::default()
         };
-
-        let mut frame = Frame::new(settings.width, settings.height);
-        match &compensation {
-            None => {
-                for (dst, src) in frame.pixels.iter_mut().zip(&radiance) {
-                    *dst = [src[0], src[1], src[2]];
-                }
-            }
-            Some(comp) => {
-                let n = frames.end as f64;
-                for ((dst, sum), c) in frame.pixels.iter_mut().zip(&radiance).zip(comp) {
-                    *dst = std::array::from_fn(|k| ((sum[k] as f64 + c[k] as f64) / n) as f32);
-                }
-            }
-        }
+        let frame = resolve_frame(
+            settings.width,
+            settings.height,
+            &radiance,
+            compensation.as_deref(),
+            frames.end,
+        );
         let pyramids = plan.pyramid.map_or(0, |layout| {
             layout.texture_bytes(crate::technique::cones::pyramid::OPACITY_TEXEL_BYTES)
                 + if plan.radiance_pyramid() {
@@ -585,4 +594,43 @@ impl GpuTracer {
             ],
         })
     }
+}
+
+/// The ray counters as [`RayStats`]: each a u64 in two u32 words (shaders/counters.wgsl).
+fn ray_stats(counts: &[u32]) -> RayStats {
+    let c = |i: usize| counts[2 * i] as u64 | (counts[2 * i + 1] as u64) << 32;
+    RayStats {
+        primary: c(0),
+        secondary: c(1),
+        shadow: c(2),
+        voxel_steps: c(3),
+        triangle_tests: 0,
+    }
+}
+
+/// The image from the read-back radiance: as it is, or with ACCUMULATE the sum of
+/// `frames` frames and its compensation, (sum + compensation) / frames in f64, rounded
+/// once.
+fn resolve_frame(
+    width: u32,
+    height: u32,
+    radiance: &[[f32; 4]],
+    compensation: Option<&[[f32; 4]]>,
+    frames: u32,
+) -> Frame {
+    let mut frame = Frame::new(width, height);
+    match compensation {
+        None => {
+            for (dst, src) in frame.pixels.iter_mut().zip(radiance) {
+                *dst = [src[0], src[1], src[2]];
+            }
+        }
+        Some(comp) => {
+            let n = frames as f64;
+            for ((dst, sum), c) in frame.pixels.iter_mut().zip(radiance).zip(comp) {
+                *dst = std::array::from_fn(|k| ((sum[k] as f64 + c[k] as f64) / n) as f32);
+            }
+        }
+    }
+    frame
 }
