@@ -1448,10 +1448,11 @@ pub fn run(
 ) -> Result<AblateReport> {
     // The checks that need no tracer come first: nothing is opened or rendered for a
     // sweep that cannot run.
-    tasks::Driver::check(e, c, source, opts)?;
+    let external = tasks::Driver::check(e, c, source, opts)?;
     let mut worker = tasks::Worker::new(c)?;
     let adapter = worker.adapter();
-    let mut driver = tasks::Driver::new(e, c, source, opts, &worker.reference_label(c))?;
+    let label = worker.reference_label(c);
+    let mut driver = tasks::Driver::checked(e, c, source, opts, &label, external)?;
     // One band per reference half: the whole image, as a single process renders it.
     let todo = driver.tasks(1);
     let cost = |t: &tasks::Task, reference_us: f64, point_us: f64| -> f64 {
@@ -1552,13 +1553,16 @@ pub fn run(
         if let tasks::TaskOutput::Point(p) = &output {
             let label = driver.schedule.points[p.index].label();
             for s in &p.seeds {
-                let ms = s.times_ns.iter().zip(&s.setups_ns).map(|(a, b)| a + b);
-                let mut ms: Vec<f64> = ms.map(|t| t as f64 / 1e6).collect();
-                ms.sort_by(f64::total_cmp);
+                let totals: Vec<Duration> = s
+                    .times_ns
+                    .iter()
+                    .zip(&s.setups_ns)
+                    .map(|(a, b)| Duration::from_nanos(a + b))
+                    .collect();
                 progress.line(&format!(
                     "{label} seed {}: {:.2} ms ({})",
                     s.seed,
-                    ms[ms.len() / 2],
+                    median_ms(&totals),
                     s.backend
                 ));
             }

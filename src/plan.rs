@@ -324,62 +324,30 @@ pub struct KernelFlag {
     set: fn(&mut Plan, bool),
 }
 
+/// A row of [`KERNEL_FLAGS`]: the def's name, whether the tests enumerate it, and the
+/// `Plan` field that holds it.
+macro_rules! kernel_flag {
+    ($name:literal, $field:ident, $enumerated:expr) => {
+        KernelFlag {
+            name: $name,
+            enumerated: $enumerated,
+            get: |p| p.$field,
+            set: |p, on| p.$field = on,
+        }
+    };
+}
+
 /// Every kernel flag, in the order plans print them.
 pub const KERNEL_FLAGS: [KernelFlag; 9] = [
-    KernelFlag {
-        name: "REFLECTION",
-        enumerated: true,
-        get: |p| p.reflection,
-        set: |p, on| p.reflection = on,
-    },
-    KernelFlag {
-        name: "REFRACTION",
-        enumerated: true,
-        get: |p| p.refraction,
-        set: |p, on| p.refraction = on,
-    },
-    KernelFlag {
-        name: "SHADOWS",
-        enumerated: true,
-        get: |p| p.shadows,
-        set: |p, on| p.shadows = on,
-    },
-    KernelFlag {
-        name: "EMISSION",
-        enumerated: true,
-        get: |p| p.emission,
-        set: |p, on| p.emission = on,
-    },
-    KernelFlag {
-        name: "ACCUMULATE",
-        enumerated: true,
-        get: |p| p.accumulate,
-        set: |p, on| p.accumulate = on,
-    },
-    KernelFlag {
-        name: "COUNT_RAYS",
-        enumerated: true,
-        get: |p| p.count_rays,
-        set: |p, on| p.count_rays = on,
-    },
-    KernelFlag {
-        name: "PIXEL_FILTER",
-        enumerated: false,
-        get: |p| p.pixel_filter,
-        set: |p, on| p.pixel_filter = on,
-    },
-    KernelFlag {
-        name: "SEED_RULES",
-        enumerated: false,
-        get: |p| p.seed_rules,
-        set: |p, on| p.seed_rules = on,
-    },
-    KernelFlag {
-        name: "RAY_CUTOFF",
-        enumerated: false,
-        get: |p| p.ray_cutoff,
-        set: |p, on| p.ray_cutoff = on,
-    },
+    kernel_flag!("REFLECTION", reflection, true),
+    kernel_flag!("REFRACTION", refraction, true),
+    kernel_flag!("SHADOWS", shadows, true),
+    kernel_flag!("EMISSION", emission, true),
+    kernel_flag!("ACCUMULATE", accumulate, true),
+    kernel_flag!("COUNT_RAYS", count_rays, true),
+    kernel_flag!("PIXEL_FILTER", pixel_filter, false),
+    kernel_flag!("SEED_RULES", seed_rules, false),
+    kernel_flag!("RAY_CUTOFF", ray_cutoff, false),
 ];
 
 impl Plan {

@@ -175,7 +175,7 @@ def ablate_on_ray(
         threads = 1 if use_gpus else max(1, cpus // n)
         actor_class = ray.remote(_PointWorker).options(**actor_options(use_gpus, threads))
         actors = [actor_class.remote(path, list(sets), False) for _ in range(n)]
-        labels = [ray.get(a.labels.remote()) for a in actors]
+        labels = ray.get([a.labels.remote() for a in actors])
         adapters = sorted({a for a, _ in labels})
         reference_labels = {r for _, r in labels}
         if len(reference_labels) != 1:

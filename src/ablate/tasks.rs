@@ -641,6 +641,19 @@ impl Driver {
         reference_label: &str,
     ) -> Result<Self> {
         let external = Self::check(e, c, source, opts)?;
+        Self::checked(e, c, source, opts, reference_label, external)
+    }
+
+    /// [`Driver::new`] for a sweep [`Driver::check`] passed, with the external reference
+    /// it loaded (a local run checks before it opens a tracer).
+    pub fn checked(
+        e: &Experiment,
+        c: &AblateConfig,
+        source: Option<&str>,
+        opts: &AblateOptions,
+        reference_label: &str,
+        external: Option<external::External>,
+    ) -> Result<Self> {
         let out = opts.out_dir.clone();
         let cache_dir = cache_dir(opts);
         std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
