@@ -90,7 +90,9 @@ pub struct Plan {
     /// in (`TRAVERSAL_ID`, with `TREE_LEVELS` the tree's depth for one that walks the
     /// tree). Only the data it walks is built and uploaded: the tree, or the voxel buffer.
     pub traversal: &'static TraversalModel,
-    /// Levels of the sparse tree's nodes (0 for a traversal that does not walk it).
+    /// The most levels of the sparse tree one descent takes (`TREE_LEVELS`): the tree's
+    /// depth, or fewer for a walk whose descents start below the root (0 for a
+    /// traversal that does not walk the tree).
     pub tree_levels: u32,
     /// Why this traversal, in plain words.
     pub traversal_reason: String,
@@ -125,7 +127,7 @@ fn choose_traversal(scene: &Scene, settings: &RenderSettings) -> (&'static Trave
 }
 
 /// `render.traversal = "auto"`: of the traversals that can walk the scene, the last one
-/// that claims it, else the first (the default when it can).
+/// that claims it, else the default when it can, else the last registered that can.
 fn auto_traversal(scene: &Scene, settings: &RenderSettings) -> (&'static TraversalModel, String) {
     let (t, why) = auto_traversal_within(scene, settings, |_| true);
     (t, format!("auto: {why}"))
@@ -151,9 +153,16 @@ pub fn auto_traversal_within(
             None => {}
         }
     }
-    let chosen = *able
-        .first()
-        .expect("some traversal walks every scene and fits every device (the sparse one)");
+    // The default where it can walk the scene, else the last registered that can (of
+    // the tree walks, which walk every scene and fit every device, the faster).
+    let default = crate::technique::default_traversal();
+    let chosen = if able.contains(&default) {
+        default
+    } else {
+        *able
+            .last()
+            .expect("some traversal walks every scene and fits every device (the tree walks)")
+    };
     let why = if declined.is_empty() {
         "the default".to_string()
     } else {
@@ -215,13 +224,16 @@ pub fn check_traversal(scene: &Scene, settings: &RenderSettings) -> Result<(), S
     })
 }
 
-/// The levels of the sparse tree `traversal` walks on a grid of `dims`; 0 for one that
+/// The most levels of the sparse tree one descent of `traversal` takes on a grid of
+/// `dims` (the tree's depth unless its descents start below the root); 0 for one that
 /// walks no tree.
 pub fn tree_levels(traversal: &TraversalModel, dims: glam::UVec3) -> u32 {
-    if traversal.walks_tree {
-        crate::sparse::levels_for(dims, crate::sparse::GPU_LOG_BRANCH)
-    } else {
-        0
+    if !traversal.walks_tree {
+        return 0;
+    }
+    match traversal.descent_levels {
+        Some(levels) => levels(dims),
+        None => crate::sparse::levels_for(dims, crate::sparse::GPU_LOG_BRANCH),
     }
 }
 
@@ -814,7 +826,8 @@ impl fmt::Display for Plan {
         )?;
         write!(f, "\n  traversal: {}", self.traversal.label)?;
         if self.traversal.walks_tree {
-            write!(f, ", {} levels", self.tree_levels)?;
+            let s = if self.tree_levels == 1 { "" } else { "s" };
+            write!(f, ", descents of {} level{s}", self.tree_levels)?;
         }
         write!(f, " ({})", self.traversal_reason)?;
         if self.surface.traces_triangles() {

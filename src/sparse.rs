@@ -386,6 +386,15 @@ impl Regions for SparseTree {
     }
 }
 
+/// One cube of a [`SparseTree::cut`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cut {
+    /// Every voxel of the cube inside the grid holds this material.
+    Uniform(u8),
+    /// The cube is the node of this index.
+    Node(u32),
+}
+
 /// A sparse hierarchical grid: see the module documentation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SparseTree {
@@ -534,12 +543,18 @@ impl SparseTree {
 
     /// The uniform region holding voxel `v` (inside the grid).
     pub fn region(&self, v: IVec3) -> Region {
+        self.region_below(v, 0, self.log_branch * (self.levels - 1))
+    }
+
+    /// The uniform region holding voxel `v` (inside the grid), found by descending from
+    /// `node`, whose cube holds `v` and whose children are `2^shift` voxels a side.
+    pub fn region_below(&self, v: IVec3, node: u32, shift: u32) -> Region {
         debug_assert!(v.cmpge(IVec3::ZERO).all() && v.as_uvec3().cmplt(self.dims).all());
         let (mask_at, first_at, materials_at) = self.offsets();
         let b = self.log_branch;
         let mask = (1 << b) - 1;
-        let mut node = 0usize;
-        let mut shift = b * (self.levels - 1);
+        let mut node = node as usize;
+        let mut shift = shift;
         loop {
             let c = (v >> shift as i32) & mask;
             let i = (c.x | (c.y << b) | (c.z << (2 * b))) as usize;
@@ -557,6 +572,76 @@ impl SparseTree {
             let hi = (lo + IVec3::splat(1 << shift)).min(self.dims.as_ivec3());
             return Region { material, lo, hi };
         }
+    }
+
+    /// The tree cut at the cubes of `2^log_side` voxels a side (`log_side` a multiple of
+    /// the branching's log, at most the root's cube): the cut's dims (the grid's, rounded
+    /// up) and, for each cube (x fastest), its material where it is uniform, else the
+    /// node that holds it. A cube reaching past the grid is uniform only where the tree
+    /// holds it so (its part outside the grid counts as void, `Builder::child`).
+    pub fn cut(&self, log_side: u32) -> (UVec3, Vec<Cut>) {
+        let b = self.log_branch;
+        assert!(
+            log_side.is_multiple_of(b) && log_side <= b * self.levels,
+            "cut at 2^{log_side}"
+        );
+        let side = 1u32 << log_side;
+        let cut_dims = (self.dims + UVec3::splat(side - 1)) / side;
+        let mut cubes = vec![Cut::Uniform(VOID); cut_dims.as_usizevec3().element_product()];
+        let index = |c: IVec3| {
+            c.x as usize + cut_dims.x as usize * (c.y as usize + cut_dims.y as usize * c.z as usize)
+        };
+        if log_side == b * self.levels {
+            cubes[0] = Cut::Node(0);
+            return (cut_dims, cubes);
+        }
+        let (mask_at, first_at, materials_at) = self.offsets();
+        let branch = 1i32 << b;
+        let dims = self.dims.as_ivec3();
+        let mut stack = vec![(0usize, IVec3::ZERO, b * (self.levels - 1))];
+        while let Some((node, lo, shift)) = stack.pop() {
+            let base = HEADER_WORDS + node * self.node_words();
+            let first = self.words[base + first_at] as usize;
+            let mut below = 0;
+            for i in 0..self.children() {
+                let c = IVec3::new(
+                    i as i32 % branch,
+                    i as i32 / branch % branch,
+                    i as i32 / branch / branch,
+                );
+                let child_lo = lo + (c << shift as i32);
+                let is_node = self.words[base + mask_at + i / 32] & (1 << (i % 32)) != 0;
+                if is_node {
+                    below += 1;
+                }
+                if child_lo.cmpge(dims).any() {
+                    continue;
+                }
+                if is_node {
+                    let child = first + below - 1;
+                    if shift == log_side {
+                        cubes[index(child_lo >> log_side as i32)] = Cut::Node(child as u32);
+                    } else {
+                        stack.push((child, child_lo, shift - b));
+                    }
+                    continue;
+                }
+                let m = (self.words[base + materials_at + i / 4] >> (8 * (i % 4))) as u8;
+                let hi = (child_lo + IVec3::splat(1 << shift)).min(dims);
+                let (c_lo, c_hi) = (
+                    child_lo >> log_side as i32,
+                    (hi + IVec3::splat(side as i32 - 1)) >> log_side as i32,
+                );
+                for z in c_lo.z..c_hi.z {
+                    for y in c_lo.y..c_hi.y {
+                        for x in c_lo.x..c_hi.x {
+                            cubes[index(IVec3::new(x, y, z))] = Cut::Uniform(m);
+                        }
+                    }
+                }
+            }
+        }
+        (cut_dims, cubes)
     }
 
     /// How many of the grid's voxels hold each material (the parts of the root's cube

@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{DENSE_WALK, OCTANT_WALK, PROXIMITY_WALK, SPARSE_WALK};
+use common::{DENSE_WALK, OCTANT_WALK, PROXIMITY_WALK, SPARSE_OCTANT_WALK, SPARSE_WALK};
 use common::{assert_agree, assert_matches_golden, experiment, linear, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
@@ -220,6 +220,17 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
         sparse.walk_data > 0 && sparse.walk_data < dense.grid,
         "{sparse:?}"
     );
+    // The sparse octant walk: the tree, the cut's header and two words for each of its
+    // cells (of 4 voxels a side at 64^3).
+    gpu.render(&scene, &settings(16, 16, 1, SPARSE_OCTANT_WALK))
+        .unwrap();
+    let cut = gpu.last_memory().unwrap();
+    assert_eq!(cut.grid, 0, "{cut:?}");
+    assert_eq!(
+        cut.walk_data,
+        sparse.walk_data + 16 + 8 * 16 * 16 * 16,
+        "{cut:?}"
+    );
     // The proximity walk: two bytes a voxel of its own, no voxel buffer.
     gpu.render(&scene, &settings(16, 16, 1, PROXIMITY_WALK))
         .unwrap();
@@ -232,14 +243,14 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
     let octant = gpu.last_memory().unwrap();
     assert_eq!(octant.grid, 0, "{octant:?}");
     assert_eq!(octant.walk_data, 4 * 64 * 64 * 64, "{octant:?}");
-    // Auto: dense below OCTANT_FROM_SIDE, the octant walk from it on, sparse from
+    // Auto: dense below OCTANT_FROM_SIDE, the octant walk from it on, the sparse octant walk from
     // SPARSE_FROM_SIDE on; the plan says why.
     use voxlab::technique::{octant::OCTANT_FROM_SIDE, sparse::SPARSE_FROM_SIDE};
     for (n, want) in [
         (OCTANT_FROM_SIDE - 1, DENSE_WALK),
         (OCTANT_FROM_SIDE, OCTANT_WALK),
         (SPARSE_FROM_SIDE - 1, OCTANT_WALK),
-        (SPARSE_FROM_SIDE, SPARSE_WALK),
+        (SPARSE_FROM_SIDE, SPARSE_OCTANT_WALK),
     ] {
         let scene = seed_scene_dims(UVec3::new(n, 3, 2)).unwrap();
         let plan = voxlab::plan::Plan::new(&scene, &settings(8, 8, 1, Traversal::Auto));
@@ -268,7 +279,7 @@ fn auto_takes_the_walk_the_device_binds() {
         (4 * voxels, OCTANT_WALK),
         (4 * voxels - 1, PROXIMITY_WALK),
         (2 * voxels - 1, DENSE_WALK),
-        (voxels - 1, SPARSE_WALK),
+        (voxels - 1, SPARSE_OCTANT_WALK),
     ] {
         let (walk, why) = choose(dims, limit);
         assert_eq!(walk, want, "limit {limit}: {why}");

@@ -23,6 +23,10 @@ pub const EMISSION_MODULE: (&str, &str) = (
     include_str!("../../shaders/emission.wgsl"),
 );
 
+/// `voxlab::tree`: the descent through the sparse tree, imported by the traversals
+/// that walk it (`TraversalModel::walks_tree`).
+const TREE_MODULE: (&str, &str) = ("shaders/tree.wgsl", include_str!("../../shaders/tree.wgsl"));
+
 /// Importable modules in dependency order (each imports only modules above it).
 /// Embedded at build time so the tracer does not depend on the working directory.
 const MODULES: &[(&str, &str)] = &[
@@ -211,6 +215,9 @@ pub fn compose_shader(plan: &Plan) -> Result<naga::Module, ShaderError> {
     // The traversal's regions, which the walks (shaders/traversal.wgsl, the last of
     // MODULES) import.
     modules.insert(modules.len() - 1, plan.traversal.wgsl);
+    if plan.traversal.walks_tree {
+        modules.insert(modules.len() - 2, TREE_MODULE);
+    }
     modules.push(plan.transmittance.wgsl);
     modules.extend_from_slice(SHADOW_MODULES);
     modules.push(plan.shadow_model.wgsl);

@@ -26,6 +26,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
         include_str!("../../shaders/traversal_dense.wgsl"),
     ),
     walks_tree: false,
+    descent_levels: None,
     data: None,
     device_bytes: Some(voxel_buffer_bytes),
 };

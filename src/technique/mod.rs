@@ -60,6 +60,7 @@ pub mod shading;
 pub mod smooth;
 pub mod solid_angle;
 pub mod sparse;
+pub mod sparse_octant;
 pub mod voxels;
 
 use std::collections::BTreeMap;
@@ -96,6 +97,7 @@ pub const TRAVERSALS: &[&TraversalModel] = &[
     &proximity::TRAVERSAL,
     &octant::TRAVERSAL,
     &sparse::TRAVERSAL,
+    &sparse_octant::TRAVERSAL,
 ];
 
 /// Surfaces, in the order they are listed and offered; the first is the default (the
@@ -691,6 +693,10 @@ pub struct TraversalModel {
     /// Whether it walks the grid's sparse tree (`crate::sparse`): its module is
     /// composed with `TREE_LEVELS`, and it walks grids held only as their tree.
     pub walks_tree: bool,
+    /// For a tree walk whose descents start below the root: the most levels one descent
+    /// takes on a grid of these dims (`TREE_LEVELS`, `crate::plan::tree_levels`); `None`:
+    /// the tree's depth.
+    pub descent_levels: Option<fn(glam::UVec3) -> u32>,
     /// Its data of a grid, built once per render and in place of the dense grid's
     /// voxel buffer: the f64 walks ask it for regions (`crate::sparse::Regions`, the
     /// twin of its `region_at`), the kernel reads its words (`Regions::device_words`,

@@ -25,8 +25,8 @@ use crate::sparse::{Region, Regions};
 pub const RADII: [u8; 8] = [0, 1, 2, 4, 8, 16, 32, 64];
 
 /// The grid side from which `render.traversal = "auto"` walks the octant field (up to
-/// the sparse walk's [`super::sparse::SPARSE_FROM_SIDE`], registered after it, whose
-/// claim wins). On lavapipe, 512x512, since the tracer's loops test their exit at the
+/// the tree walks' [`super::sparse::SPARSE_FROM_SIDE`]: the sparse octant walk,
+/// registered after it, claims from there, and its claim wins). On lavapipe, 512x512, since the tracer's loops test their exit at the
 /// bottom (shaders/counters.wgsl): the seed scene at 0.80x the dense walk's speed at
 /// 8^3, 0.93x at 12^3, 1.05x at 16^3 and 1.22x at 24^3 (`voxlab bench --sizes
 /// 8,12,16,24 --size 512 --gpu-runs 3 --no-cpu --traversal dense,octant`); the seed's
@@ -50,6 +50,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
         include_str!("../../shaders/traversal_octant.wgsl"),
     ),
     walks_tree: false,
+    descent_levels: None,
     data: Some(|grid| Arc::new(OctantField::build(grid))),
     // One word a voxel.
     device_bytes: Some(|dims| super::per_voxel_bytes(dims, 4)),
@@ -65,7 +66,7 @@ pub struct OctantField {
 }
 
 /// The code of radius `r`: the largest entry of [`RADII`] not above it.
-fn code(r: u8) -> u32 {
+pub(crate) fn code(r: u8) -> u32 {
     RADII.iter().rposition(|&q| q <= r).unwrap_or(0) as u32
 }
 
@@ -105,7 +106,7 @@ impl OctantField {
 }
 
 /// The radius toward octant `o` a voxel's word holds.
-fn radius(word: u32, o: usize) -> u8 {
+pub(crate) fn radius(word: u32, o: usize) -> u8 {
     RADII[(word >> (8 + 3 * o) & 7) as usize]
 }
 
@@ -130,11 +131,12 @@ impl Regions for OctantField {
     }
 }
 
-/// Each voxel's radius toward octant `o`, capped at 255 (see the module documentation),
+/// Each voxel's radius toward octant `o` (any cell type compared by equality: the
+/// sparse octant walk's cells), capped at 255 (see the module documentation),
 /// by the recurrence swept from the octant's far corner a row at a time: first the six
 /// neighbours in the three rows done before (one pass over whole rows, which the
 /// compiler vectorizes), then the one before it in its own row.
-pub fn octant_radii(voxels: &[u8], dims: UVec3, o: usize) -> Vec<u8> {
+pub fn octant_radii<T: Copy + PartialEq>(voxels: &[T], dims: UVec3, o: usize) -> Vec<u8> {
     let (nx, ny, nz) = (dims.x as usize, dims.y as usize, dims.z as usize);
     let down = |a: usize| o >> a & 1 == 1;
     // The voxels in the order the sweep takes them along an axis, and whether the
@@ -193,7 +195,7 @@ pub fn octant_radii(voxels: &[u8], dims: UVec3, o: usize) -> Vec<u8> {
 
 /// `cross[x]` lowered to what neighbour `x` of another row allows: one more than its
 /// radius where it holds `mine[x]`'s material, else 0.
-fn fold(cross: &mut [u8], mine: &[u8], theirs: &[u8], radii: &[u8]) {
+fn fold<T: Copy + PartialEq>(cross: &mut [u8], mine: &[T], theirs: &[T], radii: &[u8]) {
     for (((c, &m), &t), &r) in cross.iter_mut().zip(mine).zip(theirs).zip(radii) {
         let allowed = if t == m { r.saturating_add(1) } else { 0 };
         *c = (*c).min(allowed);

@@ -58,6 +58,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
         include_str!("../../shaders/traversal_proximity.wgsl"),
     ),
     walks_tree: false,
+    descent_levels: None,
     data: Some(|grid| Arc::new(ProximityField::build(grid))),
     // Two bytes a voxel.
     device_bytes: Some(|dims| super::per_voxel_bytes(dims, 2)),

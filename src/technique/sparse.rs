@@ -3,18 +3,22 @@
 //! voxel, distance and face where the dense DDA leaves it (`src/trace_contract.md`,
 //! "Sparse traversal"; the structure and why a 64-tree: docs/sparse-traversal.md).
 //!
-//! It walks every grid. Under `render.traversal = "auto"` it takes grids of
-//! [`SPARSE_FROM_SIDE`] voxels a side or more, and every grid held only as its tree.
+//! It walks every grid, on demand (`render.traversal = "sparse"`): under `"auto"` the
+//! sparse octant walk ([`super::sparse_octant`], the same tree with an octant field over
+//! its cubes) takes the grids this walk would, in fewer steps.
 
 use super::TraversalModel;
 
-/// The grid side from which `render.traversal = "auto"` walks the sparse tree. Below it
-/// the dense walk's one load per step costs less than the tree's descent and region
-/// skip per step, for all the steps the tree saves: on lavapipe the seed scene renders
-/// at 0.80x the dense walk's speed with the tree at 256^3 and at 2.03x at 512^3, the
-/// bunny voxelized at 512 at 2.11x (`voxlab bench --sizes 256,512 --experiments
-/// experiments/bunny_512.toml`, docs/sparse-traversal.md). A grid larger than the
-/// device binds as one buffer is walked sparse whatever its side (`crate::gpu`).
+/// The grid side from which `render.traversal = "auto"` walks the tree (the sparse
+/// octant walk, [`super::sparse_octant`], which claims it). Below it the dense walk's
+/// one load per step costs less than the tree's descent and region skip per step, for
+/// all the steps the tree saves: on lavapipe the seed scene rendered at 0.80x the dense
+/// walk's speed with this walk at 256^3 and at 2.03x at 512^3, the bunny voxelized at
+/// 512 at 2.11x (`voxlab bench --sizes 256,512 --experiments experiments/bunny_512.toml`,
+/// docs/sparse-traversal.md), and the octant field beats both tree walks there (256^3,
+/// seed rules, 256x256: 90 ms against 427 ms for the sparse octant walk). A grid
+/// larger than the device binds as one buffer is walked through the tree whatever its
+/// side (`crate::gpu`).
 pub const SPARSE_FROM_SIDE: u32 = 512;
 
 pub const TRAVERSAL: TraversalModel = TraversalModel {
@@ -23,17 +27,13 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
               ray's medium whole (the seed's O2)",
     label: "sparse 64-tree",
     plan: |_, _| Ok(()),
-    auto: Some(|scene| {
-        if scene.grid.is_sparse() {
-            return Ok("the grid is held only as its sparse tree".into());
-        }
-        super::claim_from_side(scene, SPARSE_FROM_SIDE)
-    }),
+    auto: None,
     wgsl: (
         "shaders/traversal_sparse.wgsl",
         include_str!("../../shaders/traversal_sparse.wgsl"),
     ),
     walks_tree: true,
+    descent_levels: None,
     data: Some(|grid| grid.tree(crate::sparse::GPU_LOG_BRANCH)),
     device_bytes: None,
 };

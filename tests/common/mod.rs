@@ -214,6 +214,8 @@ pub const PROXIMITY_WALK: voxlab::render::Traversal =
     voxlab::render::Traversal::Walk(&voxlab::technique::proximity::TRAVERSAL);
 pub const OCTANT_WALK: voxlab::render::Traversal =
     voxlab::render::Traversal::Walk(&voxlab::technique::octant::TRAVERSAL);
+pub const SPARSE_OCTANT_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::sparse_octant::TRAVERSAL);
 pub const VOXELS_SURFACE: voxlab::render::Surface =
     voxlab::render::Surface(&voxlab::technique::voxels::SURFACE);
 pub const MESH_SURFACE: voxlab::render::Surface =

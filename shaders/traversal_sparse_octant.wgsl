@@ -1,0 +1,51 @@
+// The sparse octant traversal (src/technique/sparse_octant.rs): the octant field over the
+// 64-tree's cubes of 2^log_cell voxels. In a cell the tree holds as one material the
+// region is the walk's octant's cube of such cells (as traversal_octant.wgsl's cube of
+// voxels); in a cell the tree holds as a node, the tree's region below that node
+// (shaders/tree.wgsl). The f64 reference: crate::technique::sparse_octant::SparseOctant.
+#define_import_path voxlab::regions
+
+#import voxlab::types::Region
+#import voxlab::bindings::{params, walk_data}
+#import voxlab::tree::region_below
+
+// Regions are cubes of any size: dda_skip leaves them whole.
+const REGIONS_ARE_VOXELS: bool = false;
+
+// Read once a walk: the walk's octant (where its code sits in a cell's word, the axes it
+// heads down) and the cut (its first cell's vec4, log2 of a cell's side, its dims).
+struct RegionCursor {
+    shift: u32,
+    down: vec3<i32>,
+    cells: u32,
+    log_cell: u32,
+    cut_dims: vec3<u32>,
+}
+
+// An axis of step 0 takes the positive side (crate::technique::octant::octant).
+fn region_cursor(step: vec3<i32>) -> RegionCursor {
+    let down = select(vec3<i32>(0), vec3<i32>(1), step < vec3<i32>(0));
+    let o = u32(down.x) | (u32(down.y) << 1u) | (u32(down.z) << 2u);
+    let at = walk_data[0].w;
+    let cut = walk_data[at];
+    return RegionCursor(8u + 3u * o, down, at + 1u, cut.x, cut.yzw);
+}
+
+// The uniform region holding voxel v (inside the grid), for the walk's octant.
+fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
+    let u = vec3<u32>(v);
+    let cell = u >> vec3<u32>((*c).log_cell);
+    let d = (*c).cut_dims;
+    // Two words a cell: a vec4 holds two cells.
+    let i = cell.x + d.x * (cell.y + d.y * cell.z);
+    let pair = walk_data[(*c).cells + (i >> 1u)];
+    let word = select(pair.xy, pair.zw, (i & 1u) == 1u);
+    if word.y != 0u {
+        return region_below(v, word.y - 1u, (*c).log_cell - 2u).region;
+    }
+    let k = (word.x >> (*c).shift) & 7u;
+    let reach = vec3<i32>(i32((1u << k) >> 1u));
+    let lo = (vec3<i32>(cell) - reach * (*c).down) << vec3<u32>((*c).log_cell);
+    let hi = (vec3<i32>(cell) + 1 + reach * (1 - (*c).down)) << vec3<u32>((*c).log_cell);
+    return Region(word.x & 255u, max(lo, vec3<i32>(0)), min(hi, vec3<i32>(params.dims)));
+}

@@ -1,0 +1,93 @@
+// The descent through the grid's 64-tree (src/sparse.rs builds it and documents its
+// layout), shared by the walks over it: the sparse traversal (traversal_sparse.wgsl)
+// from the root or its cursor's node, the sparse octant traversal
+// (traversal_sparse_octant.wgsl) from a cell's node. The f64 reference:
+// crate::sparse::SparseTree::region_below.
+#define_import_path voxlab::tree
+
+#import voxlab::types::Region
+#import voxlab::bindings::{params, walk_data}
+
+// The tree as vec4s: the header, then 5 per node: (mask of child nodes, low and high
+// 32 children; index of the first child node; 0), then 16 words of materials.
+const NODE_VEC4S: u32 = 5u;
+
+// The descent's state: the node, the shift of its children's side (2 per level), and
+// the material once a uniform child holds the voxel.
+struct Descent {
+    node: u32,
+    shift: u32,
+    found: bool,
+    material: u32,
+}
+
+// One level: the child of the current node that holds v is either uniform (found) or
+// the node to descend into. Written once and repeated TREE_LEVELS times in
+// region_below rather than looped: Mesa's software driver limits back edges, not work
+// (shaders/counters.wgsl).
+fn descend(v: vec3<u32>, d: ptr<function, Descent>) {
+    let c = (v >> vec3<u32>((*d).shift)) & vec3<u32>(3u);
+    let i = c.x | (c.y << 2u) | (c.z << 4u);
+    let base = 1u + (*d).node * NODE_VEC4S;
+    // Mask and first child in one load.
+    let head = walk_data[base];
+    let word = select(head.x, head.y, i >= 32u);
+    let bit = 1u << (i & 31u);
+    if (word & bit) == 0u {
+        (*d).found = true;
+        let m = walk_data[base + 1u + (i >> 4u)][(i >> 2u) & 3u];
+        (*d).material = (m >> (8u * (i & 3u))) & 255u;
+        return;
+    }
+    let below = countOneBits(word & (bit - 1u)) + select(0u, countOneBits(head.x), i >= 32u);
+    (*d).node = head.z + below;
+    (*d).shift -= 2u;
+}
+
+// What a descent found: the region, and the node and children's shift it ended at (the
+// start of the next descent when the next voxel lies in that node's cube).
+struct Found {
+    region: Region,
+    node: u32,
+    shift: u32,
+}
+
+// The uniform region holding voxel v (inside the grid), descending from `node`, whose
+// children are 2^shift a side and whose cube holds v, at most TREE_LEVELS levels (the
+// plan's: the tree's depth, or a cell's levels for a walk that starts at a cell).
+fn region_below(v: vec3<i32>, node: u32, shift: u32) -> Found {
+    let u = vec3<u32>(v);
+    var d: Descent;
+    d.node = node;
+    d.shift = shift;
+    d.found = false;
+    descend(u, &d);
+#if TREE_LEVELS >= 2
+    if !d.found { descend(u, &d); }
+#endif
+#if TREE_LEVELS >= 3
+    if !d.found { descend(u, &d); }
+#endif
+#if TREE_LEVELS >= 4
+    if !d.found { descend(u, &d); }
+#endif
+#if TREE_LEVELS >= 5
+    if !d.found { descend(u, &d); }
+#endif
+#if TREE_LEVELS >= 6
+    if !d.found { descend(u, &d); }
+#endif
+#if TREE_LEVELS >= 7
+    if !d.found { descend(u, &d); }
+#endif
+#if TREE_LEVELS >= 8
+    if !d.found { descend(u, &d); }
+#endif
+    var f: Found;
+    f.region.material = d.material;
+    f.region.lo = vec3<i32>((u >> vec3<u32>(d.shift)) << vec3<u32>(d.shift));
+    f.region.hi = min(f.region.lo + vec3<i32>(1 << d.shift), vec3<i32>(params.dims));
+    f.node = d.node;
+    f.shift = d.shift;
+    return f;
+}
