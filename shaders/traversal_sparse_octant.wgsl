@@ -7,7 +7,7 @@
 
 #import voxlab::types::Region
 #import voxlab::bindings::{params, walk_data}
-#import voxlab::tree::region_below
+#import voxlab::tree::{NODE_VEC4S, region_below}
 
 // Regions are cubes of any size: dda_skip leaves them whole.
 const REGIONS_ARE_VOXELS: bool = false;
@@ -26,7 +26,8 @@ struct RegionCursor {
 fn region_cursor(step: vec3<i32>) -> RegionCursor {
     let down = select(vec3<i32>(0), vec3<i32>(1), step < vec3<i32>(0));
     let o = u32(down.x) | (u32(down.y) << 1u) | (u32(down.z) << 2u);
-    let at = walk_data[0].w;
+    // After the tree: its header vec4 and five vec4s a node (voxlab::tree).
+    let at = 1u + walk_data[0].z * NODE_VEC4S;
     let cut = walk_data[at];
     return RegionCursor(8u + 3u * o, down, at + 1u, cut.x, cut.yzw);
 }

@@ -372,8 +372,10 @@ pub trait Regions: Send + Sync {
     /// each axis is `step` (-1, 0 or 1): a traversal may give one that reaches only the
     /// way the ray goes (it must hold `v` along an axis of step 0).
     fn region(&self, v: IVec3, step: IVec3) -> Region;
-    /// The words the traversal's WGSL module reads (`walk_data`, shaders/bindings.wgsl).
-    fn device_words(&self) -> &[u32];
+    /// The words the traversal's WGSL module reads (`walk_data`, shaders/bindings.wgsl),
+    /// in parts laid one after another (so a walk that adds to the tree need not copy
+    /// it).
+    fn device_words(&self) -> Vec<&[u32]>;
 }
 
 impl Regions for SparseTree {
@@ -381,8 +383,8 @@ impl Regions for SparseTree {
         SparseTree::region(self, v)
     }
 
-    fn device_words(&self) -> &[u32] {
-        self.words()
+    fn device_words(&self) -> Vec<&[u32]> {
+        vec![self.words()]
     }
 }
 

@@ -144,8 +144,8 @@ impl GpuTracer {
         }
         self.walk_data = None;
         let data = build(grid);
-        let words = data.device_words();
-        let bytes = (words.len() * 4).next_multiple_of(16) as u64;
+        let parts = data.device_words();
+        let bytes = (parts.iter().map(|p| p.len()).sum::<usize>() * 4).next_multiple_of(16) as u64;
         let max = self.max_voxel_buffer_bytes();
         if bytes > max {
             bail!(
@@ -164,8 +164,12 @@ impl GpuTracer {
             bytes,
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         );
-        self.queue
-            .write_buffer(&buf, 0, bytemuck::cast_slice(words));
+        let mut offset = 0;
+        for part in parts {
+            self.queue
+                .write_buffer(&buf, offset, bytemuck::cast_slice(part));
+            offset += 4 * part.len() as u64;
+        }
         self.walk_data = Some((traversal, hash, buf));
         Ok(bytes)
     }

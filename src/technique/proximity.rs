@@ -126,8 +126,8 @@ impl Regions for ProximityField {
         }
     }
 
-    fn device_words(&self) -> &[u32] {
-        &self.words
+    fn device_words(&self) -> Vec<&[u32]> {
+        vec![&self.words]
     }
 }
 

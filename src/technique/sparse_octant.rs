@@ -8,11 +8,12 @@
 //! walk climbs at most the levels of one cell.
 //!
 //! Layout of its words (`walk_data`, shaders/traversal_sparse_octant.wgsl): the tree's
-//! words ([`crate::sparse`]) with header word 3 set to the vec4 index `h` of the cut;
-//! at `h`, one vec4 (log2 of the cell side, the cut's dims); from `h + 1`, two words a
-//! cell (x fastest): the octant field's word (material and eight codes,
+//! words ([`crate::sparse`]: a header vec4 and five vec4s a node), then, at vec4 `h = 1 +
+//! 5 * node count`, one vec4 (log2 of the cell side, the cut's dims) and from `h + 1`
+//! two words a cell (x fastest): the octant field's word (material and eight codes,
 //! [`super::octant::OctantField`]) and 0 for a uniform cell, or 0 and the node's index
-//! plus one for a cell the tree holds as a node.
+//! plus one for a cell the tree holds as a node. The tree is not copied: its words and
+//! the cut's are uploaded as two parts of one buffer.
 
 use std::sync::Arc;
 
@@ -81,11 +82,12 @@ pub struct SparseOctant {
     tree: Arc<SparseTree>,
     log_cell: u32,
     cut_dims: UVec3,
-    /// The tree's words, then the cut's header and cells.
-    words: Vec<u32>,
-    /// Index of the first cell's first word in `words`.
-    cells_at: usize,
+    /// The cut's header vec4, then its cells.
+    cut: Vec<u32>,
 }
+
+/// Words before the cut's first cell.
+const CUT_HEADER_WORDS: usize = 4;
 
 impl SparseOctant {
     pub fn build(tree: Arc<SparseTree>) -> Self {
@@ -103,13 +105,9 @@ impl SparseOctant {
             .into_par_iter()
             .map(|o| octant_radii(&cells, cut_dims, o))
             .collect();
-        let mut words = tree.words().to_vec();
-        debug_assert_eq!(words.len() % 4, 0);
-        let header = words.len() / 4;
-        words[3] = header as u32;
+        debug_assert_eq!(tree.words().len() % 4, 0, "the tree ends on a vec4");
+        let mut words = Vec::with_capacity(CUT_HEADER_WORDS + 2 * cut.len());
         words.extend_from_slice(&[log_cell, cut_dims.x, cut_dims.y, cut_dims.z]);
-        let cells_at = words.len();
-        words.reserve(2 * cut.len());
         for (i, c) in cut.iter().enumerate() {
             match c {
                 Cut::Uniform(m) => {
@@ -123,8 +121,7 @@ impl SparseOctant {
             tree,
             log_cell,
             cut_dims,
-            words,
-            cells_at,
+            cut: words,
         }
     }
 
@@ -137,14 +134,14 @@ impl Regions for SparseOctant {
     fn region(&self, v: IVec3, step: IVec3) -> Region {
         let c = v >> self.log_cell as i32;
         let d = self.cut_dims;
-        let i = self.cells_at
+        let i = CUT_HEADER_WORDS
             + 2 * (c.x as usize + d.x as usize * (c.y as usize + d.y as usize * c.z as usize));
-        let node = self.words[i + 1];
+        let node = self.cut[i + 1];
         if node != 0 {
             let shift = self.log_cell - self.tree.log_branch();
             return self.tree.region_below(v, node - 1, shift);
         }
-        let word = self.words[i];
+        let word = self.cut[i];
         let o = octant(step);
         let r = i32::from(radius(word, o));
         let down = IVec3::new((o & 1) as i32, (o >> 1 & 1) as i32, (o >> 2 & 1) as i32);
@@ -157,7 +154,7 @@ impl Regions for SparseOctant {
         }
     }
 
-    fn device_words(&self) -> &[u32] {
-        &self.words
+    fn device_words(&self) -> Vec<&[u32]> {
+        vec![self.tree.words(), &self.cut]
     }
 }
