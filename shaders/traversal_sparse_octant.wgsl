@@ -42,7 +42,9 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
     let pair = walk_data[(*c).cells + (i >> 1u)];
     let word = select(pair.xy, pair.zw, (i & 1u) == 1u);
     if word.y != 0u {
-        return region_below(v, word.y - 1u, (*c).log_cell - 2u).region;
+        // The node of the tree's level at or above the cell (src/sparse.rs, cut_node_log).
+        let node_log = ((*c).log_cell + 1u) & ~1u;
+        return region_below(v, word.y - 1u, node_log - 2u).region;
     }
     let k = (word.x >> (*c).shift) & 7u;
     let reach = vec3<i32>(i32((1u << k) >> 1u));

@@ -576,30 +576,34 @@ impl SparseTree {
         }
     }
 
-    /// The tree cut at the cubes of `2^log_side` voxels a side (`log_side` a multiple of
-    /// the branching's log, at most the root's cube): the cut's dims (the grid's, rounded
-    /// up) and, for each cube (x fastest), its material where it is uniform, else the
-    /// node that holds it. A cube reaching past the grid is uniform only where the tree
-    /// holds it so (its part outside the grid counts as void, `Builder::child`).
+    /// The tree cut at the cubes of `2^log_side` voxels a side (at most the root's
+    /// cube): the cut's dims (the grid's, rounded up) and, for each cube (x fastest), its
+    /// material where it is uniform, else the node that holds it: the node of side
+    /// `2^node_log`, [`Self::cut_node_log`], whose descent finds the cube's regions. A
+    /// cube reaching past the grid is uniform only where the tree holds it so (its part
+    /// outside the grid counts as void, `Builder::child`).
     pub fn cut(&self, log_side: u32) -> (UVec3, Vec<Cut>) {
         let b = self.log_branch;
         assert!(
-            log_side.is_multiple_of(b) && log_side <= b * self.levels,
+            (1..=b * self.levels).contains(&log_side),
             "cut at 2^{log_side}"
         );
+        let node_log = self.cut_node_log(log_side);
         let side = 1u32 << log_side;
         let cut_dims = (self.dims + UVec3::splat(side - 1)) / side;
         let mut cubes = vec![Cut::Uniform(VOID); cut_dims.as_usizevec3().element_product()];
         let index = |c: IVec3| {
             c.x as usize + cut_dims.x as usize * (c.y as usize + cut_dims.y as usize * c.z as usize)
         };
-        if log_side == b * self.levels {
-            cubes[0] = Cut::Node(0);
+        let dims = self.dims.as_ivec3();
+        if node_log == b * self.levels {
+            self.cut_node(0, IVec3::ZERO, node_log, log_side, &mut |c, cube| {
+                cubes[index(c)] = cube
+            });
             return (cut_dims, cubes);
         }
         let (mask_at, first_at, materials_at) = self.offsets();
         let branch = 1i32 << b;
-        let dims = self.dims.as_ivec3();
         let mut stack = vec![(0usize, IVec3::ZERO, b * (self.levels - 1))];
         while let Some((node, lo, shift)) = stack.pop() {
             let base = HEADER_WORDS + node * self.node_words();
@@ -621,13 +625,16 @@ impl SparseTree {
                 }
                 if is_node {
                     let child = first + below - 1;
-                    if shift == log_side {
-                        cubes[index(child_lo >> log_side as i32)] = Cut::Node(child as u32);
+                    if shift == node_log {
+                        self.cut_node(child, child_lo, node_log, log_side, &mut |c, cube| {
+                            cubes[index(c)] = cube
+                        });
                     } else {
                         stack.push((child, child_lo, shift - b));
                     }
                     continue;
                 }
+                // A uniform child of side 2^shift >= 2^node_log: whole cubes.
                 let m = (self.words[base + materials_at + i / 4] >> (8 * (i % 4))) as u8;
                 let hi = (child_lo + IVec3::splat(1 << shift)).min(dims);
                 let (c_lo, c_hi) = (
@@ -644,6 +651,76 @@ impl SparseTree {
             }
         }
         (cut_dims, cubes)
+    }
+
+    /// The log2 side of the nodes a cut at `2^log_side` finds its cubes' regions below:
+    /// `log_side` rounded up to the tree's levels.
+    pub fn cut_node_log(&self, log_side: u32) -> u32 {
+        log_side.next_multiple_of(self.log_branch)
+    }
+
+    /// The cubes of side `2^log_side` (inside the grid) of node `node` (side
+    /// `2^node_log`, at `lo`), to `put`: a cube whose children inside the grid are
+    /// uniform of one material is that material, any other the node.
+    fn cut_node(
+        &self,
+        node: usize,
+        lo: IVec3,
+        node_log: u32,
+        log_side: u32,
+        put: &mut dyn FnMut(IVec3, Cut),
+    ) {
+        let dims = self.dims.as_ivec3();
+        let b = self.log_branch;
+        if log_side == node_log {
+            put(lo >> log_side as i32, Cut::Node(node as u32));
+            return;
+        }
+        let (mask_at, _, materials_at) = self.offsets();
+        let base = HEADER_WORDS + node * self.node_words();
+        let branch = 1i32 << b;
+        let child_log = node_log - b;
+        let per_cube = 1i32 << (log_side - child_log);
+        let cubes = branch / per_cube;
+        for cz in 0..cubes {
+            for cy in 0..cubes {
+                for cx in 0..cubes {
+                    let cube = IVec3::new(cx, cy, cz);
+                    let cube_lo = lo + (cube << log_side as i32);
+                    if cube_lo.cmpge(dims).any() {
+                        continue;
+                    }
+                    let mut material = None;
+                    let mut uniform = true;
+                    for k in 0..per_cube * per_cube * per_cube {
+                        let c = cube * per_cube
+                            + IVec3::new(
+                                k % per_cube,
+                                k / per_cube % per_cube,
+                                k / per_cube / per_cube,
+                            );
+                        if (lo + (c << child_log as i32)).cmpge(dims).any() {
+                            continue;
+                        }
+                        let i = (c.x | (c.y << b) | (c.z << (2 * b))) as usize;
+                        if self.words[base + mask_at + i / 32] & (1 << (i % 32)) != 0 {
+                            uniform = false;
+                            break;
+                        }
+                        let m = (self.words[base + materials_at + i / 4] >> (8 * (i % 4))) as u8;
+                        if *material.get_or_insert(m) != m {
+                            uniform = false;
+                            break;
+                        }
+                    }
+                    let at = cube_lo >> log_side as i32;
+                    match (uniform, material) {
+                        (true, Some(m)) => put(at, Cut::Uniform(m)),
+                        _ => put(at, Cut::Node(node as u32)),
+                    }
+                }
+            }
+        }
     }
 
     /// How many of the grid's voxels hold each material (the parts of the root's cube

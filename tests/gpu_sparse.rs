@@ -369,6 +369,45 @@ fn the_seed_scene_at_2048_renders_through_its_tree() {
     assert!(lit > 10, "{lit} lit pixels");
 }
 
+/// Cells between the tree's levels: a grid held only as its tree whose cut of 4-voxel
+/// cubes would pass `MAX_CELLS` is cut at 8 voxels, each mixed cell walked from the node
+/// of 16 above it. GPU = CPU there, and the CPU the plain tree walk's rays and image in
+/// fewer steps.
+#[test]
+fn the_sparse_octant_walk_with_cells_of_eight() {
+    use voxlab::technique::sparse_octant::log_cell_side;
+    let dims = UVec3::new(1024, 1024, 512);
+    let scene = seed_scene_dims(dims).unwrap();
+    assert!(scene.grid.is_sparse());
+    assert_eq!(
+        log_cell_side(dims, 2, voxlab::sparse::levels_for(dims, 2)),
+        3
+    );
+    let s = settings(20, 16, 2, SPARSE_OCTANT_WALK);
+    let mut gpu = tracer();
+    let g = gpu.render(&scene, &s).unwrap();
+    let plan = gpu.last_plan().unwrap();
+    assert_eq!(
+        Traversal::Walk(plan.traversal),
+        SPARSE_OCTANT_WALK,
+        "{plan}"
+    );
+    assert_eq!(plan.tree_levels, 2, "{plan}");
+    let c = voxlab::cpu::render(&scene, &s);
+    assert_agree("seed 1024x1024x512, cells of 8", &g.frame, &c.frame);
+    let tree = voxlab::cpu::render(
+        &scene,
+        &RenderSettings {
+            traversal: SPARSE_WALK,
+            ..s.clone()
+        },
+    );
+    let rays = |s: &voxlab::render::RayStats| (s.primary, s.secondary, s.shadow);
+    assert_eq!(rays(&c.stats), rays(&tree.stats));
+    assert_eq!(c.frame.pixels, tree.frame.pixels);
+    assert!(c.stats.voxel_steps < tree.stats.voxel_steps);
+}
+
 /// Every stress case (`docs/stress.md`: eyes on lattice points and grid faces,
 /// axis-parallel and grazing rays, total internal reflection, far origins, extreme
 /// depths, every shadow and transmittance model, the grid at the device's side limit)

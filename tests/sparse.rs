@@ -500,7 +500,7 @@ fn the_trees_cut_says_which_cubes_are_uniform() {
     for dims in SIZES {
         let g = random_sparse_grid(&mut rng, UVec3::from_array(dims), 5);
         let tree = SparseTree::build(&g, 2);
-        for log_side in (2..=2 * tree.levels()).step_by(2) {
+        for log_side in 1..=2 * tree.levels() {
             let (cut_dims, cubes) = tree.cut(log_side);
             let side = 1i32 << log_side;
             assert_eq!(cut_dims, (g.dims() + (side as u32 - 1)) / side as u32);
@@ -531,12 +531,33 @@ fn the_trees_cut_says_which_cubes_are_uniform() {
                             "{what}"
                         );
                         for v in [lo, hi - 1] {
-                            let r = tree.region_below(v, n, log_side - 2);
+                            let r = tree.region_below(v, n, tree.cut_node_log(log_side) - 2);
                             assert_eq!(r, tree.region(v), "{what}: {v}");
                         }
                     }
                 }
             }
+        }
+    }
+}
+
+/// The sparse octant walk's regions with cells of every side the cut can have (on these
+/// grids `"auto"` takes only cubes of 4): uniform, holding their voxel, for every step.
+#[test]
+fn sparse_octant_regions_hold_the_grid_at_every_cell_side() {
+    use voxlab::technique::sparse_octant::SparseOctant;
+    let mut rng = StdRng::seed_from_u64(29);
+    for dims in SIZES {
+        let g = random_sparse_grid(&mut rng, UVec3::from_array(dims), 5);
+        // Every voxel, 27 steps, each side: the large grids once are enough
+        // (every_traversals_regions_are_uniform_and_hold_their_voxel).
+        if g.voxel_count() > 1 << 15 {
+            continue;
+        }
+        let tree = g.tree(2);
+        for log_cell in 1..=2 * tree.levels() {
+            let walk = SparseOctant::with_cell_side(tree.clone(), log_cell);
+            assert_regions_hold_the_grid(&g, &walk, &format!("cells of 2^{log_cell}"));
         }
     }
 }

@@ -28,9 +28,10 @@ use crate::sparse::{Cut, GPU_LOG_BRANCH, Region, Regions, SparseTree};
 pub const MAX_CELLS: u64 = 1 << 21;
 
 /// Log2 of the side of the cut's cells for a tree of these dims and branching: the
-/// smallest level of the tree (4, 16, 64 ... voxels for the 64-tree) whose cells number
-/// at most [`MAX_CELLS`]: the smaller the cells, the nearer to a surface the octant
-/// cubes reach, and the fewer steps a walk takes through the tree below a cell.
+/// smallest side (4, 8, 16 ... voxels) whose cells number at most [`MAX_CELLS`]: the
+/// smaller the cells, the nearer to a surface the octant cubes reach, and the fewer
+/// steps a walk takes through the tree below a cell. A side between the tree's levels
+/// (8 for the 64-tree) descends from the node of the level above.
 pub fn log_cell_side(dims: UVec3, log_branch: u32, levels: u32) -> u32 {
     let mut log = log_branch;
     while log < log_branch * levels {
@@ -38,15 +39,15 @@ pub fn log_cell_side(dims: UVec3, log_branch: u32, levels: u32) -> u32 {
         if cells.element_product() <= MAX_CELLS {
             break;
         }
-        log += log_branch;
+        log += 1;
     }
     log
 }
 
 pub const TRAVERSAL: TraversalModel = TraversalModel {
     name: "sparse_octant",
-    summary: "the sparse 64-tree cut at its smallest level of at most 2 M cubes (4 or 16 \
-              voxels a side), with the octant field over the cut: a uniform cube's octant \
+    summary: "the sparse 64-tree cut at its smallest cubes (4, 8 or 16 voxels a side) \
+              that number at most 2 M, with the octant field over the cut: a uniform cube's octant \
               cube of uniform cubes is skipped whole, the others are walked through the \
               tree below them",
     label: "sparse 64-tree + octant cells",
@@ -54,7 +55,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
     // Where the plain tree walk claimed grids: on lavapipe (`voxlab bench --sizes 16
     // --size 256 --no-cpu --gpu-runs 3 --experiments experiments/seed_rules.toml --set
     // scene.size=N --traversal sparse,sparse_octant`) 1.66x its speed at 256^3, 1.81x at
-    // 512^3 and 1.10x at 1024^3, the bunny voxelized at 512 2.14x
+    // 512^3 and 1.25x at 1024^3 (cubes of 8), the bunny voxelized at 512 2.14x
     // (docs/sparse-traversal.md, "Octant cells over the tree").
     auto: Some(|scene| {
         if scene.grid.is_sparse() {
@@ -67,10 +68,10 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
         include_str!("../../shaders/traversal_sparse_octant.wgsl"),
     ),
     walks_tree: true,
-    // A descent starts at a cell's node: the cell's levels of the tree.
+    // A descent starts at a cell's node: that node's levels of the tree.
     descent_levels: Some(|dims| {
         let levels = crate::sparse::levels_for(dims, GPU_LOG_BRANCH);
-        log_cell_side(dims, GPU_LOG_BRANCH, levels) / GPU_LOG_BRANCH
+        log_cell_side(dims, GPU_LOG_BRANCH, levels).div_ceil(GPU_LOG_BRANCH)
     }),
     data: Some(|grid| Arc::new(SparseOctant::build(grid.tree(GPU_LOG_BRANCH)))),
     device_bytes: None,
@@ -92,6 +93,12 @@ const CUT_HEADER_WORDS: usize = 4;
 impl SparseOctant {
     pub fn build(tree: Arc<SparseTree>) -> Self {
         let log_cell = log_cell_side(tree.dims(), tree.log_branch(), tree.levels());
+        Self::with_cell_side(tree, log_cell)
+    }
+
+    /// With cells of `2^log_cell` voxels (1 up to the root's cube) whatever the grid: the
+    /// tests walk every side the cut can have.
+    pub fn with_cell_side(tree: Arc<SparseTree>, log_cell: u32) -> Self {
         let (cut_dims, cut) = tree.cut(log_cell);
         // A node's cell matches no other: uniform cells' cubes stop at it.
         let cells: Vec<Option<u8>> = cut
@@ -138,7 +145,7 @@ impl Regions for SparseOctant {
             + 2 * (c.x as usize + d.x as usize * (c.y as usize + d.y as usize * c.z as usize));
         let node = self.cut[i + 1];
         if node != 0 {
-            let shift = self.log_cell - self.tree.log_branch();
+            let shift = self.tree.cut_node_log(self.log_cell) - self.tree.log_branch();
             return self.tree.region_below(v, node - 1, shift);
         }
         let word = self.cut[i];
