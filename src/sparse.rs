@@ -388,6 +388,22 @@ impl Regions for SparseTree {
     }
 }
 
+/// A child of a node, as [`SparseTree::visit`] meets it: its cube is `lo + [0,
+/// 2^log_side)^3`.
+#[derive(Clone, Copy, Debug)]
+enum Visited {
+    Node {
+        index: usize,
+        lo: IVec3,
+        log_side: u32,
+    },
+    Uniform {
+        material: u8,
+        lo: IVec3,
+        log_side: u32,
+    },
+}
+
 /// One cube of a [`SparseTree::cut`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Cut {
@@ -592,64 +608,51 @@ impl SparseTree {
         let side = 1u32 << log_side;
         let cut_dims = (self.dims + UVec3::splat(side - 1)) / side;
         let mut cubes = vec![Cut::Uniform(VOID); cut_dims.as_usizevec3().element_product()];
-        let index = |c: IVec3| {
+        let index_of = |c: IVec3| {
             c.x as usize + cut_dims.x as usize * (c.y as usize + cut_dims.y as usize * c.z as usize)
         };
         let dims = self.dims.as_ivec3();
         if node_log == b * self.levels {
             self.cut_node(0, IVec3::ZERO, node_log, log_side, &mut |c, cube| {
-                cubes[index(c)] = cube
+                cubes[index_of(c)] = cube
             });
             return (cut_dims, cubes);
         }
-        let (mask_at, first_at, materials_at) = self.offsets();
-        let branch = 1i32 << b;
-        let mut stack = vec![(0usize, IVec3::ZERO, b * (self.levels - 1))];
-        while let Some((node, lo, shift)) = stack.pop() {
-            let base = HEADER_WORDS + node * self.node_words();
-            let first = self.words[base + first_at] as usize;
-            let mut below = 0;
-            for i in 0..self.children() {
-                let c = IVec3::new(
-                    i as i32 % branch,
-                    i as i32 / branch % branch,
-                    i as i32 / branch / branch,
-                );
-                let child_lo = lo + (c << shift as i32);
-                let is_node = self.words[base + mask_at + i / 32] & (1 << (i % 32)) != 0;
-                if is_node {
-                    below += 1;
-                }
-                if child_lo.cmpge(dims).any() {
-                    continue;
-                }
-                if is_node {
-                    let child = first + below - 1;
-                    if shift == node_log {
-                        self.cut_node(child, child_lo, node_log, log_side, &mut |c, cube| {
-                            cubes[index(c)] = cube
-                        });
-                    } else {
-                        stack.push((child, child_lo, shift - b));
-                    }
-                    continue;
-                }
-                // A uniform child of side 2^shift >= 2^node_log: whole cubes.
-                let m = (self.words[base + materials_at + i / 4] >> (8 * (i % 4))) as u8;
-                let hi = (child_lo + IVec3::splat(1 << shift)).min(dims);
+        self.visit(|child| match child {
+            // Past the grid: no cube.
+            Visited::Node { lo, .. } | Visited::Uniform { lo, .. } if lo.cmpge(dims).any() => false,
+            Visited::Node {
+                index,
+                lo,
+                log_side: l,
+            } if l == node_log => {
+                self.cut_node(index, lo, node_log, log_side, &mut |c, cube| {
+                    cubes[index_of(c)] = cube
+                });
+                false
+            }
+            Visited::Node { .. } => true,
+            // A uniform child of side 2^l >= 2^node_log: whole cubes.
+            Visited::Uniform {
+                material,
+                lo,
+                log_side: l,
+            } => {
+                let hi = (lo + IVec3::splat(1 << l)).min(dims);
                 let (c_lo, c_hi) = (
-                    child_lo >> log_side as i32,
+                    lo >> log_side as i32,
                     (hi + IVec3::splat(side as i32 - 1)) >> log_side as i32,
                 );
                 for z in c_lo.z..c_hi.z {
                     for y in c_lo.y..c_hi.y {
                         for x in c_lo.x..c_hi.x {
-                            cubes[index(IVec3::new(x, y, z))] = Cut::Uniform(m);
+                            cubes[index_of(IVec3::new(x, y, z))] = Cut::Uniform(material);
                         }
                     }
                 }
+                false
             }
-        }
+        });
         (cut_dims, cubes)
     }
 
@@ -727,10 +730,29 @@ impl SparseTree {
     /// outside the grid are not counted).
     pub fn material_counts(&self) -> [u64; 256] {
         let mut counts = [0u64; 256];
+        let dims = self.dims.as_ivec3();
+        self.visit(|child| {
+            if let Visited::Uniform {
+                material,
+                lo,
+                log_side,
+            } = child
+            {
+                let hi = (lo + IVec3::splat(1 << log_side)).min(dims);
+                let volume = (hi - lo).max(IVec3::ZERO).as_u64vec3().element_product();
+                counts[material as usize] += volume;
+            }
+            true
+        });
+        counts
+    }
+
+    /// Visits the children of the root and, depth first, of every child node `visit`
+    /// returns true for.
+    fn visit(&self, mut visit: impl FnMut(Visited) -> bool) {
         let (mask_at, first_at, materials_at) = self.offsets();
         let b = self.log_branch;
-        let side = 1i32 << b;
-        let dims = self.dims.as_ivec3();
+        let branch = 1i32 << b;
         let mut stack = vec![(0usize, IVec3::ZERO, b * (self.levels - 1))];
         while let Some((node, lo, shift)) = stack.pop() {
             let base = HEADER_WORDS + node * self.node_words();
@@ -738,26 +760,32 @@ impl SparseTree {
             let mut below = 0;
             for i in 0..self.children() {
                 let c = IVec3::new(
-                    i as i32 % side,
-                    i as i32 / side % side,
-                    i as i32 / side / side,
+                    i as i32 % branch,
+                    i as i32 / branch % branch,
+                    i as i32 / branch / branch,
                 );
                 let child_lo = lo + (c << shift as i32);
                 if self.words[base + mask_at + i / 32] & (1 << (i % 32)) != 0 {
-                    stack.push((first + below, child_lo, shift.saturating_sub(b)));
+                    let index = first + below;
                     below += 1;
+                    let child = Visited::Node {
+                        index,
+                        lo: child_lo,
+                        log_side: shift,
+                    };
+                    if visit(child) && shift >= b {
+                        stack.push((index, child_lo, shift - b));
+                    }
                     continue;
                 }
-                let hi = (child_lo + IVec3::splat(1 << shift)).min(dims);
-                let volume = (hi - child_lo)
-                    .max(IVec3::ZERO)
-                    .as_u64vec3()
-                    .element_product();
-                let m = (self.words[base + materials_at + i / 4] >> (8 * (i % 4))) as u8;
-                counts[m as usize] += volume;
+                let material = (self.words[base + materials_at + i / 4] >> (8 * (i % 4))) as u8;
+                visit(Visited::Uniform {
+                    material,
+                    lo: child_lo,
+                    log_side: shift,
+                });
             }
         }
-        counts
     }
 
     /// Which materials the grid's voxels hold.
