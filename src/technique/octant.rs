@@ -66,7 +66,7 @@ pub struct OctantField {
 }
 
 /// The code of radius `r`: the largest entry of [`RADII`] not above it.
-pub(crate) fn code(r: u8) -> u32 {
+fn code(r: u8) -> u32 {
     RADII.iter().rposition(|&q| q <= r).unwrap_or(0) as u32
 }
 
@@ -89,7 +89,7 @@ impl OctantField {
         let words = voxels
             .par_iter()
             .enumerate()
-            .map(|(i, &m)| (0..8).fold(m as u32, |w, o| w | code(radii[o][i]) << (8 + 3 * o)))
+            .map(|(i, &m)| word(m, &radii, i))
             .collect();
         Self { dims, words }
     }
@@ -106,19 +106,31 @@ impl OctantField {
 }
 
 /// The radius toward octant `o` a voxel's word holds.
-pub(crate) fn radius(word: u32, o: usize) -> u8 {
+fn radius(word: u32, o: usize) -> u8 {
     RADII[(word >> (8 + 3 * o) & 7) as usize]
+}
+
+/// The word of a cell of material `m`: its material and the codes of its eight radii
+/// (`radii[o][i]`, octant `o`, cell `i`), as [`OctantField`] keeps it.
+pub(crate) fn word(m: u8, radii: &[Vec<u8>], i: usize) -> u32 {
+    (0..8).fold(u32::from(m), |w, o| w | code(radii[o][i]) << (8 + 3 * o))
+}
+
+/// The cube of cell `c` whose word is `word` toward octant `o`, in cells (unclipped):
+/// its first cell and one past its last.
+pub(crate) fn corner_cube(c: IVec3, word: u32, o: usize) -> (IVec3, IVec3) {
+    let reach = IVec3::splat(i32::from(radius(word, o)));
+    let down = IVec3::new((o & 1) as i32, (o >> 1 & 1) as i32, (o >> 2 & 1) as i32);
+    (
+        c - reach * down,
+        c + IVec3::ONE + reach * (IVec3::ONE - down),
+    )
 }
 
 impl Regions for OctantField {
     fn region(&self, v: IVec3, step: IVec3) -> Region {
-        let o = octant(step);
         let word = self.words[self.index(v)];
-        let r = i32::from(radius(word, o));
-        let down = IVec3::new((o & 1) as i32, (o >> 1 & 1) as i32, (o >> 2 & 1) as i32);
-        let reach = IVec3::splat(r);
-        let lo = v - reach * down;
-        let hi = v + IVec3::ONE + reach * (IVec3::ONE - down);
+        let (lo, hi) = corner_cube(v, word, octant(step));
         Region {
             material: word as u8,
             lo: lo.max(IVec3::ZERO),

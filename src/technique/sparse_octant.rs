@@ -21,7 +21,7 @@ use glam::{IVec3, UVec3};
 use rayon::prelude::*;
 
 use super::TraversalModel;
-use super::octant::{code, octant, octant_radii, radius};
+use super::octant::{corner_cube, octant, octant_radii, word};
 use crate::sparse::{Cut, GPU_LOG_BRANCH, Region, Regions, SparseTree};
 
 /// The most cells the cut has: 2 M, 16 MiB.
@@ -82,6 +82,8 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
 pub struct SparseOctant {
     tree: Arc<SparseTree>,
     log_cell: u32,
+    /// The shift of the children of a cell's node (`SparseTree::cut_node_log`).
+    node_shift: u32,
     cut_dims: UVec3,
     /// The cut's header vec4, then its cells.
     cut: Vec<u32>,
@@ -117,23 +119,17 @@ impl SparseOctant {
         words.extend_from_slice(&[log_cell, cut_dims.x, cut_dims.y, cut_dims.z]);
         for (i, c) in cut.iter().enumerate() {
             match c {
-                Cut::Uniform(m) => {
-                    let w = (0..8).fold(u32::from(*m), |w, o| w | code(radii[o][i]) << (8 + 3 * o));
-                    words.extend_from_slice(&[w, 0]);
-                }
+                Cut::Uniform(m) => words.extend_from_slice(&[word(*m, &radii, i), 0]),
                 Cut::Node(n) => words.extend_from_slice(&[0, n + 1]),
             }
         }
         Self {
+            node_shift: tree.cut_node_log(log_cell) - tree.log_branch(),
             tree,
             log_cell,
             cut_dims,
             cut: words,
         }
-    }
-
-    pub fn tree(&self) -> &SparseTree {
-        &self.tree
     }
 }
 
@@ -145,19 +141,15 @@ impl Regions for SparseOctant {
             + 2 * (c.x as usize + d.x as usize * (c.y as usize + d.y as usize * c.z as usize));
         let node = self.cut[i + 1];
         if node != 0 {
-            let shift = self.tree.cut_node_log(self.log_cell) - self.tree.log_branch();
-            return self.tree.region_below(v, node - 1, shift);
+            return self.tree.region_below(v, node - 1, self.node_shift);
         }
         let word = self.cut[i];
-        let o = octant(step);
-        let r = i32::from(radius(word, o));
-        let down = IVec3::new((o & 1) as i32, (o >> 1 & 1) as i32, (o >> 2 & 1) as i32);
-        let lo = (c - IVec3::splat(r) * down) << self.log_cell as i32;
-        let hi = (c + IVec3::ONE + IVec3::splat(r) * (IVec3::ONE - down)) << self.log_cell as i32;
+        let (lo, hi) = corner_cube(c, word, octant(step));
+        let shift = self.log_cell as i32;
         Region {
             material: word as u8,
-            lo: lo.max(IVec3::ZERO),
-            hi: hi.min(self.tree.dims().as_ivec3()),
+            lo: (lo << shift).max(IVec3::ZERO),
+            hi: (hi << shift).min(self.tree.dims().as_ivec3()),
         }
     }
 
