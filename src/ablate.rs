@@ -42,11 +42,12 @@ mod grid;
 pub mod plot;
 pub mod tasks;
 mod text;
+use crate::frame::Frame;
 use crate::gpu::GpuTracer;
 use crate::metrics::{Domain, compare};
 use crate::output::write_frame_with_provenance;
 use crate::plan::Plan;
-use crate::render::{Features, Frame, MAX_SAMPLES, RenderSettings, Transmittance};
+use crate::render::{Features, MAX_SAMPLES, RenderSettings, Transmittance};
 use crate::scene::{Light, PointLight, Scene};
 use crate::technique::Knob;
 
@@ -2233,8 +2234,8 @@ fn write_outputs(
         map.remove("file");
         map.insert("made_by".into(), "voxlab ablate".into());
     }
-    let linear = crate::render::DisplayTransform {
-        encoding: crate::render::DisplayEncoding::Linear,
+    let linear = crate::frame::DisplayTransform {
+        encoding: crate::frame::DisplayEncoding::Linear,
         exposure: 0.0,
     };
     let mut image = |frame: &Frame, name: &str, what: serde_json::Value| -> Result<()> {

@@ -13,8 +13,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 
+use crate::frame::RayStats;
 use crate::gpu::GpuTracer;
-use crate::render::{RayStats, RenderSettings, Rules, Surface, Traversal};
+use crate::render::{RenderSettings, Rules, Surface, Traversal};
 use crate::scene::{Scene, seed_scene};
 
 #[derive(Clone, Debug)]
@@ -473,7 +474,7 @@ pub fn surface_rows(opts: &BenchOptions) -> Result<Vec<SurfaceRow>> {
                 continue;
             }
             let start = std::time::Instant::now();
-            let Some(t) = crate::triangles::surface_trace(&scene, surface)? else {
+            let Some(t) = surface.trace(&scene)? else {
                 continue;
             };
             rows.push(SurfaceRow {
@@ -832,7 +833,7 @@ fn median_ms(
     settings: &RenderSettings,
     plan: &crate::plan::Plan,
     runs: usize,
-) -> Result<(f64, crate::render::Frame, u64)> {
+) -> Result<(f64, crate::frame::Frame, u64)> {
     let warm = gpu.render_plan(scene, settings, plan.clone())?;
     let bytes = gpu.last_memory().map_or(0, |m| m.total());
     let mut times = Vec::new();

@@ -64,6 +64,7 @@ pub mod device;
 pub mod error;
 pub mod experiment;
 pub mod export;
+pub mod frame;
 pub mod gpu;
 pub mod info;
 pub mod input;
@@ -88,6 +89,7 @@ pub mod viewer;
 
 pub use error::{Error, ErrorKind, Result};
 pub use experiment::Experiment;
-pub use render::{Features, Frame, RayStats, RenderOutput, RenderSettings, Transmittance};
+pub use frame::{Frame, RayStats, RenderOutput};
+pub use render::{Features, RenderSettings, Transmittance};
 pub use scene::{Grid, Scene};
 pub use session::{Backend, Image, Session};

@@ -13,9 +13,10 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use voxlab::Session;
 use voxlab::experiment::Experiment;
+use voxlab::frame::Frame;
 use voxlab::gpu::GpuTracer;
 use voxlab::output::OutputFormat;
-use voxlab::render::{Frame, MAX_IMAGE_SIDE};
+use voxlab::render::MAX_IMAGE_SIDE;
 
 mod commands;
 use commands::ablate::{AblateArgs, cmd_ablate};
@@ -309,11 +310,11 @@ fn parse_exposure(s: &str) -> Result<f64, String> {
 }
 
 impl RenderOpts {
-    fn display(&self) -> voxlab::render::DisplayTransform {
-        voxlab::render::DisplayTransform {
+    fn display(&self) -> voxlab::frame::DisplayTransform {
+        voxlab::frame::DisplayTransform {
             encoding: match self.display {
-                DisplayArg::Linear => voxlab::render::DisplayEncoding::Linear,
-                DisplayArg::Srgb => voxlab::render::DisplayEncoding::Srgb,
+                DisplayArg::Linear => voxlab::frame::DisplayEncoding::Linear,
+                DisplayArg::Srgb => voxlab::frame::DisplayEncoding::Srgb,
             },
             exposure: self.exposure,
         }

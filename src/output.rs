@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use image::{ImageFormat, RgbImage};
 
-use crate::render::Frame;
+use crate::frame::Frame;
 
 /// The file formats a frame can be written as, chosen by the path's extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -183,7 +183,7 @@ pub fn write_frame_with_provenance(
     frame: &Frame,
     path: impl AsRef<Path>,
     json: &str,
-    display: crate::render::DisplayTransform,
+    display: crate::frame::DisplayTransform,
 ) -> Result<(), OutputError> {
     let path = path.as_ref();
     let format = OutputFormat::from_path(path)?;

@@ -10,10 +10,10 @@ use std::time::{Duration, Instant};
 
 use crate::error::{Error, ErrorKind, Result};
 use crate::experiment::{Experiment, Override};
+use crate::frame::{DisplayTransform, Frame, RayStats};
 use crate::gpu::GpuTracer;
 use crate::plan::Plan;
 use crate::progress::{Progress, Watch};
-use crate::render::{DisplayTransform, Frame, RayStats};
 
 /// Which tracer a session renders with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -23,9 +23,10 @@ use anyhow::{Context, Result};
 use glam::{DVec3, IVec3, UVec3};
 
 use crate::experiment::Experiment;
+use crate::frame::Frame;
 use crate::gpu::GpuTracer;
 use crate::metrics::{Domain, ImageDiff, compare};
-use crate::render::{Frame, RenderSettings};
+use crate::render::RenderSettings;
 use crate::scene::{
     AreaLight, AreaShape, Grid, Light, PointLight, Scene, seed_ids, seed_scene, seed_scene_dims,
 };

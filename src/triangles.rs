@@ -31,7 +31,7 @@ use glam::{DVec3, IVec3};
 use rayon::prelude::*;
 
 use crate::dda::{Dda, Hit};
-use crate::render::{RayStats, Transmittance};
+use crate::frame::RayStats;
 use crate::scene::voxelize::tri_box_overlap;
 use crate::scene::{Grid, Material, Scene, VOID};
 use crate::sparse::Regions;
@@ -74,19 +74,16 @@ pub enum TriangleError {
     Extract(String),
 }
 
-/// The surfaces `surface` asks for in `scene`, listed in its grid: none for voxels (or
-/// a mesh surface on a scene without a mesh, which the plan has refused already), the
-/// scene's mesh, or the smooth surface of its grid (`crate::surface::extract`, relaxed
-/// [`crate::surface::DEFAULT_RELAX`] times).
-pub fn surface_trace(
-    scene: &Scene,
-    surface: crate::render::Surface,
-) -> Result<Option<SurfaceTrace>, TriangleError> {
-    let Some(triangles) = surface.triangles else {
-        return Ok(None);
-    };
-    let mesh = triangles(scene).map_err(TriangleError::Extract)?;
-    SurfaceTrace::build(&scene.grid, scene.materials.len(), &mesh).map(Some)
+/// How a shadow segment's media attenuate it: the walk passes each medium it enters to
+/// this, in order, and asks for the result at the end. The transmittance slot's models
+/// (`crate::technique::TransmittanceModel`) are given through it, so the walk knows no
+/// technique.
+pub trait Absorber {
+    /// The segment passes into material `index` (`material`) at distance `t` (in the
+    /// world, grid of `voxel_size`); true once nothing more can pass (the result is 0).
+    fn pass(&mut self, t: f64, index: u8, material: &Material, voxel_size: f64) -> bool;
+    /// The RGB transmittance of the segment ending at `t_end`.
+    fn result(&self, t_end: f64) -> DVec3;
 }
 
 /// One triangle in world coordinates.
@@ -428,8 +425,8 @@ impl SurfaceTrace {
         }
     }
 
-    /// Transmittance (RGB) of the shadow segment from `q` (in `medium`) to `light` under
-    /// `model`, the medium followed through every crossing: min-kt is the smallest kt
+    /// Transmittance (RGB) of the shadow segment from `q` (in `medium`) to `light` as
+    /// `absorber` attenuates it (a fresh one), the medium followed through every crossing: min-kt is the smallest kt
     /// of the media passed, Beer-Lambert `exp(-sum sigma len)` over them; a voxel
     /// outside the cells sets the medium to its material, as for voxels.
     #[allow(clippy::too_many_arguments)]
@@ -437,7 +434,7 @@ impl SurfaceTrace {
         &self,
         scene: &Scene,
         regions: Option<&dyn Regions>,
-        model: Transmittance,
+        absorber: &mut dyn Absorber,
         q: DVec3,
         light: DVec3,
         medium: u8,
@@ -453,8 +450,7 @@ impl SurfaceTrace {
         let mut walk = MediumWalk {
             materials: &scene.materials,
             voxel_size: vs,
-            model: model.model(),
-            state: (model.model().start)(),
+            absorber,
             medium: VOID,
             t: 0.0,
         };
@@ -497,16 +493,15 @@ impl SurfaceTrace {
         }
         // Beyond the grid is void: nothing more absorbs.
         walk.pass(dda.t_end.min(len).max(walk.t), VOID);
-        (walk.model.result)(&walk.state, walk.t)
+        walk.absorber.result(walk.t)
     }
 }
 
-/// A shadow segment's media, piece by piece, passed to the transmittance model.
+/// A shadow segment's media, piece by piece, passed to its absorber.
 struct MediumWalk<'a> {
     materials: &'a [Material],
     voxel_size: f64,
-    model: &'static crate::technique::TransmittanceModel,
-    state: crate::technique::AbsorbState,
+    absorber: &'a mut dyn Absorber,
     medium: u8,
     /// Where the current medium began.
     t: f64,
@@ -518,7 +513,7 @@ impl MediumWalk<'_> {
         self.medium = next;
         self.t = t;
         let m = &self.materials[next as usize];
-        (self.model.pass)(&mut self.state, t, next, m, self.voxel_size)
+        self.absorber.pass(t, next, m, self.voxel_size)
     }
 }
 

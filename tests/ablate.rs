@@ -1066,7 +1066,7 @@ fn an_external_reference_is_checked_and_measured_against() {
         msg.contains("missing.exr") && msg.contains("ablate.reference"),
         "{msg}"
     );
-    let mut wrong = voxlab::render::Frame::new(16, 32);
+    let mut wrong = voxlab::frame::Frame::new(16, 32);
     wrong.pixels.iter_mut().for_each(|p| *p = [0.5; 3]);
     voxlab::output::write_frame(&wrong, dir.join("wrong.exr")).unwrap();
     let msg = run_error("wrong.exr");

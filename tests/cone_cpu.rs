@@ -3,7 +3,7 @@
 
 use glam::{DVec3, IVec3, UVec3};
 use voxlab::RenderSettings;
-use voxlab::render::RayStats;
+use voxlab::frame::RayStats;
 use voxlab::scene::{Grid, Scene, seed_ids, seed_scene};
 use voxlab::technique::cones::march::{self as cone, ConeParams};
 use voxlab::technique::cones::pyramid::{Pyramid, PyramidLayout, sample_level};

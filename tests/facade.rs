@@ -88,8 +88,8 @@ fn one_session_per_backend_renders_the_same_image() {
         .unwrap();
         assert!(diff.pixels_over <= 2, "GPU vs CPU: {diff}");
     }
-    let display = voxlab::render::DisplayTransform {
-        encoding: voxlab::render::DisplayEncoding::Linear,
+    let display = voxlab::frame::DisplayTransform {
+        encoding: voxlab::frame::DisplayEncoding::Linear,
         exposure: 0.0,
     };
     let record = reference.provenance(&e, &overrides, display, None).unwrap();

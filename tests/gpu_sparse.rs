@@ -168,7 +168,7 @@ fn generated_scenes_agree_with_the_cpu_and_the_dense_walk() {
                 "{name}: this and the dense GPU walk differ: {d}"
             );
             // The same rays, as `voxlab bench` requires of every walk.
-            let rays = |s: &voxlab::render::RayStats| (s.primary, s.secondary, s.shadow);
+            let rays = |s: &voxlab::frame::RayStats| (s.primary, s.secondary, s.shadow);
             assert_eq!(rays(&sparse.stats), rays(&dense.stats), "{name}");
         }
     }
@@ -402,7 +402,7 @@ fn the_sparse_octant_walk_with_cells_of_eight() {
             ..s.clone()
         },
     );
-    let rays = |s: &voxlab::render::RayStats| (s.primary, s.secondary, s.shadow);
+    let rays = |s: &voxlab::frame::RayStats| (s.primary, s.secondary, s.shadow);
     assert_eq!(rays(&c.stats), rays(&tree.stats));
     assert_eq!(c.frame.pixels, tree.frame.pixels);
     assert!(c.stats.voxel_steps < tree.stats.voxel_steps);
@@ -441,7 +441,7 @@ fn every_walk_renders_the_stress_cases_as_the_dense_walk() {
             if Traversal::Walk(gpu.last_plan().unwrap().traversal) != walk {
                 continue;
             }
-            let rays = |s: &voxlab::render::RayStats| (s.primary, s.secondary, s.shadow);
+            let rays = |s: &voxlab::frame::RayStats| (s.primary, s.secondary, s.shadow);
             assert_eq!(rays(&out.stats), rays(&dense.stats), "{name}");
             // The same hits; only Beer-Lambert's sums differ in f32 rounding (a region's
             // length counts at once where the dense walk adds each voxel's).

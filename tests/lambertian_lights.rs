@@ -13,7 +13,7 @@ use rand::{RngExt, SeedableRng};
 use voxlab::RenderSettings;
 use voxlab::experiment::Experiment;
 use voxlab::experiment::write::to_toml;
-use voxlab::render::Frame;
+use voxlab::frame::Frame;
 use voxlab::scene::{AreaLight, AreaShape, Emission, Grid, Light, Scene, seed_palette, seed_scene};
 use voxlab::technique::ratio::projected_solid_angle;
 

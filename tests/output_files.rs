@@ -4,8 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
+use voxlab::frame::{DisplayTransform, Frame};
 use voxlab::output::{read_exr, write_frame, write_frame_with_provenance};
-use voxlab::render::{DisplayTransform, Frame};
 
 fn dir(name: &str) -> PathBuf {
     let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);

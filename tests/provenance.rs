@@ -135,7 +135,7 @@ fn display_and_exposure_shape_the_png_only() {
     let scale = 2f32.powf(1.5);
     for (r, p) in radiance.pixels.iter().zip(&png.pixels) {
         for c in 0..3 {
-            let want = voxlab::render::srgb_encode((r[c] * scale).clamp(0.0, 1.0));
+            let want = voxlab::frame::srgb_encode((r[c] * scale).clamp(0.0, 1.0));
             assert!(
                 (p[c] - want).abs() <= 0.5 / 255.0 + 1e-6,
                 "{} against {want}",

@@ -271,7 +271,7 @@ fn the_measured_cutoff_keeps_every_experiment_within_one_level() {
             ray_cutoff: 0.0,
             ..cut.clone()
         };
-        let levels = |a: &voxlab::render::Frame, b: &voxlab::render::Frame| {
+        let levels = |a: &voxlab::frame::Frame, b: &voxlab::frame::Frame| {
             a.to_rgb8()
                 .iter()
                 .zip(b.to_rgb8())

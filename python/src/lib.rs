@@ -17,8 +17,8 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 use voxlab::experiment::{Override, SceneCache};
+use voxlab::frame::{DisplayEncoding, DisplayTransform, Frame};
 use voxlab::progress::Watch;
-use voxlab::render::{DisplayEncoding, DisplayTransform, Frame};
 use voxlab::scene::Material;
 use voxlab::{Backend, ErrorKind};
 

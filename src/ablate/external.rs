@@ -7,8 +7,8 @@
 use anyhow::{Result, bail};
 
 use super::{ExternalSpec, Reference, Row};
+use crate::frame::Frame;
 use crate::metrics::{Domain, compare, flip};
-use crate::render::Frame;
 
 /// A checked external reference and voxlab's reference measured against it.
 #[derive(Clone, Debug)]

@@ -3,7 +3,7 @@
 //! with the reference (the penumbrae, on a soft-shadow scene) and a label band.
 
 use super::{Reference, Row, text};
-use crate::render::Frame;
+use crate::frame::Frame;
 
 /// Tiles are magnified (nearest neighbour, whole factors) to at least this width.
 const TILE_MIN: u32 = 256;

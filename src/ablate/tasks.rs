@@ -31,9 +31,10 @@ use super::{
     write_outputs, write_text,
 };
 use crate::experiment::Experiment;
+use crate::frame::Frame;
 use crate::metrics::{Domain, compare};
 use crate::output::{read_exr, write_frame};
-use crate::render::{Frame, RenderSettings};
+use crate::render::RenderSettings;
 use crate::scene::Scene;
 
 /// A reference the sweep measures against: its scene and its two halves' settings.

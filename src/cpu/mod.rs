@@ -12,9 +12,10 @@ pub use crate::sampling::SampleKey;
 use crate::technique::shading::ShadowWalk;
 
 use crate::dda::cast_through;
+use crate::frame::{Frame, RayStats, RenderOutput};
 use crate::plan::Plan;
 use crate::ray_cutoff::{light_shaded, spawned, traced};
-use crate::render::{Frame, RayStats, RenderOutput, RenderSettings, Rules};
+use crate::render::{RenderSettings, Rules};
 use crate::scene::Scene;
 use crate::sparse::Regions;
 use crate::triangles::SurfaceTrace;
@@ -248,7 +249,7 @@ pub struct Prepared {
 
 impl Prepared {
     pub fn new(scene: &Scene, settings: &RenderSettings, plan: &Plan) -> Self {
-        let surfaces = match crate::triangles::surface_trace(scene, plan.surface) {
+        let surfaces = match plan.surface.trace(scene) {
             Ok(s) => s,
             // Past the plan's checks only a surface overlapping more voxels than are
             // kept fails; it is drawn as voxels, and said so.

@@ -19,10 +19,9 @@ use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
 use crate::device::{buffer, buffer_entry, extent, readback, storage_entry, uniform_entry};
+use crate::frame::{Frame, RayStats, RenderOutput};
 use crate::plan::{Plan, ShaderDefs};
-use crate::render::{
-    Frame, MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RayStats, RenderOutput, RenderSettings,
-};
+use crate::render::{MAX_DEPTH_LIMIT, MAX_IMAGE_SIDE, RenderSettings};
 use crate::scene::{AreaShape, Emission, Light, Scene};
 
 /// Side of the square workgroup (`@workgroup_size(8, 8, 1)` in `shaders/trace.wgsl`).

@@ -201,7 +201,9 @@ impl GpuTracer {
             return Ok(Some(u.trace.clone()));
         }
         self.surfaces = None;
-        let trace = crate::triangles::surface_trace(scene, plan.surface)?
+        let trace = plan
+            .surface
+            .trace(scene)?
             .context("the plan traces triangles the scene does not have")?;
         let words = trace.gpu_words();
         let bytes = (words.len() * 4) as u64;

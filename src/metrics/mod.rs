@@ -2,7 +2,7 @@
 
 pub mod flip;
 
-use crate::render::Frame;
+use crate::frame::Frame;
 
 /// How two images differ, per channel.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -110,7 +110,7 @@ pub const FLIP_PPD: f32 = 67.0;
 fn display_srgb(f: &Frame) -> Vec<[f32; 3]> {
     f.pixels
         .iter()
-        .map(|p| p.map(|c| crate::render::srgb_encode(c.clamp(0.0, 1.0))))
+        .map(|p| p.map(|c| crate::frame::srgb_encode(c.clamp(0.0, 1.0))))
         .collect()
 }
 
@@ -161,8 +161,8 @@ pub fn flip_mean(reference: &Frame, test: &Frame) -> f64 {
 /// so this is above [`flip`] for small differences.
 pub fn flip_8bit(reference: &Frame, test: &Frame) -> f64 {
     let (w, h) = (reference.width, reference.height);
-    let srgb = crate::render::DisplayTransform {
-        encoding: crate::render::DisplayEncoding::Srgb,
+    let srgb = crate::frame::DisplayTransform {
+        encoding: crate::frame::DisplayEncoding::Srgb,
         exposure: 0.0,
     };
     let r = nv_flip::FlipImageRgb8::with_data(w, h, &reference.to_display_rgb8(srgb));

@@ -16,7 +16,8 @@
 use glam::DVec3;
 
 use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
-use crate::render::{RayStats, RenderSettings};
+use crate::frame::RayStats;
+use crate::render::RenderSettings;
 use crate::sampling::light_sample;
 use crate::scene::{Light, Scene};
 

@@ -87,7 +87,7 @@ pub fn shadow_beer_lambert(
     scene: &Scene,
     q: DVec3,
     light: DVec3,
-    stats: &mut crate::render::RayStats,
+    stats: &mut crate::frame::RayStats,
 ) -> DVec3 {
     shadow_beer_lambert_over(scene, None, q, light, stats)
 }
@@ -99,7 +99,7 @@ pub fn shadow_beer_lambert_over(
     regions: Option<&dyn crate::sparse::Regions>,
     q: DVec3,
     light: DVec3,
-    stats: &mut crate::render::RayStats,
+    stats: &mut crate::frame::RayStats,
 ) -> DVec3 {
     crate::technique::shading::shadow_transmittance_over(scene, regions, ID, q, light, stats)
 }

@@ -18,7 +18,8 @@
 use glam::DVec3;
 
 use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
-use crate::render::{RayStats, RenderSettings};
+use crate::frame::RayStats;
+use crate::render::RenderSettings;
 use crate::scene::{Light, Scene};
 use crate::technique::cones::march::{ConeScene, light_radius, shadow_visibility};
 

@@ -10,7 +10,7 @@
 use glam::DVec3;
 
 use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
-use crate::render::RayStats;
+use crate::frame::RayStats;
 
 pub const MODEL: ShadowModel = ShadowModel {
     name: "hard",

@@ -46,7 +46,7 @@ pub fn shadow_min_kt(
     scene: &crate::scene::Scene,
     q: DVec3,
     light: DVec3,
-    stats: &mut crate::render::RayStats,
+    stats: &mut crate::frame::RayStats,
 ) -> f64 {
     shadow_min_kt_over(scene, None, q, light, stats)
 }
@@ -57,7 +57,7 @@ pub fn shadow_min_kt_over(
     regions: Option<&dyn crate::sparse::Regions>,
     q: DVec3,
     light: DVec3,
-    stats: &mut crate::render::RayStats,
+    stats: &mut crate::frame::RayStats,
 ) -> f64 {
     crate::technique::shading::shadow_transmittance_over(scene, regions, ID, q, light, stats).x
 }

@@ -68,7 +68,8 @@ use std::fmt;
 
 use glam::DVec3;
 
-use crate::render::{RayStats, RenderSettings, Transmittance};
+use crate::frame::RayStats;
+use crate::render::{RenderSettings, Transmittance};
 use crate::sampling::SampleKey;
 use crate::scene::{Light, Material, Scene};
 
@@ -503,6 +504,32 @@ pub struct TransmittanceModel {
     /// unit of a homogeneous absorbing interior, or `None` when the model has no
     /// distance in it.
     pub interior_extinction: fn(&Material, voxel_size: f64) -> Option<DVec3>,
+}
+
+impl TransmittanceModel {
+    /// A fresh absorber of this model for one shadow segment: what the walks pass the
+    /// segment's media to (`crate::triangles::Absorber`).
+    pub fn absorber(&'static self) -> ModelAbsorber {
+        ModelAbsorber {
+            model: self,
+            state: (self.start)(),
+        }
+    }
+}
+
+/// One shadow segment's state under a transmittance model.
+pub struct ModelAbsorber {
+    model: &'static TransmittanceModel,
+    state: AbsorbState,
+}
+
+impl crate::triangles::Absorber for ModelAbsorber {
+    fn pass(&mut self, t: f64, index: u8, material: &Material, voxel_size: f64) -> bool {
+        (self.model.pass)(&mut self.state, t, index, material, voxel_size)
+    }
+    fn result(&self, t_end: f64) -> DVec3 {
+        (self.model.result)(&self.state, t_end)
+    }
 }
 
 /// What a lighting term's CPU implementation is asked at one diffuse-or-not hit.

@@ -43,7 +43,7 @@
 use glam::DVec3;
 
 use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
-use crate::render::RayStats;
+use crate::frame::RayStats;
 use crate::sampling::light_sample;
 use crate::scene::{AreaShape, Emission, Light};
 use crate::technique::shading::shadow_transmittance;

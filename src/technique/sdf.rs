@@ -38,7 +38,8 @@ use super::{
     AblateCurve, CpuShadow, GpuBuild, GpuData, Kind, Knob, LightQuery, Setting, ShadowModel,
 };
 use crate::dda::Dda;
-use crate::render::{RayStats, RenderSettings};
+use crate::frame::RayStats;
+use crate::render::RenderSettings;
 use crate::scene::{Scene, VOID};
 use crate::technique::shading::{shadow_transmittance, unshadowed};
 

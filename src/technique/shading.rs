@@ -6,9 +6,11 @@
 use glam::DVec3;
 
 use crate::dda::Dda;
-use crate::render::{RayStats, RenderSettings, Transmittance};
+use crate::frame::RayStats;
+use crate::render::{RenderSettings, Transmittance};
 use crate::scene::{Material, Scene};
 use crate::sparse::Regions;
+use crate::triangles::Absorber;
 use crate::triangles::SurfaceTrace;
 
 /// How a shadow segment walks the scene: through the sparse tree and the triangle
@@ -104,7 +106,8 @@ pub fn shadow_transmittance(
     let light = q + to_light * ((len - walk.end_offset) / len);
     let regions = walk.regions;
     if let Some(s) = walk.surfaces {
-        return s.transmittance(scene, regions, model, q, light, walk.medium, stats);
+        let mut absorber = model.model().absorber();
+        return s.transmittance(scene, regions, &mut absorber, q, light, walk.medium, stats);
     }
     shadow_transmittance_over(scene, regions, model, q, light, stats)
 }
@@ -125,15 +128,14 @@ pub fn shadow_transmittance_over(
     if len == 0.0 {
         return DVec3::ONE;
     }
-    let m = model.model();
     let grid = &scene.grid;
     let vs = grid.voxel_size();
     let mut dda = Dda::over(grid, regions, q, to_light / len, len);
-    let mut state = (m.start)();
+    let mut absorber = model.model().absorber();
     let mut opaque = false;
     while let Some(v) = dda.next() {
         let material = &scene.materials[v.material as usize];
-        if (m.pass)(&mut state, v.t_enter, v.material, material, vs) {
+        if absorber.pass(v.t_enter, v.material, material, vs) {
             opaque = true;
             break;
         }
@@ -143,5 +145,5 @@ pub fn shadow_transmittance_over(
     if opaque {
         return DVec3::ZERO;
     }
-    (m.result)(&state, dda.t_end.min(len))
+    absorber.result(dda.t_end.min(len))
 }

@@ -26,7 +26,7 @@
 use glam::DVec3;
 
 use super::{AblateCurve, CpuShadow, Knob, LightQuery, ShadowModel};
-use crate::render::RayStats;
+use crate::frame::RayStats;
 use crate::sampling::light_sample;
 use crate::scene::{AreaShape, Light};
 

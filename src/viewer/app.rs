@@ -18,8 +18,8 @@ use super::state::{
 };
 use super::worker::{Job, Report, Update};
 use crate::experiment::Experiment;
+use crate::frame::Frame;
 use crate::metrics::{Domain, compare};
-use crate::render::Frame;
 use crate::scene::{AreaShape, Emission, Light};
 
 /// One row of a declared setting (`crate::technique::Setting`): a drag value over its
@@ -692,8 +692,8 @@ impl ViewerApp {
             "resolved_experiment": text,
         });
         let record = serde_json::to_string_pretty(&record)?;
-        let linear = crate::render::DisplayTransform {
-            encoding: crate::render::DisplayEncoding::Linear,
+        let linear = crate::frame::DisplayTransform {
+            encoding: crate::frame::DisplayEncoding::Linear,
             exposure: 0.0,
         };
         crate::output::write_frame_with_provenance(&u.frame, &png, &record, linear)?;

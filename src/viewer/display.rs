@@ -6,7 +6,7 @@
 
 use eframe::egui::{Color32, ColorImage, Pos2, Rect, Vec2, pos2};
 
-use crate::render::{DisplayEncoding, DisplayTransform, Frame};
+use crate::frame::{DisplayEncoding, DisplayTransform, Frame};
 
 /// What the image area shows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -13,9 +13,9 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use crate::experiment::Experiment;
+use crate::frame::Frame;
 use crate::gpu::GpuTracer;
 use crate::plan::Plan;
-use crate::render::Frame;
 
 /// What to render: `experiment` at `width` x `height`, accumulating up to `frames`.
 #[derive(Clone, Debug)]

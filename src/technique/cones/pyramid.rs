@@ -29,7 +29,8 @@
 use glam::{DVec3, IVec3, UVec3};
 use rayon::prelude::*;
 
-use crate::render::{RayStats, RenderSettings, Transmittance};
+use crate::frame::RayStats;
+use crate::render::{RenderSettings, Transmittance};
 use crate::scene::{Material, Scene, VOID};
 
 /// Most levels a pyramid may have (coarsest texel 2^15 voxels).

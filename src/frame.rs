@@ -1,0 +1,136 @@
+//! What a render gives: the radiance frame, how it is displayed, and the rays and steps it
+//! cost. Both tracers fill these; the outputs, metrics and viewer read them.
+
+use std::time::Duration;
+
+/// Linear RGB radiance per pixel, rows from the top. f32 is enough for storage; the CPU
+/// reference computes in f64 and rounds once at the end.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f32; 3]>,
+}
+
+impl Frame {
+    pub fn new(width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            pixels: vec![[0.0; 3]; width as usize * height as usize],
+        }
+    }
+
+    pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
+        self.pixels[(y * self.width + x) as usize]
+    }
+
+    /// The displayed value: radiance clamped to [0, 1] (the seed's framebuffer; no tone mapping).
+    pub fn to_rgb8(&self) -> Vec<u8> {
+        self.to_display_rgb8(DisplayTransform::default())
+    }
+
+    /// The displayed value under `t`: radiance times 2^exposure, clamped to [0, 1],
+    /// stored linearly or sRGB-encoded.
+    pub fn to_display_rgb8(&self, t: DisplayTransform) -> Vec<u8> {
+        let scale = 2f32.powf(t.exposure as f32);
+        self.pixels
+            .iter()
+            .flat_map(|p| {
+                p.map(|c| {
+                    let v = (c * scale).clamp(0.0, 1.0);
+                    let v = match t.encoding {
+                        DisplayEncoding::Linear => v,
+                        DisplayEncoding::Srgb => srgb_encode(v),
+                    };
+                    (v * 255.0).round() as u8
+                })
+            })
+            .collect()
+    }
+
+    pub fn all_finite(&self) -> bool {
+        self.pixels.iter().all(|p| p.iter().all(|c| c.is_finite()))
+    }
+}
+
+/// How a PNG stores radiance in 8 bits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DisplayEncoding {
+    /// The value itself (the seed's framebuffer: no gamma).
+    #[default]
+    Linear,
+    /// The sRGB transfer function (IEC 61966-2-1), what a display expects.
+    Srgb,
+}
+
+impl DisplayEncoding {
+    pub fn name(self) -> &'static str {
+        match self {
+            DisplayEncoding::Linear => "linear",
+            DisplayEncoding::Srgb => "srgb",
+        }
+    }
+}
+
+/// Radiance to a displayed 8-bit value: exposure (stops), clamp, encoding.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DisplayTransform {
+    pub encoding: DisplayEncoding,
+    /// Radiance is multiplied by 2^exposure first.
+    pub exposure: f64,
+}
+
+/// The sRGB transfer function of a linear value in [0, 1] (IEC 61966-2-1).
+pub fn srgb_encode(v: f32) -> f32 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Rays and voxel steps, counted by the tracer (not estimated).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayStats {
+    pub primary: u64,
+    /// Reflection and refraction rays.
+    pub secondary: u64,
+    pub shadow: u64,
+    /// DDA steps from one voxel to the next, over all rays.
+    pub voxel_steps: u64,
+    /// Ray/triangle tests of triangle surfaces (`render.surface`), over all rays:
+    /// counted by the CPU reference only (the GPU's counters stop at voxel steps).
+    pub triangle_tests: u64,
+}
+
+impl RayStats {
+    pub fn total_rays(&self) -> u64 {
+        self.primary + self.secondary + self.shadow
+    }
+}
+
+impl std::ops::AddAssign for RayStats {
+    fn add_assign(&mut self, o: Self) {
+        self.primary += o.primary;
+        self.secondary += o.secondary;
+        self.shadow += o.shadow;
+        self.voxel_steps += o.voxel_steps;
+        self.triangle_tests += o.triangle_tests;
+    }
+}
+
+/// One rendered frame with what it cost.
+#[derive(Clone, Debug)]
+pub struct RenderOutput {
+    pub frame: Frame,
+    pub stats: RayStats,
+    /// Time of the trace alone (uploads and readback excluded where the backend can tell,
+    /// and the preparation always: `setup_time`).
+    pub trace_time: Duration,
+    /// Time spent before the trace preparing what it reads: the walk's own data (sparse
+    /// tree, proximity field), triangle surfaces, cone pyramids, a shadow model's data.
+    /// Both backends keep it out of `trace_time`, so a frame's time is comparable
+    /// whichever backend traced it and however the preparation was cached.
+    pub setup_time: Duration,
+}
