@@ -14,9 +14,10 @@
 //! `[ablate]` its curves name are read and checked against the settings they set.
 //!
 //! Each point is rendered `warmup` times untimed, then `runs` times; its time is the
-//! median over the runs of trace time plus setup time. Trace time: GPU, wall time around
-//! a synchronised submit, from `GpuTracer::render`; CPU, the reference tracer's wall
-//! time. Setup time: one full build of the cone pyramids per image, on the GPU outside
+//! median over the runs of trace time plus setup time, as a [`Session`] times a render
+//! (`Session::render_scene`). Trace time: GPU, device time from timestamp queries where
+//! the adapter has them, else wall time around a synchronised submit; CPU, the reference
+//! tracer's wall time. Setup time: one full build of the cone pyramids per image, on the GPU outside
 //! its timed trace (`build_pyramid`, then a synchronising readback of the coarsest
 //! level), so a cone point pays what a scene that changes every frame pays. (The GPU
 //! tracer reuses its pyramids between renders of an unchanged scene, so its own renders
@@ -43,12 +44,12 @@ pub mod plot;
 pub mod tasks;
 mod text;
 use crate::frame::Frame;
-use crate::gpu::GpuTracer;
 use crate::metrics::{Domain, compare};
 use crate::output::write_frame_with_provenance;
 use crate::plan::Plan;
 use crate::render::{Features, MAX_SAMPLES, RenderSettings, Transmittance};
 use crate::scene::{Light, PointLight, Scene};
+use crate::session::{Backend, Session};
 use crate::technique::Knob;
 
 /// Part of the reference cache key. Bump it whenever a tracer's model changes what an
@@ -746,8 +747,9 @@ pub fn points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
 // Rendering on either tracer.
 
 struct Tracers {
-    gpu: Option<GpuTracer>,
-    /// Why there is no GPU tracer.
+    gpu: Option<Session>,
+    cpu: Session,
+    /// Why there is no GPU session.
     gpu_error: Option<String>,
 }
 
@@ -766,17 +768,41 @@ struct Rendered {
     cpu_setup: Duration,
 }
 
+impl Rendered {
+    fn of(image: crate::session::Image, backend: &'static str, fallback: Option<String>) -> Self {
+        Rendered {
+            frame: image.frame,
+            // Device time from timestamp queries where the adapter has them, else wall
+            // time around the synchronised submit (the session's timer).
+            time: image.trace_time,
+            backend,
+            fallback,
+            plan: image.plan,
+            timestamps: image.device_timed,
+            cpu_setup: image.setup_time,
+        }
+    }
+}
+
 impl Tracers {
+    /// The CPU reference alone; `why` says why there is no GPU.
+    fn cpu_only(why: &str) -> Self {
+        Self {
+            gpu: None,
+            cpu: Session::cpu(),
+            gpu_error: Some(why.into()),
+        }
+    }
+
     fn new(c: &AblateConfig) -> Result<Self> {
         if c.backend == BackendChoice::Cpu && c.reference_backend == BackendChoice::Cpu {
-            return Ok(Self {
-                gpu: None,
-                gpu_error: Some("not requested ([ablate] backend = \"cpu\")".into()),
-            });
+            return Ok(Self::cpu_only("not requested ([ablate] backend = \"cpu\")"));
         }
-        match GpuTracer::new() {
+        let cpu = Session::cpu();
+        match Session::new(Backend::Gpu) {
             Ok(t) => Ok(Self {
                 gpu: Some(t),
+                cpu,
                 gpu_error: None,
             }),
             Err(e)
@@ -785,16 +811,17 @@ impl Tracers {
             {
                 Ok(Self {
                     gpu: None,
-                    gpu_error: Some(format!("{e:#}")),
+                    cpu,
+                    gpu_error: Some(e.to_string()),
                 })
             }
-            Err(e) => Err(e.context("[ablate] asks for the GPU backend")),
+            Err(e) => Err(anyhow::Error::new(e).context("[ablate] asks for the GPU backend")),
         }
     }
 
     fn adapter(&self) -> String {
         match (&self.gpu, &self.gpu_error) {
-            (Some(g), _) => g.adapter_summary(),
+            (Some(g), _) => g.gpu().map(|g| g.adapter_summary()).unwrap_or_default(),
             (None, Some(e)) => format!("none ({e})"),
             (None, None) => "none".into(),
         }
@@ -810,26 +837,10 @@ impl Tracers {
     ) -> Result<Rendered> {
         let gpu_reason = match (choice, self.gpu.as_mut()) {
             (BackendChoice::Cpu, _) => None,
-            (_, Some(gpu)) => match gpu.render(scene, s) {
-                Ok(out) => {
-                    let plan = gpu
-                        .last_plan()
-                        .cloned()
-                        .unwrap_or_else(|| Plan::new(scene, s));
-                    return Ok(Rendered {
-                        frame: out.frame,
-                        // Device time from timestamp queries where the adapter has
-                        // them, else wall time around the synchronised submit.
-                        time: gpu.last_gpu_time().unwrap_or(out.trace_time),
-                        backend: "gpu",
-                        fallback: None,
-                        plan,
-                        timestamps: gpu.last_gpu_time().is_some(),
-                        cpu_setup: Duration::ZERO,
-                    });
-                }
-                Err(e) if choice == BackendChoice::Auto => Some(format!("{e:#}")),
-                Err(e) => return Err(e.context("GPU render failed")),
+            (_, Some(gpu)) => match gpu.render_scene(scene, s) {
+                Ok(image) => return Ok(Rendered::of(image, "gpu", None)),
+                Err(e) if choice == BackendChoice::Auto => Some(e.to_string()),
+                Err(e) => return Err(anyhow::Error::new(e)),
             },
             (BackendChoice::Gpu, None) => bail!(
                 "no GPU tracer: {}",
@@ -840,16 +851,8 @@ impl Tracers {
                 self.gpu_error.as_deref().unwrap_or("unknown")
             )),
         };
-        let out = crate::cpu::render(scene, s);
-        Ok(Rendered {
-            frame: out.frame,
-            time: out.trace_time,
-            backend: "cpu",
-            fallback: gpu_reason,
-            plan: Plan::new(scene, s),
-            timestamps: false,
-            cpu_setup: out.setup_time,
-        })
+        let image = self.cpu.render_scene(scene, s)?;
+        Ok(Rendered::of(image, "cpu", gpu_reason))
     }
 
     /// Setup time of a render that `plan` describes and its trace time leaves out: one
@@ -867,7 +870,9 @@ impl Tracers {
                 Duration::ZERO
             });
         }
-        let (Some(layout), Some(gpu)) = (r.plan.pyramid, self.gpu.as_mut()) else {
+        let (Some(layout), Some(gpu)) =
+            (r.plan.pyramid, self.gpu.as_mut().and_then(|g| g.gpu_mut()))
+        else {
             return Ok(Duration::ZERO);
         };
         let start = std::time::Instant::now();
@@ -990,7 +995,7 @@ struct ReferenceMeta {
 }
 
 fn backend_label(tracers: &Tracers, choice: BackendChoice) -> String {
-    match (choice, &tracers.gpu) {
+    match (choice, tracers.gpu.as_ref().and_then(|g| g.gpu())) {
         (BackendChoice::Gpu, Some(g)) => format!("gpu {}", g.adapter_summary()),
         // The CPU image does not depend on the thread count (pixels are independent).
         _ => "cpu f64".to_string(),

@@ -14,6 +14,8 @@ use crate::frame::{DisplayTransform, Frame, RayStats};
 use crate::gpu::GpuTracer;
 use crate::plan::Plan;
 use crate::progress::{Progress, Watch};
+use crate::render::RenderSettings;
+use crate::scene::Scene;
 
 /// Which tracer a session renders with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,16 +53,23 @@ impl Session {
     /// A session on `backend`; with [`Backend::Gpu`] an error of kind
     /// [`ErrorKind::Device`] when no adapter can be opened.
     pub fn new(backend: Backend) -> Result<Self> {
-        let tracer =
-            match backend {
-                Backend::Cpu => Tracer::Cpu {
-                    label: crate::cpu::backend_summary(),
-                },
-                Backend::Gpu => Tracer::Gpu(Box::new(GpuTracer::new().map_err(|e| {
+        match backend {
+            Backend::Cpu => Ok(Self::cpu()),
+            Backend::Gpu => Ok(Self {
+                tracer: Tracer::Gpu(Box::new(GpuTracer::new().map_err(|e| {
                     Error::new(ErrorKind::Device, format!("no GPU device: {e:#}"))
                 })?)),
-            };
-        Ok(Self { tracer })
+            }),
+        }
+    }
+
+    /// A session on the f64 CPU reference, which always opens.
+    pub fn cpu() -> Self {
+        Self {
+            tracer: Tracer::Cpu {
+                label: crate::cpu::backend_summary(),
+            },
+        }
     }
 
     /// A session on `backend`, or on the CPU reference when the GPU cannot be opened;
@@ -99,15 +108,33 @@ impl Session {
         }
     }
 
+    /// The GPU tracer, mutable: for what a measurement does beside renders (a cone
+    /// pyramid built and read back on its own, to time it).
+    pub fn gpu_mut(&mut self) -> Option<&mut GpuTracer> {
+        match &mut self.tracer {
+            Tracer::Gpu(t) => Some(t),
+            Tracer::Cpu { .. } => None,
+        }
+    }
+
     /// Renders `e` (its `spp` frames where its plan samples anything, else one).
     pub fn render(&mut self, e: &Experiment) -> Result<Image> {
         self.render_with_progress(e, false)
     }
 
+    /// Renders `scene` under `settings`, as [`render`](Self::render) renders an
+    /// experiment: for a sweep that varies the settings of one scene, which it need not
+    /// copy into an experiment per point.
+    pub fn render_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<Image> {
+        self.render_reporting(scene, settings, |_| None)
+    }
+
     /// As [`render`](Self::render), with a progress line on stderr (`forced`: even when
     /// stderr is not a terminal).
     pub fn render_with_progress(&mut self, e: &Experiment, forced: bool) -> Result<Image> {
-        self.render_reporting(e, |unit| Progress::new(&e.name, unit, forced))
+        self.render_reporting(&e.scene, &e.settings, |unit| {
+            Progress::new(&e.name, unit, forced)
+        })
     }
 
     /// As [`render`](Self::render), followed by `watch` from another thread: its
@@ -115,30 +142,33 @@ impl Session {
     /// kind [`ErrorKind::Interrupted`] (within a row of the CPU reference or a dispatch
     /// of the GPU kernel).
     pub fn render_watched(&mut self, e: &Experiment, watch: &Arc<Watch>) -> Result<Image> {
-        self.render_reporting(e, |unit| Some(Progress::watched(watch.clone(), unit)))
-            .map_err(|err| {
-                if watch.stopped() {
-                    Error::new(
-                        ErrorKind::Interrupted,
-                        format!("{}: render stopped on request", e.name),
-                    )
-                } else {
-                    err
-                }
-            })
+        self.render_reporting(&e.scene, &e.settings, |unit| {
+            Some(Progress::watched(watch.clone(), unit))
+        })
+        .map_err(|err| {
+            if watch.stopped() {
+                Error::new(
+                    ErrorKind::Interrupted,
+                    format!("{}: render stopped on request", e.name),
+                )
+            } else {
+                err
+            }
+        })
     }
 
     fn render_reporting(
         &mut self,
-        e: &Experiment,
+        scene: &Scene,
+        settings: &RenderSettings,
         progress: impl Fn(&'static str) -> Option<Progress>,
     ) -> Result<Image> {
         let wall = Instant::now();
-        let (out, plan, timer) = match &mut self.tracer {
+        let (out, plan, timer, device_timed) = match &mut self.tracer {
             Tracer::Gpu(t) => {
                 let progress = progress("frames");
                 t.set_progress(progress.map(Arc::new));
-                let out = t.render(&e.scene, &e.settings);
+                let out = t.render(scene, settings);
                 t.set_progress(None);
                 let mut out = out.map_err(|err| {
                     Error::new(ErrorKind::Device, format!("GPU render failed: {err:#}"))
@@ -146,35 +176,34 @@ impl Session {
 
                 // Device time from timestamp queries, where the adapter has them and the
                 // render's passes fit a query set.
-                let timer = match t.last_gpu_time() {
+                let (timer, device_timed) = match t.last_gpu_time() {
                     Some(device) => {
                         out.trace_time = device;
-                        t.timer_name()
+                        (t.timer_name(), true)
                     }
-                    None => "wall time around a synchronised submit",
+                    None => ("wall time around a synchronised submit", false),
                 };
                 let plan = t
                     .last_plan()
                     .cloned()
-                    .unwrap_or_else(|| Plan::new(&e.scene, &e.settings));
-                (out, plan, timer)
+                    .unwrap_or_else(|| Plan::new(scene, settings));
+                (out, plan, timer, device_timed)
             }
             Tracer::Cpu { .. } => {
                 // The CPU's plan is derived the same way, for the record: it needs no
                 // shader variant, but the scene's needs are the same.
-                let plan = Plan::new(&e.scene, &e.settings);
+                let plan = Plan::new(scene, settings);
                 let progress = progress("rows");
-                let out =
-                    crate::cpu::render_with_progress(&e.scene, &e.settings, progress.as_ref());
+                let out = crate::cpu::render_with_progress(scene, settings, progress.as_ref());
                 if progress.is_some_and(|p| p.stopped()) {
                     return Err(Error::new(ErrorKind::Interrupted, "render stopped"));
                 }
-                (out, plan, "wall")
+                (out, plan, "wall", false)
             }
         };
         // Only a plan that samples something accumulates frames; otherwise one is traced.
         let frames = if plan.accumulate {
-            e.settings.spp.max(1)
+            settings.spp.max(1)
         } else {
             1
         };
@@ -185,6 +214,7 @@ impl Session {
             setup_time: out.setup_time,
             wall_time: wall.elapsed(),
             timer,
+            device_timed,
             frames,
             plan,
             backend: self.label(),
@@ -208,6 +238,8 @@ pub struct Image {
     pub wall_time: Duration,
     /// What measured `trace_time`.
     pub timer: &'static str,
+    /// Whether `trace_time` is device time from timestamp queries.
+    pub device_timed: bool,
     /// Frames accumulated.
     pub frames: u32,
     /// What the tracer ran and what it left out.

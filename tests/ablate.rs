@@ -316,7 +316,15 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         "the baseline must render on the GPU"
     );
     for r in &report.summaries {
-        assert_eq!(r.fallback.is_some(), r.backend == "cpu");
+        assert_eq!(
+            r.fallback.is_some(),
+            r.backend == "cpu",
+            "{} {}: {} ({:?})",
+            r.model,
+            r.value,
+            r.backend,
+            r.fallback
+        );
     }
 
     // The cone curves: every point of each model, cone shadows on (hard shadows and

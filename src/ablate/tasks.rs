@@ -390,10 +390,7 @@ impl Worker {
     /// A worker without a GPU, for the CPU reference's bands (a cluster's CPU tasks).
     pub fn cpu() -> Self {
         Self {
-            tracers: Tracers {
-                gpu: None,
-                gpu_error: Some("a CPU worker (reference bands)".into()),
-            },
+            tracers: Tracers::cpu_only("a CPU worker (reference bands)"),
         }
     }
 
