@@ -4,6 +4,8 @@
 //! the plan it was traced with; [`Image::provenance`] the record `voxlab render --json`
 //! prints and stores beside every image.
 
+use std::borrow::Cow;
+use std::ops::Range;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -126,13 +128,29 @@ impl Session {
     /// experiment: for a sweep that varies the settings of one scene, which it need not
     /// copy into an experiment per point.
     pub fn render_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<Image> {
-        self.render_reporting(scene, settings, |_| None)
+        self.render_reporting(scene, settings, None, |_| None)
+    }
+
+    /// Renders frames `frames` (frame indices) of `settings`' accumulation of `scene`
+    /// and gives the image averaged over frames `0..frames.end`, for a display that
+    /// refines its image progressively: on the GPU, `frames.start > 0` continues the
+    /// accumulation the session's previous call of this left (same scene, settings and
+    /// plan, ended at `frames.start`; `GpuTracer::render_frames` says what else it
+    /// checks), and `trace_time` covers this call's frames. The CPU reference keeps no
+    /// accumulation: it renders frames `0..frames.end` afresh, the same image.
+    pub fn render_frames(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        frames: Range<u32>,
+    ) -> Result<Image> {
+        self.render_reporting(scene, settings, Some(frames), |_| None)
     }
 
     /// As [`render`](Self::render), with a progress line on stderr (`forced`: even when
     /// stderr is not a terminal).
     pub fn render_with_progress(&mut self, e: &Experiment, forced: bool) -> Result<Image> {
-        self.render_reporting(&e.scene, &e.settings, |unit| {
+        self.render_reporting(&e.scene, &e.settings, None, |unit| {
             Progress::new(&e.name, unit, forced)
         })
     }
@@ -142,7 +160,7 @@ impl Session {
     /// kind [`ErrorKind::Interrupted`] (within a row of the CPU reference or a dispatch
     /// of the GPU kernel).
     pub fn render_watched(&mut self, e: &Experiment, watch: &Arc<Watch>) -> Result<Image> {
-        self.render_reporting(&e.scene, &e.settings, |unit| {
+        self.render_reporting(&e.scene, &e.settings, None, |unit| {
             Some(Progress::watched(watch.clone(), unit))
         })
         .map_err(|err| {
@@ -161,14 +179,27 @@ impl Session {
         &mut self,
         scene: &Scene,
         settings: &RenderSettings,
+        range: Option<Range<u32>>,
         progress: impl Fn(&'static str) -> Option<Progress>,
     ) -> Result<Image> {
         let wall = Instant::now();
+        // A range of the accumulation is, on the CPU, the render of its first frames.
+        let settings = &match &range {
+            Some(r) if matches!(self.tracer, Tracer::Cpu { .. }) => Cow::Owned(RenderSettings {
+                spp: r.end.max(1),
+                ..settings.clone()
+            }),
+            _ => Cow::Borrowed(settings),
+        };
+        let accumulated = range.as_ref().map_or(settings.spp, |r| r.end);
         let (out, plan, timer, device_timed) = match &mut self.tracer {
             Tracer::Gpu(t) => {
                 let progress = progress("frames");
                 t.set_progress(progress.map(Arc::new));
-                let out = t.render(scene, settings);
+                let out = match range {
+                    Some(r) => t.render_frames(scene, settings, r),
+                    None => t.render(scene, settings),
+                };
                 t.set_progress(None);
                 let mut out = out.map_err(|err| {
                     Error::new(ErrorKind::Device, format!("GPU render failed: {err:#}"))
@@ -203,7 +234,7 @@ impl Session {
         };
         // Only a plan that samples something accumulates frames; otherwise one is traced.
         let frames = if plan.accumulate {
-            settings.spp.max(1)
+            accumulated.max(1)
         } else {
             1
         };

@@ -1,9 +1,9 @@
 //! Render workers: one thread per side (and one for references), each with its own
-//! `GpuTracer`, so the window never waits for the GPU and each side keeps its own
+//! GPU `Session`, so the window never waits for the GPU and each side keeps its own
 //! accumulation buffers and cone pyramids between frames.
 //!
 //! A worker is told what to render (a `Job`) and then works on its own: it traces
-//! batches of frames, continuing the accumulation (`GpuTracer::render_frames`), sends
+//! batches of frames, continuing the accumulation (`Session::render_frames`), sends
 //! the running image after each batch, and stops at the job's cap. A newer job replaces
 //! the current one between batches.
 
@@ -14,8 +14,8 @@ use std::time::Duration;
 
 use crate::experiment::Experiment;
 use crate::frame::Frame;
-use crate::gpu::GpuTracer;
 use crate::plan::Plan;
+use crate::session::{Backend, Session};
 
 /// What to render: `experiment` at `width` x `height`, accumulating up to `frames`.
 #[derive(Clone, Debug)]
@@ -107,18 +107,21 @@ struct Current {
 }
 
 fn run(jobs: Receiver<Job>, send: impl Fn(Report)) {
-    let mut tracer = match GpuTracer::new() {
+    let mut session = match Session::new(Backend::Gpu) {
         Ok(t) => t,
         Err(e) => {
             send(Report::Failed {
                 generation: 0,
-                message: format!("{e:#}"),
+                message: e.to_string(),
             });
             return;
         }
     };
     send(Report::Ready {
-        adapter: tracer.adapter_summary(),
+        adapter: session
+            .gpu()
+            .map(|g| g.adapter_summary())
+            .unwrap_or_default(),
     });
     let mut current: Option<Current> = None;
     // Time per frame of the latest batch, to size the next one.
@@ -179,7 +182,9 @@ fn run(jobs: Receiver<Job>, send: impl Fn(Report)) {
         // panicking) becomes this job's error instead of a silently dead thread.
         let frames = *done..*done + batch;
         let rendered = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            tracer.render_frames(&e.scene, settings, frames)
+            session
+                .render_frames(&e.scene, settings, frames)
+                .map_err(anyhow::Error::new)
         }))
         .unwrap_or_else(|panic| {
             let what = panic
@@ -190,21 +195,18 @@ fn run(jobs: Receiver<Job>, send: impl Fn(Report)) {
             Err(anyhow::anyhow!("the tracer panicked: {what}"))
         });
         match rendered {
-            Ok(out) => {
-                // The device timer where there is one: it leaves out one-off costs (a
-                // kernel variant compiled on first use, a pyramid build) that would
-                // make the adaptive resolution overreact to the first frame.
-                let time = tracer.last_gpu_time().unwrap_or(out.trace_time);
-                let frame_time = time / batch;
+            Ok(image) => {
+                // The device timer where there is one (the session's trace time): it
+                // leaves out one-off costs (a kernel variant compiled on first use, a
+                // pyramid build) that would make the adaptive resolution overreact to
+                // the first frame.
+                let frame_time = image.trace_time / batch;
                 per_frame = Some(frame_time);
                 *done += batch;
-                let plan = tracer
-                    .last_plan()
-                    .map(|p| p.to_string())
-                    .unwrap_or_default();
+                let plan = image.plan.to_string();
                 send(Report::Update(Update {
                     generation: job.generation,
-                    frame: Arc::new(out.frame),
+                    frame: Arc::new(image.frame),
                     frames: *done,
                     total,
                     frame_time,
