@@ -56,7 +56,7 @@ use crate::technique::Knob;
 /// image looks like (shading, sampling, transmittance): cached references made by the
 /// old code are then rebuilt instead of silently reused. 2: the specular gate, rays
 /// split where they leave the grid, the seed camera's VIEW_OFFSET (issue 13).
-pub const MODEL_VERSION: u32 = 2;
+pub(crate) const MODEL_VERSION: u32 = 2;
 
 /// Seeds of the reference's two halves, offset from the experiment's seed so their
 /// samples are independent of the swept points' (which use the experiment's seed).
@@ -65,11 +65,11 @@ const REFERENCE_SEED_OFFSETS: [u32; 2] = [0x9E37_79B9, 0x3C6E_F372];
 
 /// Seeds per point when `[ablate] seeds` is not given: three is the fewest with an
 /// interval (t = 4.30 at 2 degrees of freedom) at three times the cost of one.
-pub const DEFAULT_SEEDS: u32 = 3;
+pub(crate) const DEFAULT_SEEDS: u32 = 3;
 
 /// The most seeds per point; far below the reference's seed offsets, so a point's seeds
 /// never draw the reference's samples.
-pub const MAX_SEEDS: u32 = 64;
+pub(crate) const MAX_SEEDS: u32 = 64;
 
 // ---------------------------------------------------------------------------------------
 // Configuration: the `[ablate]` table.
@@ -933,7 +933,7 @@ fn reference_halves(e: &Experiment, c: &AblateConfig) -> [RenderSettings; 2] {
 }
 
 /// The cache key: everything that changes the reference's pixels ([`content_key`]).
-pub fn reference_key(scene: &Scene, halves: &[RenderSettings; 2], backend: &str) -> String {
+pub(crate) fn reference_key(scene: &Scene, halves: &[RenderSettings; 2], backend: &str) -> String {
     content_key("reference", scene, &format!("halves {halves:?}"), backend)
 }
 
@@ -1999,7 +1999,7 @@ pub fn pareto_front(rows: &[Row], metric: fn(&Row) -> f64) -> Vec<bool> {
 }
 
 /// The spread of a row's timed runs: (min, max) of trace + setup, ms.
-pub fn ms_spread(row: &Row) -> (f64, f64) {
+pub(crate) fn ms_spread(row: &Row) -> (f64, f64) {
     row.ms_runs
         .iter()
         .fold((row.ms_median, row.ms_median), |(lo, hi), &v| {

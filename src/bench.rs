@@ -803,7 +803,7 @@ impl PlanRow {
 /// The full kernel for `scene`: `plan` with every image-neutral flag on and the cone
 /// bindings in. The shadow model and the lighting terms stay the plan's: they are
 /// choices, not code the plan leaves out.
-pub fn full_plan(
+pub(crate) fn full_plan(
     scene: &Scene,
     settings: &RenderSettings,
     plan: &crate::plan::Plan,

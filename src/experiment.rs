@@ -34,7 +34,7 @@ use crate::scene::{
 };
 
 /// Grid side of the seed scene (`[scene] size` when neither `size` nor `dims` is given).
-pub const SEED_SIZE: u32 = 16;
+pub(crate) const SEED_SIZE: u32 = 16;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 enum RulesName {
@@ -524,7 +524,7 @@ impl std::str::FromStr for Override {
 /// Most dotted parts a `--set` key may have: the deepest key of a file is
 /// `techniques.<model>.<setting>` or `ablate.sweep`; a deeper one cannot name a setting,
 /// and 5,000 parts made a TOML document too deep to read back.
-pub const MAX_KEY_PARTS: usize = 8;
+pub(crate) const MAX_KEY_PARTS: usize = 8;
 
 impl Override {
     /// `key=value` for a message: the value cut to 120 characters, as a file's values

@@ -95,10 +95,10 @@ pub enum ExportError {
 
 /// Voxels of the largest grid exported: the faces are found by visiting every voxel
 /// (six passes), which stays within seconds up to here.
-pub const MAX_EXPORT_VOXELS: u64 = 1 << 27;
+pub(crate) const MAX_EXPORT_VOXELS: u64 = 1 << 27;
 /// Triangles of the largest export (~0.6 GB of PLY): a grid whose faces would need more
 /// (a checkerboard of materials, say) is refused before anything is written.
-pub const MAX_EXPORT_TRIANGLES: usize = 1 << 24;
+pub(crate) const MAX_EXPORT_TRIANGLES: usize = 1 << 24;
 
 /// The Mitsuba 3 scene of `e` (module documentation). With `strict`, any
 /// approximation is an error listing them all.

@@ -32,7 +32,7 @@ impl Frame {
 
     /// The displayed value under `t`: radiance times 2^exposure, clamped to [0, 1],
     /// stored linearly or sRGB-encoded.
-    pub fn to_display_rgb8(&self, t: DisplayTransform) -> Vec<u8> {
+    pub(crate) fn to_display_rgb8(&self, t: DisplayTransform) -> Vec<u8> {
         let scale = 2f32.powf(t.exposure as f32);
         self.pixels
             .iter()

@@ -16,9 +16,9 @@ use std::sync::Once;
 /// Largest experiment file read, bytes.
 pub const MAX_EXPERIMENT_BYTES: u64 = 16 << 20;
 /// Largest `.vox` file read, bytes.
-pub const MAX_VOX_BYTES: u64 = 512 << 20;
+pub(crate) const MAX_VOX_BYTES: u64 = 512 << 20;
 /// Largest mesh file (OBJ, MTL, glTF, GLB or a glTF buffer) read, bytes.
-pub const MAX_MESH_BYTES: u64 = 1 << 30;
+pub(crate) const MAX_MESH_BYTES: u64 = 1 << 30;
 
 /// Why an input file could not be read.
 #[derive(Debug, thiserror::Error)]
@@ -210,7 +210,7 @@ pub fn check_memory(bytes: u64, what: &str) -> Result<(), String> {
 
 /// A vector of `n` copies of `v`, or an error instead of the abort a failed allocation
 /// would be.
-pub fn try_filled<T: Clone>(n: usize, v: T, what: &str) -> Result<Vec<T>, String> {
+pub(crate) fn try_filled<T: Clone>(n: usize, v: T, what: &str) -> Result<Vec<T>, String> {
     let mut out = Vec::new();
     out.try_reserve_exact(n).map_err(|_| {
         format!(
@@ -223,7 +223,7 @@ pub fn try_filled<T: Clone>(n: usize, v: T, what: &str) -> Result<Vec<T>, String
 }
 
 /// `text` cut to at most `max` characters for an error message, with how much was cut.
-pub fn excerpt(text: &str, max: usize) -> String {
+pub(crate) fn excerpt(text: &str, max: usize) -> String {
     let n = text.chars().count();
     if n <= max {
         return text.to_string();

@@ -54,7 +54,9 @@
 //!
 //! The modules below the facade are public for the tests, the benchmarks and for
 //! research code that needs them (a technique of one's own, see
-//! `docs/adding-a-technique.md`); they change more often than the facade.
+//! `docs/adding-a-technique.md`); they change more often than the facade. What nothing
+//! outside the crate uses (the tests, the command line, the Python bindings, the
+//! examples in these docs) is `pub(crate)`.
 
 pub mod ablate;
 pub mod bench;

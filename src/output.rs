@@ -252,7 +252,7 @@ pub fn sidecar_path(path: &Path) -> PathBuf {
 
 /// A file an output was made from, as its record names it: the path and the blake3
 /// hash of the bytes; `None` when it cannot be read.
-pub fn file_record(path: &Path) -> Option<serde_json::Value> {
+pub(crate) fn file_record(path: &Path) -> Option<serde_json::Value> {
     let file = File::open(path).ok()?;
     let mut h = blake3::Hasher::new();
     h.update_reader(file).ok()?;
@@ -291,7 +291,7 @@ pub fn write_sidecar(path: &Path, record: &serde_json::Value) -> Result<(), Outp
 /// Writes `bytes` to `path` the way `write_frame` writes images: parent directories
 /// created, a temporary file renamed into place, so a failed write leaves nothing under
 /// `path` (the viewer's exported experiment files and window captures).
-pub fn write_file(path: impl AsRef<Path>, bytes: &[u8]) -> Result<(), OutputError> {
+pub(crate) fn write_file(path: impl AsRef<Path>, bytes: &[u8]) -> Result<(), OutputError> {
     let path = path.as_ref();
     write_together(vec![(path.to_path_buf(), bytes_fill(path, bytes))])
 }
@@ -309,7 +309,7 @@ fn write_atomically(
 pub type Fill<'a> = Box<dyn FnOnce(&Path) -> Result<(), OutputError> + 'a>;
 
 /// A [`Fill`] that writes `bytes`, blaming `path` for a failure.
-pub fn bytes_fill<'a>(path: &Path, bytes: &'a [u8]) -> Fill<'a> {
+pub(crate) fn bytes_fill<'a>(path: &Path, bytes: &'a [u8]) -> Fill<'a> {
     let path = path.to_path_buf();
     Box::new(move |tmp: &Path| {
         std::fs::write(tmp, bytes).map_err(|error| OutputError::WriteFile { path, error })

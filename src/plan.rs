@@ -29,7 +29,7 @@ use crate::technique::cones::pyramid::{PyramidLayout, memory_line};
 use crate::technique::{LightingTerm, ShadowModel, TRAVERSALS, TransmittanceModel, TraversalModel};
 
 /// Shader defs of one kernel variant, ordered so they can key a pipeline cache.
-pub type ShaderDefs = BTreeMap<String, ShaderDefValue>;
+pub(crate) type ShaderDefs = BTreeMap<String, ShaderDefValue>;
 
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Plan {
@@ -206,7 +206,7 @@ pub fn check_surface(scene: &Scene, settings: &RenderSettings) -> Result<(), Str
 /// The traversal `settings` name, when it can walk `scene` (its plan rule); the
 /// reason otherwise, for the experiment loader (the plan itself walks the scene with the
 /// `auto` choice and says why).
-pub fn check_traversal(scene: &Scene, settings: &RenderSettings) -> Result<(), String> {
+pub(crate) fn check_traversal(scene: &Scene, settings: &RenderSettings) -> Result<(), String> {
     let Traversal::Walk(t) = settings.traversal else {
         return Ok(());
     };
@@ -231,10 +231,13 @@ pub fn tree_levels(traversal: &TraversalModel, dims: glam::UVec3) -> u32 {
     if !traversal.walks_tree {
         return 0;
     }
-    match traversal.descent_levels {
+    let levels = match traversal.descent_levels {
         Some(levels) => levels(dims),
         None => crate::sparse::levels_for(dims, crate::sparse::GPU_LOG_BRANCH),
-    }
+    };
+    // The grid limits keep every tree within what the kernel unrolls.
+    debug_assert!(levels <= crate::sparse::MAX_GPU_LEVELS);
+    levels
 }
 
 /// What `settings` ask of a grid held only as its sparse tree that needs the dense grid:
@@ -284,7 +287,7 @@ pub fn check_sparse_grid(
 
 /// Whether some material the grid holds is diffuse (`kd > 0`): the lighting terms' plan
 /// rules.
-pub fn diffuse_in_grid(scene: &Scene) -> bool {
+pub(crate) fn diffuse_in_grid(scene: &Scene) -> bool {
     shading_materials(scene).iter().any(|(_, m)| m.kd > 0.0)
 }
 
@@ -292,7 +295,7 @@ pub fn diffuse_in_grid(scene: &Scene) -> bool {
 /// shades (a ray passing into void is shaded by the medium it leaves).
 /// The materials a hit can be shaded with: every non-void material in the grid (a hit
 /// on void is shaded by its medium, never void itself).
-pub fn shading_materials(scene: &Scene) -> Vec<(usize, &Material)> {
+pub(crate) fn shading_materials(scene: &Scene) -> Vec<(usize, &Material)> {
     let used = scene.grid.materials_used();
     scene
         .materials
@@ -646,7 +649,7 @@ impl Plan {
     }
 
     /// The same plan with ray counting compiled in or out.
-    pub fn with_counting(mut self, count_rays: bool) -> Self {
+    pub(crate) fn with_counting(mut self, count_rays: bool) -> Self {
         self.count_rays = count_rays;
         self
     }
@@ -655,7 +658,7 @@ impl Plan {
     /// with the shadow model's label (`AREA_LIGHTS`) and the transmittance model, when
     /// not the default, by its name in capitals (`BEER_LAMBERT`), after `EMISSION`, and
     /// the lighting terms' labels (`AMBIENT_OCCLUSION`) last.
-    pub fn flags_on(&self) -> Vec<String> {
+    pub(crate) fn flags_on(&self) -> Vec<String> {
         let at = Self::FLAGS
             .iter()
             .position(|&n| n == "ACCUMULATE")

@@ -117,7 +117,7 @@ impl Progress {
     }
 
     /// Whether the render may be asked to stop (it has a [`Watch`]).
-    pub fn can_stop(&self) -> bool {
+    pub(crate) fn can_stop(&self) -> bool {
         self.watch.is_some()
     }
 

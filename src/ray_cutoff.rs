@@ -46,7 +46,7 @@ pub fn traced(weight: f32, cutoff: f32) -> bool {
 }
 
 /// Whether a light of bound `bound` is shaded at a hit of a ray of weight `weight`.
-pub fn light_shaded(weight: f32, bound: f32, cutoff: f32) -> bool {
+pub(crate) fn light_shaded(weight: f32, bound: f32, cutoff: f32) -> bool {
     weight * bound >= cutoff
 }
 
@@ -81,7 +81,7 @@ pub fn light_bound(scene: &Scene, settings: &RenderSettings, light: &Light) -> f
 
 /// The lights' bounds as both tracers read them: rounded up to f32, so the rounding
 /// never makes a bound smaller than the f64 one.
-pub fn light_bounds(scene: &Scene, settings: &RenderSettings) -> Vec<f32> {
+pub(crate) fn light_bounds(scene: &Scene, settings: &RenderSettings) -> Vec<f32> {
     scene
         .lights
         .iter()

@@ -174,7 +174,8 @@ impl Surface {
 }
 
 impl PixelFilter {
-    pub const ALL: [PixelFilter; 3] = [PixelFilter::None, PixelFilter::Box, PixelFilter::Gaussian];
+    pub(crate) const ALL: [PixelFilter; 3] =
+        [PixelFilter::None, PixelFilter::Box, PixelFilter::Gaussian];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -209,7 +210,7 @@ impl PixelFilter {
 }
 
 /// Largest `filter_width` accepted, pixels.
-pub const MAX_FILTER_WIDTH: f64 = 4.0;
+pub(crate) const MAX_FILTER_WIDTH: f64 = 4.0;
 
 /// Extensions beyond the seed. `Features::default()` is the baseline: hard shadows, the
 /// default transmittance, no lighting term.
@@ -237,11 +238,6 @@ impl Default for Features {
 }
 
 impl Features {
-    /// The shadow model in force, by its name in `[features] shadow_model`.
-    pub fn shadow_model_name(&self) -> &'static str {
-        self.shadow_model.name
-    }
-
     /// Chooses the shadow model called `name`; false, and nothing changed, for an
     /// unknown name.
     pub fn set_shadow_model(&mut self, name: &str) -> bool {
@@ -372,7 +368,7 @@ pub const MAX_SAMPLES: u32 = 1 << 16;
 pub const MAX_DEPTH_LIMIT: u32 = 16;
 
 /// Largest `max_depth` accepted: the two limits' sum at most.
-pub const MAX_TOTAL_DEPTH_LIMIT: u32 = 2 * MAX_DEPTH_LIMIT;
+pub(crate) const MAX_TOTAL_DEPTH_LIMIT: u32 = 2 * MAX_DEPTH_LIMIT;
 
 /// Largest image side accepted.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
@@ -433,7 +429,7 @@ impl RenderSettings {
 
     /// The total depth limit in force: `max_depth`, or the sum of the two limits (which
     /// no tree can exceed) when it is not set.
-    pub fn total_depth_limit(&self) -> u32 {
+    pub(crate) fn total_depth_limit(&self) -> u32 {
         let sum = self.max_reflection_depth + self.max_refraction_depth;
         self.max_depth.map_or(sum, |d| d.min(sum))
     }

@@ -48,7 +48,7 @@ pub fn light_sample(seed: u32, pixel: u32, frame: u32, light: u32, k: u32, n: u3
 }
 
 /// The `light` word of the pixel samples' hash: no light has this index.
-pub const PIXEL_STREAM: u32 = u32::MAX;
+pub(crate) const PIXEL_STREAM: u32 = u32::MAX;
 
 /// The R2 sequence's steps (M. Roberts, "The Unreasonable Effectiveness of
 /// Quasirandom Sequences", 2018: `1/g` and `1/g^2`, g the plastic number) in 32-bit fixed
@@ -58,7 +58,7 @@ const R2_STEPS: [u32; 2] = [3_242_174_889, 2_447_445_414];
 /// Frame `frame`'s point in the unit square for one pixel: the R2 sequence over frames
 /// (low discrepancy however many frames there are), rotated per pixel by a random
 /// offset (Cranley-Patterson), so pixels draw independent sequences.
-pub fn pixel_sample(seed: u32, pixel: u32, frame: u32) -> (f64, f64) {
+pub(crate) fn pixel_sample(seed: u32, pixel: u32, frame: u32) -> (f64, f64) {
     let at = |d: usize| {
         hash(seed, pixel, 0, PIXEL_STREAM, d as u32).wrapping_add(frame.wrapping_mul(R2_STEPS[d]))
     };

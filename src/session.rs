@@ -112,7 +112,7 @@ impl Session {
 
     /// The GPU tracer, mutable: for what a measurement does beside renders (a cone
     /// pyramid built and read back on its own, to time it).
-    pub fn gpu_mut(&mut self) -> Option<&mut GpuTracer> {
+    pub(crate) fn gpu_mut(&mut self) -> Option<&mut GpuTracer> {
         match &mut self.tracer {
             Tracer::Gpu(t) => Some(t),
             Tracer::Cpu { .. } => None,

@@ -57,11 +57,11 @@ impl Kind {
 /// Any finite number.
 pub const ANY: Kind = Kind::closed(-f64::MAX, f64::MAX);
 /// Any finite number `>= 0`.
-pub const NON_NEGATIVE: Kind = Kind::closed(0.0, f64::MAX);
+pub(crate) const NON_NEGATIVE: Kind = Kind::closed(0.0, f64::MAX);
 /// Any finite number `> 0`.
-pub const POSITIVE: Kind = Kind::above(0.0, f64::MAX);
+pub(crate) const POSITIVE: Kind = Kind::above(0.0, f64::MAX);
 /// A number in `[0, 1]`.
-pub const UNIT: Kind = Kind::closed(0.0, 1.0);
+pub(crate) const UNIT: Kind = Kind::closed(0.0, 1.0);
 
 /// One setting of an experiment file, declared once.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -418,7 +418,7 @@ pub const RENDER: &[Field<RenderSettings>] = &[
 ];
 
 /// `[render] max_depth`: optional, so not a [`Field`] of [`RENDER`].
-pub const MAX_DEPTH: Setting = Setting::new(
+pub(crate) const MAX_DEPTH: Setting = Setting::new(
     "max_depth",
     Kind::Int {
         min: 0,
@@ -430,7 +430,7 @@ pub const MAX_DEPTH: Setting = Setting::new(
 );
 
 /// `[[materials]]`' numbers (albedo, sigma and emission are vectors `>= 0`).
-pub const MATERIAL: &[Field<Material>] = &[
+pub(crate) const MATERIAL: &[Field<Material>] = &[
     Field {
         setting: Setting::new("kd", UNIT, 0.0, "", "diffuse coefficient"),
         get: |m| m.kd,

@@ -34,11 +34,11 @@ use crate::scene::{Grid, VOID};
 pub const HEADER_WORDS: usize = 4;
 
 /// The branching of the GPU kernel's tree: 4x4x4 children (a 64-tree).
-pub const GPU_LOG_BRANCH: u32 = 2;
+pub(crate) const GPU_LOG_BRANCH: u32 = 2;
 
 /// Deepest tree the GPU kernel descends (shaders/traversal_sparse.wgsl unrolls its levels):
 /// 4^8 = 65536 voxels a side, beyond any grid voxlab accepts.
-pub const MAX_GPU_LEVELS: u32 = 8;
+pub(crate) const MAX_GPU_LEVELS: u32 = 8;
 
 /// Levels of nodes a tree of a grid of `dims` has: its root's cube is
 /// `2^(log_branch levels)` voxels a side, at least the grid's largest side.
@@ -130,7 +130,7 @@ impl VoxelSource for SparseTree {
 
 /// Side of a [`BrickSource`]'s bricks: the leaf blocks of the 64-tree, so the builder
 /// reads a leaf with one look-up.
-pub const BRICK: i32 = 4;
+pub(crate) const BRICK: i32 = 4;
 
 /// A sparse set of voxels: the material of every voxel set, void elsewhere, held in
 /// 4x4x4 bricks, with the coarser cubes that hold any brick, so the tree builder skips
@@ -162,7 +162,7 @@ impl BrickSource {
     }
 
     /// Bricks held (each 64 bytes).
-    pub fn brick_count(&self) -> usize {
+    pub(crate) fn brick_count(&self) -> usize {
         self.bricks.len()
     }
 
@@ -329,7 +329,7 @@ impl VoxelSource for ModelOverlay<'_> {
 
 /// A tree's voxels through a table of materials (rebuilt canonically: regions that
 /// become alike merge).
-pub struct Mapped<'a> {
+pub(crate) struct Mapped<'a> {
     pub base: &'a SparseTree,
     pub table: [u8; 256],
 }
@@ -358,7 +358,7 @@ pub struct Region {
 
 impl Region {
     /// Whether the region is the one voxel `lo`.
-    pub fn is_voxel(&self) -> bool {
+    pub(crate) fn is_voxel(&self) -> bool {
         self.hi - self.lo == IVec3::ONE
     }
 }
@@ -438,7 +438,7 @@ enum Child {
 
 /// What building cost.
 #[derive(Clone, Copy, Debug)]
-pub struct BuildStats {
+pub(crate) struct BuildStats {
     pub time: Duration,
 }
 
@@ -476,7 +476,7 @@ impl SparseTree {
     }
 
     /// [`Self::build`] timed.
-    pub fn build_timed(source: &dyn VoxelSource, log_branch: u32) -> (Self, BuildStats) {
+    pub(crate) fn build_timed(source: &dyn VoxelSource, log_branch: u32) -> (Self, BuildStats) {
         let start = Instant::now();
         let tree = Self::build(source, log_branch);
         (

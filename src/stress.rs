@@ -41,7 +41,7 @@ pub const TOLERANCE: f64 = 2.0 / 255.0;
 pub const CONDITION_TURN: f64 = 2e-6;
 
 /// Fraction of differing pixels a case may have unless it states its own.
-pub const DEFAULT_MAX_BAD: f64 = 0.005;
+pub(crate) const DEFAULT_MAX_BAD: f64 = 0.005;
 
 /// The stress experiment files, by name (file stem) and text.
 pub const STRESS_FILES: &[(&str, &str)] = &[
@@ -644,7 +644,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
 }
 
 /// The cases of the experiment files under `experiments/stress/`.
-pub fn file_cases() -> Result<Vec<StressCase>> {
+pub(crate) fn file_cases() -> Result<Vec<StressCase>> {
     STRESS_FILES
         .iter()
         .map(|(stem, text)| {
@@ -731,7 +731,7 @@ pub enum Verdict {
 }
 
 impl StressRow {
-    pub fn gpu_finite(&self) -> Option<bool> {
+    pub(crate) fn gpu_finite(&self) -> Option<bool> {
         match &self.gpu {
             GpuResult::Rendered { frame, .. } => Some(frame.all_finite()),
             _ => None,

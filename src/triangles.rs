@@ -51,7 +51,7 @@ pub const CELL_TOLERANCE: f64 = 1e-3;
 pub const MAX_TRIANGLES: usize = 1 << 24;
 
 /// Most (cell, triangle) references: 4 bytes each, plus 16 per cell, on both sides.
-pub const MAX_REFERENCES: usize = 1 << 27;
+pub(crate) const MAX_REFERENCES: usize = 1 << 27;
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum TriangleError {
@@ -97,7 +97,7 @@ pub struct Triangle {
 
 impl Triangle {
     /// Unit normal of the plane, counter-clockwise; zero when degenerate.
-    pub fn face_normal(&self) -> DVec3 {
+    pub(crate) fn face_normal(&self) -> DVec3 {
         let [a, b, c] = self.vertices;
         (b - a).cross(c - a).normalize_or_zero()
     }
@@ -106,7 +106,7 @@ impl Triangle {
 /// A ray set up once for the watertight test: the axis it moves most along becomes z,
 /// and the shear that makes it the z axis (Woop et al. 2013, section 3).
 #[derive(Clone, Copy, Debug)]
-pub struct WatertightRay {
+pub(crate) struct WatertightRay {
     origin: DVec3,
     k: [usize; 3],
     shear: DVec3,
@@ -115,7 +115,7 @@ pub struct WatertightRay {
 /// Where a ray crosses a triangle: the distance along it and the barycentric weights of
 /// the vertices (in vertex order).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Crossing {
+pub(crate) struct Crossing {
     pub t: f64,
     pub weights: DVec3,
 }
@@ -368,7 +368,7 @@ impl SurfaceTrace {
     /// within the tolerance after it are the same crossing (a duplicated face, or the
     /// faces of an edge the ray passes through): a caller that goes on moves `after` to
     /// `t` plus the tolerance.
-    pub fn next_transition(
+    pub(crate) fn next_transition(
         &self,
         v: IVec3,
         ray: &WatertightRay,

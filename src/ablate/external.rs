@@ -27,7 +27,7 @@ pub struct External {
 
 impl External {
     /// One line for logs and tables.
-    pub fn bias_line(&self, own: &Reference) -> String {
+    pub(crate) fn bias_line(&self, own: &Reference) -> String {
         format!(
             "voxlab's reference ({} spp, {}) against {}: RMSE {:.3e} (its own noise {:.3e}), \
              mean difference ({:+.3e}, {:+.3e}, {:+.3e}), FLIP {:.4}",

@@ -17,7 +17,10 @@ type Region = (u32, u32, u32);
 
 /// The square (a sixth of the image's smaller side, at least 8 pixels) where the rows
 /// differ most from the reference, summed over rows: where the models disagree.
-pub fn inset_region<'a>(reference: &Frame, frames: impl Iterator<Item = &'a Frame>) -> Region {
+pub(crate) fn inset_region<'a>(
+    reference: &Frame,
+    frames: impl Iterator<Item = &'a Frame>,
+) -> Region {
     let (w, h) = (reference.width, reference.height);
     let side = (w.min(h) / 6).max(8).min(w.min(h));
     let mut err = vec![0.0f64; (w * h) as usize];
@@ -63,7 +66,7 @@ pub fn inset_region<'a>(reference: &Frame, frames: impl Iterator<Item = &'a Fram
 /// Every image in a grid, the reference first: the image with the inset's square
 /// outlined, under it the label (model and value, RMSE, FLIP, time and backend) and the
 /// inset magnified.
-pub fn grid_image(r: &Reference, rows: &[Row]) -> image::RgbImage {
+pub(crate) fn grid_image(r: &Reference, rows: &[Row]) -> image::RgbImage {
     let zoom = TILE_MIN.div_ceil(r.frame.width).max(1);
     let (w, h) = (r.frame.width * zoom, r.frame.height * zoom);
     let line = TEXT_SIZE + 4.0;

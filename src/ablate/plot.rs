@@ -41,7 +41,7 @@ const PALETTE: [RGBColor; 6] = [
 
 /// The colour of a row's technique: its shadow model's place in the registry, so the
 /// same technique has the same colour in every plot.
-pub fn technique_colour(row: &Row) -> RGBColor {
+pub(crate) fn technique_colour(row: &Row) -> RGBColor {
     let i = crate::technique::SHADOW_MODELS
         .iter()
         .position(|m| m.name == row.shadow_model)
@@ -67,7 +67,7 @@ fn tick_label(v: f64) -> String {
 /// Tick values for a log axis over `lo..hi`: the decades' 1, 2, 5 (or every digit)
 /// where those give at least four, else five values evenly spaced in the logarithm,
 /// rounded to two significant digits, so a narrow range still gets labels.
-pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+pub(crate) fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
     if !(lo > 0.0 && hi > lo && hi.is_finite()) {
         return vec![];
     }

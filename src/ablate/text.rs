@@ -33,7 +33,13 @@ pub fn measure(text: &str, size: f32) -> (f32, f32) {
 
 /// Calls `put(x, y, coverage)` for every pixel of `text` at `size` pixels whose box's
 /// top-left corner is `(x0, y0)` (the baseline one ascent below it).
-pub fn rasterize(text: &str, size: f32, x0: f32, y0: f32, mut put: impl FnMut(i32, i32, f32)) {
+pub(crate) fn rasterize(
+    text: &str,
+    size: f32,
+    x0: f32,
+    y0: f32,
+    mut put: impl FnMut(i32, i32, f32),
+) {
     let font = font();
     let f = font.as_scaled(PxScale::from(size));
     let baseline = y0 + f.ascent();
@@ -62,7 +68,7 @@ pub fn rasterize(text: &str, size: f32, x0: f32, y0: f32, mut put: impl FnMut(i3
 
 /// Draws `text` onto an RGB image in `colour`, blended by coverage, clipped to the image
 /// and to `max_w` pixels of width (whole glyphs past it are left out).
-pub fn draw_on(
+pub(crate) fn draw_on(
     img: &mut image::RgbImage,
     text: &str,
     size: f32,

@@ -120,7 +120,7 @@ fn render_region_with_progress(
 /// [`render`] with what it reads prepared already (`Prepared::new` for the same scene,
 /// settings and plan): what a caller that renders one scene many times calls, so that
 /// its walk's data and pyramids are built once. `setup_time` is zero.
-pub fn render_prepared(
+pub(crate) fn render_prepared(
     scene: &Scene,
     settings: &RenderSettings,
     plan: &Plan,
@@ -280,7 +280,7 @@ impl Prepared {
     }
 
     /// How shadow segments from a point in `medium` walk this preparation's structures.
-    pub fn shadow_walk(&self, medium: u8) -> ShadowWalk<'_> {
+    pub(crate) fn shadow_walk(&self, medium: u8) -> ShadowWalk<'_> {
         ShadowWalk {
             regions: self.regions.as_deref(),
             surfaces: self.surfaces.as_ref(),

@@ -19,9 +19,9 @@ use crate::scene::{Grid, Material, Scene};
 use crate::sparse::{ModelOverlay, PlacedModel, SparseTree};
 
 /// At most this many models in one scene: each is a file load, bounded on its own.
-pub const MAX_MODELS: usize = 64;
+pub(crate) const MAX_MODELS: usize = 64;
 /// A `.vox` model's largest integer scale (each voxel becomes scale^3 voxels).
-pub const MAX_MODEL_SCALE: i64 = 16;
+pub(crate) const MAX_MODEL_SCALE: i64 = 16;
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]

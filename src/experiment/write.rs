@@ -35,7 +35,7 @@ pub struct WriteError {
 }
 
 /// The first line of every file [`to_toml`] writes.
-pub const HEADER: &str = "# Written by voxlab from an experiment, every value resolved: \
+pub(crate) const HEADER: &str = "# Written by voxlab from an experiment, every value resolved: \
                           `voxlab render` renders exactly this.";
 
 /// The `[scene]` table of experiment text as written (empty if the file has none), with
@@ -76,7 +76,7 @@ pub fn scene_source(text: &str, path: &Path) -> Result<Table, ExperimentError> {
 /// provenance records them: a stored experiment names its assets by path, and the
 /// hash says whether the file at that path is still the one it was made from. A file
 /// that cannot be read is left out. Each as the records write it: `{path, blake3}`.
-pub fn input_hashes(text: &str, path: &Path) -> Vec<serde_json::Value> {
+pub(crate) fn input_hashes(text: &str, path: &Path) -> Vec<serde_json::Value> {
     input_files(text, path)
         .into_iter()
         .filter_map(|f| crate::output::file_record(&f))
@@ -217,7 +217,7 @@ fn insert_fields<T>(t: &mut Table, fields: &[crate::settings::Field<T>], target:
 }
 
 /// `[camera]`: target, distance and the angles in degrees.
-pub fn camera_table(c: &OrbitCamera) -> Table {
+pub(crate) fn camera_table(c: &OrbitCamera) -> Table {
     let mut t = Table::new();
     t.insert("target".into(), v3(c.target));
     insert_fields(&mut t, crate::settings::CAMERA, c);
@@ -226,7 +226,7 @@ pub fn camera_table(c: &OrbitCamera) -> Table {
 
 /// One `[[lights]]` entry, with the keys its type allows and no others: a sphere's
 /// normal and rotation have no key (the parser sets -y and 0).
-pub fn light_table(l: &Light) -> Table {
+pub(crate) fn light_table(l: &Light) -> Table {
     let mut t = Table::new();
     let kind = match l {
         Light::Point(_) => "point",
@@ -267,7 +267,7 @@ pub fn light_table(l: &Light) -> Table {
 
 /// One `[[materials]]` entry with every field; `sigma` only where the material has one
 /// (absent means the default derived from kt).
-pub fn material_table(m: &Material) -> Table {
+pub(crate) fn material_table(m: &Material) -> Table {
     let mut t = Table::new();
     t.insert("name".into(), m.name.clone().into());
     t.insert("albedo".into(), v3(m.albedo));
@@ -322,7 +322,7 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
 
 /// `[features]`: every lighting term's flag, and the shadow and transmittance models by
 /// name (`crate::technique`).
-pub fn features_table(f: &Features) -> Table {
+pub(crate) fn features_table(f: &Features) -> Table {
     let mut t = Table::new();
     for term in crate::technique::LIGHTING_TERMS {
         t.insert(term.name.into(), f.term(term.name).into());
@@ -334,7 +334,7 @@ pub fn features_table(f: &Features) -> Table {
 
 /// `[techniques.<name>]` of each plug-in technique with a setting given, in each
 /// setting's declared type; `None` when none is given.
-pub fn techniques_table(p: &crate::technique::TechniqueParams) -> Option<Table> {
+pub(crate) fn techniques_table(p: &crate::technique::TechniqueParams) -> Option<Table> {
     let mut t = Table::new();
     for (name, values) in p.iter() {
         let model = crate::technique::shadow_model(name);
@@ -354,7 +354,7 @@ pub fn techniques_table(p: &crate::technique::TechniqueParams) -> Option<Table> 
 
 /// A shared group's table (`crate::technique::SETTING_GROUPS`): every setting, each in
 /// its declared type.
-pub fn group_table(g: &crate::technique::SettingGroup, s: &RenderSettings) -> Table {
+pub(crate) fn group_table(g: &crate::technique::SettingGroup, s: &RenderSettings) -> Table {
     g.settings
         .iter()
         .map(|k| (k.setting.key.to_string(), k.setting.toml_value((k.get)(s))))

@@ -12,13 +12,13 @@ use naga_oil::compose::{
 use crate::plan::Plan;
 
 /// `voxlab::types`: the layouts shared with the host, imported by every kernel.
-pub const TYPES_MODULE: (&str, &str) = (
+pub(crate) const TYPES_MODULE: (&str, &str) = (
     "shaders/types.wgsl",
     include_str!("../../shaders/types.wgsl"),
 );
 
 /// `voxlab::emission`: imported by the tracer and the radiance injection.
-pub const EMISSION_MODULE: (&str, &str) = (
+pub(crate) const EMISSION_MODULE: (&str, &str) = (
     "shaders/emission.wgsl",
     include_str!("../../shaders/emission.wgsl"),
 );

@@ -38,7 +38,7 @@ const INJECT: (&str, &str) = (
 );
 const MIP_BUILD: &str = include_str!("../../shaders/mip_build.wgsl");
 /// `voxlab::cone`, imported by the tracer and the probe.
-pub const CONE_MODULE: (&str, &str) =
+pub(crate) const CONE_MODULE: (&str, &str) =
     ("shaders/cone.wgsl", include_str!("../../shaders/cone.wgsl"));
 const CONE_PROBE: &str = include_str!("../../shaders/cone_probe.wgsl");
 
@@ -68,7 +68,7 @@ struct LevelParams {
 /// `ConeParams` of `shaders/cone.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct GpuConeParams {
+pub(crate) struct GpuConeParams {
     pub padded: [f32; 3],
     pub levels: u32,
     pub dims: [f32; 3],
@@ -245,7 +245,7 @@ fn groups(d: UVec3) -> (u32, u32, u32) {
 }
 
 /// Decodes an IEEE binary16 value.
-pub fn f16_to_f32(h: u16) -> f32 {
+pub(crate) fn f16_to_f32(h: u16) -> f32 {
     let s = if h & 0x8000 != 0 { -1.0 } else { 1.0 };
     let e = ((h >> 10) & 0x1f) as i32;
     let m = (h & 0x3ff) as f32;
@@ -283,7 +283,7 @@ fn pipeline(
 }
 
 /// The layout of `shaders/cone.wgsl`'s group 1.
-pub fn cone_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+pub(crate) fn cone_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     let float = wgpu::TextureSampleType::Float { filterable: true };
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("voxlab cones"),
@@ -299,7 +299,7 @@ pub fn cone_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
 
 /// Linear within a level, nearest between levels (the shader blends levels itself),
 /// clamp-to-edge (the shader's border weight makes the border empty).
-pub fn pyramid_sampler(device: &wgpu::Device) -> wgpu::Sampler {
+pub(crate) fn pyramid_sampler(device: &wgpu::Device) -> wgpu::Sampler {
     device.create_sampler(&wgpu::SamplerDescriptor {
         label: Some("pyramid"),
         address_mode_u: wgpu::AddressMode::ClampToEdge,
@@ -313,7 +313,7 @@ pub fn pyramid_sampler(device: &wgpu::Device) -> wgpu::Sampler {
 }
 
 /// Composes `voxlab::cone` with an entry module.
-pub fn compose_with_cone(entry: (&str, &str), defs: &[&str]) -> Result<naga::Module> {
+pub(crate) fn compose_with_cone(entry: (&str, &str), defs: &[&str]) -> Result<naga::Module> {
     let defs: HashMap<String, ShaderDefValue> = defs
         .iter()
         .map(|d| (d.to_string(), ShaderDefValue::Bool(true)))
@@ -763,7 +763,7 @@ impl GpuTracer {
 
     /// The group-1 bind group of `shaders/cone.wgsl` for `pyr`, with each light's
     /// radius in voxels (`light_radius`; 0 for point lights).
-    pub fn cone_bind_group(
+    pub(crate) fn cone_bind_group(
         &self,
         pyr: &GpuPyramid,
         cones: &ConeSettings,

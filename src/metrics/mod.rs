@@ -181,7 +181,7 @@ const T_975: [f64; 30] = [
 
 /// Student's t at 0.975 for `df` degrees of freedom (`df >= 1`): the table to 30, then
 /// `1.96 + 2.4 / df`, within 0.003 of the exact value from 31 up.
-pub fn t_975(df: usize) -> f64 {
+pub(crate) fn t_975(df: usize) -> f64 {
     match df {
         0 => f64::INFINITY,
         1..=30 => T_975[df - 1],

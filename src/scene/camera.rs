@@ -64,7 +64,7 @@ impl CameraFrame {
     }
 
     /// The ray through pixel (i, j)'s centre moved by `offset` pixels (x right, y down).
-    pub fn primary_dir_offset(
+    pub(crate) fn primary_dir_offset(
         &self,
         i: u32,
         j: u32,

@@ -45,7 +45,7 @@ pub enum Storage {
 
 impl Storage {
     /// Whether a grid of `voxels` voxels is held as a sparse tree.
-    pub fn is_sparse_for(self, voxels: u64) -> bool {
+    pub(crate) fn is_sparse_for(self, voxels: u64) -> bool {
         match self {
             Storage::Auto => voxels > DENSE_MAX_VOXELS,
             Storage::Dense => false,

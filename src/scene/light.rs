@@ -52,7 +52,7 @@ impl Emission {
         }
     }
 
-    pub fn from_name(name: &str) -> Option<Emission> {
+    pub(crate) fn from_name(name: &str) -> Option<Emission> {
         match name {
             "isotropic" => Some(Emission::Isotropic),
             "lambertian" => Some(Emission::Lambertian),
@@ -154,7 +154,7 @@ impl AreaLight {
     }
 
     /// Size 0: the light is its centre.
-    pub fn is_degenerate(&self) -> bool {
+    pub(crate) fn is_degenerate(&self) -> bool {
         match self.shape {
             AreaShape::Rect { width, height } => width == 0.0 && height == 0.0,
             AreaShape::Disk { radius } | AreaShape::Sphere { radius } => radius == 0.0,

@@ -41,7 +41,7 @@ impl Material {
     }
 
     /// Whether a hit on this material is lit by the lights (diffuse or specular term).
-    pub fn is_lit(&self) -> bool {
+    pub(crate) fn is_lit(&self) -> bool {
         self.kd > 0.0 || self.ks > 0.0
     }
 

@@ -33,7 +33,7 @@ use super::{Grid, Material, Storage, seed_palette};
 pub const MAX_RESOLUTION: u32 = 1 << 16;
 
 /// Albedo of faces that name no material.
-pub const DEFAULT_MESH_ALBEDO: f64 = 0.8;
+pub(crate) const DEFAULT_MESH_ALBEDO: f64 = 0.8;
 
 /// How finely to voxelize.
 #[derive(Clone, Copy, Debug, PartialEq)]

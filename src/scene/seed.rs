@@ -9,7 +9,7 @@ use super::{
 use crate::sparse::{SparseTree, VoxelSource};
 
 /// Ambient colour of the seed's implementation.
-pub const SEED_AMBIENT: DVec3 = DVec3::new(0.05, 0.075, 0.1);
+pub(crate) const SEED_AMBIENT: DVec3 = DVec3::new(0.05, 0.075, 0.1);
 
 /// Fills a grid of `dims` by the seed's rules. All radii are fractions of the grid's
 /// half-extent along each axis, measured at voxel centres with a strict `<`:

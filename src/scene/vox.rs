@@ -59,7 +59,7 @@ pub const VOX_KD: f64 = 0.8;
 pub const VOX_KS: f64 = 0.1;
 
 /// Largest side of one MagicaVoxel model; larger grids are written as several models.
-pub const VOX_MODEL_MAX: u32 = 256;
+pub(crate) const VOX_MODEL_MAX: u32 = 256;
 
 /// Any failure of a scene loader or writer: the file and what is wrong with it.
 #[derive(Debug, thiserror::Error)]
@@ -764,7 +764,7 @@ fn vox_from_data(
 }
 
 /// Most 4x4x4 blocks a `.vox` scene held sparse may fill: 2^24 of 64 bytes, 1 GiB.
-pub const MAX_VOX_BRICKS: usize = 1 << 24;
+pub(crate) const MAX_VOX_BRICKS: usize = 1 << 24;
 
 enum VoxTarget {
     Dense(Grid),

@@ -71,7 +71,7 @@ pub fn signed_volume(triangles: &[[DVec3; 3]]) -> f64 {
 /// identical positions (formats such as glTF split vertices along UV seams, so index
 /// identity would call every textured mesh open). Degenerate triangles, whose welded
 /// corners coincide, are ignored: they enclose nothing.
-pub fn boundary_edge_count(triangles: &[[DVec3; 3]]) -> usize {
+pub(crate) fn boundary_edge_count(triangles: &[[DVec3; 3]]) -> usize {
     let key = |p: DVec3| {
         // -0.0 and 0.0 are one position.
         let n = |x: f64| if x == 0.0 { 0u64 } else { x.to_bits() };
@@ -200,7 +200,7 @@ pub fn fill_bytes(voxels: u64) -> u64 {
 
 /// Largest [`fill_bytes`] a voxelization may need; a larger one is refused before
 /// anything is allocated.
-pub const MAX_FILL_BYTES: u64 = 8 << 30;
+pub(crate) const MAX_FILL_BYTES: u64 = 8 << 30;
 
 pub fn fill_interior(grid: &mut Grid) -> usize {
     let d = grid.dims();
@@ -285,15 +285,15 @@ pub fn fill_interior(grid: &mut Grid) -> usize {
 
 /// Largest side of a mesh voxelized straight into a sparse tree: the fill keeps one
 /// byte per 4x4x4 brick of the grid's box (128 MiB at 2048), and a pyramid over them.
-pub const MAX_SPARSE_MESH_SIDE: u32 = 2048;
+pub(crate) const MAX_SPARSE_MESH_SIDE: u32 = 2048;
 
 /// Most shell bricks (4x4x4 blocks the surface touches) a mesh voxelized sparse may
 /// have: 2^24, each 64 bytes and a reach mask.
-pub const MAX_SHELL_BRICKS: usize = 1 << 24;
+pub(crate) const MAX_SHELL_BRICKS: usize = 1 << 24;
 
 /// A mesh voxelized into a sparse tree: [`voxelize_triangles`] and [`fill_interior`]
 /// done without the dense grid.
-pub struct SparseVoxels {
+pub(crate) struct SparseVoxels {
     pub tree: SparseTree,
     pub shell_voxels: usize,
     pub interior_voxels: u64,
@@ -540,7 +540,7 @@ impl<'a> OutsideFlood<'a> {
 /// test touches takes the last such triangle's material; void the outside cannot reach
 /// is filled). The fill's material is the surface's one material; a surface of several
 /// materials (whose hidden voxels take the nearest surface voxel's) is refused.
-pub fn voxelize_sparse(
+pub(crate) fn voxelize_sparse(
     dims: UVec3,
     voxel_size: f64,
     origin: DVec3,

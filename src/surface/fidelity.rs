@@ -51,7 +51,7 @@ impl Shape {
     }
 
     /// Signed distance: negative inside.
-    pub fn signed_distance(&self, p: DVec3) -> f64 {
+    pub(crate) fn signed_distance(&self, p: DVec3) -> f64 {
         match *self {
             Shape::Sphere { centre, radius } => (p - centre).length() - radius,
             Shape::Torus {

@@ -88,7 +88,7 @@ impl SurfaceMesh {
 
     /// Feeds every vertex, normal, triangle and material into `h`: what the caches keyed
     /// by a scene's mesh (the ablation reference, the GPU's surfaces) compare.
-    pub fn hash_into(&self, h: &mut blake3::Hasher) {
+    pub(crate) fn hash_into(&self, h: &mut blake3::Hasher) {
         for v in self.positions.iter().chain(&self.normals) {
             for c in v.to_array() {
                 h.update(&c.to_le_bytes());

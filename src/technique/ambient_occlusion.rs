@@ -14,7 +14,7 @@ use glam::DVec3;
 
 use super::{LightingTerm, TermQuery};
 
-pub const TERM: LightingTerm = LightingTerm {
+pub(crate) const TERM: LightingTerm = LightingTerm {
     name: "ambient_occlusion",
     short: "ao",
     summary: "ambient times the visibility of cosine-weighted hemisphere cones \

@@ -50,7 +50,7 @@ pub const MODEL: ShadowModel = ShadowModel {
 };
 
 /// The plan rule of models that integrate area lights: some light of non-zero size.
-pub fn needs_area_light(scene: &Scene, _: &RenderSettings) -> Result<(), String> {
+pub(crate) fn needs_area_light(scene: &Scene, _: &RenderSettings) -> Result<(), String> {
     if scene.lights.iter().any(Light::is_area) {
         Ok(())
     } else {

@@ -119,7 +119,7 @@ fn describe(scene: &Scene, settings: &RenderSettings) -> Option<String> {
 
 /// The full angle (degrees) the first area light subtends at the grid's centre, the
 /// aperture its shadow cones have there ([`light_tan_half`]).
-pub fn light_aperture_deg(scene: &Scene) -> Option<f64> {
+pub(crate) fn light_aperture_deg(scene: &Scene) -> Option<f64> {
     let light = scene.lights.iter().find(|l| l.is_area())?;
     let g = &scene.grid;
     let centre = g.to_world(g.dims().as_dvec3() * 0.5);

@@ -10,7 +10,7 @@ use super::TraversalModel;
 
 /// Bytes of the voxel buffer the dense walk reads for a grid of `dims`: one a voxel, in
 /// whole vec4<u32>s.
-pub fn voxel_buffer_bytes(dims: glam::UVec3) -> u64 {
+pub(crate) fn voxel_buffer_bytes(dims: glam::UVec3) -> u64 {
     super::per_voxel_bytes(dims, 1)
 }
 

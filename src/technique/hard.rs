@@ -50,7 +50,7 @@ impl CpuShadow for Hard {
 
 /// The light at its centre, as one point emitter: the hard shadow, which the other
 /// models fall back to for point lights.
-pub fn at_centre(at: &LightQuery, stats: &mut RayStats) -> DVec3 {
+pub(crate) fn at_centre(at: &LightQuery, stats: &mut RayStats) -> DVec3 {
     let x = at.light.position();
     crate::technique::shading::point_contribution(
         at.scene,

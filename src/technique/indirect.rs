@@ -12,7 +12,7 @@ use glam::DVec3;
 
 use super::{LightingTerm, TermQuery};
 
-pub const TERM: LightingTerm = LightingTerm {
+pub(crate) const TERM: LightingTerm = LightingTerm {
     name: "indirect",
     short: "indirect",
     summary: "one bounce of diffuse light gathered by hemisphere cones from the radiance \

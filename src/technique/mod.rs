@@ -125,7 +125,7 @@ pub struct SettingGroup {
 }
 
 /// One setting of a [`SettingGroup`] and the field of `RenderSettings` it is.
-pub type GroupSetting = crate::settings::Field<RenderSettings>;
+pub(crate) type GroupSetting = crate::settings::Field<RenderSettings>;
 
 impl SettingGroup {
     /// Its setting `key` (without the table's prefix).
@@ -134,7 +134,7 @@ impl SettingGroup {
     }
 
     /// Sets every one of its settings in `settings` to the declared default.
-    pub fn reset(&self, settings: &mut RenderSettings) {
+    pub(crate) fn reset(&self, settings: &mut RenderSettings) {
         for g in self.settings {
             (g.set)(settings, g.setting.default);
         }
@@ -407,7 +407,7 @@ pub fn get_shared(settings: &RenderSettings, key: &str) -> Option<f64> {
 
 /// Sets the shared setting `key` in `settings` (checked by the caller); false for an
 /// unknown key.
-pub fn set_shared(settings: &mut RenderSettings, key: &str, v: f64) -> bool {
+pub(crate) fn set_shared(settings: &mut RenderSettings, key: &str, v: f64) -> bool {
     match group_key(key) {
         Some(c) => {
             (c.set)(settings, v);
@@ -549,7 +549,7 @@ impl<'a> TermQuery<'a> {
     /// For a term gathered by hemisphere cones from diffuse hits: the pyramids and the
     /// grid-local hit point, or `None` where the material is not diffuse (the term adds
     /// nothing there). The plan builds the pyramids for every term with `pyramid`.
-    pub fn diffuse_cone_hit(
+    pub(crate) fn diffuse_cone_hit(
         &self,
     ) -> Option<(&'a crate::technique::cones::march::ConeScene, DVec3)> {
         if self.material.kd <= 0.0 {
@@ -604,7 +604,7 @@ pub struct TermBound<'a> {
 }
 
 /// The lighting term called `name` (or its short name).
-pub fn lighting_term(name: &str) -> Option<&'static LightingTerm> {
+pub(crate) fn lighting_term(name: &str) -> Option<&'static LightingTerm> {
     LIGHTING_TERMS
         .iter()
         .copied()
@@ -630,7 +630,7 @@ pub fn transmittance(name: &str) -> Option<Transmittance> {
 }
 
 /// Names `[features] transmittance` may take.
-pub fn transmittance_names() -> Vec<&'static str> {
+pub(crate) fn transmittance_names() -> Vec<&'static str> {
     TRANSMITTANCES.iter().map(|m| m.name).collect()
 }
 
@@ -646,15 +646,15 @@ pub fn default_shadow_model() -> &'static ShadowModel {
 
 /// A traversal's data of a grid: its regions for the f64 walks, its words for the
 /// kernel.
-pub type WalkData = fn(&crate::scene::Grid) -> std::sync::Arc<dyn crate::sparse::Regions>;
+pub(crate) type WalkData = fn(&crate::scene::Grid) -> std::sync::Arc<dyn crate::sparse::Regions>;
 
 /// A traversal's claim on a scene under `render.traversal = "auto"`: `Ok(why)` or
 /// `Err(why not)`.
-pub type AutoClaim = fn(&Scene) -> Result<String, String>;
+pub(crate) type AutoClaim = fn(&Scene) -> Result<String, String>;
 
 /// The plan rule of a traversal that walks the dense grid (`what` it reads, for the
 /// reason): no grid held only as its sparse tree.
-pub fn dense_grid_only(scene: &Scene, what: &str) -> Result<(), String> {
+pub(crate) fn dense_grid_only(scene: &Scene, what: &str) -> Result<(), String> {
     if !scene.grid.is_sparse() {
         return Ok(());
     }
@@ -671,19 +671,19 @@ pub fn dense_grid_only(scene: &Scene, what: &str) -> Result<(), String> {
 
 /// The claim of a walk over the dense grid on grids whose largest side is `from` or
 /// more (none held only as the tree), with its reason.
-pub fn claim_dense_from_side(scene: &Scene, from: u32) -> Result<String, String> {
+pub(crate) fn claim_dense_from_side(scene: &Scene, from: u32) -> Result<String, String> {
     dense_grid_only(scene, "the dense grid")?;
     claim_from_side(scene, from)
 }
 
 /// The bytes of a buffer of `per_voxel` bytes a voxel of a grid of `dims`, in whole
 /// vec4<u32>s: what a walk over the dense grid (its voxels, a field beside them) binds.
-pub fn per_voxel_bytes(dims: glam::UVec3, per_voxel: u64) -> u64 {
+pub(crate) fn per_voxel_bytes(dims: glam::UVec3, per_voxel: u64) -> u64 {
     (per_voxel * dims.as_u64vec3().element_product()).next_multiple_of(16)
 }
 
 /// The claim on grids whose largest side is `from` or more, with its reason.
-pub fn claim_from_side(scene: &Scene, from: u32) -> Result<String, String> {
+pub(crate) fn claim_from_side(scene: &Scene, from: u32) -> Result<String, String> {
     let side = scene.grid.dims().max_element();
     if side >= from {
         Ok(format!("the grid's largest side {side} is {from} or more"))
@@ -756,7 +756,7 @@ pub fn default_traversal() -> &'static TraversalModel {
 }
 
 /// Where a triangle surface's triangles come from, in world coordinates.
-pub type SurfaceTriangles =
+pub(crate) type SurfaceTriangles =
     fn(&Scene) -> Result<std::borrow::Cow<'_, crate::surface::SurfaceMesh>, String>;
 
 /// A surface: what rays hit, everything about it in one value. The default hits the

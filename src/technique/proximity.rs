@@ -41,7 +41,7 @@ pub const MAX_RADIUS: u8 = 255;
 /// a step, at 1.48x at 64^3 and 3.23x at 256^3 (docs/sparse-traversal.md, "Speed
 /// now"). A field larger than the device binds as one buffer (lavapipe: 128 MiB, 64 M
 /// voxels) is left to the tree under "auto" (`crate::gpu`).
-pub const PROXIMITY_FROM_SIDE: u32 = 64;
+pub(crate) const PROXIMITY_FROM_SIDE: u32 = 64;
 
 pub const TRAVERSAL: TraversalModel = TraversalModel {
     name: "proximity",

@@ -45,7 +45,7 @@ use crate::technique::shading::{shadow_transmittance, unshadowed};
 
 /// Largest grid (voxels) the field is built for: 64 MiB of f32 on the device (and
 /// twice that of scratch while it is built), 128 MiB of f64 for the CPU reference.
-pub const MAX_FIELD_VOXELS: u64 = 1 << 24;
+pub(crate) const MAX_FIELD_VOXELS: u64 = 1 << 24;
 
 const SETTINGS: &[Setting] = &[Setting {
     key: "softness",

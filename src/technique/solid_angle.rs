@@ -168,7 +168,7 @@ impl SphericalRect {
 
 /// The spherical rectangle of a rect light seen from `p`, when the contract samples it
 /// in solid angle: its corner at `-u w / 2 - v h / 2` from the centre, edges `u w`, `v h`.
-pub fn of_light(light: &Light, p: DVec3) -> Option<(SphericalRect, f64)> {
+pub(crate) fn of_light(light: &Light, p: DVec3) -> Option<(SphericalRect, f64)> {
     let Light::Area(a) = light else { return None };
     let AreaShape::Rect { width, height } = a.shape else {
         return None;

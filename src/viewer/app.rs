@@ -107,7 +107,7 @@ const REFERENCE_SEED_OFFSET: u32 = 0x9E37_79B9;
 const MAX_KEPT_REFERENCES: usize = 4;
 
 /// Default frames of a converged reference.
-pub const DEFAULT_REFERENCE_SPP: u32 = 256;
+pub(crate) const DEFAULT_REFERENCE_SPP: u32 = 256;
 
 /// What the viewer does without a user: accumulate `frames` on both sides at full
 /// resolution, save both sides and a window capture into `save_dir`, then close (the
@@ -530,7 +530,7 @@ impl ViewerApp {
     }
 
     /// Asks for the references of both sides (rendered once per distinct experiment).
-    pub fn request_error(&mut self) {
+    pub(crate) fn request_error(&mut self) {
         // References of an earlier state that are still waiting or rendering are of
         // no use now: dropped, so the new ones start at once (a new job replaces the
         // reference worker's current one between batches).
@@ -714,7 +714,7 @@ impl ViewerApp {
     /// Saves both sides, their difference (`STEM-difference.exr`, |L - R| in linear
     /// radiance, when they have one size) and a capture of the window, under one new
     /// prefix.
-    pub fn save_all(&mut self, ctx: &egui::Context) {
+    pub(crate) fn save_all(&mut self, ctx: &egui::Context) {
         let dir = PathBuf::from(self.save_dir.trim());
         if let Err(e) = std::fs::create_dir_all(&dir) {
             self.status = format!("save failed: cannot create {}: {e}", dir.display());

@@ -24,7 +24,7 @@ pub enum ViewMode {
 }
 
 impl ViewMode {
-    pub const ALL: [ViewMode; 5] = [
+    pub(crate) const ALL: [ViewMode; 5] = [
         ViewMode::Split,
         ViewMode::Left,
         ViewMode::Right,
@@ -66,7 +66,7 @@ pub enum Zoom {
 }
 
 impl Zoom {
-    pub const ALL: [Zoom; 5] = [
+    pub(crate) const ALL: [Zoom; 5] = [
         Zoom::Fit,
         Zoom::Pixels(1),
         Zoom::Pixels(2),
@@ -133,7 +133,7 @@ impl Display {
 
     /// Where the image of `size` pixels goes in `area` (points; `pixels_per_point` of
     /// the screen): fitted, or at the zoom's scale around `centre`, clipped by the caller.
-    pub fn image_rect(&self, area: Rect, size: (u32, u32), pixels_per_point: f32) -> Rect {
+    pub(crate) fn image_rect(&self, area: Rect, size: (u32, u32), pixels_per_point: f32) -> Rect {
         let (w, h) = (size.0.max(1) as f32, size.1.max(1) as f32);
         match self.zoom {
             Zoom::Fit => {
@@ -156,7 +156,7 @@ impl Display {
 }
 
 /// The image pixel under `pos`, for an image of `size` drawn over `rect`.
-pub fn pixel_at(rect: Rect, size: (u32, u32), pos: Pos2) -> Option<(u32, u32)> {
+pub(crate) fn pixel_at(rect: Rect, size: (u32, u32), pos: Pos2) -> Option<(u32, u32)> {
     if !rect.contains(pos) || rect.width() <= 0.0 || rect.height() <= 0.0 {
         return None;
     }
@@ -168,7 +168,7 @@ pub fn pixel_at(rect: Rect, size: (u32, u32), pos: Pos2) -> Option<(u32, u32)> {
 }
 
 /// The centre of image pixel `(x, y)` on screen, for an image of `size` over `rect`.
-pub fn pixel_centre(rect: Rect, size: (u32, u32), (x, y): (u32, u32)) -> Pos2 {
+pub(crate) fn pixel_centre(rect: Rect, size: (u32, u32), (x, y): (u32, u32)) -> Pos2 {
     pos2(
         rect.left() + (x as f32 + 0.5) / size.0 as f32 * rect.width(),
         rect.top() + (y as f32 + 0.5) / size.1 as f32 * rect.height(),
@@ -205,7 +205,7 @@ pub fn difference_image(display: &Display, a: &Frame, b: &Frame) -> Option<Color
 
 /// FLIP of `b` against `a` (both as an sRGB display shows them, `metrics::flip`): its
 /// mean and the magma-coloured map.
-pub fn flip_image(a: &Frame, b: &Frame) -> Option<(f64, ColorImage)> {
+pub(crate) fn flip_image(a: &Frame, b: &Frame) -> Option<(f64, ColorImage)> {
     if (a.width, a.height) != (b.width, b.height) {
         return None;
     }
@@ -217,7 +217,7 @@ pub fn flip_image(a: &Frame, b: &Frame) -> Option<(f64, ColorImage)> {
 /// The colour bar of a comparison view: what its colours mean. `colours` run from `lo`
 /// to `hi` of `quantity`, as the view draws them.
 #[derive(Clone, Debug, PartialEq)]
-pub struct ColourBar {
+pub(crate) struct ColourBar {
     pub quantity: &'static str,
     pub lo: f64,
     pub hi: f64,
@@ -245,7 +245,7 @@ fn tidy(v: f64) -> String {
 /// The colour bar of `display`'s comparison view (`None` in the other views): FLIP's
 /// magma over 0 to 1; for the difference, grey from 0 to the radiance difference shown
 /// as white, `1 / (gain 2^exposure)`, through the display's encoding.
-pub fn colour_bar(display: &Display) -> Option<ColourBar> {
+pub(crate) fn colour_bar(display: &Display) -> Option<ColourBar> {
     const STEPS: usize = 64;
     match display.mode {
         ViewMode::Flip => {
@@ -286,7 +286,7 @@ pub fn colour_bar(display: &Display) -> Option<ColourBar> {
 
 /// A stale image (of an earlier camera or setting, while the new one renders) is shown
 /// dimmed under this tint, never as current.
-pub const STALE_TINT: Color32 = Color32::from_gray(90);
+pub(crate) const STALE_TINT: Color32 = Color32::from_gray(90);
 
 #[cfg(test)]
 mod tests {

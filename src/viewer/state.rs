@@ -63,7 +63,7 @@ impl ShadowModel {
     }
 
     pub fn of(f: &Features) -> Self {
-        ShadowModel(f.shadow_model_name())
+        ShadowModel(f.shadow_model.name)
     }
 
     pub fn apply(self, f: &mut Features) {
@@ -152,10 +152,10 @@ pub const MAX_VIEW_SPP: u32 = 4096;
 pub const DEFAULT_VIEW_SPP: u32 = 256;
 
 /// Pitch stays short of the poles, where the orbit's "right" axis turns over.
-pub const MAX_PITCH_DEG: f64 = 89.0;
+pub(crate) const MAX_PITCH_DEG: f64 = 89.0;
 
 /// Orbit speed: degrees per pixel dragged.
-pub const DEGREES_PER_PIXEL: f64 = 0.4;
+pub(crate) const DEGREES_PER_PIXEL: f64 = 0.4;
 
 /// The viewer's model: the shared experiment and the two sides.
 pub struct ViewerState {
@@ -459,7 +459,7 @@ pub enum LightKind {
 }
 
 impl LightKind {
-    pub const ALL: [LightKind; 4] = [
+    pub(crate) const ALL: [LightKind; 4] = [
         LightKind::Point,
         LightKind::Rect,
         LightKind::Disk,

@@ -33,7 +33,7 @@ use super::pyramid::Pyramid;
 pub const OCCLUSION_CUTOFF: f64 = 0.99;
 
 /// Guard against a march that does not end (it always does: steps grow geometrically).
-pub const MAX_CONE_STEPS: u32 = 4096;
+pub(crate) const MAX_CONE_STEPS: u32 = 4096;
 
 /// The knobs of a march.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -110,20 +110,20 @@ pub fn march(
 }
 
 /// An orthonormal tangent frame around unit `n`, the same on CPU and GPU.
-pub fn tangent_frame(n: DVec3) -> (DVec3, DVec3) {
+pub(crate) fn tangent_frame(n: DVec3) -> (DVec3, DVec3) {
     let helper = if n.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
     let t1 = helper.cross(n).normalize();
     (t1, n.cross(t1))
 }
 
 /// The golden angle (radians) that spreads the hemisphere cones in a spiral.
-pub const GOLDEN_ANGLE: f64 = 2.399_963_229_728_653;
+pub(crate) const GOLDEN_ANGLE: f64 = 2.399_963_229_728_653;
 
 /// Direction `k` of `count` hemisphere cones around `n`: cosine-weighted by Malley's
 /// method (a stratified spiral on the unit disk, `r = sqrt((k + 1/2) / K)`, angle
 /// `k` golden angles, lifted to the hemisphere), so the plain mean of the cones'
 /// values estimates `(1/pi) int V cos` over the hemisphere.
-pub fn hemisphere_dir(n: DVec3, k: u32, count: u32) -> DVec3 {
+pub(crate) fn hemisphere_dir(n: DVec3, k: u32, count: u32) -> DVec3 {
     let (t1, t2) = tangent_frame(n);
     let r = ((k as f64 + 0.5) / count as f64).sqrt();
     let phi = k as f64 * GOLDEN_ANGLE;
@@ -133,7 +133,7 @@ pub fn hemisphere_dir(n: DVec3, k: u32, count: u32) -> DVec3 {
 
 /// `tan(theta/2)` of hemisphere cones: `count` cones share the hemisphere's solid angle,
 /// `2 pi (1 - cos(theta/2)) = 2 pi / K`, capped at 120 degrees (K = 1, 2).
-pub fn hemisphere_tan_half(count: u32) -> f64 {
+pub(crate) fn hemisphere_tan_half(count: u32) -> f64 {
     let c = 1.0 - 1.0 / count.max(1) as f64;
     let half = c.acos().min(60f64.to_radians());
     half.tan()

@@ -42,7 +42,7 @@ const fn float(
 }
 
 /// Every `[cones]` key, in the order the file lists them.
-pub const CONE_SETTINGS: &[GroupSetting] = &[
+pub(crate) const CONE_SETTINGS: &[GroupSetting] = &[
     GroupSetting {
         setting: Setting {
             key: "levels",
@@ -133,12 +133,12 @@ pub const CONE_SETTINGS: &[GroupSetting] = &[
 ];
 
 /// The declaration of `[cones] key`.
-pub fn cone_setting(key: &str) -> Option<&'static GroupSetting> {
+pub(crate) fn cone_setting(key: &str) -> Option<&'static GroupSetting> {
     CONE_SETTINGS.iter().find(|c| c.setting.key == key)
 }
 
 /// The declared default of `[cones] key` (`ConeSettings::default` is made of these).
-pub fn declared_default(key: &str) -> f64 {
+pub(crate) fn declared_default(key: &str) -> f64 {
     cone_setting(key)
         .unwrap_or_else(|| panic!("[cones] has no key {key}"))
         .setting

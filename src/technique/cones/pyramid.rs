@@ -44,8 +44,8 @@ pub const AUTO_MAX_PADDING: f64 = 2.0;
 pub const AUTO_MAX_LEVELS: u32 = 8;
 
 /// Bytes per texel: R16Float opacity, RGBA16Float radiance.
-pub const OPACITY_TEXEL_BYTES: u64 = 2;
-pub const RADIANCE_TEXEL_BYTES: u64 = 8;
+pub(crate) const OPACITY_TEXEL_BYTES: u64 = 2;
+pub(crate) const RADIANCE_TEXEL_BYTES: u64 = 8;
 
 /// Sizes of a pyramid over a grid of `dims`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -113,7 +113,7 @@ impl PyramidLayout {
     }
 
     /// Bytes of a texture of this layout with `texel_bytes` per texel, all mips.
-    pub fn texture_bytes(&self, texel_bytes: u64) -> u64 {
+    pub(crate) fn texture_bytes(&self, texel_bytes: u64) -> u64 {
         (0..self.levels)
             .map(|l| volume(self.texture_dims(l)) * texel_bytes)
             .sum()
@@ -128,10 +128,10 @@ impl PyramidLayout {
 /// Largest pyramid memory a render may ask for on either backend: the f64 CPU
 /// reference's (8 bytes of opacity and 32 of radiance per texel) is the larger. A grid
 /// of 1290^3 with cone shadows asked for 17 GB; it is refused before anything is built.
-pub const MAX_PYRAMID_BYTES: u64 = 4 << 30;
+pub(crate) const MAX_PYRAMID_BYTES: u64 = 4 << 30;
 
 /// Bytes the CPU reference's pyramids of `layout` take (radiance with `indirect`).
-pub fn cpu_pyramid_bytes(layout: &PyramidLayout, indirect: bool) -> u64 {
+pub(crate) fn cpu_pyramid_bytes(layout: &PyramidLayout, indirect: bool) -> u64 {
     layout.texture_bytes(8)
         + if indirect {
             layout.texture_bytes(32)
@@ -183,7 +183,7 @@ pub fn material_alpha(m: &Material, is_void: bool, model: Transmittance, voxel_s
 }
 
 /// Per-material opacity table (index = material index).
-pub fn alpha_table(scene: &Scene, model: Transmittance) -> Vec<f64> {
+pub(crate) fn alpha_table(scene: &Scene, model: Transmittance) -> Vec<f64> {
     let vs = scene.grid.voxel_size();
     scene
         .materials
@@ -360,7 +360,7 @@ impl Pyramid {
     }
 
     /// Quadrilinear opacity at grid-local point `x` (voxel units) and level `lod`.
-    pub fn opacity_at(&self, x: DVec3, lod: f64) -> f64 {
+    pub(crate) fn opacity_at(&self, x: DVec3, lod: f64) -> f64 {
         quadrilinear(&self.layout, x, lod, |l, c| {
             sample_level(
                 &self.opacity[l as usize],
@@ -374,7 +374,7 @@ impl Pyramid {
     }
 
     /// Quadrilinear premultiplied radiance and opacity; panics without a radiance pyramid.
-    pub fn radiance_at(&self, x: DVec3, lod: f64) -> [f64; 4] {
+    pub(crate) fn radiance_at(&self, x: DVec3, lod: f64) -> [f64; 4] {
         let r = self.radiance.as_ref().expect("radiance pyramid built");
         quadrilinear(&self.layout, x, lod, |l, c| {
             sample_level(
