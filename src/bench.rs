@@ -6,6 +6,12 @@
 //! them alike. Ray and voxel-step counts are counted by the tracers (a separate
 //! counted frame on the GPU, so counting does not slow the timed frames), not
 //! estimated.
+//!
+//! Unlike the other applications, which render through a [`crate::Session`], the
+//! benchmarks drive the tracers themselves: they force a walk on a scene whose plan
+//! would choose another (`GpuTracer::render_plan`), count rays in a frame of their
+//! own, read the device's memory, and keep each walk's prepared data out of the CPU's
+//! timed frames, which are the tracers' own controls and not the facade's.
 
 pub mod cutoff;
 
