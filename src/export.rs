@@ -107,9 +107,7 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
         .source_path
         .as_ref()
         .map_or_else(|| e.name.clone(), |p| p.display().to_string());
-    let scene = &e.scene;
-    let s = &e.settings;
-    let d = scene.grid.dims().as_u64vec3();
+    let d = e.scene.grid.dims().as_u64vec3();
     let voxels = d.x * d.y * d.z;
     if voxels > MAX_EXPORT_VOXELS {
         return Err(ExportError::TooLarge {
@@ -121,212 +119,285 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
             ),
         });
     }
-    let mut out = MitsubaScene::default();
-    let mut approx = |key: &str, mapping: String| {
-        out.approximations.push(Approximation {
+    let mut w = Writer {
+        e,
+        used: used_materials(&e.scene.grid),
+        file,
+        xml: String::new(),
+        out: MitsubaScene::default(),
+    };
+    let _ = writeln!(
+        w.xml,
+        "<!-- voxlab export of {}: docs/mitsuba.md -->",
+        esc(&w.file)
+    );
+    let _ = writeln!(w.xml, "<scene version=\"3.0.0\">");
+    w.integrator();
+    w.camera();
+    w.materials()?;
+    let meshes = w.geometry()?;
+    let quads: Vec<[DVec3; 3]> = meshes
+        .iter()
+        .flat_map(|(_, t, _)| t.iter().copied())
+        .collect();
+    for (j, light) in e.scene.lights.iter().enumerate() {
+        w.light(j, light, &quads)?;
+    }
+    let Writer {
+        file,
+        mut xml,
+        mut out,
+        ..
+    } = w;
+    for a in &out.approximations {
+        let _ = writeln!(
+            xml,
+            "  <!-- approximation: {}: {} -->",
+            esc(&a.key),
+            esc(&a.mapping)
+        );
+    }
+    let _ = writeln!(xml, "</scene>");
+    if strict && !out.approximations.is_empty() {
+        let list = out
+            .approximations
+            .iter()
+            .map(|a| format!("  {}: {}", a.key, a.mapping))
+            .collect::<Vec<_>>()
+            .join("\n");
+        return Err(ExportError::Strict {
+            file,
+            count: out.approximations.len(),
+            list,
+        });
+    }
+    out.files
+        .insert(0, (PathBuf::from("scene.xml"), xml.into_bytes()));
+    Ok(out)
+}
+
+/// An export under way: `scene.xml` so far, the files beside it and the
+/// approximations made, written part by part (integrator, camera, materials, geometry,
+/// lights).
+struct Writer<'a> {
+    e: &'a Experiment,
+    /// The experiment's file, as errors name it.
+    file: String,
+    /// Which materials some voxel holds.
+    used: [bool; 256],
+    xml: String,
+    out: MitsubaScene,
+}
+
+impl Writer<'_> {
+    fn approx(&mut self, key: &str, mapping: String) {
+        self.out.approximations.push(Approximation {
             key: key.to_string(),
             mapping,
         })
-    };
-    let mut xml = String::new();
-    let _ = writeln!(
-        xml,
-        "<!-- voxlab export of {}: docs/mitsuba.md -->",
-        esc(&file)
-    );
-    let _ = writeln!(xml, "<scene version=\"3.0.0\">");
-
-    // Integrator: direct light only unless specular chains are needed.
-    let used = used_materials(&scene.grid);
-    let specular = scene
-        .materials
-        .iter()
-        .enumerate()
-        .any(|(i, m)| i != VOID as usize && used[i] && (m.kr > 0.0 || m.kt > 0.0));
-    // A transparent material whose transmittance model has a distance in it gets a
-    // homogeneous absorbing interior, which Mitsuba's volumetric path tracer reads.
-    let interior = |m: &Material| {
-        (m.kt > 0.0)
-            .then(|| {
-                (s.features.transmittance.model().interior_extinction)(m, scene.grid.voxel_size())
-            })
-            .flatten()
-    };
-    let media = scene
-        .materials
-        .iter()
-        .enumerate()
-        .any(|(i, m)| i != VOID as usize && used[i] && interior(m).is_some());
-    let depth = if specular {
-        approx(
-            "materials",
-            "mirrors or glass: Mitsuba's path tracer follows them to max_depth and also \
-             carries the diffuse interreflection that voxlab's Whitted model leaves out"
-                .into(),
-        );
-        2 + s.max_reflection_depth + s.max_refraction_depth
-    } else {
-        2
-    };
-    let _ = writeln!(
-        xml,
-        "  <integrator type=\"{}\">\n    <integer name=\"max_depth\" value=\"{depth}\"/>\n    \
-         <boolean name=\"hide_emitters\" value=\"true\"/>\n  </integrator>",
-        if media { "volpath" } else { "path" }
-    );
-
-    // Camera.
-    let f = scene.camera.frame();
-    match s.pixel_filter {
-        PixelFilter::Box if s.filter_width == 0.5 => {}
-        other => approx(
-            "render.pixel_filter",
-            format!(
-                "{other:?} (filter_width {}) rendered with Mitsuba's box filter over the pixel",
-                s.filter_width
-            ),
-        ),
     }
-    let _ = writeln!(
-        xml,
-        "  <sensor type=\"perspective\">\n    <string name=\"fov_axis\" value=\"y\"/>\n    \
+
+    /// A transparent material whose transmittance model has a distance in it gets a
+    /// homogeneous absorbing interior, which Mitsuba's volumetric path tracer reads.
+    fn interior(&self, m: &Material) -> Option<DVec3> {
+        let transmittance = self.e.settings.features.transmittance.model();
+        (m.kt > 0.0)
+            .then(|| (transmittance.interior_extinction)(m, self.e.scene.grid.voxel_size()))
+            .flatten()
+    }
+
+    /// Direct light only unless specular chains are needed.
+    fn integrator(&mut self) {
+        let (scene, s) = (&self.e.scene, &self.e.settings);
+        let specular = scene
+            .materials
+            .iter()
+            .enumerate()
+            .any(|(i, m)| i != VOID as usize && self.used[i] && (m.kr > 0.0 || m.kt > 0.0));
+        let media = scene
+            .materials
+            .iter()
+            .enumerate()
+            .any(|(i, m)| i != VOID as usize && self.used[i] && self.interior(m).is_some());
+        let depth = if specular {
+            self.approx(
+                "materials",
+                "mirrors or glass: Mitsuba's path tracer follows them to max_depth and also \
+             carries the diffuse interreflection that voxlab's Whitted model leaves out"
+                    .into(),
+            );
+            2 + s.max_reflection_depth + s.max_refraction_depth
+        } else {
+            2
+        };
+        let _ = writeln!(
+            self.xml,
+            "  <integrator type=\"{}\">\n    <integer name=\"max_depth\" value=\"{depth}\"/>\n    \
+         <boolean name=\"hide_emitters\" value=\"true\"/>\n  </integrator>",
+            if media { "volpath" } else { "path" }
+        );
+    }
+
+    fn camera(&mut self) {
+        let (scene, s) = (&self.e.scene, &self.e.settings);
+        let f = scene.camera.frame();
+        match s.pixel_filter {
+            PixelFilter::Box if s.filter_width == 0.5 => {}
+            other => self.approx(
+                "render.pixel_filter",
+                format!(
+                    "{other:?} (filter_width {}) rendered with Mitsuba's box filter over the pixel",
+                    s.filter_width
+                ),
+            ),
+        }
+        let _ = writeln!(
+            self.xml,
+            "  <sensor type=\"perspective\">\n    <string name=\"fov_axis\" value=\"y\"/>\n    \
          <float name=\"fov\" value=\"{}\"/>\n    <transform name=\"to_world\">\n      \
          <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n    </transform>\n    \
          <sampler type=\"independent\">\n      <integer name=\"sample_count\" value=\"{}\"/>\n    \
          </sampler>\n    <film type=\"hdrfilm\">\n      <integer name=\"width\" value=\"{}\"/>\n      \
          <integer name=\"height\" value=\"{}\"/>\n      <string name=\"pixel_format\" value=\"rgb\"/>\n      \
          <rfilter type=\"box\"/>\n    </film>\n  </sensor>",
-        scene.camera.vfov.to_degrees(),
-        v3(f.eye),
-        v3(f.eye + f.forward),
-        v3(f.up),
-        s.spp.max(1),
-        s.width,
-        s.height
-    );
-
-    if scene.ambient != DVec3::ZERO {
-        approx(
-            "render.ambient",
-            "the ambient term (added to every pixel) is left out".into(),
+            scene.camera.vfov.to_degrees(),
+            v3(f.eye),
+            v3(f.eye + f.forward),
+            v3(f.up),
+            s.spp.max(1),
+            s.width,
+            s.height
         );
-    }
-    if !s.features.terms.is_empty() {
-        approx(
-            "features",
-            "lighting terms (ambient occlusion, indirect light) are left out: Mitsuba \
+
+        if scene.ambient != DVec3::ZERO {
+            self.approx(
+                "render.ambient",
+                "the ambient term (added to every pixel) is left out".into(),
+            );
+        }
+        if !s.features.terms.is_empty() {
+            self.approx(
+                "features",
+                "lighting terms (ambient occlusion, indirect light) are left out: Mitsuba \
              renders the direct light"
-                .into(),
-        );
-    }
-    if !s.falloff {
-        approx(
-            "render.falloff",
-            "falloff off: Mitsuba's lights always fall off as 1/d^2".into(),
-        );
+                    .into(),
+            );
+        }
+        if !s.falloff {
+            self.approx(
+                "render.falloff",
+                "falloff off: Mitsuba's lights always fall off as 1/d^2".into(),
+            );
+        }
     }
 
-    // Materials.
-    for (i, m) in scene.materials.iter().enumerate() {
-        if i == VOID as usize || !used[i] {
-            continue;
-        }
-        let key = |k: &str| format!("materials[{}].{k}", m.name);
-        if m.ks > 0.0 {
-            approx(&key("ks"), "the Phong highlight is left out".into());
-        }
-        if m.emission != DVec3::ZERO {
-            approx(
-                &key("emission"),
-                "emissive voxels are not exported (voxlab shows them; they light nothing)".into(),
-            );
-        }
-        if m.kt > 0.0 {
-            approx(
-                &key("kt"),
-                format!(
-                    "glass as Mitsuba's dielectric (ior {}): Fresnel-weighted reflection and \
-                     refraction instead of kr and kt, and no light through it in shadows",
-                    m.ior
-                ),
-            );
-        }
-        if m.kd > 0.0 && m.kr > 0.0 && m.kt == 0.0 && m.kd + m.kr > 1.0 {
-            approx(
-                &key("kr"),
-                format!(
-                    "kd + kr = {} > 1: the blend of diffuse and mirror is scaled to 1",
-                    m.kd + m.kr
-                ),
-            );
-        }
-        let _ = writeln!(xml, "{}", bsdf(i, m));
-        if let Some(sigma) = interior(m) {
-            // Mitsuba reads an RGB sigma_t in [0, 1] times `scale`, a 32-bit float.
-            let scale = sigma.max_element().max(f64::MIN_POSITIVE);
-            if scale > f32::MAX as f64 {
-                return Err(ExportError::OutOfRange {
-                    file: file.clone(),
-                    key: key("sigma"),
-                    what: format!(
-                        "an extinction of {scale:e} per unit is beyond Mitsuba's 32-bit floats"
-                    ),
-                });
+    fn materials(&mut self) -> Result<(), ExportError> {
+        let scene = &self.e.scene;
+        for (i, m) in scene.materials.iter().enumerate() {
+            if i == VOID as usize || !self.used[i] {
+                continue;
             }
-            let _ = writeln!(
-                xml,
-                "  <medium type=\"homogeneous\" id=\"interior{i}\">\n    \
+            let key = |k: &str| format!("materials[{}].{k}", m.name);
+            if m.ks > 0.0 {
+                self.approx(&key("ks"), "the Phong highlight is left out".into());
+            }
+            if m.emission != DVec3::ZERO {
+                self.approx(
+                    &key("emission"),
+                    "emissive voxels are not exported (voxlab shows them; they light nothing)"
+                        .into(),
+                );
+            }
+            if m.kt > 0.0 {
+                self.approx(
+                    &key("kt"),
+                    format!(
+                        "glass as Mitsuba's dielectric (ior {}): Fresnel-weighted reflection and \
+                     refraction instead of kr and kt, and no light through it in shadows",
+                        m.ior
+                    ),
+                );
+            }
+            if m.kd > 0.0 && m.kr > 0.0 && m.kt == 0.0 && m.kd + m.kr > 1.0 {
+                self.approx(
+                    &key("kr"),
+                    format!(
+                        "kd + kr = {} > 1: the blend of diffuse and mirror is scaled to 1",
+                        m.kd + m.kr
+                    ),
+                );
+            }
+            let _ = writeln!(self.xml, "{}", bsdf(i, m));
+            if let Some(sigma) = self.interior(m) {
+                // Mitsuba reads an RGB sigma_t in [0, 1] times `scale`, a 32-bit float.
+                let scale = sigma.max_element().max(f64::MIN_POSITIVE);
+                if scale > f32::MAX as f64 {
+                    return Err(ExportError::OutOfRange {
+                        file: self.file.clone(),
+                        key: key("sigma"),
+                        what: format!(
+                            "an extinction of {scale:e} per unit is beyond Mitsuba's 32-bit floats"
+                        ),
+                    });
+                }
+                let _ = writeln!(
+                    self.xml,
+                    "  <medium type=\"homogeneous\" id=\"interior{i}\">\n    \
                  <rgb name=\"sigma_t\" value=\"{}\"/>\n    <float name=\"scale\" value=\"{scale}\"/>\n    \
                  <rgb name=\"albedo\" value=\"0, 0, 0\"/>\n  </medium>",
-                v3(sigma / scale)
-            );
+                    v3(sigma / scale)
+                );
+            }
         }
+        Ok(())
     }
 
-    // Geometry.
-    let meshes: Vec<MaterialTriangles> = match s.surface.0.triangles {
-        Some(triangles) => {
-            let mesh = triangles(scene).map_err(|e| ExportError::Triangles {
-                file: file.clone(),
-                message: e.to_string(),
-            })?;
-            per_material(&mesh)
-        }
-        None => greedy_faces(&scene.grid, &scene.materials, MAX_EXPORT_TRIANGLES)
-            .ok_or_else(|| ExportError::TooLarge {
-                file: file.clone(),
-                what: format!(
-                    "the voxels' faces need more than {MAX_EXPORT_TRIANGLES} triangles \
+    /// The meshes, one per material: the voxels' faces merged, or the traced surface's
+    /// triangles; each written as a PLY file.
+    fn geometry(&mut self) -> Result<Vec<MaterialTriangles>, ExportError> {
+        let (scene, s) = (&self.e.scene, &self.e.settings);
+        let meshes: Vec<MaterialTriangles> = match s.surface.0.triangles {
+            Some(triangles) => {
+                let mesh = triangles(scene).map_err(|e| ExportError::Triangles {
+                    file: self.file.clone(),
+                    message: e.to_string(),
+                })?;
+                per_material(&mesh)
+            }
+            None => greedy_faces(&scene.grid, &scene.materials, MAX_EXPORT_TRIANGLES)
+                .ok_or_else(|| ExportError::TooLarge {
+                    file: self.file.clone(),
+                    what: format!(
+                        "the voxels' faces need more than {MAX_EXPORT_TRIANGLES} triangles \
                      after merging"
-                ),
-            })?
-            .into_iter()
-            .map(|(m, tris)| (m, tris, Vec::new()))
-            .collect(),
-    };
-    for (m, tris, normals) in &meshes {
-        let name = PathBuf::from("meshes").join(format!("material{m}.ply"));
-        let medium = if interior(&scene.materials[*m as usize]).is_some() {
-            format!("\n    <ref name=\"interior\" id=\"interior{m}\"/>")
-        } else {
-            String::new()
+                    ),
+                })?
+                .into_iter()
+                .map(|(m, tris)| (m, tris, Vec::new()))
+                .collect(),
         };
-        let _ = writeln!(
-            xml,
-            "  <shape type=\"ply\">\n    <string name=\"filename\" value=\"meshes/material{m}.ply\"/>\n    \
+        for (m, tris, normals) in &meshes {
+            let name = PathBuf::from("meshes").join(format!("material{m}.ply"));
+            let medium = if self.interior(&scene.materials[*m as usize]).is_some() {
+                format!("\n    <ref name=\"interior\" id=\"interior{m}\"/>")
+            } else {
+                String::new()
+            };
+            let _ = writeln!(
+                self.xml,
+                "  <shape type=\"ply\">\n    <string name=\"filename\" value=\"meshes/material{m}.ply\"/>\n    \
              <boolean name=\"face_normals\" value=\"{}\"/>\n    <ref id=\"material{m}\"/>{medium}\n  </shape>",
-            normals.is_empty()
-        );
-        out.triangles += tris.len();
-        out.files.push((name, ply(tris, normals)));
+                normals.is_empty()
+            );
+            self.out.triangles += tris.len();
+            self.out.files.push((name, ply(tris, normals)));
+        }
+        Ok(meshes)
     }
 
-    // Lights.
-    let quads: Vec<[DVec3; 3]> = meshes
-        .iter()
-        .flat_map(|(_, t, _)| t.iter().copied())
-        .collect();
-    for (j, light) in scene.lights.iter().enumerate() {
+    /// Light `j`, with the surfaces' triangles (`quads`) to check its falloff clamp.
+    fn light(&mut self, j: usize, light: &Light, quads: &[[DVec3; 3]]) -> Result<(), ExportError> {
+        let s = &self.e.settings;
         let key = |k: &str| format!("lights[{j}].{k}");
         let c = light.color() * light.intensity() * std::f64::consts::PI;
         let reach = match light {
@@ -342,16 +413,17 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
                 .map(|t| point_triangle_distance(light.position(), t))
                 .fold(f64::INFINITY, f64::min);
             if near - reach < s.falloff_min_distance {
-                approx(
+                self.approx(
                     "render.falloff_min_distance",
                     format!(
                         "light {j} comes within falloff_min_distance of a surface, where \
-                         voxlab clamps 1/d^2 and Mitsuba does not"
+                     voxlab clamps 1/d^2 and Mitsuba does not"
                     ),
                 );
             }
         }
         // Mitsuba reads 32-bit floats: a value beyond them would be infinite there.
+        let file = self.file.clone();
         let too_bright = |v: DVec3, what: &str| {
             if v.max_element() > f32::MAX as f64 {
                 Err(ExportError::OutOfRange {
@@ -373,19 +445,19 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
             if let Light::Area(a) = light
                 && a.emission == Emission::Lambertian
             {
-                approx(
+                self.approx(
                     &key("emission"),
                     "a Lambertian light of size 0 (a cosine spot) as a point light".into(),
                 );
             }
             let _ = writeln!(
-                xml,
+                self.xml,
                 "  <emitter type=\"point\">\n    <point name=\"position\" value=\"{}\"/>\n    \
-                 <rgb name=\"intensity\" value=\"{}\"/>\n  </emitter>",
+             <rgb name=\"intensity\" value=\"{}\"/>\n  </emitter>",
                 v3(light.position()),
                 v3(c)
             );
-            continue;
+            return Ok(());
         }
         match light {
             Light::Point(_) => unreachable!("a point light is not an area light"),
@@ -405,21 +477,21 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
                 };
                 let radiance = match (a.shape, a.emission) {
                     (AreaShape::Sphere { radius }, _) => {
-                        approx(
+                        self.approx(
                             &key("type"),
                             "voxlab's sphere light emits isotropically from each point; \
-                             Mitsuba's sphere is Lambertian (the same unoccluded light, a \
-                             different penumbra)"
+                         Mitsuba's sphere is Lambertian (the same unoccluded light, a \
+                         different penumbra)"
                                 .into(),
                         );
                         c / (radius * radius)
                     }
                     (_, Emission::Lambertian) => c / area,
                     (_, Emission::Isotropic) => {
-                        approx(
+                        self.approx(
                             &key("emission"),
                             "isotropic emission as a Lambertian emitter of the power its \
-                             front half sends (L = 2 I / A); nothing behind it"
+                         front half sends (L = 2 I / A); nothing behind it"
                                 .into(),
                         );
                         2.0 * c / area
@@ -452,41 +524,17 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
                     )
                 };
                 let _ = writeln!(
-                    xml,
+                    self.xml,
                     "  <shape type=\"{kind}\">\n    {transform}\n    <bsdf type=\"diffuse\">\n      \
-                     <rgb name=\"reflectance\" value=\"0, 0, 0\"/>\n    </bsdf>\n    \
-                     <emitter type=\"area\">\n      <rgb name=\"radiance\" value=\"{}\"/>\n    \
-                     </emitter>\n  </shape>",
+                 <rgb name=\"reflectance\" value=\"0, 0, 0\"/>\n    </bsdf>\n    \
+                 <emitter type=\"area\">\n      <rgb name=\"radiance\" value=\"{}\"/>\n    \
+                 </emitter>\n  </shape>",
                     v3(radiance)
                 );
             }
         }
+        Ok(())
     }
-    for a in &out.approximations {
-        let _ = writeln!(
-            xml,
-            "  <!-- approximation: {}: {} -->",
-            esc(&a.key),
-            esc(&a.mapping)
-        );
-    }
-    let _ = writeln!(xml, "</scene>");
-    if strict && !out.approximations.is_empty() {
-        let list = out
-            .approximations
-            .iter()
-            .map(|a| format!("  {}: {}", a.key, a.mapping))
-            .collect::<Vec<_>>()
-            .join("\n");
-        return Err(ExportError::Strict {
-            file,
-            count: out.approximations.len(),
-            list,
-        });
-    }
-    out.files
-        .insert(0, (PathBuf::from("scene.xml"), xml.into_bytes()));
-    Ok(out)
 }
 
 fn v3(v: DVec3) -> String {
