@@ -262,6 +262,10 @@ impl<'a> Locator<'a> {
 
 impl AblateConfig {
     /// Reads `[ablate]` from experiment text (absent: the defaults).
+    ///
+    /// One function because it reads the `[ablate]` keys one after another, each checked
+    /// against the ones read before it (the reference's spp against the sweep's largest)
+    /// and located in the file where it is read.
     pub fn from_str(text: &str, path: impl AsRef<Path>) -> Result<Self, ExperimentError> {
         let loc = Locator::new(text, path.as_ref());
         let raw: RawFile = toml::from_str(text).map_err(|e| loc.serde_error(&e))?;
@@ -2216,6 +2220,9 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
     )
 }
 
+/// One function because it is the run's list of outputs (images, maps, CSV, figures,
+/// tables, the resolved experiment), each one call to a writer that stands alone, all
+/// sharing the run's record built at the top.
 #[allow(clippy::too_many_arguments)]
 fn write_outputs(
     e: &Experiment,

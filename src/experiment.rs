@@ -1229,6 +1229,9 @@ type SceneVoxels = (
     Option<Arc<SurfaceMesh>>,
 );
 
+/// One function because it is the order of validation: render settings, the scene,
+/// materials, lights and models, each step reading what the earlier ones checked; each
+/// key's own check lives with its declaration (`crate::settings`).
 fn build(
     raw: RawExperiment,
     ctx: &Ctx,

@@ -385,6 +385,10 @@ impl Plan {
     };
 
     /// The plan for rendering `scene` with `settings`, without ray counting.
+    ///
+    /// One function because each rule reads what the rules before it decided (shadows
+    /// from the lit materials and lights, the shadow model from the shadows, the walk and
+    /// stack from the grid and depths), and the reasons are collected in that order.
     pub fn new(scene: &Scene, settings: &RenderSettings) -> Self {
         let mats = shading_materials(scene);
         let mut reasons = Vec::new();

@@ -204,6 +204,10 @@ fn slab_scene() -> Scene {
 }
 
 /// The cases generated in code (the experiment files come on top, see [`cases`]).
+///
+/// One function because it is the suite's table of cases, each a few independent lines
+/// (its scene, settings and what it stresses) in the order docs/stress.md lists them; the
+/// scenes that cases share are the functions above.
 pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
     let mut out = Vec::new();
     let c16 = DVec3::splat(8.0);

@@ -170,3 +170,81 @@ fn techniques_never_import_a_tracer_and_tracers_never_each_other() {
         );
     }
 }
+
+/// Most lines a function of `src/` has without saying why it is not split.
+const LONG_FUNCTION: usize = 150;
+
+/// Each function of `src/` over [`LONG_FUNCTION`] lines, with its file and length, and
+/// whether the comments right above it say why it stays one function (the words "one
+/// function"). A function ends at the first line that closes its indentation.
+fn long_functions() -> Vec<(PathBuf, String, usize, bool)> {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    let mut out = Vec::new();
+    for file in files {
+        let text = std::fs::read_to_string(&file).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            let body = line.trim_start();
+            let indent = &line[..line.len() - body.len()];
+            let signature = [
+                "fn ",
+                "pub fn ",
+                "pub(crate) fn ",
+                "pub(super) fn ",
+                "const fn ",
+            ]
+            .iter()
+            .any(|p| body.starts_with(p));
+            // WGSL in a Rust string has `fn` lines too; they end in `{{`.
+            if !signature || line.ends_with(';') || line.ends_with("{{") {
+                continue;
+            }
+            let close = format!("{indent}}}");
+            let Some(end) = (i + 1..lines.len()).find(|&j| lines[j] == close) else {
+                continue;
+            };
+            let length = end - i + 1;
+            if length <= LONG_FUNCTION {
+                continue;
+            }
+            let name = body[body.find("fn ").unwrap_or(0)..]
+                .split('(')
+                .next()
+                .unwrap_or(body)
+                .to_string();
+            let comments = lines[..i]
+                .iter()
+                .rev()
+                .take_while(|l| {
+                    let t = l.trim_start();
+                    t.starts_with("//") || t.starts_with("#[")
+                })
+                .map(|l| l.to_lowercase())
+                .collect::<Vec<_>>()
+                .join(" ");
+            out.push((
+                file.clone(),
+                name,
+                length,
+                comments.contains("one function"),
+            ));
+        }
+    }
+    out
+}
+
+#[test]
+fn a_long_function_says_why_it_is_one() {
+    let unexplained: Vec<String> = long_functions()
+        .into_iter()
+        .filter(|(_, _, _, why)| !why)
+        .map(|(file, name, length, _)| format!("{} {name}: {length} lines", file.display()))
+        .collect();
+    assert!(
+        unexplained.is_empty(),
+        "functions over {LONG_FUNCTION} lines whose comment does not say why they are one \
+         function (split them, or say why): {unexplained:#?}"
+    );
+}

@@ -241,6 +241,8 @@ fn y_bar(r: &Row, metric: Metric, half: Half) -> Option<(f64, f64)> {
     Some(((y - h).max(y * 1e-3), y + h))
 }
 
+/// One function because plotters' chart contexts borrow the drawing area: the panels,
+/// curves, error bars and legend are drawn through borrows of one root.
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     rows: &[Row],

@@ -103,129 +103,160 @@ pub(crate) struct BenchArgs {
 pub(crate) fn cmd_bench(a: &BenchArgs) -> Result<()> {
     #[cfg(feature = "viewer")]
     if let Some(files) = &a.adaptive {
-        let mut gpu = GpuTracer::new().context("the adaptive benchmark needs a GPU adapter")?;
-        let default = [
-            PathBuf::from("experiments/baseline.toml"),
-            PathBuf::from("experiments/area_lights.toml"),
-        ];
-        let files = if files.is_empty() {
-            &default[..]
-        } else {
-            &files[..]
-        };
-        let experiments = files
-            .iter()
-            .map(|f| Experiment::load_with(f, &a.set).map_err(anyhow::Error::from))
-            .collect::<Result<Vec<_>>>()?;
-        let rows =
-            voxlab::viewer::bench::bench_adaptive(&mut gpu, &experiments, a.gpu_runs as usize)?;
-        if a.json {
-            let head = bench_head("adaptive", Some(&gpu.adapter_summary()), a);
-            return print_json_rows(&head, rows.iter().map(|r| r.json()));
-        }
-        println!(
-            "viewer adaptive resolution: one frame per side at full size, and at the scale \
-             the viewer settles on while both sides move (its controller fed each frame's \
-             time for 8 frames); median of {} runs ({}); GPU: {}\n",
-            a.gpu_runs,
-            gpu.timer_name(),
-            gpu.adapter_summary()
-        );
-        println!("{}", voxlab::viewer::bench::adaptive_table(&rows));
-        return Ok(());
+        return bench_adaptive(a, files);
     }
     if let Some(cutoffs) = &a.cutoffs {
         return bench_cutoffs(a, cutoffs);
     }
     if a.plan {
-        let mut gpu = GpuTracer::new().context("the plan benchmark needs a GPU adapter")?;
-        let n = a.sizes.first().copied().unwrap_or(64);
-        let settings = voxlab::RenderSettings {
-            width: a.size,
-            height: a.size,
-            ..Default::default()
-        };
-        eprintln!("GPU: {}", gpu.adapter_summary());
-        let scenes = voxlab::bench::plan_scenes(n)?;
-        let rows = voxlab::bench::bench_plans(&mut gpu, &scenes, &settings, a.gpu_runs as usize)?;
-        if a.json {
-            let head = bench_head("plan", Some(&gpu.adapter_summary()), a);
-            return print_json_rows(&head, rows.iter().map(|r| r.json()));
-        }
-        println!(
-            "render plan: reduced kernel against the full one, {}x{}, depth {}/{}, median of {} runs; GPU: {}\n",
-            a.size,
-            a.size,
-            settings.max_reflection_depth,
-            settings.max_refraction_depth,
-            a.gpu_runs,
-            gpu.adapter_summary()
-        );
-        println!("{}", voxlab::bench::plan_table(&rows));
-        return Ok(());
+        return bench_plan(a);
     }
     if a.trees {
-        let mut rows = Vec::new();
-        for &n in &a.sizes {
-            let scene = voxlab::scene::seed_scene(n)?;
-            let r = voxlab::bench::bench_trees(&format!("seed {n}^3"), &scene, a.size);
-            for row in &r {
-                eprintln!(
-                    "  {} {}: {:.2} steps/ray, {:.4} bytes/voxel",
-                    row.scene, row.structure, row.steps_per_ray, row.bytes_per_voxel
-                );
-            }
-            rows.extend(r);
-        }
-        println!(
-            "sparse structures on the CPU walk (f64, one thread): primary rays at {0}x{0} \
-             and a min-kt shadow ray from each hit to each light\n",
-            a.size
-        );
-        println!("{}", voxlab::bench::trees_table(&rows));
-        return Ok(());
+        return bench_trees(a);
     }
     if let Some(sizes) = &a.surface_fidelity {
-        use voxlab::surface::fidelity;
-        let rows = fidelity::fidelity_rows(sizes, |r| {
-            eprintln!(
-                "  {} {}^3, {}: Chamfer {:.4}",
-                r.shape, r.size, r.method, r.fidelity.chamfer
-            )
-        });
-        if a.json {
-            let head = bench_head("surface-fidelity", None, a);
-            return print_json_rows(&head, rows.iter().map(|r| r.json()));
-        }
-        println!(
-            "surface fidelity: distances to the analytic shape the voxels came from (voxel \
-             centres inside), in voxels\n"
-        );
-        println!("{}", fidelity::fidelity_table(&rows));
-        return Ok(());
+        return bench_surface_fidelity(a, sizes);
     }
     if let Some(mesh_path) = &a.voxelize {
-        let bunny = voxlab::scene::load_mesh(mesh_path)?;
-        // 250 x 100 quads: exactly 50,000 triangles.
-        let torus = voxlab::bench::torus_mesh(250, 100);
-        let n = a.voxelize_resolution;
-        let mut rows = Vec::new();
-        for (name, mesh) in [
-            (mesh_path.display().to_string(), &bunny),
-            ("torus".to_string(), &torus),
-        ] {
-            let row = voxlab::bench::bench_voxelize(&name, mesh, n, 3)?;
-            eprintln!("  {name} at {n}: {:.1} ms", row.median.as_secs_f64() * 1e3);
-            rows.push(row);
-        }
-        if a.json {
-            let head = bench_head("voxelize", None, a);
-            return print_json_rows(&head, rows.iter().map(|r| r.json()));
-        }
-        println!("voxelization (conservative surface + interior fill), median of 3 runs\n");
-        println!("{}", voxlab::bench::voxelize_table(&rows));
-        return Ok(());
+        return bench_voxelize(a, mesh_path);
     }
+    bench_seed(a)
+}
+
+/// `voxlab bench --adaptive`.
+#[cfg(feature = "viewer")]
+fn bench_adaptive(a: &BenchArgs, files: &[PathBuf]) -> Result<()> {
+    let mut gpu = GpuTracer::new().context("the adaptive benchmark needs a GPU adapter")?;
+    let default = [
+        PathBuf::from("experiments/baseline.toml"),
+        PathBuf::from("experiments/area_lights.toml"),
+    ];
+    let files = if files.is_empty() {
+        &default[..]
+    } else {
+        files
+    };
+    let experiments = files
+        .iter()
+        .map(|f| Experiment::load_with(f, &a.set).map_err(anyhow::Error::from))
+        .collect::<Result<Vec<_>>>()?;
+    let rows = voxlab::viewer::bench::bench_adaptive(&mut gpu, &experiments, a.gpu_runs as usize)?;
+    if a.json {
+        let head = bench_head("adaptive", Some(&gpu.adapter_summary()), a);
+        return print_json_rows(&head, rows.iter().map(|r| r.json()));
+    }
+    println!(
+        "viewer adaptive resolution: one frame per side at full size, and at the scale \
+         the viewer settles on while both sides move (its controller fed each frame's \
+         time for 8 frames); median of {} runs ({}); GPU: {}\n",
+        a.gpu_runs,
+        gpu.timer_name(),
+        gpu.adapter_summary()
+    );
+    println!("{}", voxlab::viewer::bench::adaptive_table(&rows));
+    Ok(())
+}
+
+/// `voxlab bench --plan`.
+fn bench_plan(a: &BenchArgs) -> Result<()> {
+    let mut gpu = GpuTracer::new().context("the plan benchmark needs a GPU adapter")?;
+    let n = a.sizes.first().copied().unwrap_or(64);
+    let settings = voxlab::RenderSettings {
+        width: a.size,
+        height: a.size,
+        ..Default::default()
+    };
+    eprintln!("GPU: {}", gpu.adapter_summary());
+    let scenes = voxlab::bench::plan_scenes(n)?;
+    let rows = voxlab::bench::bench_plans(&mut gpu, &scenes, &settings, a.gpu_runs as usize)?;
+    if a.json {
+        let head = bench_head("plan", Some(&gpu.adapter_summary()), a);
+        return print_json_rows(&head, rows.iter().map(|r| r.json()));
+    }
+    println!(
+        "render plan: reduced kernel against the full one, {}x{}, depth {}/{}, median of {} runs; GPU: {}\n",
+        a.size,
+        a.size,
+        settings.max_reflection_depth,
+        settings.max_refraction_depth,
+        a.gpu_runs,
+        gpu.adapter_summary()
+    );
+    println!("{}", voxlab::bench::plan_table(&rows));
+    Ok(())
+}
+
+/// `voxlab bench --trees`.
+fn bench_trees(a: &BenchArgs) -> Result<()> {
+    let mut rows = Vec::new();
+    for &n in &a.sizes {
+        let scene = voxlab::scene::seed_scene(n)?;
+        let r = voxlab::bench::bench_trees(&format!("seed {n}^3"), &scene, a.size);
+        for row in &r {
+            eprintln!(
+                "  {} {}: {:.2} steps/ray, {:.4} bytes/voxel",
+                row.scene, row.structure, row.steps_per_ray, row.bytes_per_voxel
+            );
+        }
+        rows.extend(r);
+    }
+    println!(
+        "sparse structures on the CPU walk (f64, one thread): primary rays at {0}x{0} \
+         and a min-kt shadow ray from each hit to each light\n",
+        a.size
+    );
+    println!("{}", voxlab::bench::trees_table(&rows));
+    Ok(())
+}
+
+/// `voxlab bench --surface-fidelity`.
+fn bench_surface_fidelity(a: &BenchArgs, sizes: &[u32]) -> Result<()> {
+    use voxlab::surface::fidelity;
+    let rows = fidelity::fidelity_rows(sizes, |r| {
+        eprintln!(
+            "  {} {}^3, {}: Chamfer {:.4}",
+            r.shape, r.size, r.method, r.fidelity.chamfer
+        )
+    });
+    if a.json {
+        let head = bench_head("surface-fidelity", None, a);
+        return print_json_rows(&head, rows.iter().map(|r| r.json()));
+    }
+    println!(
+        "surface fidelity: distances to the analytic shape the voxels came from (voxel \
+         centres inside), in voxels\n"
+    );
+    println!("{}", fidelity::fidelity_table(&rows));
+    Ok(())
+}
+
+/// `voxlab bench --voxelize`.
+fn bench_voxelize(a: &BenchArgs, mesh_path: &Path) -> Result<()> {
+    let bunny = voxlab::scene::load_mesh(mesh_path)?;
+    // 250 x 100 quads: exactly 50,000 triangles.
+    let torus = voxlab::bench::torus_mesh(250, 100);
+    let n = a.voxelize_resolution;
+    let mut rows = Vec::new();
+    for (name, mesh) in [
+        (mesh_path.display().to_string(), &bunny),
+        ("torus".to_string(), &torus),
+    ] {
+        let row = voxlab::bench::bench_voxelize(&name, mesh, n, 3)?;
+        eprintln!("  {name} at {n}: {:.1} ms", row.median.as_secs_f64() * 1e3);
+        rows.push(row);
+    }
+    if a.json {
+        let head = bench_head("voxelize", None, a);
+        return print_json_rows(&head, rows.iter().map(|r| r.json()));
+    }
+    println!("voxelization (conservative surface + interior fill), median of 3 runs\n");
+    println!("{}", voxlab::bench::voxelize_table(&rows));
+    Ok(())
+}
+
+/// `voxlab bench`: the seed scene (and experiments, surfaces, a torus) on every walk,
+/// both tracers.
+fn bench_seed(a: &BenchArgs) -> Result<()> {
     let mut opts = voxlab::bench::BenchOptions {
         sizes: a.sizes.clone(),
         gpu_runs: a.gpu_runs as usize,

@@ -385,6 +385,10 @@ impl GpuTracer {
     }
 
     /// Reads the tracer's grid, materials and lights as uploaded.
+    ///
+    /// One function because the level buffers, uniforms and textures it creates are
+    /// recorded into one command encoder, kept until its one submission builds every
+    /// level, and then handed to the pyramid.
     fn build(
         &mut self,
         inputs: &InjectInputs,

@@ -147,6 +147,9 @@ pub fn load_mesh(path: impl AsRef<Path>) -> Result<TriangleMesh, LoadError> {
     Ok(mesh)
 }
 
+/// One function because tobj's material loader, its panic guard and the bookkeeping of
+/// which face corners name a normal all follow the one file in order (each step's
+/// comment below says what it guards against).
 fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
     let options = tobj::LoadOptions {
         triangulate: true,
@@ -461,6 +464,9 @@ fn gltf_buffers(gltf: &gltf::Gltf, path: &Path) -> Result<Vec<gltf::buffer::Data
     Ok(out)
 }
 
+/// One function because a primitive's checks (mode, indices, accessor bounds, normals,
+/// material) read the same accessors in turn, each refusing the file with its own
+/// message before any triangle is kept.
 fn gltf_triangles(
     doc: &gltf::Document,
     buffers: &[gltf::buffer::Data],

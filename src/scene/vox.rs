@@ -584,6 +584,9 @@ fn first_malformed_chunk(bytes: &[u8]) -> Option<String> {
     }
 }
 
+/// One function because a .vox file's models, placements, palette and materials are
+/// checked against one another in one pass over its data, and the grid is filled by
+/// the same pass, dense or into bricks.
 fn vox_from_data(
     data: &DotVoxData,
     model: Option<usize>,

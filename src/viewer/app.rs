@@ -1112,6 +1112,8 @@ impl ViewerApp {
         });
     }
 
+    /// One function because egui lays widgets out in the order they are called: the panel
+    /// reads top to bottom as it appears on screen.
     fn scene_panel(&mut self, ui: &mut egui::Ui) {
         ui.heading("Scene");
         let mut camera = self.state.base.scene.camera.clone();
@@ -1277,6 +1279,8 @@ impl ViewerApp {
         }
     }
 
+    /// One function because egui lays widgets out in the order they are called: the panel
+    /// reads top to bottom as it appears on screen.
     fn side_panel(&mut self, ui: &mut egui::Ui, side: Side) {
         let i = side.index();
         ui.heading(format!(
@@ -1470,6 +1474,9 @@ impl ViewerApp {
 
     /// The image area: the two images split by the divider, one side alone, or their
     /// comparison; fitted or zoomed; a stale image dimmed and labelled; the probe.
+    ///
+    /// One function because the divider, the two images, the stale labels and the probe
+    /// share one painter and one response of the image area.
     fn split_view(&mut self, ui: &mut egui::Ui) {
         let (full, _) = self.sizes(Side::Left);
         let area = ui.max_rect();
