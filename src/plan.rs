@@ -19,6 +19,7 @@
 
 use std::collections::BTreeMap;
 use std::fmt;
+use std::ops::Range;
 
 use naga_oil::compose::ShaderDefValue;
 
@@ -650,6 +651,45 @@ impl Plan {
         } else {
             1
         }
+    }
+
+    /// Whether `frames` is a range of this plan's accumulation: non-empty and within its
+    /// frames; else why not.
+    pub fn check_frames(
+        &self,
+        settings: &RenderSettings,
+        frames: &Range<u32>,
+    ) -> Result<(), String> {
+        let (a, b) = (frames.start, frames.end);
+        if a >= b {
+            return Err(format!(
+                "frames {a}..{b}: an empty range; render at least one frame"
+            ));
+        }
+        let cap = self.frames(settings);
+        if b <= cap {
+            return Ok(());
+        }
+        if self.accumulate {
+            return Err(format!(
+                "frames {a}..{b}: past the end of the accumulation, {cap} frames \
+                 (settings.spp = {} caps it)",
+                settings.spp
+            ));
+        }
+        let why = if settings.spp <= 1 {
+            "settings.spp is 1".to_string()
+        } else {
+            format!(
+                "nothing is sampled (shadow model {} draws no samples here and there is no \
+                 pixel filter), so every frame is the same image",
+                self.shadow_model.name
+            )
+        };
+        Err(format!(
+            "frames {a}..{b}: this plan does not accumulate ({why}); it renders one frame, \
+             frames 0..1"
+        ))
     }
 
     /// The same plan with ray counting compiled in or out.

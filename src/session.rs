@@ -183,6 +183,12 @@ impl Session {
         progress: impl Fn(&'static str) -> Option<Progress>,
     ) -> Result<Image> {
         let wall = Instant::now();
+        if let (Some(r), Tracer::Cpu { .. }) = (&range, &self.tracer) {
+            // The GPU tracer checks its own range; the CPU's is checked by the same rule.
+            Plan::new(scene, settings)
+                .check_frames(settings, r)
+                .map_err(|m| Error::new(ErrorKind::Invalid, m))?;
+        }
         // A range of the accumulation is, on the CPU, the render of its first frames.
         let settings = &match &range {
             Some(r) if matches!(self.tracer, Tracer::Cpu { .. }) => Cow::Owned(RenderSettings {

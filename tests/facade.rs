@@ -260,3 +260,58 @@ fn the_technique_records_match_the_listing() {
     assert_eq!(samples["type"], "int");
     assert_eq!(samples["min"], 1.0);
 }
+
+/// `Session::render_frames` refines an image in ranges of its accumulation: on either
+/// backend the ranges end at the image of one render of that many frames, and a range
+/// that is empty, past the accumulation's end, or (on the GPU) skips frames is refused
+/// with an error of kind Invalid or Device that names the range.
+#[test]
+fn frames_in_ranges_give_the_image_of_one_render() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/area_lights.toml");
+    let overrides = [
+        "render.width=16".parse().unwrap(),
+        "render.height=12".parse().unwrap(),
+        "render.spp=4".parse().unwrap(),
+    ];
+    let e = Experiment::load_with(&path, &overrides).unwrap();
+    let mut gpu = Session::new(Backend::Gpu).expect("the suite needs a GPU adapter (lavapipe)");
+    let mut cpu = Session::cpu();
+    for session in [&mut cpu, &mut gpu] {
+        let whole = session.render(&e).unwrap();
+        assert_eq!(whole.frames, 4);
+        let mut last = None;
+        for range in [0..1, 1..3, 3..4] {
+            let image = session
+                .render_frames(&e.scene, &e.settings, range.clone())
+                .unwrap();
+            assert_eq!(image.frames, range.end, "{}", session.label());
+            last = Some(image);
+        }
+        let last = last.unwrap();
+        assert_eq!(
+            last.frame.pixels,
+            whole.frame.pixels,
+            "{}: frames 0..4 in three ranges against one render of 4",
+            session.label()
+        );
+        for bad in [2..2, 0..5] {
+            let err = session
+                .render_frames(&e.scene, &e.settings, bad.clone())
+                .unwrap_err();
+            assert!(
+                matches!(err.kind(), ErrorKind::Invalid | ErrorKind::Device),
+                "{err}"
+            );
+            assert!(
+                err.message()
+                    .contains(&format!("frames {}..{}", bad.start, bad.end)),
+                "{}: {err}",
+                session.label()
+            );
+        }
+    }
+    // The GPU continues its own accumulation only where it left off.
+    gpu.render_frames(&e.scene, &e.settings, 0..2).unwrap();
+    let err = gpu.render_frames(&e.scene, &e.settings, 3..4).unwrap_err();
+    assert!(err.message().contains("would skip frames 2..3"), "{err}");
+}

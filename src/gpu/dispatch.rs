@@ -195,7 +195,8 @@ impl GpuTracer {
         let plan = self.fit_plan(scene, settings, plan);
         let count = plan.count_rays;
         self.check(scene, settings, &plan)?;
-        Self::check_frames(settings, &plan, &frames)?;
+        plan.check_frames(settings, &frames)
+            .map_err(anyhow::Error::msg)?;
         self.pipeline(&plan)?;
         // Device allocations fail as errors of the render, never through wgpu's default
         // handler (a panic): a grid texture or buffer the device cannot hold is reported

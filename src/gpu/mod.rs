@@ -902,38 +902,6 @@ impl GpuTracer {
         self.accumulation.as_ref().map_or(0, |a| a.frames)
     }
 
-    /// Whether `frames` is a range `plan` can render: non-empty and within its frames.
-    fn check_frames(settings: &RenderSettings, plan: &Plan, frames: &Range<u32>) -> Result<()> {
-        let (a, b) = (frames.start, frames.end);
-        if a >= b {
-            bail!("frames {a}..{b}: an empty range; render at least one frame");
-        }
-        let cap = plan.frames(settings);
-        if b <= cap {
-            return Ok(());
-        }
-        if plan.accumulate {
-            bail!(
-                "frames {a}..{b}: past the end of the accumulation, {cap} frames \
-                 (settings.spp = {} caps it)",
-                settings.spp
-            );
-        }
-        let why = if settings.spp <= 1 {
-            "settings.spp is 1".to_string()
-        } else {
-            format!(
-                "nothing is sampled (shadow model {} draws no samples here and there is no \
-                 pixel filter), so every frame is the same image",
-                plan.shadow_model.name
-            )
-        };
-        bail!(
-            "frames {a}..{b}: this plan does not accumulate ({why}); it renders one frame, \
-             frames 0..1"
-        )
-    }
-
     /// Whether the accumulation this tracer holds is the one `frames` continues.
     fn check_continuation(&self, key: &AccumulationKey, frames: &Range<u32>) -> Result<()> {
         let f = format!("frames {}..{}", frames.start, frames.end);
