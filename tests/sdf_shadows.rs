@@ -82,12 +82,8 @@ fn the_field_measures_from_opaque_voxels() {
     assert_eq!(at(0, 0, 0), 12f64.sqrt() - 0.5, "glass is no occluder");
 }
 
-/// A floor, a pillar and a rectangle light: `softness = 0` is the hard shadow exactly on
-/// both tracers; soft, no pixel is darker than the hard shadow's (the estimate only
-/// darkens the lit side), some penumbra pixels are darker than fully lit, and larger
-/// softness never lightens a pixel.
-#[test]
-fn penumbrae_grow_from_the_hard_shadow() {
+/// A floor and a pillar of diffuse voxels under a rectangle light, seen from above.
+fn pillar_scene() -> Scene {
     let mut palette = seed_palette();
     for m in palette.iter_mut().skip(1) {
         (m.kd, m.ks, m.kr, m.kt) = (1.0, 0.0, 0.0, 0.0);
@@ -126,6 +122,16 @@ fn penumbrae_grow_from_the_hard_shadow() {
     scene.camera.target = DVec3::new(12.0, 0.0, 12.0);
     scene.camera.distance = 30.0;
     scene.camera.pitch = 1.2;
+    scene
+}
+
+/// A floor, a pillar and a rectangle light: `softness = 0` is the hard shadow exactly on
+/// both tracers; soft, no pixel is darker than the hard shadow's (the estimate only
+/// darkens the lit side), some penumbra pixels are darker than fully lit, and larger
+/// softness never lightens a pixel.
+#[test]
+fn penumbrae_grow_from_the_hard_shadow() {
+    let scene = pillar_scene();
     let render = |softness: Option<f64>| {
         let mut st = RenderSettings {
             width: 48,
@@ -235,4 +241,41 @@ fn the_device_builds_the_same_field() {
             );
         }
     }
+}
+
+/// The field depends on the occluders alone: a softness sweep on one tracer builds it
+/// once and renders what a fresh tracer renders at each softness; another grid builds
+/// it again.
+#[test]
+fn a_softness_sweep_keeps_the_field() {
+    let scene = pillar_scene();
+    let settings = |softness: f64| {
+        let mut st = RenderSettings {
+            width: 24,
+            height: 24,
+            ..Default::default()
+        };
+        st.features.set_shadow_model("sdf");
+        st.technique_params.set("sdf", "softness", softness);
+        st
+    };
+    let mut swept = tracer();
+    for (i, softness) in [0.25, 1.0, 4.0].into_iter().enumerate() {
+        let kept = swept.render(&scene, &settings(softness)).unwrap().frame;
+        assert_eq!(
+            swept.technique_data_builds(),
+            1,
+            "softness {softness} (render {i})"
+        );
+        let fresh = tracer().render(&scene, &settings(softness)).unwrap().frame;
+        assert_eq!(kept, fresh, "softness {softness}: the kept field's image");
+    }
+    let mut other = scene.clone();
+    other.grid.set(IVec3::new(3, 1, 3), 1);
+    swept.render(&other, &settings(1.0)).unwrap();
+    assert_eq!(
+        swept.technique_data_builds(),
+        2,
+        "another grid builds the field again"
+    );
 }

@@ -93,6 +93,14 @@ fn declarations_are_sound() {
             );
         }
         assert!(packed[m.settings.len()..].iter().all(|&v| v == 0.0));
+        // The data's inputs are its own settings, and only a model with data has any.
+        for key in m.data_settings {
+            assert!(
+                m.gpu_data.is_some() && m.settings.iter().any(|st| st.key == *key),
+                "{}: data_settings names {key}, not a setting its gpu_data reads",
+                m.name
+            );
+        }
         assert!(
             !m.title.is_empty() && m.title.len() < 40 && titles.insert(m.title),
             "{}: the viewer lists it by a short title of its own",

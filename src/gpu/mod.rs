@@ -312,6 +312,8 @@ pub struct GpuTracer {
     /// `technique_data` of a plug-in technique (`crate::technique::ShadowModel::gpu_data`)
     /// and what it was made from; kept while renders need the same.
     technique_data: Option<(blake3::Hash, wgpu::Buffer)>,
+    /// Builds of `technique_data` since the tracer was made.
+    technique_data_builds: u64,
     /// Bound as `technique_data` when the plan needs none (a binding needs a buffer),
     /// and as `walk_data` when the plan walks the voxel buffer.
     no_technique_data: wgpu::Buffer,
@@ -619,6 +621,7 @@ impl GpuTracer {
             device_dda_unroll: dda_unroll,
             raised_for: None,
             technique_data: None,
+            technique_data_builds: 0,
             no_technique_data,
             walk_data: None,
             surfaces: None,
@@ -676,6 +679,13 @@ impl GpuTracer {
     /// inputs did not change does not add one.
     pub fn pyramid_builds(&self) -> u64 {
         self.pyramid_builds
+    }
+
+    /// Diagnostics counter: builds of a shadow model's data (`ShadowModel::gpu_data`)
+    /// since the tracer was made. A render whose model and data inputs (the scene, the
+    /// model's `data_settings`) did not change does not add one.
+    pub fn technique_data_builds(&self) -> u64 {
+        self.technique_data_builds
     }
 
     /// Device time of the latest render's trace (the sum of its compute passes, from

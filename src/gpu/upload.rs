@@ -432,13 +432,18 @@ impl GpuTracer {
             self.technique_data = None;
             return Ok(0);
         };
-        // Its inputs: the technique, its settings, the voxels (by upload generation) and
-        // everything else of the scene but the camera.
+        // Its inputs: the technique, the settings it declares it reads, the voxels (by
+        // upload generation) and everything else of the scene but the camera.
+        let params: Vec<f64> = model
+            .data_settings
+            .iter()
+            .map(|key| model.value(settings, key))
+            .collect();
         let key = blake3::hash(
             format!(
                 "{} {:?} {} {:?} {:?} {:?} {:?}",
                 model.name,
-                settings.technique_params,
+                params,
                 self.grid_generation(),
                 scene.grid.voxel_size(),
                 scene.grid.origin(),
@@ -456,7 +461,7 @@ impl GpuTracer {
         self.technique_data = None;
         let buf = match make {
             crate::technique::GpuData::Host(make) => {
-                let mut data = make(scene, settings);
+                let mut data = make(scene, &params);
                 if data.is_empty() {
                     data.push(0.0);
                 }
@@ -479,13 +484,14 @@ impl GpuTracer {
                     queue: &self.queue,
                     grid,
                     scene,
-                    settings,
+                    params: &params,
                 })
                 .with_context(|| format!("building the data of shadow model {}", model.name))?
             }
         };
         let size = buf.size();
         self.technique_data = Some((key, buf));
+        self.technique_data_builds += 1;
         Ok(size)
     }
 }

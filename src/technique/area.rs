@@ -34,6 +34,7 @@ pub const MODEL: ShadowModel = ShadowModel {
         include_str!("../../shaders/shadow_area.wgsl"),
     ),
     gpu_data: None,
+    data_settings: &[],
     cpu: |_, _| Box::new(Area),
     ablate: &[AblateCurve {
         label: "stochastic",

@@ -36,6 +36,7 @@ pub const MODEL: ShadowModel = ShadowModel {
     ),
     // The pyramids are the plan's (`Plan::pyramid`), shared with the lighting terms.
     gpu_data: None,
+    data_settings: &[],
     cpu: |_, _| Box::new(Cone),
     // Over the step factor, each area light at the aperture it subtends; and, with
     // every area light as a point light at its centre (which the model shades it as

@@ -24,6 +24,7 @@ pub const MODEL: ShadowModel = ShadowModel {
         include_str!("../../shaders/shadow_hard.wgsl"),
     ),
     gpu_data: None,
+    data_settings: &[],
     cpu: |_, _| Box::new(Hard),
     // The fixed points every curve starts from, once per transmittance model.
     ablate: &[AblateCurve {

@@ -247,7 +247,7 @@ pub trait CpuShadow: Send + Sync {
 #[derive(Clone, Copy)]
 pub enum GpuData {
     /// On the host, uploaded as it is.
-    Host(fn(&Scene, &RenderSettings) -> Vec<f32>),
+    Host(fn(&Scene, &[f64]) -> Vec<f32>),
     /// On the device, by compute passes the technique encodes and submits; the buffer
     /// returned has `STORAGE` and `COPY_SRC` usage. An error fails the render.
     Device(fn(&GpuBuild) -> anyhow::Result<wgpu::Buffer>),
@@ -260,7 +260,8 @@ pub struct GpuBuild<'a> {
     /// The voxel grid as uploaded: one material index per voxel (R8Uint, dims).
     pub grid: &'a wgpu::TextureView,
     pub scene: &'a Scene,
-    pub settings: &'a RenderSettings,
+    /// The values of the model's `data_settings`, in order.
+    pub params: &'a [f64],
 }
 
 /// A plug-in shadow model: everything about it, in one value.
@@ -286,6 +287,11 @@ pub struct ShadowModel {
     /// The data the kernel reads from `technique_data`, made when the plan uses the
     /// model and its inputs changed. `None`: it reads none.
     pub gpu_data: Option<GpuData>,
+    /// The keys of its `settings` that `gpu_data` reads, given to it in this order
+    /// (`GpuBuild::params`): its inputs with the scene, so the data is made again when
+    /// one of these changes and kept when another setting does (a sweep of a shading
+    /// setting does not rebuild it).
+    pub data_settings: &'static [&'static str],
     /// Makes the CPU implementation for a render.
     pub cpu: fn(&Scene, &RenderSettings) -> Box<dyn CpuShadow>,
     /// The curves `voxlab ablate` draws of it (error against time), in order.

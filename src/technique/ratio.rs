@@ -62,6 +62,7 @@ pub const MODEL: ShadowModel = ShadowModel {
         include_str!("../../shaders/shadow_ratio.wgsl"),
     ),
     gpu_data: None,
+    data_settings: &[],
     cpu: |_, _| Box::new(Ratio),
     ablate: &[AblateCurve {
         label: "ratio",

@@ -74,9 +74,11 @@ pub const MODEL: ShadowModel = ShadowModel {
         "shaders/shadow_sdf.wgsl",
         include_str!("../../shaders/shadow_sdf.wgsl"),
     ),
-    // The field, built on the device (`softness` reaches the kernel with every model's
-    // settings, ShadowModel::gpu_settings).
+    // The field, built on the device from the occluders alone: `softness` reaches the
+    // kernel with every model's settings (ShadowModel::gpu_settings), so a softness
+    // sweep keeps the field.
     gpu_data: Some(GpuData::Device(build_on_device)),
+    data_settings: &[],
     cpu: |scene, settings| {
         Box::new(Sdf {
             field: distance_field(scene),

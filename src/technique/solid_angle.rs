@@ -43,6 +43,7 @@ pub const MODEL: ShadowModel = ShadowModel {
         include_str!("../../shaders/shadow_solid_angle.wgsl"),
     ),
     gpu_data: None,
+    data_settings: &[],
     cpu: |_, _| Box::new(SolidAngle),
     ablate: &[AblateCurve {
         label: "solid-angle",
