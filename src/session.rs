@@ -4,7 +4,6 @@
 //! the plan it was traced with; [`Image::provenance`] the record `voxlab render --json`
 //! prints and stores beside every image.
 
-use std::borrow::Cow;
 use std::ops::Range;
 use std::path::Path;
 use std::sync::Arc;
@@ -183,20 +182,6 @@ impl Session {
         progress: impl Fn(&'static str) -> Option<Progress>,
     ) -> Result<Image> {
         let wall = Instant::now();
-        if let (Some(r), Tracer::Cpu { .. }) = (&range, &self.tracer) {
-            // The GPU tracer checks its own range; the CPU's is checked by the same rule.
-            Plan::new(scene, settings)
-                .check_frames(settings, r)
-                .map_err(|m| Error::new(ErrorKind::Invalid, m))?;
-        }
-        // A range of the accumulation is, on the CPU, the render of its first frames.
-        let settings = &match &range {
-            Some(r) if matches!(self.tracer, Tracer::Cpu { .. }) => Cow::Owned(RenderSettings {
-                spp: r.end.max(1),
-                ..settings.clone()
-            }),
-            _ => Cow::Borrowed(settings),
-        };
         let accumulated = range.as_ref().map_or(settings.spp, |r| r.end);
         let (out, plan, timer, device_timed) = match &mut self.tracer {
             Tracer::Gpu(t) => {
@@ -230,6 +215,21 @@ impl Session {
                 // The CPU's plan is derived the same way, for the record: it needs no
                 // shader variant, but the scene's needs are the same.
                 let plan = Plan::new(scene, settings);
+                // A range of the accumulation is, on the CPU, the render of its first
+                // frames, the range checked by the rule the GPU tracer checks its own by.
+                let ranged;
+                let settings = match &range {
+                    Some(r) => {
+                        plan.check_frames(settings, r)
+                            .map_err(|m| Error::new(ErrorKind::Invalid, m))?;
+                        ranged = RenderSettings {
+                            spp: r.end,
+                            ..settings.clone()
+                        };
+                        &ranged
+                    }
+                    None => settings,
+                };
                 let progress = progress("rows");
                 let out = crate::cpu::render_with_progress(scene, settings, progress.as_ref());
                 if progress.is_some_and(|p| p.stopped()) {
