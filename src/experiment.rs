@@ -1450,6 +1450,17 @@ fn build_features(t: Option<&toml::Table>, ctx: &Ctx) -> Result<Features, Experi
                     ));
                 }
             }
+            "reconstruction" => {
+                let names = crate::technique::reconstruction_names();
+                let name = text(names.clone())?;
+                features.reconstruction =
+                    crate::technique::reconstruction(&name).ok_or_else(|| {
+                        ctx.invalid(
+                            &key,
+                            format!("no such reconstruction; allowed: {}", names.join(", ")),
+                        )
+                    })?;
+            }
             "transmittance" => {
                 let name = text(transmittance_names())?;
                 features.transmittance = transmittance(&name).ok_or_else(|| {
@@ -1504,21 +1515,15 @@ fn build_technique_params(
     t: Option<&toml::Table>,
     ctx: &Ctx,
 ) -> Result<crate::technique::TechniqueParams, ExperimentError> {
-    use crate::technique::{SHADOW_MODELS, shadow_model};
+    use crate::technique::{technique_table, technique_table_names};
     let mut params = crate::technique::TechniqueParams::default();
     let Some(t) = t else {
         return Ok(params);
     };
-    let names = || {
-        SHADOW_MODELS
-            .iter()
-            .map(|m| m.name)
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
+    let names = || technique_table_names().join(", ");
     for (name, table) in t {
         let key = format!("techniques.{name}");
-        let Some(model) = shadow_model(name) else {
+        let Some((_, settings)) = technique_table(name) else {
             return Err(ExperimentError::UnknownKey {
                 file: ctx.file.clone(),
                 line: ctx.span_of(&key).map(|s| ctx.line_of(s.start)),
@@ -1529,7 +1534,7 @@ fn build_technique_params(
         let Some(table) = table.as_table() else {
             return Err(ctx.invalid(&key, "must be a table of the technique's settings"));
         };
-        let declared: Vec<&crate::technique::Setting> = model.settings.iter().collect();
+        let declared: Vec<&crate::technique::Setting> = settings.iter().collect();
         for (setting, v) in declared_values(table, &key, &declared, ctx)? {
             params.set(name, setting.key, v);
         }

@@ -134,3 +134,74 @@ pub struct RenderOutput {
     /// whichever backend traced it and however the preparation was cached.
     pub setup_time: Duration,
 }
+
+/// The luminance of linear RGB (ITU-R BT.709 weights), what the reconstructions' edge
+/// stopping and variance read.
+pub fn luminance(c: glam::DVec3) -> f64 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// An image's primary hits and its shadow term apart from the rest of its radiance:
+/// what a reconstruction filters and what guides it (`crate::technique::Reconstruction`).
+/// Following E. Heitz, S. Hill and M. McGuire (I3D 2018), the filtered signal is the
+/// visibility ratio `direct / unshadowed` of the primary hit's local light, not the
+/// radiance, so texture, falloff and the light's shape stay sharp; the G-buffer (normal,
+/// depth, material) stops the filter at geometric edges (Dammertz et al. 2010).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PrimaryLayers {
+    pub width: u32,
+    pub height: u32,
+    /// The frames the means are over.
+    pub frames: u32,
+    /// Rows from the top, as [`Frame::pixels`].
+    pub pixels: Vec<PrimaryPixel>,
+}
+
+/// One pixel of [`PrimaryLayers`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PrimaryPixel {
+    /// Whether frame 0's primary ray hit a surface; the G-buffer is that hit's (frames
+    /// that move the ray inside the pixel keep frame 0's, so the guide does not blur).
+    pub hit: bool,
+    /// The shading normal, facing the ray.
+    pub normal: glam::DVec3,
+    /// The hit's distance along the primary ray (world units).
+    pub depth: f64,
+    /// The shading material's index.
+    pub material: u8,
+    /// Mean over the frames of the primary hit's local light as the shadow model
+    /// estimates it (albedo included; zero in a frame whose ray missed).
+    pub direct: glam::DVec3,
+    /// The same estimate, with the same samples, with every shadow segment clear.
+    pub unshadowed: glam::DVec3,
+    /// Means of the luminance of the frame's visibility ratio (per channel, as
+    /// [`PrimaryPixel::visibility`]) and of its square, over the `ratio_frames` frames in
+    /// which the unshadowed light's luminance was not zero:
+    /// the temporal moments a variance estimate reads (Schied et al. 2017, section 4.2).
+    pub ratio_moments: [f64; 2],
+    pub ratio_frames: u32,
+}
+
+impl PrimaryPixel {
+    /// Whether the filter reads this pixel: a hit with some unshadowed light, so its
+    /// visibility ratio is defined.
+    pub fn filtered(&self) -> bool {
+        self.hit && luminance(self.unshadowed) > 0.0
+    }
+
+    /// The visibility ratio per channel (0 where a channel has no unshadowed light).
+    pub fn visibility(&self) -> glam::DVec3 {
+        let ratio = |d: f64, u: f64| if u > 0.0 { d / u } else { 0.0 };
+        glam::DVec3::new(
+            ratio(self.direct.x, self.unshadowed.x),
+            ratio(self.direct.y, self.unshadowed.y),
+            ratio(self.direct.z, self.unshadowed.z),
+        )
+    }
+}
+
+impl PrimaryLayers {
+    pub fn get(&self, x: u32, y: u32) -> &PrimaryPixel {
+        &self.pixels[(y * self.width + x) as usize]
+    }
+}

@@ -56,6 +56,11 @@ pub struct Plan {
     /// model's plan rule keeps it, else the default (listed, when not the default, by its
     /// name in capitals).
     pub transmittance: &'static TransmittanceModel,
+    /// The reconstruction that filters the shadow term (`crate::technique::Reconstruction`):
+    /// the one `features.reconstruction` names when the shadow model in force samples its
+    /// shadow rays (a stochastic model that casts them), else none. It changes what the
+    /// tracer keeps of the primary hits, not the kernel's flags.
+    pub reconstruction: &'static crate::technique::Reconstruction,
     /// Progressive accumulation over frames (`ACCUMULATE`): the shadow model samples or
     /// the pixel filter moves the primary rays, and `spp > 1`. Allocates the
     /// compensation buffer. Without sampling every frame is the same image, so one frame
@@ -491,6 +496,28 @@ impl Plan {
             }
         };
 
+        let no_filter = crate::technique::default_reconstruction();
+        let asked_filter = settings.features.reconstruction;
+        let reconstruction = if asked_filter == no_filter {
+            no_filter
+        } else if !(shadows && shadow_model.stochastic && shadow_model.shadow_rays) {
+            reasons.push(format!(
+                "reconstruction {}: {}; the image as traced",
+                asked_filter.name,
+                if shadows {
+                    format!(
+                        "the shadow model {} samples no shadow rays to filter",
+                        shadow_model.name
+                    )
+                } else {
+                    "no shadow rays".to_string()
+                }
+            ));
+            no_filter
+        } else {
+            asked_filter
+        };
+
         let pixel_filter = settings.pixel_filter != crate::render::PixelFilter::None;
         // A cutoff of 0 (the default) is no cut, not something left out: no reason.
         let ray_cutoff = if crate::ray_cutoff::cutoff(settings) <= 0.0 {
@@ -570,6 +597,7 @@ impl Plan {
             emission,
             shadow_model,
             transmittance,
+            reconstruction,
             accumulate,
             terms,
             pixel_filter,
@@ -595,6 +623,19 @@ impl Plan {
             let model = rest.split('.').next().unwrap_or(rest);
             if model == self.shadow_model.name {
                 return Ok(());
+            }
+            if let Some(r) = crate::technique::reconstruction(model) {
+                return if r == self.reconstruction {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "this experiment never reads {key}: it renders with the \
+                         reconstruction \"{}\"; the reconstruction \"{model}\" would read it \
+                         (features.reconstruction = \"{model}\", with a shadow model that \
+                         samples)",
+                        self.reconstruction.name
+                    ))
+                };
             }
             let known = SHADOW_MODELS.iter().any(|m| m.name == model);
             return Err(format!(
@@ -761,6 +802,7 @@ impl Plan {
                     emission: false,
                     shadow_model: crate::technique::default_shadow_model(),
                     transmittance,
+                    reconstruction: crate::technique::default_reconstruction(),
                     accumulate: false,
                     terms: Vec::new(),
                     pixel_filter: false,
@@ -892,6 +934,9 @@ impl fmt::Display for Plan {
         }
         if let Some(layout) = &self.pyramid {
             write!(f, "\n  {}", memory_line(layout, self.radiance_pyramid()))?;
+        }
+        if !self.reconstruction.label.is_empty() {
+            write!(f, "\n  reconstruction: {}", self.reconstruction.label)?;
         }
         for r in &self.reasons {
             write!(f, "\n  left out: {r}")?;

@@ -225,6 +225,10 @@ pub struct Features {
     /// own file: ambient occlusion, indirect light), in registry order; each adds its
     /// radiance at every hit. None: the baseline.
     pub terms: Vec<&'static crate::technique::LightingTerm>,
+    /// How the sampled shadow term is filtered before shading: one of the registered
+    /// reconstructions (`crate::technique::RECONSTRUCTIONS`); the default is the first,
+    /// none.
+    pub reconstruction: &'static crate::technique::Reconstruction,
 }
 
 impl Default for Features {
@@ -233,6 +237,7 @@ impl Default for Features {
             shadow_model: crate::technique::default_shadow_model(),
             transmittance: Transmittance::default(),
             terms: Vec::new(),
+            reconstruction: crate::technique::default_reconstruction(),
         }
     }
 }

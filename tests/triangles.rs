@@ -258,6 +258,7 @@ fn first_hits_and_chords_equal_brute_force_through_vertices_and_edges() {
                     surfaces: Some(&trace),
                     medium: VOID,
                     end_offset: 0.0,
+                    clear: false,
                 };
                 let t = shadow_transmittance(
                     &scene,

@@ -12,7 +12,7 @@ pub use crate::sampling::SampleKey;
 use crate::technique::shading::ShadowWalk;
 
 use crate::dda::cast_through;
-use crate::frame::{Frame, RayStats, RenderOutput};
+use crate::frame::{Frame, PrimaryLayers, PrimaryPixel, RayStats, RenderOutput, luminance};
 use crate::plan::Plan;
 use crate::ray_cutoff::{light_shaded, spawned, traced};
 use crate::render::{RenderSettings, Rules};
@@ -146,25 +146,114 @@ fn trace_region(
     rows: std::ops::Range<u32>,
     progress: Option<&crate::progress::Progress>,
 ) -> RenderOutput {
+    let start = Instant::now();
+    let reconstruction = plan.reconstruction;
+    if reconstruction.cpu.is_none() {
+        let (means, _, stats) = trace_means(
+            scene,
+            settings,
+            plan,
+            prepared,
+            columns.clone(),
+            rows.clone(),
+            false,
+            progress,
+        );
+        return RenderOutput {
+            frame: frame_of(&means, columns.len() as u32, rows.len() as u32),
+            stats,
+            trace_time: start.elapsed(),
+            setup_time: Duration::ZERO,
+        };
+    }
+    // A filter reads around each pixel: the region is traced as far wider as it reads,
+    // so a crop is filtered as the whole image is (clamped at the image's edges, as
+    // there), then cut back.
+    let reach = (reconstruction.reach)(&reconstruction.values(settings));
+    let wide = |r: &std::ops::Range<u32>, side: u32| {
+        r.start.saturating_sub(reach)..r.end.saturating_add(reach).min(side)
+    };
+    let (wide_columns, wide_rows) = (wide(&columns, settings.width), wide(&rows, settings.height));
+    let (means, layers, stats) = trace_means(
+        scene,
+        settings,
+        plan,
+        prepared,
+        wide_columns.clone(),
+        wide_rows.clone(),
+        true,
+        progress,
+    );
+    let layers = layers.expect("asked for");
+    let filtered = reconstruction.apply(&layers, &means, settings);
+    let wide_width = wide_columns.len();
+    let (x0, y0) = (
+        (columns.start - wide_columns.start) as usize,
+        (rows.start - wide_rows.start) as usize,
+    );
+    let crop: Vec<DVec3> = (0..rows.len())
+        .flat_map(|j| {
+            let at = (y0 + j) * wide_width + x0;
+            filtered[at..at + columns.len()].to_vec()
+        })
+        .collect();
+    RenderOutput {
+        frame: frame_of(&crop, columns.len() as u32, rows.len() as u32),
+        stats,
+        trace_time: start.elapsed(),
+        setup_time: Duration::ZERO,
+    }
+}
+
+/// A frame of `width` x `height` pixels from their f64 values, each rounded once.
+fn frame_of(means: &[DVec3], width: u32, height: u32) -> Frame {
+    let mut frame = Frame::new(width, height);
+    for (p, c) in frame.pixels.iter_mut().zip(means) {
+        *p = [c.x as f32, c.y as f32, c.z as f32];
+    }
+    frame
+}
+
+/// Every pixel of the region, the mean of its frames in f64, rows from the top; with
+/// `layers`, also the primary layers a reconstruction reads (`crate::frame::PrimaryLayers`).
+#[allow(clippy::too_many_arguments)]
+fn trace_means(
+    scene: &Scene,
+    settings: &RenderSettings,
+    plan: &Plan,
+    prepared: &Prepared,
+    columns: std::ops::Range<u32>,
+    rows: std::ops::Range<u32>,
+    layers: bool,
+    progress: Option<&crate::progress::Progress>,
+) -> (Vec<DVec3>, Option<PrimaryLayers>, RayStats) {
     let rows_done = std::sync::atomic::AtomicU64::new(0);
     let row_count = rows.len() as u64;
     let frame_cam = scene.camera.frame();
     let (w, h) = (settings.width, settings.height);
     let frames = plan.frames(settings);
-    let start = Instant::now();
-    let out: Vec<(Vec<[f32; 3]>, RayStats)> = rows
+    type Row = (Vec<DVec3>, Vec<PrimaryPixel>, RayStats);
+    let out: Vec<Row> = rows
         .clone()
         .into_par_iter()
         .map(|j| {
             let mut stats = RayStats::default();
             // A stopped render skips its remaining rows; the caller discards the image.
             if progress.is_some_and(|p| p.stopped()) {
-                return (vec![[0.0; 3]; columns.len()], stats);
+                let n = columns.len();
+                let kept = if layers { n } else { 0 };
+                return (
+                    vec![DVec3::ZERO; n],
+                    vec![PrimaryPixel::default(); kept],
+                    stats,
+                );
             }
+            let mut row_layers = Vec::new();
             let row = columns
                 .clone()
                 .map(|i| {
                     let mut sum = DVec3::ZERO;
+                    let mut layer = PrimaryPixel::default();
                     for frame in 0..frames {
                         let key = SampleKey {
                             pixel: j * w + i,
@@ -177,7 +266,8 @@ fn trace_region(
                             frame,
                         );
                         let dir = frame_cam.primary_dir_offset(i, j, w, h, offset);
-                        sum += trace_ray_with(
+                        let mut primary = PrimarySample::default();
+                        sum += trace_tree(
                             scene,
                             settings,
                             prepared,
@@ -185,32 +275,89 @@ fn trace_region(
                             frame_cam.eye,
                             dir,
                             &mut stats,
+                            layers.then_some(&mut primary),
                         );
+                        if layers {
+                            primary.add_to(&mut layer, frame == 0);
+                        }
                     }
-                    let c = sum / frames as f64;
-                    [c.x as f32, c.y as f32, c.z as f32]
+                    if layers {
+                        row_layers.push(layer.mean_over(frames));
+                    }
+                    sum / frames as f64
                 })
                 .collect();
             if let Some(p) = progress {
                 let done = rows_done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 p.update(done, row_count);
             }
-            (row, stats)
+            (row, row_layers, stats)
         })
         .collect();
-    let cw = columns.len() as u32;
-    let mut frame = Frame::new(cw, rows.len() as u32);
+    let mut means = Vec::with_capacity(columns.len() * rows.len());
+    let mut pixels = Vec::new();
     let mut stats = RayStats::default();
-    for (j, (row, s)) in out.into_iter().enumerate() {
-        let at = j * cw as usize;
-        frame.pixels[at..at + cw as usize].copy_from_slice(&row);
+    for (row, row_layers, s) in out {
+        means.extend(row);
+        pixels.extend(row_layers);
         stats += s;
     }
-    RenderOutput {
-        frame,
-        stats,
-        trace_time: start.elapsed(),
-        setup_time: Duration::ZERO,
+    let layers = layers.then(|| PrimaryLayers {
+        width: columns.len() as u32,
+        height: rows.len() as u32,
+        frames,
+        pixels,
+    });
+    (means, layers, stats)
+}
+
+/// What one frame's primary ray found, for a reconstruction's layers.
+#[derive(Clone, Copy, Default)]
+struct PrimarySample {
+    hit: bool,
+    normal: DVec3,
+    depth: f64,
+    material: u8,
+    /// The primary hit's local light, as shaded, and with every shadow segment clear.
+    direct: DVec3,
+    unshadowed: DVec3,
+}
+
+impl PrimarySample {
+    /// Adds this frame to the sums in `layer` (the G-buffer taken from the first frame).
+    fn add_to(&self, layer: &mut PrimaryPixel, first: bool) {
+        if first {
+            layer.hit = self.hit;
+            layer.normal = self.normal;
+            layer.depth = self.depth;
+            layer.material = self.material;
+        }
+        layer.direct += self.direct;
+        layer.unshadowed += self.unshadowed;
+        let frame = PrimaryPixel {
+            direct: self.direct,
+            unshadowed: self.unshadowed,
+            ..PrimaryPixel::default()
+        };
+        if luminance(self.unshadowed) > 0.0 {
+            let l = luminance(frame.visibility());
+            layer.ratio_moments[0] += l;
+            layer.ratio_moments[1] += l * l;
+            layer.ratio_frames += 1;
+        }
+    }
+}
+
+impl PrimaryPixel {
+    /// Sums over `frames` frames (`PrimarySample::add_to`) to means.
+    fn mean_over(mut self, frames: u32) -> Self {
+        self.direct /= frames as f64;
+        self.unshadowed /= frames as f64;
+        if self.ratio_frames > 0 {
+            let n = self.ratio_frames as f64;
+            self.ratio_moments = self.ratio_moments.map(|m| m / n);
+        }
+        self
     }
 }
 
@@ -286,6 +433,7 @@ impl Prepared {
             surfaces: self.surfaces.as_ref(),
             medium,
             end_offset: self.shadow_end_offset,
+            clear: false,
         }
     }
 
@@ -320,6 +468,22 @@ pub fn trace_ray_with(
     dir: DVec3,
     stats: &mut RayStats,
 ) -> DVec3 {
+    trace_tree(scene, settings, prepared, key, eye, dir, stats, None)
+}
+
+/// [`trace_ray_with`], telling `primary` what the primary ray found: its hit and the
+/// local light there, as shaded and unshadowed.
+#[allow(clippy::too_many_arguments)]
+fn trace_tree(
+    scene: &Scene,
+    settings: &RenderSettings,
+    prepared: &Prepared,
+    key: SampleKey,
+    eye: DVec3,
+    dir: DVec3,
+    stats: &mut RayStats,
+    mut primary: Option<&mut PrimarySample>,
+) -> DVec3 {
     let grid = &scene.grid;
     let walk_grid = prepared.grid(scene);
     let eps = settings.ray_offset * grid.voxel_size();
@@ -349,6 +513,8 @@ pub fn trace_ray_with(
             &mut stats.triangle_tests,
         );
         stats.voxel_steps += steps;
+        // Only the first ray popped is the primary ray.
+        let mut primary = primary.take();
         let Some(hit) = hit else { continue };
 
         let p = ray.origin + hit.t * ray.dir;
@@ -371,9 +537,31 @@ pub fn trace_ray_with(
                 medium: ray.medium,
             };
             let local = direct_light(
-                scene, settings, prepared, key, &at, ray.dir, shade_id, ray.weight, stats,
+                scene, settings, prepared, key, &at, ray.dir, shade_id, ray.weight, false, stats,
             );
             color += ray.throughput * local;
+            if let Some(primary) = primary.as_deref_mut() {
+                // The same estimate with the same samples and nothing in the way; its rays
+                // are not traced, so they are not counted.
+                let mut uncounted = RayStats::default();
+                primary.direct = local;
+                primary.unshadowed = direct_light(
+                    scene,
+                    settings,
+                    prepared,
+                    key,
+                    &at,
+                    ray.dir,
+                    shade_id,
+                    ray.weight,
+                    true,
+                    &mut uncounted,
+                );
+            }
+        }
+        if let Some(primary) = primary {
+            (primary.hit, primary.normal, primary.depth) = (true, n, hit.t);
+            primary.material = shade_id;
         }
         // The plan's lighting terms (crate::technique).
         for term in &prepared.terms {
@@ -388,57 +576,85 @@ pub fn trace_ray_with(
             color += ray.throughput * (term.cpu)(&at);
         }
 
-        let mut reflection_weight = m.kr;
-        // The same weight in f32, as the kernel sums it, for the ray cutoff.
-        let mut reflection_factor = m.kr as f32;
-        let refraction_weight = spawned(ray.weight, m.kt as f32);
-        let (a, b) = (ray.reflection_depth, ray.refraction_depth);
-        if m.kt > 0.0 {
-            let eta = scene.materials[ray.medium as usize].ior
-                / scene.materials[hit.material as usize].ior;
-            match refract(ray.dir, n, eta) {
-                // Total internal reflection: the refracted share goes to the reflection,
-                // except under the seed's rules, where it is lost (GLSL's refract gives
-                // the zero vector, a ray that hits nothing).
-                None if settings.rules == Rules::Seed => {}
-                None => {
-                    reflection_weight += m.kt;
-                    reflection_factor += m.kt as f32;
-                }
-                Some(_) if !settings.may_spawn(a, b, false) => {}
-                Some(_) if !traced(refraction_weight, prepared.cutoff) => {}
-                Some(refracted) => {
-                    stats.secondary += 1;
-                    stack.push(StackRay {
-                        origin: p - eps * ng,
-                        dir: refracted,
-                        throughput: ray.throughput * m.kt,
-                        reflection_depth: a,
-                        refraction_depth: b + 1,
-                        medium: hit.material,
-                        weight: refraction_weight,
-                    });
-                }
-            }
-        }
-        let reflected_weight = spawned(ray.weight, reflection_factor);
-        if reflection_weight > 0.0
-            && settings.may_spawn(a, b, true)
-            && traced(reflected_weight, prepared.cutoff)
-        {
-            stats.secondary += 1;
-            stack.push(StackRay {
-                origin: p + eps * ng,
-                dir: ray.dir - 2.0 * ray.dir.dot(n) * n,
-                throughput: ray.throughput * reflection_weight,
-                reflection_depth: a + 1,
-                refraction_depth: b,
-                medium: ray.medium,
-                weight: reflected_weight,
-            });
-        }
+        spawn(
+            scene,
+            settings,
+            prepared,
+            &ray,
+            (p, n, ng),
+            (hit.material, m),
+            eps,
+            &mut stack,
+            stats,
+        );
     }
     color
+}
+
+/// Pushes the refraction ray, then the reflection ray (the contract's order), of `ray`'s
+/// hit at `p` with shading normal `n` and the surface's own normal `ng` (the rays start
+/// off the surface along it) on material `material`, shaded as `m` (void's hit: the
+/// medium's), as the kernel's `spawn` (shaders/trace.wgsl).
+#[allow(clippy::too_many_arguments)]
+fn spawn(
+    scene: &Scene,
+    settings: &RenderSettings,
+    prepared: &Prepared,
+    ray: &StackRay,
+    (p, n, ng): (DVec3, DVec3, DVec3),
+    (material, m): (u8, &crate::scene::Material),
+    eps: f64,
+    stack: &mut Vec<StackRay>,
+    stats: &mut RayStats,
+) {
+    let mut reflection_weight = m.kr;
+    // The same weight in f32, as the kernel sums it, for the ray cutoff.
+    let mut reflection_factor = m.kr as f32;
+    let refraction_weight = spawned(ray.weight, m.kt as f32);
+    let (a, b) = (ray.reflection_depth, ray.refraction_depth);
+    if m.kt > 0.0 {
+        let eta = scene.materials[ray.medium as usize].ior / scene.materials[material as usize].ior;
+        match refract(ray.dir, n, eta) {
+            // Total internal reflection: the refracted share goes to the reflection,
+            // except under the seed's rules, where it is lost (GLSL's refract gives
+            // the zero vector, a ray that hits nothing).
+            None if settings.rules == Rules::Seed => {}
+            None => {
+                reflection_weight += m.kt;
+                reflection_factor += m.kt as f32;
+            }
+            Some(_) if !settings.may_spawn(a, b, false) => {}
+            Some(_) if !traced(refraction_weight, prepared.cutoff) => {}
+            Some(refracted) => {
+                stats.secondary += 1;
+                stack.push(StackRay {
+                    origin: p - eps * ng,
+                    dir: refracted,
+                    throughput: ray.throughput * m.kt,
+                    reflection_depth: a,
+                    refraction_depth: b + 1,
+                    medium: material,
+                    weight: refraction_weight,
+                });
+            }
+        }
+    }
+    let reflected_weight = spawned(ray.weight, reflection_factor);
+    if reflection_weight > 0.0
+        && settings.may_spawn(a, b, true)
+        && traced(reflected_weight, prepared.cutoff)
+    {
+        stats.secondary += 1;
+        stack.push(StackRay {
+            origin: p + eps * ng,
+            dir: ray.dir - 2.0 * ray.dir.dot(n) * n,
+            throughput: ray.throughput * reflection_weight,
+            reflection_depth: a + 1,
+            refraction_depth: b,
+            medium: ray.medium,
+            weight: reflected_weight,
+        });
+    }
 }
 
 /// Snell's law in vector form (`sin t1 / sin t2 = n2 / n1`, `eta = n1 / n2`) for a unit
@@ -460,7 +676,7 @@ struct Surface {
 }
 
 /// Phong with inverse-square falloff, summed over the lights as the plan's shadow model
-/// shades each, times the albedo.
+/// shades each, times the albedo; `clear`: with every shadow segment clear.
 #[allow(clippy::too_many_arguments)]
 fn direct_light(
     scene: &Scene,
@@ -471,11 +687,15 @@ fn direct_light(
     d: DVec3,
     shade_id: u8,
     weight: f32,
+    clear: bool,
     stats: &mut RayStats,
 ) -> DVec3 {
     let m = &scene.materials[shade_id as usize];
     let Surface { p, n, q, medium } = *at;
-    let walk = prepared.shadow_walk(medium);
+    let walk = ShadowWalk {
+        clear,
+        ..prepared.shadow_walk(medium)
+    };
     let mut sum = DVec3::ZERO;
     for (j, light) in scene.lights.iter().enumerate() {
         // The ray cutoff: a light that cannot add what the pixel would show is not

@@ -329,6 +329,7 @@ pub(crate) fn features_table(f: &Features) -> Table {
     }
     t.insert("transmittance".into(), f.transmittance.name().into());
     t.insert("shadow_model".into(), f.shadow_model.name.into());
+    t.insert("reconstruction".into(), f.reconstruction.name.into());
     t
 }
 
@@ -337,12 +338,13 @@ pub(crate) fn features_table(f: &Features) -> Table {
 pub(crate) fn techniques_table(p: &crate::technique::TechniqueParams) -> Option<Table> {
     let mut t = Table::new();
     for (name, values) in p.iter() {
-        let model = crate::technique::shadow_model(name);
+        let declared = crate::technique::technique_table(name).map_or(&[][..], |(_, s)| s);
         let table: Table = values
             .iter()
             .map(|(k, &v)| {
-                let value = model
-                    .and_then(|m| m.setting(k))
+                let value = declared
+                    .iter()
+                    .find(|s| s.key == k)
                     .map_or(Value::Float(v), |s| s.toml_value(v));
                 (k.clone(), value)
             })

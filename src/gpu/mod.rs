@@ -749,6 +749,16 @@ impl GpuTracer {
                 bail!("{name} {d}: at most {MAX_DEPTH_LIMIT}");
             }
         }
+        if plan.reconstruction.cpu.is_some() {
+            // The kernel writes no primary layers yet: refused rather than rendered
+            // unfiltered under a filter's name (docs/reconstruction.md).
+            bail!(
+                "features.reconstruction = \"{}\" runs on the CPU reference only so far \
+                 (--backend cpu); the GPU kernel does not yet write the primary layers it \
+                 filters",
+                plan.reconstruction.name
+            );
+        }
         let limits = self.device.limits();
         let dims = scene.grid.dims();
         if !plan

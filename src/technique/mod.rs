@@ -44,6 +44,7 @@
 
 pub mod ambient_occlusion;
 pub mod area;
+pub mod atrous;
 pub mod beer_lambert;
 pub mod cone;
 pub mod cones;
@@ -61,6 +62,7 @@ pub mod smooth;
 pub mod solid_angle;
 pub mod sparse;
 pub mod sparse_octant;
+pub mod unfiltered;
 pub mod voxels;
 
 use std::collections::BTreeMap;
@@ -104,6 +106,11 @@ pub const TRAVERSALS: &[&TraversalModel] = &[
 /// Surfaces, in the order they are listed and offered; the first is the default (the
 /// baseline's voxel faces). One line each.
 pub const SURFACES: &[&SurfaceModel] = &[&voxels::SURFACE, &mesh::SURFACE, &smooth::SURFACE];
+
+/// Reconstructions, in the order they are listed and offered; the first is the default
+/// (the image as traced). One line each.
+pub const RECONSTRUCTIONS: &[&Reconstruction] =
+    &[&unfiltered::RECONSTRUCTION, &atrous::RECONSTRUCTION];
 
 /// Tables of settings several techniques share, in the order files list them. One line
 /// each.
@@ -154,6 +161,8 @@ pub enum Slot {
     Traversal,
     /// What rays hit: voxel faces or triangles.
     Surface,
+    /// How the sampled shadow term is filtered before shading.
+    Reconstruction,
 }
 
 impl Slot {
@@ -164,6 +173,7 @@ impl Slot {
             Slot::Lighting => "lighting term",
             Slot::Traversal => "traversal",
             Slot::Surface => "surface",
+            Slot::Reconstruction => "reconstruction",
         }
     }
 
@@ -175,6 +185,7 @@ impl Slot {
             Slot::Lighting => "features.<name> = true",
             Slot::Traversal => "render.traversal",
             Slot::Surface => "render.surface",
+            Slot::Reconstruction => "features.reconstruction",
         }
     }
 }
@@ -343,6 +354,118 @@ impl ShadowModel {
     }
 }
 
+/// A reconstruction: how the shadow term of a shadow model that samples it (stochastic,
+/// with shadow rays) is filtered before it is shaded, guided by the primary hits'
+/// G-buffer. The tracer separates the primary hit's local light from the rest of the
+/// radiance (`crate::frame::PrimaryLayers`); the image is then the rest plus the
+/// unshadowed light times the filtered visibility ratio (Heitz, Hill and McGuire, I3D
+/// 2018, who denoise the ratio, not the radiance). One value in its own file,
+/// registered with one line in [`RECONSTRUCTIONS`]; the default, `none`, makes no
+/// layers and leaves the image as traced.
+pub struct Reconstruction {
+    /// Its name in experiment files (`[features] reconstruction`) and lists.
+    pub name: &'static str,
+    /// What it is, one line, with the paper it follows.
+    pub summary: &'static str,
+    /// Its label in the viewer's lists, a few words.
+    pub title: &'static str,
+    /// Its settings (`[techniques.<name>]`).
+    pub settings: &'static [Setting],
+    /// The filter in f64: every pixel's visibility ratio
+    /// (`crate::frame::PrimaryPixel::visibility`) filtered, given the values of its
+    /// settings in declared order; only the pixels `PrimaryPixel::filtered` accepts are
+    /// read and used. `None`: the image as traced, and no layers are made.
+    pub cpu: Option<ReconstructionFilter>,
+    /// How far from a pixel (in pixels, per axis) the filter reads, given the values of
+    /// its settings: a crop of the image is filtered as the whole image is when it is
+    /// traced this much wider.
+    pub reach: fn(&[f64]) -> u32,
+    /// How printed plans name it; empty for the default.
+    pub label: &'static str,
+}
+
+/// A reconstruction's f64 filter: the layers and its settings' values in, every
+/// pixel's filtered visibility out ([`Reconstruction::cpu`]).
+pub type ReconstructionFilter = fn(&crate::frame::PrimaryLayers, &[f64]) -> Vec<DVec3>;
+
+impl Reconstruction {
+    /// Its setting `key`.
+    pub fn setting(&self, key: &str) -> Option<&'static Setting> {
+        self.settings.iter().find(|s| s.key == key)
+    }
+
+    /// The values of its settings in `settings`, in declared order (defaults where
+    /// unset).
+    pub fn values(&self, settings: &RenderSettings) -> Vec<f64> {
+        self.settings
+            .iter()
+            .map(|s| settings.technique_params.get(self.name, s))
+            .collect()
+    }
+
+    /// The image whose per-pixel means over the frames are `means`, with the shadow term
+    /// filtered: at a pixel the filter reads, the rest of the radiance (`mean -
+    /// direct`) plus `unshadowed` times the filtered visibility ratio; elsewhere the
+    /// mean. The image itself when the reconstruction has no filter.
+    pub fn apply(
+        &self,
+        layers: &crate::frame::PrimaryLayers,
+        means: &[DVec3],
+        settings: &RenderSettings,
+    ) -> Vec<DVec3> {
+        let Some(filter) = self.cpu else {
+            return means.to_vec();
+        };
+        let visibility = filter(layers, &self.values(settings));
+        layers
+            .pixels
+            .iter()
+            .zip(means)
+            .zip(visibility)
+            .map(|((p, &mean), v)| {
+                if p.filtered() {
+                    mean - p.direct + p.unshadowed * v
+                } else {
+                    mean
+                }
+            })
+            .collect()
+    }
+}
+
+/// The reconstruction called `name`.
+pub fn reconstruction(name: &str) -> Option<&'static Reconstruction> {
+    RECONSTRUCTIONS.iter().copied().find(|r| r.name == name)
+}
+
+/// Names `[features] reconstruction` may take, in registry order.
+pub fn reconstruction_names() -> Vec<&'static str> {
+    RECONSTRUCTIONS.iter().map(|r| r.name).collect()
+}
+
+/// The default reconstruction: none, the image as traced.
+pub fn default_reconstruction() -> &'static Reconstruction {
+    RECONSTRUCTIONS[0]
+}
+
+/// The declared settings of the technique called `name` that has a
+/// `[techniques.<name>]` table (a shadow model or a reconstruction), with the slot it
+/// fills.
+pub fn technique_table(name: &str) -> Option<(Slot, &'static [Setting])> {
+    shadow_model(name)
+        .map(|m| (Slot::Shadow, m.settings))
+        .or_else(|| reconstruction(name).map(|r| (Slot::Reconstruction, r.settings)))
+}
+
+/// Names of the techniques with a `[techniques.<name>]` table, in listing order.
+pub fn technique_table_names() -> Vec<&'static str> {
+    SHADOW_MODELS
+        .iter()
+        .map(|m| m.name)
+        .chain(RECONSTRUCTIONS.iter().map(|r| r.name))
+        .collect()
+}
+
 /// The most settings a shadow model may declare: the size of `params.technique`
 /// (shaders/types.wgsl). The registry's tests check every model against it.
 pub const MAX_GPU_SETTINGS: usize = 4;
@@ -459,7 +582,8 @@ named_by_name!(
     TransmittanceModel in TRANSMITTANCES,
     LightingTerm in LIGHTING_TERMS,
     TraversalModel in TRAVERSALS,
-    SurfaceModel in SURFACES
+    SurfaceModel in SURFACES,
+    Reconstruction in RECONSTRUCTIONS
 );
 
 /// The plug-in shadow model called `name`.
@@ -617,10 +741,10 @@ pub(crate) fn lighting_term(name: &str) -> Option<&'static LightingTerm> {
         .find(|t| t.name == name || t.short == name)
 }
 
-/// The `[features]` keys: `shadow_model`, `transmittance`, then every lighting term's
-/// (the shadow models' retired switches are refused with their replacement).
+/// The `[features]` keys: `shadow_model`, `transmittance`, `reconstruction`, then every lighting
+/// term's (the shadow models' retired switches are refused with their replacement).
 pub fn feature_keys() -> Vec<&'static str> {
-    ["shadow_model", "transmittance"]
+    ["shadow_model", "transmittance", "reconstruction"]
         .into_iter()
         .chain(LIGHTING_TERMS.iter().map(|t| t.name))
         .collect()
@@ -860,11 +984,23 @@ pub fn listing() -> Vec<ListingRow> {
         settings: Vec::new(),
         summary: t.summary,
     });
+    let reconstructions = RECONSTRUCTIONS.iter().map(|r| ListingRow {
+        name: r.name,
+        slot: Slot::Reconstruction,
+        switch: format!("features.reconstruction = \"{}\"", r.name),
+        settings: r
+            .settings
+            .iter()
+            .map(|s| format!("techniques.{}.{}", r.name, s.key))
+            .collect(),
+        summary: r.summary,
+    });
     shadow
         .chain(transmittances)
         .chain(terms)
         .chain(traversals)
         .chain(surfaces)
+        .chain(reconstructions)
         .collect()
 }
 
@@ -899,9 +1035,10 @@ pub fn listing_markdown() -> String {
 /// The declaration of `key`, one of `r.settings`, with the table it is in
 /// (`[techniques.sdf]`, `[render]`); `None` for a key that is no number.
 fn declared_setting(r: &ListingRow, key: &str) -> Option<(String, &'static Setting)> {
-    let own = shadow_model(r.name).and_then(|m| {
-        let k = key.strip_prefix(&format!("techniques.{}.", m.name))?;
-        Some((format!("[techniques.{}]", m.name), m.setting(k)?))
+    let own = technique_table(r.name).and_then(|(_, settings)| {
+        let k = key.strip_prefix(&format!("techniques.{}.", r.name))?;
+        let s = settings.iter().find(|s| s.key == k)?;
+        Some((format!("[techniques.{}]", r.name), s))
     });
     own.or_else(|| {
         let (table, k) = key.split_once('.')?;

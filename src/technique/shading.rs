@@ -25,6 +25,9 @@ pub struct ShadowWalk<'a> {
     /// a light on a voxel's face is seen from the face's open side, not by rounding
     /// (contract, "Shading a hit").
     pub end_offset: f64,
+    /// Every segment passes whole (transmittance 1, nothing walked): the unshadowed
+    /// estimate a reconstruction divides by (`crate::frame::PrimaryPixel::unshadowed`).
+    pub clear: bool,
 }
 
 /// One point emitter at `x` of radiance `radiance` (colour times intensity) seen from the
@@ -100,7 +103,7 @@ pub fn shadow_transmittance(
 ) -> DVec3 {
     let to_light = light - q;
     let len = to_light.length();
-    if len <= walk.end_offset {
+    if walk.clear || len <= walk.end_offset {
         return DVec3::ONE;
     }
     let light = q + to_light * ((len - walk.end_offset) / len);
