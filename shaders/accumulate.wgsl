@@ -21,19 +21,21 @@ struct ReduceParams {
 }
 
 @group(0) @binding(0) var<uniform> rp: ReduceParams;
-// frame_count slices of `pixels` radiances, frame by frame (w unused).
+// frame_count slices of `pixels` vec4, frame by frame.
 @group(0) @binding(1) var<storage, read> frames: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> sums: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> compensation: array<vec4<f32>>;
 
+// All four components are summed: the radiance's fourth is unused, the primary
+// layers' planes use it (shaders/trace.wgsl, write_layers).
 struct Sum {
-    sum: vec3<f32>,
-    c: vec3<f32>,
+    sum: vec4<f32>,
+    c: vec4<f32>,
 }
 
 // Neumaier's variant of Kahan summation: exact to the last bit of the running sum for
 // any order of magnitudes.
-fn add(a: ptr<function, Sum>, x: vec3<f32>) {
+fn add(a: ptr<function, Sum>, x: vec4<f32>) {
     let s = (*a).sum;
     let t = s + x;
     let big = abs(s) >= abs(x);
@@ -48,15 +50,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     var a: Sum;
-    a.sum = vec3<f32>(0.0);
-    a.c = vec3<f32>(0.0);
+    a.sum = vec4<f32>(0.0);
+    a.c = vec4<f32>(0.0);
     if rp.frame_begin > 0u {
-        a.sum = sums[i].xyz;
-        a.c = compensation[i].xyz;
+        a.sum = sums[i];
+        a.c = compensation[i];
     }
     for (var f = 0u; f < rp.frame_count; f++) {
-        add(&a, frames[f * rp.pixels + i].xyz);
+        add(&a, frames[f * rp.pixels + i]);
     }
-    sums[i] = vec4<f32>(a.sum, 1.0);
-    compensation[i] = vec4<f32>(a.c, 0.0);
+    sums[i] = a.sum;
+    compensation[i] = a.c;
 }

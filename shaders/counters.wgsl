@@ -49,8 +49,18 @@ fn count_secondary() {
 #endif
 }
 
+// Set while the kernel shades the primary hit a second time with every shadow segment
+// clear (PRIMARY_LAYERS, shaders/trace.wgsl): shaders/phong.wgsl's shadow_to then walks
+// nothing, and the shadow rays of that pass, which are not traced, are not counted.
+var<private> shadows_clear: bool;
+
 fn count_shadow() {
 #ifdef COUNT_RAYS
+#ifdef PRIMARY_LAYERS
+    if shadows_clear {
+        return;
+    }
+#endif
     local_counts.z += 1u;
 #endif
 }

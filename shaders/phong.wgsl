@@ -6,7 +6,7 @@
 
 #import voxlab::types::Material
 #import voxlab::bindings::params
-#import voxlab::counters::count_shadow
+#import voxlab::counters::{count_shadow, shadows_clear}
 #ifdef TRIANGLES
 #import voxlab::shadow_surface::surface_transmittance
 #import voxlab::triangles::shadow_medium
@@ -16,8 +16,15 @@
 
 // Transmittance (RGB) of the shadow segment from q to the emitter at x. It ends eps
 // short of the emitter (as it starts eps off the surface): a light on a voxel's face is
-// seen from the face's open side, not by rounding. As shading::shadow_transmittance.
+// seen from the face's open side, not by rounding. As shading::shadow_transmittance,
+// which a clear walk (ShadowWalk::clear) likewise passes whole.
 fn shadow_to(q: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
+#ifdef PRIMARY_LAYERS
+    // The unshadowed pass of the primary layers (shaders/counters.wgsl).
+    if shadows_clear {
+        return vec3<f32>(1.0);
+    }
+#endif
     let to_light = x - q;
     let dist = length(to_light);
     let len = dist - params.eps;

@@ -4,7 +4,8 @@
 // Contract: "Primary rays", "Shading a hit", "Stack".
 //
 // Shader defs (src/plan.rs): REFLECTION, REFRACTION, SHADOWS, EMISSION, ACCUMULATE,
-// COUNT_RAYS, RAY_CUTOFF, RAY_STACK_SIZE, LIGHTING_TERMS (the plan's terms, summed by the module
+// COUNT_RAYS, RAY_CUTOFF, RAY_STACK_SIZE, PRIMARY_LAYERS (the layers a reconstruction
+// filters, beside the radiance), LIGHTING_TERMS (the plan's terms, summed by the module
 // src/gpu/compose.rs writes), CONES (shaders/cone.wgsl, group 1, when the shadow model
 // or a term reads the pyramids). The shadow, transmittance and light models live in their own files
 // (shading.wgsl and phong.wgsl compose them); this file only walks the ray tree of one
@@ -16,7 +17,7 @@
 #ifdef TRIANGLES
 #import voxlab::triangles::shadow_medium
 #endif
-#import voxlab::counters::{count_primary, count_secondary, flush_counts, loop_cut}
+#import voxlab::counters::{count_primary, count_secondary, flush_counts, loop_cut, shadows_clear}
 #import voxlab::sampling::{SampleKey, pixel_sample}
 #ifdef CONES
 #import voxlab::cone::cone_loop_cut
@@ -55,6 +56,61 @@ var<private> sp: u32;
 // 93.4 and 233 to 230).
 var<private> next_ray: RayEntry;
 var<private> has_next: bool;
+
+#ifdef PRIMARY_LAYERS
+// What the primary ray found, for a reconstruction (crate::frame::PrimaryLayers): its
+// hit (world distance, shading normal, shading material) and the local light there as
+// shaded and with every shadow segment clear. Zero where it missed.
+var<private> primary_hit: bool;
+var<private> primary_normal: vec3<f32>;
+var<private> primary_depth: f32;
+var<private> primary_material: u32;
+var<private> primary_direct: vec3<f32>;
+var<private> primary_unshadowed: vec3<f32>;
+
+// Planes per pixel and frame in `output` (crate::plan::PRIMARY_LAYER_SLICES).
+const LAYER_SLICES: u32 = 5u;
+
+// ITU-R BT.709 luminance, as crate::frame::luminance.
+fn luminance(c: vec3<f32>) -> f32 {
+    return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+}
+
+// The visibility ratio per channel, 0 where a channel has no unshadowed light
+// (PrimaryPixel::visibility).
+fn visibility(direct: vec3<f32>, unshadowed: vec3<f32>) -> vec3<f32> {
+    return select(vec3<f32>(0.0), direct / unshadowed, unshadowed > vec3<f32>(0.0));
+}
+
+// The radiance and the four planes of the primary layers of pixel i in frame z: the
+// direct light and the luminance of its visibility, the unshadowed light and that
+// luminance squared, frame 0's normal and depth, and frame 0's material and hit with
+// this frame's count of a defined visibility. Summed over frames by
+// shaders/accumulate.wgsl like the radiance: the G-buffer is written in frame 0 alone,
+// so its sum is frame 0's.
+fn write_layers(z: u32, i: u32, frame: u32, radiance: vec3<f32>) {
+    let plane = params.width * params.height;
+    let base = z * plane * LAYER_SLICES + i;
+    output[base] = vec4<f32>(radiance, 1.0);
+    var l = 0.0;
+    var defined = 0.0;
+    if luminance(primary_unshadowed) > 0.0 {
+        l = luminance(visibility(primary_direct, primary_unshadowed));
+        defined = 1.0;
+    }
+    output[base + plane] = vec4<f32>(primary_direct, l);
+    output[base + 2u * plane] = vec4<f32>(primary_unshadowed, l * l);
+    var guide = vec4<f32>(0.0);
+    var kind = vec4<f32>(0.0, 0.0, defined, 0.0);
+    if frame == 0u {
+        guide = vec4<f32>(primary_normal, primary_depth);
+        kind.x = f32(primary_material);
+        kind.y = select(0.0, 1.0, primary_hit);
+    }
+    output[base + 3u * plane] = guide;
+    output[base + 4u * plane] = kind;
+}
+#endif
 
 fn push(r: RayEntry) {
     // The plan sizes the stack to the depth limits, so this never drops a ray; the test
@@ -162,6 +218,10 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
     has_next = false;
     // Set when the tree is done: any other way out is the driver's loop limit.
     var finished = false;
+#ifdef PRIMARY_LAYERS
+    // Only the first ray traced is the primary ray.
+    var first = true;
+#endif
     // The ray being traced; the next is taken at the bottom of the loop, which ends
     // there once the tree is done, so no idle ray follows the last (shaders/
     // counters.wgsl).
@@ -188,7 +248,24 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
 #ifdef TRIANGLES
         shadow_medium = r.medium;
 #endif
-        radiance += r.throughput * local_light(p, n, hit.geometric, r.dir, s, key, weight(r.throughput));
+        let local = local_light(p, n, hit.geometric, r.dir, s, key, weight(r.throughput));
+        radiance += r.throughput * local;
+#ifdef PRIMARY_LAYERS
+        if first {
+            primary_direct = local;
+            shadows_clear = true;
+            primary_unshadowed = local_light(p, n, hit.geometric, r.dir, s, key, weight(r.throughput));
+            shadows_clear = false;
+        }
+#endif
+#endif
+#ifdef PRIMARY_LAYERS
+        if first {
+            primary_hit = true;
+            primary_normal = n;
+            primary_depth = hit.t * params.voxel_size;
+            primary_material = si;
+        }
 #endif
         // The lighting terms (src/technique/: ambient occlusion, indirect light).
 #ifdef LIGHTING_TERMS
@@ -204,6 +281,9 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
 #endif
         // The next ray: the reflection just spawned, else the top of the stack.
         continuing {
+#ifdef PRIMARY_LAYERS
+            first = false;
+#endif
             if has_next {
                 r = next_ray;
                 has_next = false;
@@ -284,6 +364,10 @@ fn main(
 #endif
     // ACCUMULATE: frame z's slice of `output`; shaders/accumulate.wgsl adds the slices to
     // the running sums in frame order. Otherwise one frame, the image itself.
+#ifdef PRIMARY_LAYERS
+    write_layers(gid.z, i, key.frame, radiance);
+#else
     output[gid.z * params.width * params.height + i] = vec4<f32>(radiance, 1.0);
+#endif
     flush_counts();
 }

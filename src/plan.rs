@@ -29,6 +29,9 @@ use crate::scene::{Material, Scene, VOID};
 use crate::technique::cones::pyramid::{PyramidLayout, memory_line};
 use crate::technique::{LightingTerm, ShadowModel, TRAVERSALS, TransmittanceModel, TraversalModel};
 
+/// [`Plan::layer_slices`] with the primary layers: the radiance and four planes.
+pub const PRIMARY_LAYER_SLICES: u32 = 5;
+
 /// Shader defs of one kernel variant, ordered so they can key a pipeline cache.
 pub(crate) type ShaderDefs = BTreeMap<String, ShaderDefValue>;
 
@@ -733,6 +736,17 @@ impl Plan {
         ))
     }
 
+    /// Planes of `vec4` per pixel and frame the kernel writes: the radiance, and with a
+    /// reconstruction that filters (`PRIMARY_LAYERS`) four of the primary layers
+    /// (`crate::frame::PrimaryLayers`; shaders/trace.wgsl says which).
+    pub fn layer_slices(&self) -> u32 {
+        if self.reconstruction.cpu.is_some() {
+            PRIMARY_LAYER_SLICES
+        } else {
+            1
+        }
+    }
+
     /// The same plan with ray counting compiled in or out.
     pub(crate) fn with_counting(mut self, count_rays: bool) -> Self {
         self.count_rays = count_rays;
@@ -849,6 +863,11 @@ impl Plan {
                 "SHADOW_MODEL_ID".to_string(),
                 ShaderDefValue::UInt(self.shadow_model.index()),
             );
+        }
+        // A reconstruction's filter reads the primary layers the kernel then writes
+        // beside the radiance (Plan::layer_slices).
+        if self.layer_slices() > 1 {
+            defs.insert("PRIMARY_LAYERS".to_string(), ShaderDefValue::Bool(true));
         }
         // Any cone feature: the pyramids' bindings and the cone module are in; the
         // radiance pyramid's only when a term reads it.

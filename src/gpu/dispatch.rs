@@ -250,7 +250,10 @@ impl GpuTracer {
 
         // Frames in dispatches of whole frames; the first dispatch's params are written
         // with the uploads, the others' before their own submissions.
-        let pixels = settings.width as u64 * settings.height as u64;
+        // The kernel writes this many vec4 per frame: the image's pixels, times the
+        // planes of the primary layers when a reconstruction reads them.
+        let image_pixels = settings.width as u64 * settings.height as u64;
+        let pixels = image_pixels * plan.layer_slices() as u64;
         let todo = frames.end - frames.start;
         let per_dispatch = self.frames_per_submission(plan.accumulate, pixels, todo);
         let mut params = Self::params(scene, settings);
@@ -457,7 +460,7 @@ impl GpuTracer {
         if counts[LOOPS_CUT] > 0 {
             return Err(self.loops_cut_error(
                 counts[LOOPS_CUT],
-                pixels * todo as u64,
+                image_pixels * todo as u64,
                 scene,
                 settings,
                 &plan,
@@ -468,13 +471,30 @@ impl GpuTracer {
         } else {
             RayStats::default()
         };
-        let frame = resolve_frame(
-            settings.width,
-            settings.height,
-            &radiance,
-            compensation.as_deref(),
-            frames.end,
-        );
+        let frame = if plan.layer_slices() > 1 {
+            // The image's means and the primary layers, then the reconstruction.
+            let (means, layers) = resolve_layers(
+                settings.width,
+                settings.height,
+                &radiance,
+                compensation.as_deref(),
+                frames.end,
+            );
+            let filtered = plan.reconstruction.apply(&layers, &means, settings);
+            let mut frame = Frame::new(settings.width, settings.height);
+            for (dst, c) in frame.pixels.iter_mut().zip(filtered) {
+                *dst = [c.x as f32, c.y as f32, c.z as f32];
+            }
+            frame
+        } else {
+            resolve_frame(
+                settings.width,
+                settings.height,
+                &radiance,
+                compensation.as_deref(),
+                frames.end,
+            )
+        };
         let pyramids = plan.pyramid.map_or(0, |layout| {
             layout.texture_bytes(crate::technique::cones::pyramid::OPACITY_TEXEL_BYTES)
                 + if plan.radiance_pyramid() {
@@ -607,6 +627,54 @@ fn ray_stats(counts: &[u32]) -> RayStats {
         voxel_steps: c(3),
         triangle_tests: 0,
     }
+}
+
+/// The image's per-pixel means (f64) and its primary layers from the kernel's planes
+/// (shaders/trace.wgsl, `write_layers`): each plane's sums over `frames` frames with their
+/// compensation, or one frame's values when `compensation` is `None`. The G-buffer's
+/// planes are frame 0's alone, so their sums are taken as they are; the moments are over
+/// the frames that defined a visibility (the count the last plane sums).
+fn resolve_layers(
+    width: u32,
+    height: u32,
+    planes: &[[f32; 4]],
+    compensation: Option<&[[f32; 4]]>,
+    frames: u32,
+) -> (Vec<glam::DVec3>, crate::frame::PrimaryLayers) {
+    let plane = width as usize * height as usize;
+    let sum = |at: usize| -> [f64; 4] {
+        let c = compensation.map_or([0.0; 4], |c| c[at]);
+        std::array::from_fn(|k| planes[at][k] as f64 + c[k] as f64)
+    };
+    let n = frames.max(1) as f64;
+    let rgb = |v: [f64; 4]| glam::DVec3::new(v[0], v[1], v[2]);
+    let mut means = Vec::with_capacity(plane);
+    let pixels = (0..plane)
+        .map(|i| {
+            means.push(rgb(sum(i)) / n);
+            let (direct, unshadowed) = (sum(i + plane), sum(i + 2 * plane));
+            let (guide, kind) = (sum(i + 3 * plane), sum(i + 4 * plane));
+            let defined = kind[2].round();
+            let moment = |v: f64| if defined > 0.0 { v / defined } else { 0.0 };
+            crate::frame::PrimaryPixel {
+                hit: kind[1] > 0.5,
+                normal: rgb(guide),
+                depth: guide[3],
+                material: kind[0].round() as u8,
+                direct: rgb(direct) / n,
+                unshadowed: rgb(unshadowed) / n,
+                ratio_moments: [moment(direct[3]), moment(unshadowed[3])],
+                ratio_frames: defined as u32,
+            }
+        })
+        .collect();
+    let layers = crate::frame::PrimaryLayers {
+        width,
+        height,
+        frames,
+        pixels,
+    };
+    (means, layers)
 }
 
 /// The image from the read-back radiance: as it is, or with ACCUMULATE the sum of

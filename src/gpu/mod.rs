@@ -749,16 +749,6 @@ impl GpuTracer {
                 bail!("{name} {d}: at most {MAX_DEPTH_LIMIT}");
             }
         }
-        if plan.reconstruction.cpu.is_some() {
-            // The kernel writes no primary layers yet: refused rather than rendered
-            // unfiltered under a filter's name (docs/reconstruction.md).
-            bail!(
-                "features.reconstruction = \"{}\" runs on the CPU reference only so far \
-                 (--backend cpu); the GPU kernel does not yet write the primary layers it \
-                 filters",
-                plan.reconstruction.name
-            );
-        }
         let limits = self.device.limits();
         let dims = scene.grid.dims();
         if !plan
@@ -816,7 +806,8 @@ impl GpuTracer {
                 limits.max_compute_workgroups_per_dimension
             );
         }
-        let out_bytes = w as u64 * h as u64 * 16;
+        // The radiance, and the primary layers' planes when a reconstruction reads them.
+        let out_bytes = w as u64 * h as u64 * 16 * plan.layer_slices() as u64;
         let max_out = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size);
