@@ -1,6 +1,7 @@
 //! The reconstruction on the GPU: the kernel writes the primary layers beside the
 //! radiance (`PRIMARY_LAYERS`, shaders/trace.wgsl), summed over frames as the radiance
-//! is, and the filtered image agrees with the CPU reference over generated cases: image
+//! is, the filter runs on the device (src/gpu/reconstruct.rs, in f32), and the filtered
+//! image agrees with the CPU reference's (f64) over generated cases: image
 //! sizes 8 to 64, 1 to 5 iterations, 1 to 6 frames (spatial and temporal variance), the
 //! shadow models that sample, both transmittance models, mirrors and glass (the
 //! layers are the primary hit's alone), settings across their ranges. A range of frames

@@ -198,6 +198,9 @@ impl GpuTracer {
         plan.check_frames(settings, &frames)
             .map_err(anyhow::Error::msg)?;
         self.pipeline(&plan)?;
+        if plan.layer_slices() > 1 {
+            self.make_filter_pipelines(plan.reconstruction)?;
+        }
         // Device allocations fail as errors of the render, never through wgpu's default
         // handler (a panic): a grid texture or buffer the device cannot hold is reported
         // with its size. Popped (in reverse order) once everything is uploaded.
@@ -423,19 +426,37 @@ impl GpuTracer {
             }
         }
         self.wait()?;
+        // A reconstruction filters on the device what the trace summed; only the image
+        // it composes comes back.
+        let filtered = if plan.layer_slices() > 1 {
+            let filter_start = Instant::now();
+            let f = self.reconstruct(
+                plan.reconstruction,
+                settings,
+                &output,
+                compensation.as_ref(),
+                frames.end,
+            )?;
+            self.wait()?;
+            self.last_filter_time = filter_start.elapsed();
+            Some(f)
+        } else {
+            self.last_filter_time = Duration::ZERO;
+            None
+        };
         let trace_time = start.elapsed();
         self.last_gpu_time = match &queries {
-            Some(q) => Some(self.pass_time(q, passes)?),
+            Some(q) => Some(self.pass_time(q, passes)? + self.last_filter_time),
             None => None,
         };
 
-        let copy = |from: &wgpu::Buffer| {
+        let copy = |from: &wgpu::Buffer, bytes: u64| {
             let mut encoder = self
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("voxlab readback"),
                 });
-            encoder.copy_buffer_to_buffer(from, 0, &readback, 0, pixels * 16);
+            encoder.copy_buffer_to_buffer(from, 0, &readback, 0, bytes);
             encoder.copy_buffer_to_buffer(
                 &self.counters,
                 0,
@@ -445,16 +466,27 @@ impl GpuTracer {
             );
             self.queue.submit([encoder.finish()]);
         };
-        copy(&output);
-        let radiance: Vec<[f32; 4]> = self.read(&readback, pixels * 16)?;
-        // With ACCUMULATE the buffers hold the sum of the frames and its compensation:
-        // the image is (sum + compensation) / frames, in f64, rounded once.
-        let compensation: Option<Vec<[f32; 4]>> = match &compensation {
-            Some(b) => {
-                copy(b);
-                Some(self.read(&readback, pixels * 16)?)
+        let (radiance, compensation): (Vec<[f32; 4]>, Option<Vec<[f32; 4]>>) = match &filtered {
+            // The composed image, already divided by the frames.
+            Some(f) => {
+                copy(&f.image, image_pixels * 16);
+                (self.read(&readback, image_pixels * 16)?, None)
             }
-            None => None,
+            None => {
+                copy(&output, pixels * 16);
+                let radiance = self.read(&readback, pixels * 16)?;
+                // With ACCUMULATE the buffers hold the sum of the frames and its
+                // compensation: the image is (sum + compensation) / frames, in f64,
+                // rounded once.
+                let compensation = match &compensation {
+                    Some(b) => {
+                        copy(b, pixels * 16);
+                        Some(self.read(&readback, pixels * 16)?)
+                    }
+                    None => None,
+                };
+                (radiance, compensation)
+            }
         };
         let counts: Vec<u32> = self.read(&self.counters_readback, COUNTER_BYTES)?;
         if counts[LOOPS_CUT] > 0 {
@@ -471,30 +503,13 @@ impl GpuTracer {
         } else {
             RayStats::default()
         };
-        let frame = if plan.layer_slices() > 1 {
-            // The image's means and the primary layers, then the reconstruction.
-            let (means, layers) = resolve_layers(
-                settings.width,
-                settings.height,
-                &radiance,
-                compensation.as_deref(),
-                frames.end,
-            );
-            let filtered = plan.reconstruction.apply(&layers, &means, settings);
-            let mut frame = Frame::new(settings.width, settings.height);
-            for (dst, c) in frame.pixels.iter_mut().zip(filtered) {
-                *dst = [c.x as f32, c.y as f32, c.z as f32];
-            }
-            frame
-        } else {
-            resolve_frame(
-                settings.width,
-                settings.height,
-                &radiance,
-                compensation.as_deref(),
-                frames.end,
-            )
-        };
+        let frame = resolve_frame(
+            settings.width,
+            settings.height,
+            &radiance,
+            compensation.as_deref(),
+            frames.end,
+        );
         let pyramids = plan.pyramid.map_or(0, |layout| {
             layout.texture_bytes(crate::technique::cones::pyramid::OPACITY_TEXEL_BYTES)
                 + if plan.radiance_pyramid() {
@@ -522,6 +537,7 @@ impl GpuTracer {
                 .map_or(0, |(c, slices)| c.size() + slices.size()),
             pyramids,
             technique: technique_bytes,
+            reconstruction: filtered.as_ref().map_or(0, |f| f.bytes),
         });
         if let Some(key) = key
             && plan.accumulate
@@ -627,54 +643,6 @@ fn ray_stats(counts: &[u32]) -> RayStats {
         voxel_steps: c(3),
         triangle_tests: 0,
     }
-}
-
-/// The image's per-pixel means (f64) and its primary layers from the kernel's planes
-/// (shaders/trace.wgsl, `write_layers`): each plane's sums over `frames` frames with their
-/// compensation, or one frame's values when `compensation` is `None`. The G-buffer's
-/// planes are frame 0's alone, so their sums are taken as they are; the moments are over
-/// the frames that defined a visibility (the count the last plane sums).
-fn resolve_layers(
-    width: u32,
-    height: u32,
-    planes: &[[f32; 4]],
-    compensation: Option<&[[f32; 4]]>,
-    frames: u32,
-) -> (Vec<glam::DVec3>, crate::frame::PrimaryLayers) {
-    let plane = width as usize * height as usize;
-    let sum = |at: usize| -> [f64; 4] {
-        let c = compensation.map_or([0.0; 4], |c| c[at]);
-        std::array::from_fn(|k| planes[at][k] as f64 + c[k] as f64)
-    };
-    let n = frames.max(1) as f64;
-    let rgb = |v: [f64; 4]| glam::DVec3::new(v[0], v[1], v[2]);
-    let mut means = Vec::with_capacity(plane);
-    let pixels = (0..plane)
-        .map(|i| {
-            means.push(rgb(sum(i)) / n);
-            let (direct, unshadowed) = (sum(i + plane), sum(i + 2 * plane));
-            let (guide, kind) = (sum(i + 3 * plane), sum(i + 4 * plane));
-            let defined = kind[2].round();
-            let moment = |v: f64| if defined > 0.0 { v / defined } else { 0.0 };
-            crate::frame::PrimaryPixel {
-                hit: kind[1] > 0.5,
-                normal: rgb(guide),
-                depth: guide[3],
-                material: kind[0].round() as u8,
-                direct: rgb(direct) / n,
-                unshadowed: rgb(unshadowed) / n,
-                ratio_moments: [moment(direct[3]), moment(unshadowed[3])],
-                ratio_frames: defined as u32,
-            }
-        })
-        .collect();
-    let layers = crate::frame::PrimaryLayers {
-        width,
-        height,
-        frames,
-        pixels,
-    };
-    (means, layers)
 }
 
 /// The image from the read-back radiance: as it is, or with ACCUMULATE the sum of

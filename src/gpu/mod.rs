@@ -5,6 +5,7 @@ mod compose;
 mod dispatch;
 pub mod pyramid;
 mod readback;
+mod reconstruct;
 mod upload;
 
 pub use compose::{ENTRY_POINT, ShaderError, compose_shader, validate};
@@ -275,6 +276,11 @@ pub struct GpuTracer {
     /// The accumulation kernel, its bind group layout and parameters, made on the
     /// first accumulating render.
     reduce: Option<(wgpu::BindGroupLayout, wgpu::ComputePipeline, wgpu::Buffer)>,
+    /// Each reconstruction's pipelines, made on its first render (`reconstruct.rs`).
+    filters: HashMap<&'static str, reconstruct::FilterPipelines>,
+    /// Wall time of the latest render's reconstruction passes (synchronised), included
+    /// in its trace time and device time; zero without a reconstruction.
+    last_filter_time: Duration,
     grid: Option<GridUpload>,
     buffers: Option<Buffers>,
     /// The pyramid-build kernels, made on the first build.
@@ -358,6 +364,8 @@ pub struct GpuMemory {
     pub pyramids: u64,
     /// A plug-in technique's data (`technique_data`), only when the plan uses it.
     pub technique: u64,
+    /// A reconstruction's guide and colour buffers, only when the plan filters.
+    pub reconstruction: u64,
 }
 
 impl GpuMemory {
@@ -370,6 +378,7 @@ impl GpuMemory {
             + self.accumulation
             + self.pyramids
             + self.technique
+            + self.reconstruction
     }
 }
 
@@ -379,7 +388,7 @@ impl std::fmt::Display for GpuMemory {
         write!(
             f,
             "{:.2} MiB (grid {:.2}, walk data {:.2}, surfaces {:.2}, scene {:.3}, image {:.2}, \
-             accumulation {:.2}, pyramids {:.2}, technique data {:.2})",
+             accumulation {:.2}, pyramids {:.2}, technique data {:.2}, reconstruction {:.2})",
             mib(self.total()),
             mib(self.grid),
             mib(self.walk_data),
@@ -388,7 +397,8 @@ impl std::fmt::Display for GpuMemory {
             mib(self.image),
             mib(self.accumulation),
             mib(self.pyramids),
-            mib(self.technique)
+            mib(self.technique),
+            mib(self.reconstruction)
         )
     }
 }
@@ -605,6 +615,8 @@ impl GpuTracer {
             compensation: None,
             frame_slices: None,
             reduce: None,
+            filters: HashMap::new(),
+            last_filter_time: Duration::ZERO,
             grid: None,
             buffers: None,
             build_pipelines: None,

@@ -5,7 +5,8 @@
 //! HPG 2017, section 4, without the temporal history), applied to the visibility ratio
 //! of the primary hit's local light (Heitz, Hill and McGuire, I3D 2018).
 //!
-//! Contract (the f64 reference):
+//! Contract (the f64 reference; `shaders/reconstruction_atrous.wgsl` is its f32 twin on
+//! the device):
 //! - Input at pixel `p` (`crate::frame::PrimaryLayers`): the visibility `c_p` (per
 //!   channel, `PrimaryPixel::visibility`), its luminance `l_p = lum(c_p)`, the normal
 //!   `n_p`, the depth `z_p` (hit distance) and the material `m_p`. A pixel that
@@ -75,6 +76,11 @@ pub const RECONSTRUCTION: Reconstruction = Reconstruction {
     title: "a-trous filter",
     settings: SETTINGS,
     cpu: Some(filter),
+    wgsl: Some((
+        "shaders/reconstruction_atrous.wgsl",
+        include_str!("../../shaders/reconstruction_atrous.wgsl"),
+    )),
+    gpu_passes: |values| values[0] as u32,
     reach: |values| reach(values[0] as u32),
     label: "RECONSTRUCTION(atrous)",
 };

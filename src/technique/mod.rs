@@ -376,6 +376,15 @@ pub struct Reconstruction {
     /// settings in declared order; only the pixels `PrimaryPixel::filtered` accepts are
     /// read and used. `None`: the image as traced, and no layers are made.
     pub cpu: Option<ReconstructionFilter>,
+    /// Its WGSL module (path, source), the GPU twin of `cpu`: `#define_import_path
+    /// voxlab::reconstruction` with `fn prepare_pixel(x: i32, y: i32, i: u32)` (run once
+    /// per pixel) and `fn iterate_pixel(x: i32, y: i32, i: u32)` (`gpu_passes` times,
+    /// `fp.pass_index` counting from 0), importing `voxlab::layers` (shaders/layers.wgsl:
+    /// the decoded layers, the colour ping-pong, its settings as `setting(k)`);
+    /// shaders/reconstruct.wgsl runs them between decoding the layers and composing.
+    pub wgsl: Option<(&'static str, &'static str)>,
+    /// How many times `iterate` runs, given the values of its settings.
+    pub gpu_passes: fn(&[f64]) -> u32,
     /// How far from a pixel (in pixels, per axis) the filter reads, given the values of
     /// its settings: a crop of the image is filtered as the whole image is when it is
     /// traced this much wider.

@@ -10,6 +10,8 @@ pub const RECONSTRUCTION: Reconstruction = Reconstruction {
     title: "none",
     settings: &[],
     cpu: None,
+    wgsl: None,
+    gpu_passes: |_| 0,
     reach: |_| 0,
     label: "",
 };

@@ -1,0 +1,250 @@
+//! A reconstruction's passes on the device, generic over the slot's techniques
+//! (`crate::technique::Reconstruction::wgsl`): `shaders/reconstruct.wgsl`'s `inputs`
+//! decodes the planes the tracer summed, the technique's `prepare_pixel` and
+//! `iterate_pixel` (its `gpu_passes` times) filter the visibility between two colour
+//! buffers, and `compose` writes the image, which is all that comes back to the host.
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+
+use anyhow::{Result, anyhow};
+use bytemuck::{Pod, Zeroable};
+
+use super::GpuTracer;
+use crate::device::{buffer, buffer_entry, storage_entry, uniform_entry};
+use crate::render::RenderSettings;
+use crate::technique::Reconstruction;
+
+/// `voxlab::layers`, which every reconstruction's module imports.
+const LAYERS_MODULE: (&str, &str) = (
+    "shaders/layers.wgsl",
+    include_str!("../../shaders/layers.wgsl"),
+);
+
+/// The passes' entry points, around the reconstruction's `voxlab::reconstruction`.
+const ENTRY: (&str, &str) = (
+    "shaders/reconstruct.wgsl",
+    include_str!("../../shaders/reconstruct.wgsl"),
+);
+
+/// `FilterParams` of `shaders/layers.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct FilterParams {
+    width: u32,
+    height: u32,
+    frames: u32,
+    accumulated: u32,
+    pass_index: u32,
+    pad: [u32; 3],
+    settings: [f32; 8],
+}
+
+/// The most settings a reconstruction may declare: `FilterParams::settings`.
+pub(crate) const MAX_FILTER_SETTINGS: usize = 8;
+
+/// One reconstruction's pipelines, made on its first use.
+pub(super) struct FilterPipelines {
+    layout: wgpu::BindGroupLayout,
+    inputs: wgpu::ComputePipeline,
+    prepare: wgpu::ComputePipeline,
+    iterate: wgpu::ComputePipeline,
+    compose: wgpu::ComputePipeline,
+}
+
+/// What the tracer's readback of a filtered render reads.
+pub(super) struct Filtered {
+    /// The buffer holding the composed image (`vec4` per pixel, the radiance in xyz).
+    pub image: wgpu::Buffer,
+    /// Bytes of the buffers the passes used.
+    pub bytes: u64,
+}
+
+impl GpuTracer {
+    /// Makes `r`'s pipelines unless made already (before the timed trace, so that
+    /// their compilation is not timed with the passes).
+    pub(super) fn make_filter_pipelines(&mut self, r: &'static Reconstruction) -> Result<()> {
+        if !self.filters.contains_key(r.name) {
+            let entry = r
+                .wgsl
+                .ok_or_else(|| anyhow!("reconstruction {} has no WGSL module", r.name))?;
+            let module = super::compose::compose(&[LAYERS_MODULE, entry], ENTRY, HashMap::new())
+                .map_err(|e| anyhow!("composing {}: {e}", entry.0))?;
+            super::validate(&module).map_err(|e| anyhow!("validating {}: {e}", entry.0))?;
+            let shader = self
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(entry.0),
+                    source: wgpu::ShaderSource::Naga(Cow::Owned(module)),
+                });
+            let layout = self
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("voxlab reconstruction"),
+                    entries: &[
+                        uniform_entry(0),
+                        storage_entry(1, true),
+                        storage_entry(2, true),
+                        storage_entry(3, false),
+                        storage_entry(4, true),
+                        storage_entry(5, false),
+                        storage_entry(6, false),
+                    ],
+                });
+            let pipeline_layout =
+                self.device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("voxlab reconstruction"),
+                        bind_group_layouts: &[Some(&layout)],
+                        immediate_size: 0,
+                    });
+            let pipeline = |name: &str| {
+                self.device
+                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(name),
+                        layout: Some(&pipeline_layout),
+                        module: &shader,
+                        entry_point: Some(name),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+            };
+            let pipelines = FilterPipelines {
+                inputs: pipeline("inputs"),
+                prepare: pipeline("prepare"),
+                iterate: pipeline("iterate"),
+                compose: pipeline("compose"),
+                layout,
+            };
+            self.filters.insert(r.name, pipelines);
+        }
+        Ok(())
+    }
+
+    /// Runs `r` on the planes the tracer summed (`planes`, with `compensation` when
+    /// accumulated) over `frames` frames, and gives the buffer of the composed image.
+    pub(super) fn reconstruct(
+        &mut self,
+        r: &'static Reconstruction,
+        settings: &RenderSettings,
+        planes: &wgpu::Buffer,
+        compensation: Option<&wgpu::Buffer>,
+        frames: u32,
+    ) -> Result<Filtered> {
+        let (w, h) = (settings.width, settings.height);
+        let pixels = w as u64 * h as u64;
+        let storage = wgpu::BufferUsages::STORAGE;
+        let guide = buffer(&self.device, "reconstruction guide", pixels * 32, storage);
+        let aux = buffer(&self.device, "reconstruction aux", pixels * 8, storage);
+        let colors = [
+            buffer(
+                &self.device,
+                "reconstruction colour a",
+                pixels * 16,
+                storage | wgpu::BufferUsages::COPY_SRC,
+            ),
+            buffer(
+                &self.device,
+                "reconstruction colour b",
+                pixels * 16,
+                storage | wgpu::BufferUsages::COPY_SRC,
+            ),
+        ];
+        let params = buffer(
+            &self.device,
+            "reconstruction params",
+            std::mem::size_of::<FilterParams>() as u64,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
+        let values = r.values(settings);
+        debug_assert!(values.len() <= MAX_FILTER_SETTINGS);
+        let mut p = FilterParams {
+            width: w,
+            height: h,
+            frames,
+            accumulated: compensation.is_some() as u32,
+            pass_index: 0,
+            pad: [0; 3],
+            settings: [0.0; 8],
+        };
+        for (o, v) in p.settings.iter_mut().zip(&values) {
+            *o = *v as f32;
+        }
+        let passes = (r.gpu_passes)(&values);
+        let no_compensation;
+        let compensation = match compensation {
+            Some(c) => c,
+            None => {
+                no_compensation = buffer(&self.device, "no compensation", 16, storage);
+                &no_compensation
+            }
+        };
+        // Failures are errors of the render, never wgpu's default handler (a panic).
+        let oom_scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation_scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        if let Err(e) = self.make_filter_pipelines(r) {
+            pollster::block_on(validation_scope.pop());
+            pollster::block_on(oom_scope.pop());
+            return Err(e);
+        }
+        let pipelines = &self.filters[r.name];
+        // Bind group k reads colour k and writes the other.
+        let groups: Vec<wgpu::BindGroup> = (0..2)
+            .map(|k| {
+                self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("voxlab reconstruction"),
+                    layout: &pipelines.layout,
+                    entries: &[
+                        buffer_entry(0, &params),
+                        buffer_entry(1, planes),
+                        buffer_entry(2, compensation),
+                        buffer_entry(3, &guide),
+                        buffer_entry(4, &colors[k]),
+                        buffer_entry(5, &colors[1 - k]),
+                        buffer_entry(6, &aux),
+                    ],
+                })
+            })
+            .collect();
+        let groups_xy = (w.div_ceil(8), h.div_ceil(8));
+        // One submission per pass: the parameters (the pass's index) are written
+        // before each, and a queue's writes and submissions keep their order.
+        let run = |pipeline: &wgpu::ComputePipeline, reads: usize, p: &FilterParams| {
+            self.queue.write_buffer(&params, 0, bytemuck::bytes_of(p));
+            let mut encoder = self
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("voxlab reconstruction"),
+                });
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("voxlab reconstruction"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &groups[reads], &[]);
+                pass.dispatch_workgroups(groups_xy.0, groups_xy.1, 1);
+            }
+            self.queue.submit([encoder.finish()]);
+        };
+        // inputs writes colour 0; prepare reads it; each pass reads what the last wrote.
+        run(&pipelines.inputs, 1, &p);
+        run(&pipelines.prepare, 0, &p);
+        let mut reads = 1;
+        for k in 0..passes {
+            p.pass_index = k;
+            run(&pipelines.iterate, reads, &p);
+            reads = 1 - reads;
+        }
+        run(&pipelines.compose, reads, &p);
+        let validation = pollster::block_on(validation_scope.pop());
+        let oom = pollster::block_on(oom_scope.pop());
+        if let Some(e) = oom.or(validation) {
+            return Err(anyhow!("reconstruction {}: {e}", r.name));
+        }
+        Ok(Filtered {
+            image: colors[1 - reads].clone(),
+            bytes: guide.size() + aux.size() + colors[0].size() + colors[1].size() + params.size(),
+        })
+    }
+}
