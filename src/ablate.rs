@@ -113,6 +113,9 @@ pub struct AblateConfig {
     pub warmup: u32,
     /// Transmittance models rendered as fixed points with hard shadows.
     pub transmittance: Vec<Transmittance>,
+    /// Reconstructions each sampling shadow model's spp curve is drawn with too (a
+    /// curve `<label> + <name>` each): by default every registered one but `none`.
+    pub reconstruction: Vec<&'static crate::technique::Reconstruction>,
     pub backend: BackendChoice,
     /// The reference's tracer: `cpu` (the f64 oracle) or `gpu`.
     pub reference_backend: BackendChoice,
@@ -187,6 +190,7 @@ impl Default for AblateConfig {
                 .iter()
                 .map(|&m| Transmittance(m))
                 .collect(),
+            reconstruction: crate::technique::RECONSTRUCTIONS[1..].to_vec(),
             backend: BackendChoice::Auto,
             reference_backend: BackendChoice::Cpu,
             lists: shared_lists()
@@ -208,6 +212,7 @@ struct RawAblate {
     runs: Option<i64>,
     warmup: Option<i64>,
     transmittance: Option<Vec<String>>,
+    reconstruction: Option<Vec<String>>,
     backend: Option<String>,
     reference_backend: Option<String>,
     reference: Option<String>,
@@ -225,6 +230,7 @@ const ABLATE_KEYS: &[&str] = &[
     "runs",
     "warmup",
     "transmittance",
+    "reconstruction",
     "backend",
     "reference_backend",
     "reference",
@@ -335,6 +341,32 @@ impl AblateConfig {
                 out.push(t);
             }
             c.transmittance = out;
+        }
+        if let Some(list) = &raw.reconstruction {
+            let mut out = Vec::new();
+            let names = crate::technique::RECONSTRUCTIONS[1..]
+                .iter()
+                .map(|r| r.name)
+                .collect::<Vec<_>>();
+            for name in list {
+                let r = crate::technique::reconstruction(name)
+                    .filter(|r| *r != crate::technique::default_reconstruction())
+                    .ok_or_else(|| {
+                        loc.invalid(
+                            "reconstruction",
+                            format!(
+                                "every entry must be one of \"{}\" (the curves without one \
+                                 are always drawn)",
+                                names.join("\", \"")
+                            ),
+                        )
+                    })?;
+                if out.contains(&r) {
+                    return Err(loc.invalid("reconstruction", "lists a reconstruction twice"));
+                }
+                out.push(r);
+            }
+            c.reconstruction = out;
         }
         let backend = |key: &str, v: &str, auto: bool| match v {
             "auto" if auto => Ok(BackendChoice::Auto),
@@ -659,13 +691,40 @@ fn model_points(e: &Experiment, c: &AblateConfig) -> Vec<Point> {
                 scene: None,
             };
             match curve.knob {
-                Knob::Spp => out.extend(c.spp.iter().map(|&n| {
-                    let s = RenderSettings {
-                        spp: n,
-                        ..base.clone()
+                Knob::Spp => {
+                    out.extend(c.spp.iter().map(|&n| {
+                        let s = RenderSettings {
+                            spp: n,
+                            ..base.clone()
+                        };
+                        point(s, "spp", n.to_string())
+                    }));
+                    // The same curve filtered by each reconstruction, where the model
+                    // samples shadow rays for it to filter.
+                    let filtered = if m.stochastic && m.shadow_rays {
+                        c.reconstruction.as_slice()
+                    } else {
+                        &[]
                     };
-                    point(s, "spp", n.to_string())
-                })),
+                    for &r in filtered {
+                        out.extend(c.spp.iter().map(|&n| {
+                            let mut s = RenderSettings {
+                                spp: n,
+                                ..base.clone()
+                            };
+                            s.features.reconstruction = r;
+                            Point {
+                                model: format!(
+                                    "{} + {} ({})",
+                                    curve.label,
+                                    r.name,
+                                    s.features.transmittance.name()
+                                ),
+                                ..point(s, "spp", n.to_string())
+                            }
+                        }));
+                    }
+                }
                 Knob::Transmittance => out.extend(c.transmittance.iter().map(|&t| {
                     let mut s = base.clone();
                     s.features.transmittance = t;
@@ -1026,6 +1085,8 @@ pub struct Row {
     /// aperture an area light's cone has).
     pub model_note: Option<String>,
     pub transmittance: &'static str,
+    /// The reconstruction the plan used (`none`: the image as traced).
+    pub reconstruction: &'static str,
     /// `gpu` or `cpu`.
     pub backend: &'static str,
     /// Why `auto` rendered on the CPU, if it did.
@@ -1178,6 +1239,13 @@ fn point_row(
     let totals: Vec<Duration> = times.iter().zip(&setups).map(|(t, u)| *t + *u).collect();
     let m = crate::technique::shadow_model(&r.shadow_model)
         .ok_or_else(|| anyhow!("{}: no shadow model {:?}", point.label(), r.shadow_model))?;
+    let reconstruction = crate::technique::reconstruction(&r.reconstruction).ok_or_else(|| {
+        anyhow!(
+            "{}: no reconstruction {:?}",
+            point.label(),
+            r.reconstruction
+        )
+    })?;
     let backend = match r.backend.as_str() {
         "gpu" => "gpu",
         "cpu" => "cpu",
@@ -1193,6 +1261,12 @@ fn point_row(
                 s.technique_params.get(m.name, st),
             )
         }))
+        .chain(reconstruction.settings.iter().map(|st| {
+            (
+                format!("techniques.{}.{}", reconstruction.name, st.key),
+                s.technique_params.get(reconstruction.name, st),
+            )
+        }))
         .collect();
     Ok(Row {
         model: point.model.clone(),
@@ -1204,6 +1278,7 @@ fn point_row(
         model_settings,
         model_note: m.describe.and_then(|f| f(scene, s)),
         transmittance: s.features.transmittance.name(),
+        reconstruction: reconstruction.name,
         backend,
         fallback: r.fallback,
         timer: match (backend, r.timestamps, r.pyramid) {
@@ -1645,7 +1720,7 @@ fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
 
 /// Every column of `ablation.csv` and what it holds: the header, and the column
 /// definitions its sidecar `ablation.csv.json` gives.
-pub const CSV_SCHEMA: [(&str, &str); 30] = [
+pub const CSV_SCHEMA: [(&str, &str); 31] = [
     ("model", "the curve the point belongs to"),
     (
         "knob",
@@ -1666,6 +1741,10 @@ pub const CSV_SCHEMA: [(&str, &str); 30] = [
         "key=value of each setting that model reads, ;-separated",
     ),
     ("transmittance", "the transmittance model"),
+    (
+        "reconstruction",
+        "the reconstruction the plan used (none: the image as traced)",
+    ),
     ("backend", "gpu or cpu"),
     ("timer", "what measured the time"),
     (
@@ -1733,8 +1812,8 @@ pub const CSV_SCHEMA: [(&str, &str); 30] = [
 ];
 
 /// The header of `ablation.csv` (`CSV_SCHEMA`'s names).
-pub const CSV_COLUMNS: [&str; 30] = {
-    let mut out = [""; 30];
+pub const CSV_COLUMNS: [&str; CSV_SCHEMA.len()] = {
+    let mut out = [""; CSV_SCHEMA.len()];
     let mut i = 0;
     while i < out.len() {
         out[i] = CSV_SCHEMA[i].0;
@@ -1821,6 +1900,7 @@ fn csv(rows: &[Row], r: &Reference) -> String {
                 .collect::<Vec<_>>()
                 .join(";"),
             row.transmittance.to_string(),
+            row.reconstruction.to_string(),
             row.backend.to_string(),
             row.timer.to_string(),
             format!("{:.4}", row.ms_median),
@@ -2166,6 +2246,14 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
             .collect::<Vec<_>>()
             .into(),
     );
+    ablate.insert(
+        "reconstruction".into(),
+        c.reconstruction
+            .iter()
+            .map(|r| r.name)
+            .collect::<Vec<_>>()
+            .into(),
+    );
     for (list, values) in &c.lists {
         ablate.insert(list.clone(), values.clone().into());
     }
@@ -2203,6 +2291,7 @@ fn resolved_toml(e: &Experiment, c: &AblateConfig, rows: &[Row], r: &Reference) 
                 .collect();
             t.insert("model_settings".into(), settings.into());
             t.insert("transmittance".into(), row.transmittance.into());
+            t.insert("reconstruction".into(), row.reconstruction.into());
             t.insert("spp".into(), i64::from(row.spp).into());
             t.insert("lights_as_points".into(), row.lights_as_points.into());
             t.insert("seed".into(), i64::from(s.seed).into());

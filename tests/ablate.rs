@@ -223,6 +223,11 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
         .iter()
         .flat_map(|m| m.ablate.iter().map(move |curve| (m, curve)))
         .map(|(m, curve)| match curve.knob {
+            // The spp curve, and again under each reconstruction where the model
+            // samples shadow rays for it to filter.
+            Knob::Spp if m.stochastic && m.shadow_rays => {
+                c.spp.len() * (1 + c.reconstruction.len())
+            }
             Knob::Spp => c.spp.len(),
             Knob::Transmittance => c.transmittance.len(),
             Knob::Own(key) => m.setting(key).unwrap().sweep.len(),
@@ -251,6 +256,16 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     assert_eq!(models[0], "baseline (all off)");
     assert!(models.contains(&"hard (min-kt)"));
     assert!(models.contains(&"hard (beer-lambert)"));
+    // The sampled curves again under the a-trous filter, which the plan kept.
+    assert!(
+        models.contains(&"stochastic + atrous (beer-lambert)"),
+        "{models:?}"
+    );
+    assert!(
+        rows.iter()
+            .any(|r| col(&header, r, "reconstruction") == "atrous"),
+        "no filtered point"
+    );
     for r in &rows {
         assert_eq!(r.len(), header.len(), "{r:?}");
         let ms: f64 = col(&header, r, "ms_median").parse().unwrap();
@@ -275,7 +290,10 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
                 (k, v.parse().unwrap())
             })
             .collect();
-        let declared = model.shared_settings.len() + model.settings.len();
+        let reconstruction =
+            voxlab::technique::reconstruction(col(&header, r, "reconstruction")).unwrap();
+        let declared =
+            model.shared_settings.len() + model.settings.len() + reconstruction.settings.len();
         assert_eq!(settings.len(), declared, "{r:?}");
         for (k, v) in settings {
             assert!(v.is_finite(), "{k} of {r:?}");
@@ -394,7 +412,7 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     let stochastic: Vec<&ablate::Row> = report
         .summaries
         .iter()
-        .filter(|r| r.knob == "spp" && r.shadow_model == "area")
+        .filter(|r| r.knob == "spp" && r.shadow_model == "area" && r.reconstruction == "none")
         .collect();
     assert_eq!(stochastic.len(), 5);
     for w in stochastic.windows(2) {
@@ -562,6 +580,18 @@ fn ablate_table_errors_name_file_line_and_key() {
     };
     // The [ablate] header is line 15 of experiment_text.
     check("[ablate]\nspp = [4, 2]", 16, "ablate.spp", "ascending");
+    check(
+        "[ablate]\nreconstruction = [\"none\"]",
+        16,
+        "ablate.reconstruction",
+        "always drawn",
+    );
+    check(
+        "[ablate]\nreconstruction = [\"atrous\", \"atrous\"]",
+        16,
+        "ablate.reconstruction",
+        "twice",
+    );
     check("[ablate]\nspp = [0]", 16, "ablate.spp", "1..=65536");
     check("\n[ablate]\nruns = 0", 17, "ablate.runs = 0", "1..=1000");
     check(
@@ -887,7 +917,7 @@ fn seeds_draw_new_samples_and_the_interval_narrows_with_more() {
         let area: Vec<&ablate::Row> = report
             .rows
             .iter()
-            .filter(|r| r.shadow_model == "area" && r.knob == "spp")
+            .filter(|r| r.shadow_model == "area" && r.knob == "spp" && r.reconstruction == "none")
             .collect();
         assert_eq!(area.len(), seeds as usize);
         let seeds_used: Vec<u32> = area.iter().map(|r| r.seed).collect();

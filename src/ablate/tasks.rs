@@ -178,6 +178,9 @@ pub struct SeedRender {
     pub fallback: Option<String>,
     /// The registry name of the shadow model the plan used.
     pub shadow_model: String,
+    /// The registry name of the reconstruction the plan used (older records: none).
+    #[serde(default = "no_reconstruction")]
+    pub reconstruction: String,
     /// The plan had cone pyramids (their build is the setup time).
     pub pyramid: bool,
     pub timestamps: bool,
@@ -186,6 +189,10 @@ pub struct SeedRender {
     pub setups_ns: Vec<u64>,
     #[serde(skip, default = "empty_frame")]
     pub frame: Frame,
+}
+
+fn no_reconstruction() -> String {
+    crate::technique::default_reconstruction().name.to_string()
 }
 
 fn empty_frame() -> Frame {
@@ -542,6 +549,7 @@ impl Worker {
                 backend: r.backend.to_string(),
                 fallback: r.fallback,
                 shadow_model: r.plan.shadow_model.name.to_string(),
+                reconstruction: r.plan.reconstruction.name.to_string(),
                 pyramid: r.plan.pyramid.is_some(),
                 timestamps: r.timestamps,
                 plan: r.plan.to_string(),
