@@ -121,3 +121,30 @@ fn ranges_and_counts_are_those_of_one_render() {
     let cpu = voxlab::cpu::render(&e.scene, &e.settings);
     assert_eq!(cpu.stats.shadow, counted.stats.shadow);
 }
+
+/// `voxlab bench --reconstruction`'s rows: one per reconstruction and size, the filter's
+/// passes timed inside the filtered frame; an experiment whose shadow model samples
+/// nothing is refused with the reason, not measured unfiltered.
+#[test]
+fn the_benchmark_times_the_filter_inside_the_frame() {
+    use voxlab::bench::reconstruction::{bench_reconstructions, filter_table};
+    let mut gpu = tracer();
+    let e = with("mitsuba/rect_blocks.toml", &[]);
+    let filters = &voxlab::technique::RECONSTRUCTIONS[1..];
+    let rows = bench_reconstructions(&mut gpu, &e, filters, &[16, 24], 1).unwrap();
+    assert_eq!(rows.len(), 2 * filters.len());
+    for r in &rows {
+        assert!(r.plain_ms > 0.0 && r.filter_ms > 0.0, "{r:?}");
+        assert!(r.filtered_ms >= r.filter_ms, "{r:?}");
+    }
+    assert!(filter_table(&rows).contains("| atrous | 16x16 |"));
+    let hard = with(
+        "mitsuba/rect_blocks.toml",
+        &["features.shadow_model=hard".to_string()],
+    );
+    let err = bench_reconstructions(&mut gpu, &hard, filters, &[16], 1).unwrap_err();
+    assert!(
+        format!("{err:#}").contains("leaves the reconstruction atrous out"),
+        "{err:#}"
+    );
+}

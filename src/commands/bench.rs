@@ -70,6 +70,15 @@ pub(crate) struct BenchArgs {
           value_parser = parse_cutoff,
           conflicts_with_all = ["voxelize", "plan", "trees"])]
     cutoffs: Option<Vec<f64>>,
+    /// Measure the reconstructions instead (`[features] reconstruction`): the first of
+    /// --experiments (default experiments/mitsuba/rect_blocks.toml) at each of these
+    /// square sizes, one frame, without a reconstruction and with each registered one:
+    /// frame time and the filter's passes alone.
+    #[arg(long, value_name = "SIZES", num_args = 0..=1, value_delimiter = ',',
+          default_missing_value = "512,1024",
+          value_parser = clap::value_parser!(u32).range(8..=4096),
+          conflicts_with_all = ["voxelize", "plan", "trees", "cutoffs"])]
+    reconstruction: Option<Vec<u32>>,
     /// Benchmark the render plan instead: the reduced kernel against the full one on
     /// scenes that do not need a feature (time and device memory, as ratios), on the
     /// seed geometry at the first of --sizes.
@@ -107,6 +116,9 @@ pub(crate) fn cmd_bench(a: &BenchArgs) -> Result<()> {
     }
     if let Some(cutoffs) = &a.cutoffs {
         return bench_cutoffs(a, cutoffs);
+    }
+    if let Some(sizes) = &a.reconstruction {
+        return bench_reconstruction(a, sizes);
     }
     if a.plan {
         return bench_plan(a);
@@ -398,6 +410,41 @@ fn bench_cutoffs(a: &BenchArgs, cutoffs: &[f64]) -> Result<()> {
         }
         None => println!("no cutoff measured stays within 1/255 on every experiment"),
     }
+    Ok(())
+}
+
+/// `voxlab bench --reconstruction`.
+fn bench_reconstruction(a: &BenchArgs, sizes: &[u32]) -> Result<()> {
+    let mut gpu = GpuTracer::new().context("the reconstruction benchmark needs a GPU adapter")?;
+    let file = a
+        .experiments
+        .first()
+        .cloned()
+        .unwrap_or_else(|| PathBuf::from("experiments/mitsuba/rect_blocks.toml"));
+    let e = Experiment::load_with(&file, &a.set)?;
+    eprintln!("GPU: {}", gpu.adapter_summary());
+    let rows = voxlab::bench::reconstruction::bench_reconstructions(
+        &mut gpu,
+        &e,
+        &voxlab::technique::RECONSTRUCTIONS[1..],
+        sizes,
+        a.gpu_runs as usize,
+    )?;
+    if a.json {
+        let head = bench_head("reconstruction", Some(&gpu.adapter_summary()), a);
+        return print_json_rows(&head, rows.iter().map(|r| r.json()));
+    }
+    println!(
+        "reconstruction: {} ({}), one frame, shadow model {}; medians of {} interleaved \
+         runs ({}; the filter's passes: wall around their synchronised submissions); GPU: {}\n",
+        e.name,
+        file.display(),
+        e.settings.features.shadow_model.name,
+        a.gpu_runs,
+        gpu.timer_name(),
+        gpu.adapter_summary()
+    );
+    println!("{}", voxlab::bench::reconstruction::filter_table(&rows));
     Ok(())
 }
 

@@ -733,6 +733,13 @@ impl GpuTracer {
         self.progress = progress;
     }
 
+    /// Wall time of the latest render's reconstruction passes (around their
+    /// synchronised submissions; included in its trace time and device time), zero
+    /// without a reconstruction.
+    pub fn last_filter_time(&self) -> Duration {
+        self.last_filter_time
+    }
+
     /// Renders without ray counting; `stats` are zero.
     pub fn render(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<RenderOutput> {
         self.render_with(scene, settings, false)
