@@ -772,10 +772,13 @@ pub fn lights_as_points(scene: &Scene) -> Scene {
 }
 
 /// The reference's features: the experiment's, with the reference shadow model
-/// (`crate::technique::reference_shadow_model`, the one that converges).
+/// (`crate::technique::reference_shadow_model`, the one that converges) and no
+/// reconstruction (a filter would bias what the points converge to; the filtered curves
+/// set theirs).
 fn reference_features(e: &Experiment) -> Features {
     Features {
         shadow_model: crate::technique::reference_shadow_model(),
+        reconstruction: crate::technique::default_reconstruction(),
         ..e.settings.features.clone()
     }
 }

@@ -1215,3 +1215,26 @@ fn an_external_reference_is_checked_and_measured_against() {
         x.bias_rmse
     );
 }
+
+/// An experiment that asks for a reconstruction: every curve but the filtered ones is
+/// drawn without it (the plain sampled curves are what the filtered ones are compared
+/// with), and each filtered curve carries it.
+#[test]
+fn only_the_filtered_curves_carry_the_reconstruction() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let (e, c, _) = ablate::load(root.join("experiments/reconstruction.toml")).unwrap();
+    assert_eq!(e.settings.features.reconstruction.name, "atrous");
+    let points = ablate::points(&e, &c);
+    let mut filtered = 0;
+    for p in &points {
+        let r = p.settings.features.reconstruction.name;
+        if p.model.contains(" + atrous") {
+            assert_eq!(r, "atrous", "{}", p.model);
+            filtered += 1;
+        } else {
+            assert_eq!(r, "none", "{}", p.model);
+        }
+    }
+    // stochastic, ratio and solid-angle over the six spp values.
+    assert_eq!(filtered, 3 * c.spp.len());
+}

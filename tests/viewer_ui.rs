@@ -422,6 +422,27 @@ fn shadow_combo_box_switches_the_left_side_to_cones_and_leaves_the_right_alone()
     assert!(rig.harness.query_by_label("cone knobs").is_some());
 }
 
+/// The reconstruction's combo box sets the side's filter (the plan keeps it under the
+/// sampled area lights), and its knobs appear.
+#[test]
+fn reconstruction_combo_box_filters_the_left_side() {
+    let mut rig = Rig::new(small_area_lights(), false);
+    rig.harness.run_steps(2);
+    rig.clear_jobs();
+    rig.harness
+        .get_by_role_and_label(Role::ComboBox, "reconstruction (left)")
+        .click();
+    rig.harness.run_steps(2);
+    rig.harness.get_by_label("atrous").click();
+    rig.harness.run_steps(2);
+    let jobs = rig.take_side_jobs(Side::Left);
+    assert_eq!(jobs.len(), 1);
+    let f = &jobs[0].experiment.settings.features;
+    assert_eq!(f.reconstruction.name, "atrous", "{f:?}");
+    assert!(rig.take_side_jobs(Side::Right).is_empty());
+    assert!(rig.harness.query_by_label("atrous knobs").is_some());
+}
+
 #[test]
 fn light_intensity_edit_restarts_both_sides_with_the_new_value() {
     let mut rig = Rig::new(small_area_lights(), false);

@@ -1309,6 +1309,15 @@ impl ViewerApp {
                 }
             });
         s.features.transmittance = t;
+        let mut r = s.features.reconstruction;
+        egui::ComboBox::from_label(format!("reconstruction ({})", side.name()))
+            .selected_text(r.name)
+            .show_ui(ui, |ui| {
+                for &m in crate::technique::RECONSTRUCTIONS {
+                    changed |= ui.selectable_value(&mut r, m, m.name).changed();
+                }
+            });
+        s.features.reconstruction = r;
         // The lighting terms, each its own switch (crate::technique::LIGHTING_TERMS).
         for t in crate::technique::LIGHTING_TERMS {
             let mut on = s.features.term(t.name);
@@ -1387,6 +1396,20 @@ impl ViewerApp {
                         for st in m.settings {
                             changed |=
                                 technique_setting_row(ui, m.name, st, &mut s.technique_params);
+                        }
+                    });
+                });
+        }
+        // The reconstruction's own settings, from its declaration.
+        let r = s.features.reconstruction;
+        if !r.settings.is_empty() {
+            egui::CollapsingHeader::new(format!("{} knobs", r.name))
+                .id_salt((r.name, i))
+                .show(ui, |ui| {
+                    egui::Grid::new((r.name, "grid", i)).show(ui, |ui| {
+                        for st in r.settings {
+                            changed |=
+                                technique_setting_row(ui, r.name, st, &mut s.technique_params);
                         }
                     });
                 });
