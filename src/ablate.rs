@@ -1115,6 +1115,11 @@ pub struct Row {
     /// The same on the display images quantised to 8 bits (`metrics::flip_8bit`, what a
     /// FLIP of two PNGs measures).
     pub flip8_mean: f64,
+    /// FLIP of this seed's image against the previous seed's: the same point with fresh
+    /// samples, the change a static camera shows from one image to the next (0 for a
+    /// deterministic model); `None` for the first seed. In a summary, the mean over the
+    /// seeds' pairs.
+    pub flicker: Option<f64>,
     /// The seed this row was rendered with (`render.seed + k`), and `k`.
     pub seed: u32,
     pub seed_index: u32,
@@ -1149,6 +1154,8 @@ pub struct Interval {
     pub rmse: f64,
     pub rmse_corrected: f64,
     pub flip: f64,
+    /// Of `Row::flicker`'s mean (0 with fewer than two pairs).
+    pub flicker: f64,
 }
 
 /// One summary per point, in the order of the rows: the mean over its seeds of time and
@@ -1174,6 +1181,15 @@ pub fn summarize(rows: &[Row]) -> Vec<Row> {
         let (rmse, rmse_ci) = stat(|r| r.rmse);
         let (corrected, corrected_ci) = stat(|r| r.rmse_corrected);
         let (flip, flip_ci) = stat(|r| r.flip_mean);
+        let flickers: Vec<f64> = g.iter().filter_map(|r| r.flicker).collect();
+        let (flicker, flicker_ci) = match flickers.len() {
+            0 => (None, 0.0),
+            1 => (Some(flickers[0]), 0.0),
+            _ => {
+                let (m, h) = crate::metrics::mean_interval(&flickers);
+                (Some(m), h)
+            }
+        };
         let first = g[0];
         let mut row = first.clone();
         row.ms_median = ms;
@@ -1185,12 +1201,14 @@ pub fn summarize(rows: &[Row]) -> Vec<Row> {
         row.psnr = stat(|r| r.psnr).0;
         row.flip_mean = flip;
         row.flip8_mean = stat(|r| r.flip8_mean).0;
+        row.flicker = flicker;
         row.interval = (g.len() > 1).then_some(Interval {
             seeds: g.len() as u32,
             ms: ms_ci,
             rmse: rmse_ci,
             rmse_corrected: corrected_ci,
             flip: flip_ci,
+            flicker: flicker_ci,
         });
         out.push(row);
     }
@@ -1301,6 +1319,7 @@ fn point_row(
         psnr: d.psnr,
         flip_mean,
         flip8_mean: crate::metrics::flip_8bit(reference, &r.frame),
+        flicker: None,
         seed: s.seed,
         seed_index: 0,
         interval: None,
@@ -1723,7 +1742,7 @@ fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
 
 /// Every column of `ablation.csv` and what it holds: the header, and the column
 /// definitions its sidecar `ablation.csv.json` gives.
-pub const CSV_SCHEMA: [(&str, &str); 31] = [
+pub const CSV_SCHEMA: [(&str, &str); 32] = [
     ("model", "the curve the point belongs to"),
     (
         "knob",
@@ -1786,6 +1805,12 @@ pub const CSV_SCHEMA: [(&str, &str); 31] = [
     (
         "flip8_mean",
         "the same on the display values quantised to 8 bits (NVIDIA's nv-flip)",
+    ),
+    (
+        "flicker_flip",
+        "FLIP of this seed's image against the previous seed's (fresh samples, same point: \
+         the change a static camera shows from image to image; 0 when deterministic); \
+         empty for the first seed",
     ),
     ("reference_spp", "samples per pixel of the reference"),
     (
@@ -1919,6 +1944,7 @@ fn csv(rows: &[Row], r: &Reference) -> String {
             format!("{:.6}", row.psnr),
             format!("{:.9e}", row.flip_mean),
             format!("{:.9e}", row.flip8_mean),
+            row.flicker.map_or(String::new(), |f| format!("{f:.9e}")),
             r.spp.to_string(),
             format!("{:.9e}", row.own_reference.unwrap_or(r.noise_rmse)),
             format!("{:.9e}", r.flip_floor),
@@ -1974,8 +2000,11 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
          reference against the whole); no point can be shown to be closer.\n\n\
          Pareto: the points no other point beats in both mean time and mean error (RMSE, \
          FLIP); where intervals overlap, the order is not established.\n\n\
-         | model | knob | value | backend | ms (trace + setup) | runs min..max | trace ms | setup ms | RMSE | RMSE - noise | PSNR dB | FLIP mean | Pareto |\n\
-         |---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
+         Flicker: FLIP of each seed's image against the previous seed's (the same point \
+         with fresh samples: what a static camera shows changing from image to image; 0 \
+         for a deterministic model).\n\n\
+         | model | knob | value | backend | ms (trace + setup) | runs min..max | trace ms | setup ms | RMSE | RMSE - noise | PSNR dB | FLIP mean | flicker (FLIP) | Pareto |\n\
+         |---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
         e.name,
         e.settings.width,
         e.settings.height,
@@ -2013,7 +2042,7 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
         let ci = row.interval;
         let _ = writeln!(
             t,
-            "| {} | {} | {} | {backend} | {} | {lo:.1}..{hi:.1} | {:.2} | {:.2} | {} | {} | {:.2} | {} | {front} |",
+            "| {} | {} | {} | {backend} | {} | {lo:.1}..{hi:.1} | {:.2} | {:.2} | {} | {} | {:.2} | {} | {} | {front} |",
             row.model,
             row.knob,
             row.value,
@@ -2024,6 +2053,12 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
             pm(row.rmse_corrected, ci.map(|c| c.rmse_corrected), true, 3),
             row.psnr,
             pm(row.flip_mean, ci.map(|c| c.flip), false, 4),
+            row.flicker.map_or("-".to_string(), |f| pm(
+                f,
+                ci.map(|c| c.flicker).filter(|&h| h > 0.0),
+                false,
+                4
+            )),
         );
     }
     // What each shadow model with points says of itself, then of its curves.

@@ -407,6 +407,23 @@ fn sweep_writes_every_file_and_column_and_error_falls_with_spp() {
     assert_ne!(steps[0].frame, steps[1].frame);
     assert_ne!(apertures[0].frame, apertures[1].frame);
 
+    // Flicker: none for a first seed; zero for a deterministic model (every seed the
+    // same image), above zero for a sampled one at one frame.
+    for r in &report.rows {
+        match (r.seed_index, r.flicker) {
+            (0, f) => assert_eq!(f, None, "{} {}", r.model, r.value),
+            (_, None) => panic!("{} {}: no flicker", r.model, r.value),
+            (_, Some(f)) if r.shadow_model == "hard" || r.shadow_model == "cone" => {
+                assert_eq!(f, 0.0, "{} {}", r.model, r.value)
+            }
+            (_, Some(f)) if r.shadow_model == "area" && r.spp == 1 => {
+                assert!(f > 0.0, "{} {}", r.model, r.value)
+            }
+            _ => {}
+        }
+    }
+    assert!(header.iter().any(|h| h == "flicker_flip"));
+
     // Error against the reference falls with every doubling of the samples, and 16x the
     // samples cut the RMSE by more than half (1/4 in theory, plus the reference's noise).
     let stochastic: Vec<&ablate::Row> = report

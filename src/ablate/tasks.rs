@@ -880,6 +880,8 @@ impl Driver {
             let against = &references[ri];
             let own = (ri > 0).then_some(against.noise_rmse);
             let scene = point_scene(&e, p);
+            // The previous seed's image, for the flicker of the next.
+            let mut previous: Option<Frame> = None;
             for (k, r) in renders.seeds.into_iter().enumerate() {
                 let s = RenderSettings {
                     seed: r.seed,
@@ -892,6 +894,10 @@ impl Driver {
                 if let (Some(x), None) = (&external, own) {
                     row.external = Some(external::errors(x, &row.frame));
                 }
+                row.flicker = previous
+                    .as_ref()
+                    .map(|prev| crate::metrics::flip(prev, &row.frame).0);
+                previous = Some(row.frame.clone());
                 // Only the first seed's image is kept and written: the others are measured.
                 if row.seed_index > 0 {
                     row.image.clear();
