@@ -2,7 +2,7 @@
 //! radiance (`PRIMARY_LAYERS`, shaders/trace.wgsl), summed over frames as the radiance
 //! is, the filter runs on the device (src/gpu/reconstruct.rs, in f32), and the filtered
 //! image agrees with the CPU reference's (f64) over generated cases: image
-//! sizes 8 to 64, 1 to 5 iterations, 1 to 6 frames (spatial and temporal variance), the
+//! sizes 8 to 256, 1 to 5 iterations, 1 to 6 frames (spatial and temporal variance), the
 //! shadow models that sample, both transmittance models, mirrors and glass (the
 //! layers are the primary hit's alone), settings across their ranges. A range of frames
 //! continued on the device gives the image of one render, and the unshadowed pass costs
@@ -46,9 +46,15 @@ fn gpu_equals_cpu_over_generated_cases() {
     for case in 0..16 {
         let path = scenes[case % scenes.len()];
         let model = models[rng.random_range(0..models.len())];
+        // Two cases at the sizes a figure uses, the rest small.
+        let (w, h) = if case % 8 == 7 {
+            (rng.random_range(160..=256), rng.random_range(128..=256))
+        } else {
+            (rng.random_range(8..=64), rng.random_range(8..=48))
+        };
         let sets = vec![
-            format!("render.width={}", rng.random_range(8..=64)),
-            format!("render.height={}", rng.random_range(8..=48)),
+            format!("render.width={w}"),
+            format!("render.height={h}"),
             format!("render.spp={}", rng.random_range(1..=6)),
             format!("render.light_samples={}", rng.random_range(1..=3)),
             format!("features.shadow_model={model}"),
@@ -147,4 +153,23 @@ fn the_benchmark_times_the_filter_inside_the_frame() {
         format!("{err:#}").contains("leaves the reconstruction atrous out"),
         "{err:#}"
     );
+}
+
+/// An image whose radiance and layer planes exceed what the device binds is refused
+/// before anything is allocated, and the error says the planes are the reason.
+#[test]
+fn an_image_too_large_for_its_planes_is_refused_with_the_reason() {
+    let mut gpu = tracer();
+    let e = with(
+        "mitsuba/rect_blocks.toml",
+        &[
+            "render.width=8192".to_string(),
+            "render.height=8192".to_string(),
+            "features.shadow_model=ratio".to_string(),
+            "features.reconstruction=atrous".to_string(),
+        ],
+    );
+    let err = gpu.render(&e.scene, &e.settings).unwrap_err();
+    let m = format!("{err:#}");
+    assert!(m.contains("planes of the primary layers"), "{m}");
 }

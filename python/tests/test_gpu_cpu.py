@@ -106,6 +106,14 @@ def test_a_light_on_a_voxel_face(cpu, gpu):
         {"features.shadow_model": "area", "render.light_samples": 2},
         {"features.shadow_model": "area", "render.light_samples": 1, "render.spp": 4},
         {"features.shadow_model": "cone"},
+        # The a-trous filter of the sampled shadow term (docs/reconstruction.md).
+        {"features.shadow_model": "ratio", "features.reconstruction": "atrous"},
+        {
+            "features.shadow_model": "area",
+            "features.reconstruction": "atrous",
+            "techniques.atrous.iterations": 2,
+            "render.spp": 4,
+        },
     ],
 )
 def test_gpu_matches_cpu_with_area_lights(overrides, cpu, gpu):

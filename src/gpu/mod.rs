@@ -831,9 +831,18 @@ impl GpuTracer {
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size);
         if out_bytes > max_out {
+            let planes = if plan.layer_slices() > 1 {
+                format!(
+                    " (the radiance and the {} planes of the primary layers a reconstruction \
+                     reads)",
+                    plan.layer_slices() - 1
+                )
+            } else {
+                String::new()
+            };
             bail!(
-                "image {w}x{h} needs a {out_bytes}-byte radiance buffer; the device allows \
-                 {max_out} (max_storage_buffer_binding_size / max_buffer_size)"
+                "image {w}x{h} needs a {out_bytes}-byte radiance buffer{planes}; the device \
+                 allows {max_out} (max_storage_buffer_binding_size / max_buffer_size)"
             );
         }
         Ok(())

@@ -133,6 +133,10 @@ impl GpuTracer {
     ) -> Result<Filtered> {
         let (w, h) = (settings.width, settings.height);
         let pixels = w as u64 * h as u64;
+        // Failures (a buffer larger than the device allows, say) are errors of the
+        // render, never wgpu's default handler (a panic).
+        let oom_scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation_scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let storage = wgpu::BufferUsages::STORAGE;
         let guide = buffer(&self.device, "reconstruction guide", pixels * 32, storage);
         let aux = buffer(&self.device, "reconstruction aux", pixels * 8, storage);
@@ -179,9 +183,6 @@ impl GpuTracer {
                 &no_compensation
             }
         };
-        // Failures are errors of the render, never wgpu's default handler (a panic).
-        let oom_scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let validation_scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         if let Err(e) = self.make_filter_pipelines(r) {
             pollster::block_on(validation_scope.pop());
             pollster::block_on(oom_scope.pop());
