@@ -4,7 +4,8 @@
 //! image agrees with the CPU reference's (f64) over generated cases: image
 //! sizes 8 to 256, 1 to 5 iterations, 1 to 6 frames (spatial and temporal variance), the
 //! shadow models that sample, both transmittance models, mirrors and glass (the
-//! layers are the primary hit's alone), settings across their ranges. A range of frames
+//! layers are the primary hit's alone), a smooth triangle surface, the walks, the pixel
+//! filters and the ray cutoff, settings across their ranges. A range of frames
 //! continued on the device gives the image of one render, and the unshadowed pass costs
 //! no counted ray.
 //!
@@ -40,10 +41,11 @@ fn gpu_equals_cpu_over_generated_cases() {
         "area_lights.toml",
         "soft_coloured_shadows.toml",
         "solid_angle.toml",
+        "deer_smooth.toml",
     ];
     let models = ["ratio", "area", "solid-angle"];
     let mut filtered = 0;
-    for case in 0..16 {
+    for case in 0..18 {
         let path = scenes[case % scenes.len()];
         let model = models[rng.random_range(0..models.len())];
         // Two cases at the sizes a figure uses, the rest small.
@@ -64,6 +66,18 @@ fn gpu_equals_cpu_over_generated_cases() {
             ),
             "features.reconstruction=atrous".to_string(),
             format!("techniques.atrous.iterations={}", rng.random_range(1..=5)),
+            format!(
+                "render.traversal={}",
+                ["auto", "dense", "sparse", "octant"][rng.random_range(0..4)]
+            ),
+            format!(
+                "render.pixel_filter={}",
+                ["none", "box", "gaussian"][rng.random_range(0..3)]
+            ),
+            format!(
+                "render.ray_cutoff={}",
+                [0.0, 0.001, 0.05][rng.random_range(0..3)]
+            ),
             format!(
                 "techniques.atrous.sigma_normal={}",
                 [0.0, 16.0, 128.0][rng.random_range(0..3)]
