@@ -108,8 +108,8 @@ struct ViewArgs {
     /// The experiment file (TOML). Default: the seed scene.
     experiment: Option<PathBuf>,
     /// Features of the left side, comma-separated: a shadow model (hard, area, cone or a
-    /// plug-in: `voxlab techniques`), min-kt, beer-lambert, ao, indirect, samples=N
-    /// (default: the experiment's own).
+    /// plug-in: `voxlab techniques`), min-kt, beer-lambert, a reconstruction (none,
+    /// atrous), ao, indirect, samples=N (default: the experiment's own).
     #[arg(long, value_name = "LIST")]
     left: Option<String>,
     #[arg(long, value_name = "LIST", help = format!(

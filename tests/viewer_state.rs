@@ -135,8 +135,15 @@ fn side_feature_lists_parse_and_reject_with_the_allowed_items() {
     assert!(
         (side.features.shadow_model.name == "cone") && side.features.shadow_model.name != "area"
     );
+    side.parse_list("ratio,atrous").unwrap();
+    assert_eq!(side.features.reconstruction.name, "atrous");
+    side.parse_list("none").unwrap();
+    assert_eq!(side.features.reconstruction.name, "none");
     let e = side.parse_list("soft").unwrap_err().to_string();
-    assert!(e.contains("`soft`") && e.contains("beer-lambert"), "{e}");
+    assert!(
+        e.contains("`soft`") && e.contains("beer-lambert") && e.contains("atrous"),
+        "{e}"
+    );
     let e = side.parse_list("samples=0").unwrap_err().to_string();
     assert!(e.contains("1..=65536"), "{e}");
 }

@@ -100,8 +100,8 @@ impl SideSettings {
 
     /// Parses a comma-separated feature list (`--left`, `--right`): a shadow model's
     /// name (`hard`, `area`, `cone` or a plug-in's), a transmittance model's
-    /// (`min-kt`, `beer-lambert`), a lighting term's (`ambient_occlusion` or `ao`,
-    /// `indirect`), `samples=N`.
+    /// (`min-kt`, `beer-lambert`), a reconstruction's (`none`, `atrous`), a lighting
+    /// term's (`ambient_occlusion` or `ao`, `indirect`), `samples=N`.
     pub fn parse_list(&mut self, list: &str) -> Result<()> {
         use crate::technique::{LIGHTING_TERMS, transmittance};
         for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
@@ -110,6 +110,10 @@ impl SideSettings {
             }
             if let Some(t) = transmittance(item) {
                 self.features.transmittance = t;
+                continue;
+            }
+            if let Some(r) = crate::technique::reconstruction(item) {
+                self.features.reconstruction = r;
                 continue;
             }
             if self.features.set_term(item, true) {
@@ -124,9 +128,10 @@ impl SideSettings {
                     })
                     .collect();
                 return Err(anyhow!(
-                    "feature list item `{item}`: allowed are {}, {}, {}, samples=N",
+                    "feature list item `{item}`: allowed are {}, {}, {}, {}, samples=N",
                     crate::technique::shadow_model_names().join(", "),
                     crate::technique::transmittance_names().join(", "),
+                    crate::technique::reconstruction_names().join(", "),
                     terms.join(", ")
                 ));
             };
