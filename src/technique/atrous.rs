@@ -32,6 +32,7 @@
 //!   the edge stops keeps its value.
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::{Kind, Reconstruction, Setting};
 use crate::frame::{PrimaryLayers, luminance};
@@ -133,12 +134,14 @@ pub fn filter(layers: &PrimaryLayers, values: &[f64]) -> Vec<DVec3> {
         luminance: values[3],
     };
     let at = |x: i64, y: i64| (y * w + x) as usize;
+    // Every pixel's coordinates, rows from the top; each pass computes every pixel on
+    // its own, so in parallel (the values do not depend on the threads).
+    let pixels = || (0..w * h).into_par_iter().map(move |k| (k % w, k / w));
     let inside = |x: i64, y: i64| x >= 0 && y >= 0 && x < w && y < h;
     let read = |x: i64, y: i64| inside(x, y) && layers.pixels[at(x, y)].filtered();
 
     // The guide: G-buffer and depth gradient of every pixel read.
-    let guide: Vec<Option<Guide>> = (0..h)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
+    let guide: Vec<Option<Guide>> = pixels()
         .map(|(x, y)| {
             if !read(x, y) {
                 return None;
@@ -181,8 +184,7 @@ pub fn filter(layers: &PrimaryLayers, values: &[f64]) -> Vec<DVec3> {
     let frames = layers.frames.max(1) as f64;
 
     // The input's variance: temporal from enough frames, else spatial.
-    let mut var: Vec<f64> = (0..h)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
+    let mut var: Vec<f64> = pixels()
         .map(|(x, y)| {
             let Some(g) = guide[at(x, y)] else {
                 return 0.0;
@@ -216,8 +218,7 @@ pub fn filter(layers: &PrimaryLayers, values: &[f64]) -> Vec<DVec3> {
     for i in 0..iterations {
         let step = 1i64 << i;
         // G(var): the variance's 3x3 Gaussian over the pixels read.
-        let blurred: Vec<f64> = (0..h)
-            .flat_map(|y| (0..w).map(move |x| (x, y)))
+        let blurred: Vec<f64> = pixels()
             .map(|(x, y)| {
                 if guide[at(x, y)].is_none() {
                     return 0.0;
@@ -236,11 +237,11 @@ pub fn filter(layers: &PrimaryLayers, values: &[f64]) -> Vec<DVec3> {
                 sv / sw
             })
             .collect();
-        let mut next_c = c.clone();
-        let mut next_var = var.clone();
-        for y in 0..h {
-            for x in 0..w {
-                let Some(g) = guide[at(x, y)] else { continue };
+        let next: Vec<(DVec3, f64)> = pixels()
+            .map(|(x, y)| {
+                let Some(g) = guide[at(x, y)] else {
+                    return (c[at(x, y)], var[at(x, y)]);
+                };
                 let lp = luminance(c[at(x, y)]);
                 let spread = sigmas.luminance * blurred[at(x, y)].sqrt() + EPS_LUMINANCE;
                 let (mut sw, mut sc, mut sv) = (0.0, DVec3::ZERO, 0.0);
@@ -261,10 +262,10 @@ pub fn filter(layers: &PrimaryLayers, values: &[f64]) -> Vec<DVec3> {
                     }
                 }
                 // The centre's own weight, h(0)^2 > 0, keeps sw above zero.
-                next_c[at(x, y)] = sc / sw;
-                next_var[at(x, y)] = sv / (sw * sw);
-            }
-        }
+                (sc / sw, sv / (sw * sw))
+            })
+            .collect();
+        let (next_c, next_var): (Vec<DVec3>, Vec<f64>) = next.into_iter().unzip();
         c = next_c;
         var = next_var;
     }
