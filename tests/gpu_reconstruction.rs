@@ -5,7 +5,8 @@
 //! sizes 8 to 256, 1 to 5 iterations, 1 to 6 frames (spatial and temporal variance), the
 //! shadow models that sample, both transmittance models, mirrors and glass (the
 //! layers are the primary hit's alone), a smooth triangle surface, the walks, the pixel
-//! filters and the ray cutoff, settings across their ranges. A range of frames
+//! filters, the ray cutoff and reflection depth limits, settings across their ranges;
+//! one tracer renders them all in turn (its kept buffers resized between sizes). A range of frames
 //! continued on the device gives the image of one render, and the unshadowed pass costs
 //! no counted ray.
 //!
@@ -77,6 +78,10 @@ fn gpu_equals_cpu_over_generated_cases() {
             format!(
                 "render.ray_cutoff={}",
                 [0.0, 0.001, 0.05][rng.random_range(0..3)]
+            ),
+            format!(
+                "render.max_reflection_depth={}",
+                [0, 1, 4][rng.random_range(0..3)]
             ),
             format!(
                 "techniques.atrous.sigma_normal={}",

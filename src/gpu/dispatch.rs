@@ -42,6 +42,7 @@ impl GpuTracer {
         self.technique_data = None;
         self.walk_data = None;
         self.surfaces = None;
+        self.filter_buffers = None;
     }
 
     /// Frames per submission: a whole accumulating render in as few dispatches as the

@@ -278,6 +278,8 @@ pub struct GpuTracer {
     reduce: Option<(wgpu::BindGroupLayout, wgpu::ComputePipeline, wgpu::Buffer)>,
     /// Each reconstruction's pipelines, made on its first render (`reconstruct.rs`).
     filters: HashMap<&'static str, reconstruct::FilterPipelines>,
+    /// The reconstruction passes' buffers, kept while images keep their size.
+    filter_buffers: Option<reconstruct::FilterBuffers>,
     /// Wall time of the latest render's reconstruction passes (synchronised), included
     /// in its trace time and device time; zero without a reconstruction.
     last_filter_time: Duration,
@@ -616,6 +618,7 @@ impl GpuTracer {
             frame_slices: None,
             reduce: None,
             filters: HashMap::new(),
+            filter_buffers: None,
             last_filter_time: Duration::ZERO,
             grid: None,
             buffers: None,

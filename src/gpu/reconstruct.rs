@@ -52,6 +52,19 @@ pub(super) struct FilterPipelines {
     compose: wgpu::ComputePipeline,
 }
 
+/// The passes' buffers for an image of `pixels` pixels, kept while renders have that
+/// many: a viewer's every refinement would otherwise allocate them anew.
+#[derive(Clone)]
+pub(super) struct FilterBuffers {
+    pixels: u64,
+    guide: wgpu::Buffer,
+    aux: wgpu::Buffer,
+    colors: [wgpu::Buffer; 2],
+    params: wgpu::Buffer,
+    /// Bound as `compensation` when the planes are one frame's values.
+    no_compensation: wgpu::Buffer,
+}
+
 /// What the tracer's readback of a filtered render reads.
 pub(super) struct Filtered {
     /// The buffer holding the composed image (`vec4` per pixel, the radiance in xyz).
@@ -61,6 +74,43 @@ pub(super) struct Filtered {
 }
 
 impl GpuTracer {
+    /// The passes' buffers for `pixels` pixels: the kept ones, or new ones (which are
+    /// kept). Made inside the caller's error scopes.
+    fn filter_buffers(&mut self, pixels: u64) -> FilterBuffers {
+        if let Some(b) = &self.filter_buffers
+            && b.pixels == pixels
+        {
+            return b.clone();
+        }
+        let storage = wgpu::BufferUsages::STORAGE;
+        let color = |label| {
+            buffer(
+                &self.device,
+                label,
+                pixels * 16,
+                storage | wgpu::BufferUsages::COPY_SRC,
+            )
+        };
+        let b = FilterBuffers {
+            pixels,
+            guide: buffer(&self.device, "reconstruction guide", pixels * 32, storage),
+            aux: buffer(&self.device, "reconstruction aux", pixels * 8, storage),
+            colors: [
+                color("reconstruction colour a"),
+                color("reconstruction colour b"),
+            ],
+            params: buffer(
+                &self.device,
+                "reconstruction params",
+                std::mem::size_of::<FilterParams>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            no_compensation: buffer(&self.device, "no compensation", 16, storage),
+        };
+        self.filter_buffers = Some(b.clone());
+        b
+    }
+
     /// Makes `r`'s pipelines unless made already (before the timed trace, so that
     /// their compilation is not timed with the passes).
     pub(super) fn make_filter_pipelines(&mut self, r: &'static Reconstruction) -> Result<()> {
@@ -137,29 +187,14 @@ impl GpuTracer {
         // render, never wgpu's default handler (a panic).
         let oom_scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation_scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let storage = wgpu::BufferUsages::STORAGE;
-        let guide = buffer(&self.device, "reconstruction guide", pixels * 32, storage);
-        let aux = buffer(&self.device, "reconstruction aux", pixels * 8, storage);
-        let colors = [
-            buffer(
-                &self.device,
-                "reconstruction colour a",
-                pixels * 16,
-                storage | wgpu::BufferUsages::COPY_SRC,
-            ),
-            buffer(
-                &self.device,
-                "reconstruction colour b",
-                pixels * 16,
-                storage | wgpu::BufferUsages::COPY_SRC,
-            ),
-        ];
-        let params = buffer(
-            &self.device,
-            "reconstruction params",
-            std::mem::size_of::<FilterParams>() as u64,
-            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        );
+        let FilterBuffers {
+            guide,
+            aux,
+            colors,
+            params,
+            no_compensation,
+            ..
+        } = self.filter_buffers(pixels);
         let values = r.values(settings);
         debug_assert!(values.len() <= MAX_FILTER_SETTINGS);
         let mut p = FilterParams {
@@ -175,14 +210,7 @@ impl GpuTracer {
             *o = *v as f32;
         }
         let passes = (r.gpu_passes)(&values);
-        let no_compensation;
-        let compensation = match compensation {
-            Some(c) => c,
-            None => {
-                no_compensation = buffer(&self.device, "no compensation", 16, storage);
-                &no_compensation
-            }
-        };
+        let compensation = compensation.unwrap_or(&no_compensation);
         if let Err(e) = self.make_filter_pipelines(r) {
             pollster::block_on(validation_scope.pop());
             pollster::block_on(oom_scope.pop());
@@ -241,6 +269,8 @@ impl GpuTracer {
         let validation = pollster::block_on(validation_scope.pop());
         let oom = pollster::block_on(oom_scope.pop());
         if let Some(e) = oom.or(validation) {
+            // Nothing half made is kept.
+            self.filter_buffers = None;
             return Err(anyhow!("reconstruction {}: {e}", r.name));
         }
         Ok(Filtered {
