@@ -15,11 +15,17 @@ struct FilterParams {
     accumulated: u32,
     // The pass's index among the reconstruction's own passes (0 for `prepare`).
     pass_index: u32,
-    pad_a: u32,
+    // Whether `history_in` holds the previous frame of a camera path (a temporal
+    // reconstruction's; crate::frame::History).
+    has_history: u32,
     pad_b: u32,
     pad_c: u32,
     // The reconstruction's settings in declared order (Reconstruction::values).
     settings: array<vec4<f32>, 2>,
+    // This frame's camera and the history's (crate::scene::CameraFrame): eye and
+    // tan(vfov / 2), forward, right, up.
+    camera: array<vec4<f32>, 4>,
+    previous: array<vec4<f32>, 4>,
 }
 
 @group(0) @binding(0) var<uniform> fp: FilterParams;
@@ -35,6 +41,12 @@ struct FilterParams {
 // A vector per pixel the reconstruction keeps between its passes (the a-trous filter:
 // the depth gradient).
 @group(0) @binding(6) var<storage, read_write> aux: array<vec2<f32>>;
+
+// A temporal reconstruction's history (crate::frame::History), the previous frame's
+// and this frame's: three entries per pixel, (normal, depth), (visibility rgb, length),
+// (moments, material, kept: 1 or 0). Unread by the others.
+@group(0) @binding(7) var<storage, read> history_in: array<vec4<f32>>;
+@group(0) @binding(8) var<storage, read_write> history_out: array<vec4<f32>>;
 
 // The reconstruction's setting k (declared order).
 fn setting(k: u32) -> f32 {

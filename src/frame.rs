@@ -153,6 +153,9 @@ pub struct PrimaryLayers {
     pub height: u32,
     /// The frames the means are over.
     pub frames: u32,
+    /// The camera the primary rays left (a temporal reconstruction reprojects through
+    /// it: `crate::frame::History`).
+    pub camera: crate::scene::CameraFrame,
     /// Rows from the top, as [`Frame::pixels`].
     pub pixels: Vec<PrimaryPixel>,
 }
@@ -204,4 +207,42 @@ impl PrimaryLayers {
     pub fn get(&self, x: u32, y: u32) -> &PrimaryPixel {
         &self.pixels[(y * self.width + x) as usize]
     }
+
+    /// Where pixel (x, y)'s primary hit lies: `depth` along the ray through the pixel
+    /// centre (frame 0's ray may have left elsewhere inside the pixel; a reprojection
+    /// reads the centre's, on both tracers).
+    pub fn position(&self, x: u32, y: u32) -> glam::DVec3 {
+        let dir = self.camera.primary_dir(x, y, self.width, self.height);
+        self.camera.eye + self.get(x, y).depth * dir
+    }
+}
+
+/// What a temporal reconstruction keeps of the previous frame of a camera path
+/// (`[render] path_frames`) to reproject into the next: the frame's camera, its G-buffer
+/// and its accumulated signal, per pixel. The tracers keep one per session
+/// (`crate::Session`), emptied where a path starts; an image of another size starts
+/// afresh.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct History {
+    pub width: u32,
+    pub height: u32,
+    pub camera: crate::scene::CameraFrame,
+    /// Rows from the top.
+    pub pixels: Vec<HistoryPixel>,
+}
+
+/// One pixel of [`History`]; `kept` is false where the frame filtered nothing (a miss,
+/// no unshadowed light), and then nothing else is read.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HistoryPixel {
+    pub kept: bool,
+    pub normal: glam::DVec3,
+    pub depth: f64,
+    pub material: u8,
+    /// The accumulated visibility ratio per channel.
+    pub visibility: glam::DVec3,
+    /// The accumulated moments of its luminance (mean, mean square).
+    pub moments: [f64; 2],
+    /// Frames of the path accumulated (real: a reprojection mixes its taps' lengths).
+    pub length: f64,
 }

@@ -351,6 +351,12 @@ pub struct RenderSettings {
     pub spp: u32,
     /// Seeds the sample hash, so two experiments can draw independent samples.
     pub seed: u32,
+    /// Frames of a camera path rendered for one image, the image being the last
+    /// (`crate::Session::render`): a temporal reconstruction's history. 1: no path.
+    pub path_frames: u32,
+    /// Degrees the camera's yaw turns from one frame of the path to the next, about
+    /// its target; the last frame is the experiment's camera.
+    pub orbit_deg: f64,
     /// Cone-tracing knobs, used only when a cone feature is on.
     pub cones: ConeSettings,
     /// Settings of plug-in techniques (`[techniques.<name>]`).
@@ -375,6 +381,9 @@ pub const MAX_DEPTH_LIMIT: u32 = 16;
 /// Largest `max_depth` accepted: the two limits' sum at most.
 pub(crate) const MAX_TOTAL_DEPTH_LIMIT: u32 = 2 * MAX_DEPTH_LIMIT;
 
+/// Largest `path_frames` accepted.
+pub const MAX_PATH_FRAMES: u32 = 1024;
+
 /// Largest image side accepted.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
 
@@ -396,6 +405,8 @@ impl Default for RenderSettings {
             light_samples: 1,
             spp: 1,
             seed: 0,
+            path_frames: 1,
+            orbit_deg: 0.0,
             cones: ConeSettings::default(),
             technique_params: Default::default(),
             pixel_filter: PixelFilter::None,
@@ -412,6 +423,27 @@ impl Default for RenderSettings {
 }
 
 impl RenderSettings {
+    /// Frame `k` of the camera path (`path_frames`, `orbit_deg`) that ends at `camera`
+    /// and these settings: the camera turned by `(k + 1 - path_frames) orbit_deg`
+    /// about its target, and the seed as many steps back (wrapping), so each frame
+    /// draws new samples and the last is the experiment's own render.
+    pub fn path_pose(
+        &self,
+        camera: &crate::scene::OrbitCamera,
+        k: u32,
+    ) -> (crate::scene::OrbitCamera, RenderSettings) {
+        let back = self.path_frames.max(1) - 1 - k.min(self.path_frames.max(1) - 1);
+        let camera = crate::scene::OrbitCamera {
+            yaw: camera.yaw - (back as f64 * self.orbit_deg).to_radians(),
+            ..camera.clone()
+        };
+        let settings = RenderSettings {
+            seed: self.seed.wrapping_sub(back),
+            ..self.clone()
+        };
+        (camera, settings)
+    }
+
     /// Entries of the kernel's ray stack: the most refraction rays its depth-first walk
     /// of the fullest tree holds at once (`tests::deepest_stack`). A hit pushes its
     /// refraction ray and traces its reflection ray next without the stack

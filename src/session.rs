@@ -48,6 +48,9 @@ enum Tracer {
 /// ```
 pub struct Session {
     tracer: Tracer,
+    /// The CPU reference's temporal history (the GPU tracer keeps its own on the
+    /// device): the latest frame of a camera path, for a temporal reconstruction.
+    history: Option<crate::frame::History>,
 }
 
 impl Session {
@@ -60,6 +63,7 @@ impl Session {
                 tracer: Tracer::Gpu(Box::new(GpuTracer::new().map_err(|e| {
                     Error::new(ErrorKind::Device, format!("no GPU device: {e:#}"))
                 })?)),
+                history: None,
             }),
         }
     }
@@ -70,6 +74,7 @@ impl Session {
             tracer: Tracer::Cpu {
                 label: crate::cpu::backend_summary(),
             },
+            history: None,
         }
     }
 
@@ -88,6 +93,7 @@ impl Session {
                             crate::cpu::backend_summary()
                         ),
                     },
+                    history: None,
                 }
             }
         }
@@ -174,7 +180,51 @@ impl Session {
         })
     }
 
+    /// Empties the temporal history (`crate::frame::History`): the next render starts
+    /// a camera path. [`render`](Self::render) does so itself where its path starts; a
+    /// display that renders its own path (`render_frames` across camera moves) calls it
+    /// when the path should forget what came before.
+    pub fn reset_history(&mut self) {
+        self.history = None;
+        if let Tracer::Gpu(t) = &mut self.tracer {
+            t.reset_history();
+        }
+    }
+
+    /// A whole render: under `[render] path_frames = K > 1` the camera path's K frames
+    /// (`RenderSettings::path_pose`), the history emptied before the first, and the
+    /// last frame's image, timings and counts, with the one before it kept in
+    /// [`Image::previous`]; otherwise one frame, which a temporal reconstruction
+    /// accumulates onto the session's history. A range of the accumulation (a display's
+    /// refinement) is one frame of the display's own path.
     fn render_reporting(
+        &mut self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        range: Option<Range<u32>>,
+        progress: impl Fn(&'static str) -> Option<Progress>,
+    ) -> Result<Image> {
+        let path = settings.path_frames.max(1);
+        if path == 1 || range.is_some() {
+            return self.render_frame(scene, settings, range, progress);
+        }
+        let wall = Instant::now();
+        self.reset_history();
+        let mut posed = scene.clone();
+        let mut previous = None;
+        for k in 0..path - 1 {
+            let (camera, s) = settings.path_pose(&scene.camera, k);
+            posed.camera = camera;
+            previous = Some(self.render_frame(&posed, &s, None, |_| None)?.frame);
+        }
+        let mut image = self.render_frame(scene, settings, None, progress)?;
+        image.previous = previous;
+        image.wall_time = wall.elapsed();
+        Ok(image)
+    }
+
+    /// One frame of a render (`render_reporting`).
+    fn render_frame(
         &mut self,
         scene: &Scene,
         settings: &RenderSettings,
@@ -231,7 +281,12 @@ impl Session {
                     None => settings,
                 };
                 let progress = progress("rows");
-                let out = crate::cpu::render_with_progress(scene, settings, progress.as_ref());
+                let out = crate::cpu::render_with_history(
+                    scene,
+                    settings,
+                    progress.as_ref(),
+                    &mut self.history,
+                );
                 if progress.is_some_and(|p| p.stopped()) {
                     return Err(Error::new(ErrorKind::Interrupted, "render stopped"));
                 }
@@ -255,6 +310,7 @@ impl Session {
             frames,
             plan,
             backend: self.label(),
+            previous: None,
         })
     }
 }
@@ -283,6 +339,9 @@ pub struct Image {
     pub plan: Plan,
     /// The session's [`Session::label`].
     pub backend: String,
+    /// Under a camera path (`[render] path_frames > 1`), the image of the frame before
+    /// this one: what a frame-to-frame measure (flicker on an orbit) compares.
+    pub previous: Option<Frame>,
 }
 
 impl Image {

@@ -12,8 +12,8 @@
 use std::f64::consts::PI;
 
 use crate::render::{
-    MAX_DEPTH_LIMIT, MAX_FILTER_WIDTH, MAX_IMAGE_SIDE, MAX_SAMPLES, MAX_TOTAL_DEPTH_LIMIT,
-    RenderSettings,
+    MAX_DEPTH_LIMIT, MAX_FILTER_WIDTH, MAX_IMAGE_SIDE, MAX_PATH_FRAMES, MAX_SAMPLES,
+    MAX_TOTAL_DEPTH_LIMIT, RenderSettings,
 };
 use crate::scene::{Material, OrbitCamera};
 
@@ -365,6 +365,28 @@ pub const RENDER: &[Field<RenderSettings>] = &[
         setting: int("seed", u32::MAX, 0, 0, "seed of every sample"),
         get: |s| s.seed as f64,
         set: |s, v| s.seed = v as u32,
+    },
+    Field {
+        setting: int(
+            "path_frames",
+            MAX_PATH_FRAMES,
+            1,
+            1,
+            "frames of a camera path per image, the image the last (a temporal reconstruction's history)",
+        ),
+        get: |s| s.path_frames as f64,
+        set: |s, v| s.path_frames = v as u32,
+    },
+    Field {
+        setting: Setting::new(
+            "orbit_deg",
+            Kind::closed(-180.0, 180.0),
+            0.0,
+            DEGREES,
+            "the camera's turn about its target from one frame of the path to the next",
+        ),
+        get: |s| s.orbit_deg,
+        set: |s, v| s.orbit_deg = v,
     },
     Field {
         setting: Setting::new(

@@ -192,3 +192,71 @@ fn an_image_too_large_for_its_planes_is_refused_with_the_reason() {
     let m = format!("{err:#}");
     assert!(m.contains("planes of the primary layers"), "{m}");
 }
+
+/// `svgf` over camera paths: the temporal accumulation (reprojection, rejection,
+/// exponential average) and the a-trous passes after it, on the device against the
+/// reference, the whole path rendered by a session on each backend. Generated cases:
+/// image sizes 8 to 160, paths of 1 to 6 frames, static and orbiting cameras both ways,
+/// alphas from the mean of all frames to mostly the new one, the tolerances across
+/// their ranges, 1 to 4 passes, 1 to 3 frames per pose, the sampling models.
+#[test]
+fn svgf_gpu_equals_cpu_over_generated_paths() {
+    let mut gpu = voxlab::Session::new(voxlab::Backend::Gpu).expect("a GPU adapter");
+    let mut cpu = voxlab::Session::new(voxlab::Backend::Cpu).unwrap();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(41);
+    let scenes = [
+        "reconstruction.toml",
+        "mitsuba/rect_blocks.toml",
+        "deer_smooth.toml",
+        "soft_coloured_shadows.toml",
+    ];
+    let mut filtered = 0;
+    for case in 0..10 {
+        let path = scenes[case % scenes.len()];
+        let (w, h) = if case == 9 {
+            (160, 128)
+        } else {
+            (rng.random_range(8..=64), rng.random_range(8..=48))
+        };
+        let sets = vec![
+            format!("render.width={w}"),
+            format!("render.height={h}"),
+            format!("render.spp={}", rng.random_range(1..=3)),
+            "render.light_samples=1".to_string(),
+            format!(
+                "features.shadow_model={}",
+                ["ratio", "area", "solid-angle"][rng.random_range(0..3)]
+            ),
+            "features.reconstruction=svgf".to_string(),
+            format!("render.path_frames={}", rng.random_range(1..=6)),
+            format!(
+                "render.orbit_deg={}",
+                [0.0, 0.5, -3.0, 10.0][rng.random_range(0..4)]
+            ),
+            format!("techniques.svgf.iterations={}", rng.random_range(1..=4)),
+            format!(
+                "techniques.svgf.alpha={}",
+                [0.0, 0.2, 0.6][rng.random_range(0..3)]
+            ),
+            format!(
+                "techniques.svgf.depth_tolerance={}",
+                [0.001, 0.005, 0.05][rng.random_range(0..3)]
+            ),
+            format!(
+                "techniques.svgf.normal_tolerance={}",
+                [0.5, 0.9, 0.99][rng.random_range(0..3)]
+            ),
+        ];
+        let e = with(path, &sets);
+        let plan = Plan::new(&e.scene, &e.settings);
+        if plan.reconstruction.name != "svgf" {
+            continue;
+        }
+        filtered += 1;
+        let name = format!("case {case}: {path} {sets:?}");
+        let g = gpu.render(&e).unwrap_or_else(|err| panic!("{name}: {err}"));
+        let c = cpu.render(&e).unwrap();
+        assert_agree(&name, &g.frame, &c.frame);
+    }
+    assert!(filtered >= 8, "only {filtered} cases kept the filter");
+}

@@ -63,6 +63,7 @@ fn random_layers(rng: &mut impl rand::Rng, w: u32, h: u32, frames: u32) -> Prima
         height: h,
         frames,
         pixels,
+        ..Default::default()
     }
 }
 
@@ -89,7 +90,7 @@ fn the_filter_of_a_constant_is_the_identity() {
             p.direct = p.unshadowed * v;
         }
         let values = settings(&mut rng);
-        let out = atrous::filter(&layers, &values);
+        let out = atrous::filter(&layers, &values, &mut None);
         for (p, c) in layers.pixels.iter().zip(&out) {
             if p.filtered() {
                 assert!(
@@ -126,11 +127,12 @@ fn step(w: u32, h: u32) -> PrimaryLayers {
         height: h,
         frames: 8,
         pixels,
+        ..Default::default()
     }
 }
 
 fn assert_step_kept(layers: &PrimaryLayers, what: &str) {
-    let out = atrous::filter(layers, &[5.0, 128.0, 1.0, 4.0]);
+    let out = atrous::filter(layers, &[5.0, 128.0, 1.0, 4.0], &mut None);
     for (i, (p, c)) in layers.pixels.iter().zip(&out).enumerate() {
         assert_eq!(*c, p.visibility(), "{what}: pixel {i} moved");
     }
@@ -168,7 +170,7 @@ fn edge_stopping_keeps_a_step_edge() {
     for p in &mut noisy.pixels {
         p.ratio_moments = [0.5, 0.5];
     }
-    let out = atrous::filter(&noisy, &[5.0, 128.0, 1.0, 4.0]);
+    let out = atrous::filter(&noisy, &[5.0, 128.0, 1.0, 4.0], &mut None);
     let edge = (h / 2 * w + w / 2 - 1) as usize;
     assert!(
         out[edge].x > 0.01,
@@ -184,7 +186,7 @@ fn rejected_pixels_are_not_read() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(41);
     let layers = random_layers(&mut rng, 23, 17, 1);
     let values = [3.0, 64.0, 1.0, 4.0];
-    let a = atrous::filter(&layers, &values);
+    let a = atrous::filter(&layers, &values, &mut None);
     let mut garbage = layers.clone();
     for p in &mut garbage.pixels {
         if !p.filtered() {
@@ -194,7 +196,7 @@ fn rejected_pixels_are_not_read() {
             p.ratio_moments = [1e9, -4.0];
         }
     }
-    let b = atrous::filter(&garbage, &values);
+    let b = atrous::filter(&garbage, &values, &mut None);
     for (i, p) in layers.pixels.iter().enumerate() {
         if p.filtered() {
             assert_eq!(a[i], b[i], "pixel {i}");
@@ -218,11 +220,11 @@ fn the_reach_bounds_what_a_pixel_reads() {
         }
         let values = [iterations as f64, 128.0, 1.0, 1e6];
         let centre = ((side / 2) * side + side / 2) as usize;
-        let base = atrous::filter(&layers, &values)[centre];
+        let base = atrous::filter(&layers, &values, &mut None)[centre];
         let mut outside = layers.clone();
         outside.pixels[((side / 2) * side + side / 2 + r + 1) as usize].direct = DVec3::ZERO;
         assert_eq!(
-            atrous::filter(&outside, &values)[centre],
+            atrous::filter(&outside, &values, &mut None)[centre],
             base,
             "{iterations}"
         );

@@ -99,6 +99,34 @@ pub fn render_with_progress(
     )
 }
 
+/// [`render_with_progress`], with a temporal reconstruction accumulating onto
+/// `history` (a camera path's previous frame, `None` where it starts), which becomes
+/// this frame's.
+pub fn render_with_history(
+    scene: &Scene,
+    settings: &RenderSettings,
+    progress: Option<&crate::progress::Progress>,
+    history: &mut Option<crate::frame::History>,
+) -> RenderOutput {
+    let setup = Instant::now();
+    let plan = Plan::new(scene, settings);
+    let prepared = Prepared::new(scene, settings, &plan);
+    let setup_time = setup.elapsed();
+    let (columns, rows) = (0..settings.width, 0..settings.height);
+    RenderOutput {
+        setup_time,
+        ..trace_region(
+            scene,
+            settings,
+            &plan,
+            &prepared,
+            (columns, rows),
+            progress,
+            history,
+        )
+    }
+}
+
 fn render_region_with_progress(
     scene: &Scene,
     settings: &RenderSettings,
@@ -113,7 +141,15 @@ fn render_region_with_progress(
     let setup_time = setup.elapsed();
     RenderOutput {
         setup_time,
-        ..trace_region(scene, settings, &plan, &prepared, columns, rows, progress)
+        ..trace_region(
+            scene,
+            settings,
+            &plan,
+            &prepared,
+            (columns, rows),
+            progress,
+            &mut None,
+        )
     }
 }
 
@@ -131,20 +167,22 @@ pub(crate) fn render_prepared(
         settings,
         plan,
         prepared,
-        0..settings.width,
-        0..settings.height,
+        (0..settings.width, 0..settings.height),
         None,
+        &mut None,
     )
 }
 
+/// The pixels `columns` x `rows` of the image; a temporal reconstruction accumulates
+/// onto `history`.
 fn trace_region(
     scene: &Scene,
     settings: &RenderSettings,
     plan: &Plan,
     prepared: &Prepared,
-    columns: std::ops::Range<u32>,
-    rows: std::ops::Range<u32>,
+    (columns, rows): (std::ops::Range<u32>, std::ops::Range<u32>),
     progress: Option<&crate::progress::Progress>,
+    history: &mut Option<crate::frame::History>,
 ) -> RenderOutput {
     let start = Instant::now();
     let reconstruction = plan.reconstruction;
@@ -185,7 +223,7 @@ fn trace_region(
         progress,
     );
     let layers = layers.expect("asked for");
-    let filtered = reconstruction.apply(&layers, &means, settings);
+    let filtered = reconstruction.apply(&layers, &means, settings, history);
     let wide_width = wide_columns.len();
     let (x0, y0) = (
         (columns.start - wide_columns.start) as usize,
@@ -306,6 +344,7 @@ fn trace_means(
         width: columns.len() as u32,
         height: rows.len() as u32,
         frames,
+        camera: frame_cam,
         pixels,
     });
     (means, layers, stats)

@@ -434,6 +434,7 @@ impl GpuTracer {
             let f = self.reconstruct(
                 plan.reconstruction,
                 settings,
+                &scene.camera.frame(),
                 &output,
                 compensation.as_ref(),
                 frames.end,

@@ -280,6 +280,8 @@ pub struct GpuTracer {
     filters: HashMap<&'static str, reconstruct::FilterPipelines>,
     /// The reconstruction passes' buffers, kept while images keep their size.
     filter_buffers: Option<reconstruct::FilterBuffers>,
+    /// A temporal reconstruction's history, kept from frame to frame of a camera path.
+    history: Option<reconstruct::GpuHistory>,
     /// Wall time of the latest render's reconstruction passes (synchronised), included
     /// in its trace time and device time; zero without a reconstruction.
     last_filter_time: Duration,
@@ -619,6 +621,7 @@ impl GpuTracer {
             reduce: None,
             filters: HashMap::new(),
             filter_buffers: None,
+            history: None,
             last_filter_time: Duration::ZERO,
             grid: None,
             buffers: None,

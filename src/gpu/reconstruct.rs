@@ -36,8 +36,33 @@ struct FilterParams {
     frames: u32,
     accumulated: u32,
     pass_index: u32,
-    pad: [u32; 3],
+    has_history: u32,
+    pad: [u32; 2],
     settings: [f32; 8],
+    camera: [[f32; 4]; 4],
+    previous: [[f32; 4]; 4],
+}
+
+/// `FilterParams::camera`'s layout of a camera frame.
+fn camera_rows(c: &crate::scene::CameraFrame) -> [[f32; 4]; 4] {
+    let v = |v: glam::DVec3, w: f64| [v.x as f32, v.y as f32, v.z as f32, w as f32];
+    [
+        v(c.eye, c.tan_half_vfov),
+        v(c.forward, 0.0),
+        v(c.right, 0.0),
+        v(c.up, 0.0),
+    ]
+}
+
+/// A temporal reconstruction's history on the device (`crate::frame::History`): two
+/// buffers of three `vec4` per pixel, the latest frame's in `buffers[latest]`, which
+/// the next frame reads while it writes the other.
+pub(super) struct GpuHistory {
+    pixels: u64,
+    buffers: [wgpu::Buffer; 2],
+    latest: usize,
+    /// The camera of the latest frame, `None` while the history is empty.
+    camera: Option<crate::scene::CameraFrame>,
 }
 
 /// The most settings a reconstruction may declare: `FilterParams::settings`.
@@ -118,7 +143,10 @@ impl GpuTracer {
             let entry = r
                 .wgsl
                 .ok_or_else(|| anyhow!("reconstruction {} has no WGSL module", r.name))?;
-            let module = super::compose::compose(&[LAYERS_MODULE, entry], ENTRY, HashMap::new())
+            let mut modules = vec![LAYERS_MODULE];
+            modules.extend_from_slice(r.wgsl_imports);
+            modules.push(entry);
+            let module = super::compose::compose(&modules, ENTRY, HashMap::new())
                 .map_err(|e| anyhow!("composing {}: {e}", entry.0))?;
             super::validate(&module).map_err(|e| anyhow!("validating {}: {e}", entry.0))?;
             let shader = self
@@ -139,6 +167,8 @@ impl GpuTracer {
                         storage_entry(4, true),
                         storage_entry(5, false),
                         storage_entry(6, false),
+                        storage_entry(7, true),
+                        storage_entry(8, false),
                     ],
                 });
             let pipeline_layout =
@@ -171,12 +201,43 @@ impl GpuTracer {
         Ok(())
     }
 
+    /// Empties the temporal history: the next frame starts a camera path.
+    pub fn reset_history(&mut self) {
+        if let Some(h) = &mut self.history {
+            h.camera = None;
+        }
+    }
+
+    /// The history's buffers for `pixels` pixels (kept, or new and empty), made inside
+    /// the caller's error scopes.
+    fn history_buffers(&mut self, pixels: u64) -> &mut GpuHistory {
+        if self.history.as_ref().is_none_or(|h| h.pixels != pixels) {
+            let b = |label| {
+                buffer(
+                    &self.device,
+                    label,
+                    pixels * 48,
+                    wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                )
+            };
+            self.history = Some(GpuHistory {
+                pixels,
+                buffers: [b("reconstruction history a"), b("reconstruction history b")],
+                latest: 0,
+                camera: None,
+            });
+        }
+        self.history.as_mut().expect("made above")
+    }
+
     /// Runs `r` on the planes the tracer summed (`planes`, with `compensation` when
-    /// accumulated) over `frames` frames, and gives the buffer of the composed image.
+    /// accumulated) over `frames` frames seen through `camera`, and gives the buffer of
+    /// the composed image. A temporal `r` reads and replaces the history.
     pub(super) fn reconstruct(
         &mut self,
         r: &'static Reconstruction,
         settings: &RenderSettings,
+        camera: &crate::scene::CameraFrame,
         planes: &wgpu::Buffer,
         compensation: Option<&wgpu::Buffer>,
         frames: u32,
@@ -195,6 +256,18 @@ impl GpuTracer {
             no_compensation,
             ..
         } = self.filter_buffers(pixels);
+        // A temporal reconstruction reads the latest frame's history and writes the
+        // other buffer; the others bind the unread placeholder.
+        let (history_in, history_out, previous) = if r.temporal {
+            let h = self.history_buffers(pixels);
+            (
+                h.buffers[h.latest].clone(),
+                h.buffers[1 - h.latest].clone(),
+                h.camera,
+            )
+        } else {
+            (no_compensation.clone(), no_compensation.clone(), None)
+        };
         let values = r.values(settings);
         debug_assert!(values.len() <= MAX_FILTER_SETTINGS);
         let mut p = FilterParams {
@@ -203,8 +276,11 @@ impl GpuTracer {
             frames,
             accumulated: compensation.is_some() as u32,
             pass_index: 0,
-            pad: [0; 3],
+            has_history: previous.is_some() as u32,
+            pad: [0; 2],
             settings: [0.0; 8],
+            camera: camera_rows(camera),
+            previous: camera_rows(&previous.unwrap_or_default()),
         };
         for (o, v) in p.settings.iter_mut().zip(&values) {
             *o = *v as f32;
@@ -231,6 +307,8 @@ impl GpuTracer {
                         buffer_entry(4, &colors[k]),
                         buffer_entry(5, &colors[1 - k]),
                         buffer_entry(6, &aux),
+                        buffer_entry(7, &history_in),
+                        buffer_entry(8, &history_out),
                     ],
                 })
             })
@@ -271,11 +349,27 @@ impl GpuTracer {
         if let Some(e) = oom.or(validation) {
             // Nothing half made is kept.
             self.filter_buffers = None;
+            self.history = None;
             return Err(anyhow!("reconstruction {}: {e}", r.name));
+        }
+        if r.temporal
+            && let Some(h) = &mut self.history
+        {
+            h.latest = 1 - h.latest;
+            h.camera = Some(*camera);
         }
         Ok(Filtered {
             image: colors[1 - reads].clone(),
-            bytes: guide.size() + aux.size() + colors[0].size() + colors[1].size() + params.size(),
+            bytes: guide.size()
+                + aux.size()
+                + colors[0].size()
+                + colors[1].size()
+                + params.size()
+                + if r.temporal {
+                    history_in.size() + history_out.size()
+                } else {
+                    0
+                },
         })
     }
 }

@@ -18,7 +18,7 @@ pub struct OrbitCamera {
 /// goes through the pixel centre:
 /// `dir = normalize(forward + sx * tan(vfov/2) * aspect * right + sy * tan(vfov/2) * up)`
 /// with `sx = 2 (i + 0.5) / w - 1`, `sy = 1 - 2 (j + 0.5) / h`.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CameraFrame {
     pub eye: DVec3,
     pub forward: DVec3,

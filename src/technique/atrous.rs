@@ -37,7 +37,7 @@ use rayon::prelude::*;
 use super::{Kind, Reconstruction, Setting};
 use crate::frame::{PrimaryLayers, luminance};
 
-const SETTINGS: &[Setting] = &[
+pub(crate) const SETTINGS: &[Setting] = &[
     Setting {
         key: "iterations",
         kind: Kind::Int { min: 1, max: 8 },
@@ -84,7 +84,15 @@ pub const RECONSTRUCTION: Reconstruction = Reconstruction {
     gpu_passes: |values| values[0] as u32,
     reach: |values| reach(values[0] as u32),
     label: "RECONSTRUCTION(atrous)",
+    temporal: false,
+    wgsl_imports: &[ATROUS_WGSL],
 };
+
+/// `voxlab::atrous`: the passes on the device, which `svgf` runs too.
+pub(crate) const ATROUS_WGSL: (&str, &str) = (
+    "shaders/atrous.wgsl",
+    include_str!("../../shaders/atrous.wgsl"),
+);
 
 /// Frames from which the variance is the frames' own, not the neighbourhood's (Schied
 /// et al. 2017, section 4.2: four frames of history).
@@ -124,8 +132,36 @@ struct Guide {
 }
 
 /// The visibility of every pixel of `layers`, filtered (module documentation);
-/// `values` are the settings in declared order.
-pub fn filter(layers: &PrimaryLayers, values: &[f64]) -> Vec<DVec3> {
+/// `values` are the settings in declared order; it keeps no history.
+pub fn filter(
+    layers: &PrimaryLayers,
+    values: &[f64],
+    _history: &mut Option<crate::frame::History>,
+) -> Vec<DVec3> {
+    let visibility = layers.pixels.iter().map(|p| p.visibility()).collect();
+    let frames = layers.frames.max(1) as f64;
+    let variance = |k: usize| {
+        let p = &layers.pixels[k];
+        let temporal = (p.ratio_frames >= TEMPORAL_FRAMES).then(|| {
+            let [m1, m2] = p.ratio_moments;
+            (m2 - m1 * m1).max(0.0) / p.ratio_frames as f64
+        });
+        (temporal, frames)
+    };
+    filter_signal(layers, visibility, variance, &values[..4])
+}
+
+/// The a-trous passes over the signal `c` (a visibility per pixel of `layers`, which
+/// guide them), for a reconstruction that prepares its own signal (svgf's temporal
+/// accumulation): `variance(k)` gives pixel `k`'s temporal variance where it has one
+/// (the variance of its mean) and the samples its value is a mean of (the spatial
+/// estimate's divisor); `values` are the four settings of [`SETTINGS`], in order.
+pub(crate) fn filter_signal(
+    layers: &PrimaryLayers,
+    mut c: Vec<DVec3>,
+    variance: impl Fn(usize) -> (Option<f64>, f64) + Sync,
+    values: &[f64],
+) -> Vec<DVec3> {
     let (w, h) = (layers.width as i64, layers.height as i64);
     let iterations = values[0] as u32;
     let sigmas = Sigmas {
@@ -180,19 +216,15 @@ pub fn filter(layers: &PrimaryLayers, values: &[f64]) -> Vec<DVec3> {
         wz * wn
     };
 
-    let mut c: Vec<DVec3> = layers.pixels.iter().map(|p| p.visibility()).collect();
-    let frames = layers.frames.max(1) as f64;
-
     // The input's variance: temporal from enough frames, else spatial.
     let mut var: Vec<f64> = pixels()
         .map(|(x, y)| {
             let Some(g) = guide[at(x, y)] else {
                 return 0.0;
             };
-            let p = &layers.pixels[at(x, y)];
-            if p.ratio_frames >= TEMPORAL_FRAMES {
-                let [m1, m2] = p.ratio_moments;
-                return (m2 - m1 * m1).max(0.0) / p.ratio_frames as f64;
+            let (temporal, samples) = variance(at(x, y));
+            if let Some(v) = temporal {
+                return v;
             }
             let (mut sw, mut s1, mut s2) = (0.0, 0.0, 0.0);
             for dy in -3..=3 {
@@ -211,7 +243,7 @@ pub fn filter(layers: &PrimaryLayers, values: &[f64]) -> Vec<DVec3> {
                 }
             }
             let mean = s1 / sw;
-            (s2 / sw - mean * mean).max(0.0) / frames
+            (s2 / sw - mean * mean).max(0.0) / samples
         })
         .collect();
 

@@ -62,6 +62,7 @@ pub mod smooth;
 pub mod solid_angle;
 pub mod sparse;
 pub mod sparse_octant;
+pub mod svgf;
 pub mod unfiltered;
 pub mod voxels;
 
@@ -109,8 +110,11 @@ pub const SURFACES: &[&SurfaceModel] = &[&voxels::SURFACE, &mesh::SURFACE, &smoo
 
 /// Reconstructions, in the order they are listed and offered; the first is the default
 /// (the image as traced). One line each.
-pub const RECONSTRUCTIONS: &[&Reconstruction] =
-    &[&unfiltered::RECONSTRUCTION, &atrous::RECONSTRUCTION];
+pub const RECONSTRUCTIONS: &[&Reconstruction] = &[
+    &unfiltered::RECONSTRUCTION,
+    &atrous::RECONSTRUCTION,
+    &svgf::RECONSTRUCTION,
+];
 
 /// Tables of settings several techniques share, in the order files list them. One line
 /// each.
@@ -383,6 +387,9 @@ pub struct Reconstruction {
     /// the decoded layers, the colour ping-pong, its settings as `setting(k)`);
     /// shaders/reconstruct.wgsl runs them between decoding the layers and composing.
     pub wgsl: Option<(&'static str, &'static str)>,
+    /// WGSL modules its module imports besides `voxlab::layers` (path, source): a
+    /// filter it shares with another reconstruction (`shaders/atrous.wgsl`).
+    pub wgsl_imports: &'static [(&'static str, &'static str)],
     /// How many times `iterate` runs, given the values of its settings.
     pub gpu_passes: fn(&[f64]) -> u32,
     /// How far from a pixel (in pixels, per axis) the filter reads, given the values of
@@ -391,11 +398,18 @@ pub struct Reconstruction {
     pub reach: fn(&[f64]) -> u32,
     /// How printed plans name it; empty for the default.
     pub label: &'static str,
+    /// Whether it reads the previous frames of a camera path (`[render] path_frames`),
+    /// reprojected (`crate::frame::History`): it then reads the whole image, whatever
+    /// crop is asked for, since a moving camera brings any pixel anywhere.
+    pub temporal: bool,
 }
 
 /// A reconstruction's f64 filter: the layers and its settings' values in, every
 /// pixel's filtered visibility out ([`Reconstruction::cpu`]).
-pub type ReconstructionFilter = fn(&crate::frame::PrimaryLayers, &[f64]) -> Vec<DVec3>;
+/// A temporal one reads and replaces `history` (the previous frame of a camera path;
+/// `None` where the path starts); the others leave it alone.
+pub type ReconstructionFilter =
+    fn(&crate::frame::PrimaryLayers, &[f64], &mut Option<crate::frame::History>) -> Vec<DVec3>;
 
 impl Reconstruction {
     /// Its setting `key`.
@@ -412,7 +426,8 @@ impl Reconstruction {
             .collect()
     }
 
-    /// The image whose per-pixel means over the frames are `means`, with the shadow term
+    /// The image whose per-pixel means over the frames are `means` (and, for a temporal
+    /// reconstruction, the path's `history`, which it updates), with the shadow term
     /// filtered: at a pixel the filter reads, the rest of the radiance (`mean -
     /// direct`) plus `unshadowed` times the filtered visibility ratio; elsewhere the
     /// mean. The image itself when the reconstruction has no filter.
@@ -421,11 +436,12 @@ impl Reconstruction {
         layers: &crate::frame::PrimaryLayers,
         means: &[DVec3],
         settings: &RenderSettings,
+        history: &mut Option<crate::frame::History>,
     ) -> Vec<DVec3> {
         let Some(filter) = self.cpu else {
             return means.to_vec();
         };
-        let visibility = filter(layers, &self.values(settings));
+        let visibility = filter(layers, &self.values(settings), history);
         layers
             .pixels
             .iter()

@@ -14,4 +14,6 @@ pub const RECONSTRUCTION: Reconstruction = Reconstruction {
     gpu_passes: |_| 0,
     reach: |_| 0,
     label: "",
+    temporal: false,
+    wgsl_imports: &[],
 };
