@@ -832,11 +832,17 @@ struct Rendered {
     /// CPU points: what the render prepared before its trace (the cone pyramids, a
     /// walk's data), outside `time` (`RenderOutput::setup_time`).
     cpu_setup: Duration,
+    /// Under a camera path, FLIP of the image against the path's frame before it.
+    path_flicker: Option<f64>,
 }
 
 impl Rendered {
     fn of(image: crate::session::Image, backend: &'static str, fallback: Option<String>) -> Self {
         Rendered {
+            path_flicker: image
+                .previous
+                .as_ref()
+                .map(|previous| crate::metrics::flip(previous, &image.frame).0),
             frame: image.frame,
             // Device time from timestamp queries where the adapter has them, else wall
             // time around the synchronised submit (the session's timer).
@@ -985,6 +991,9 @@ fn reference_halves(e: &Experiment, c: &AblateConfig) -> [RenderSettings; 2] {
             features: features.clone(),
             spp,
             seed: e.settings.seed.wrapping_add(REFERENCE_SEED_OFFSETS[k]),
+            // The converged image of the experiment's own camera: no path before it.
+            path_frames: 1,
+            orbit_deg: 0.0,
             ..e.settings.clone()
         };
         for g in crate::technique::SETTING_GROUPS {
@@ -1115,10 +1124,12 @@ pub struct Row {
     /// The same on the display images quantised to 8 bits (`metrics::flip_8bit`, what a
     /// FLIP of two PNGs measures).
     pub flip8_mean: f64,
-    /// FLIP of this seed's image against the previous seed's: the same point with fresh
-    /// samples, the change a static camera shows from one image to the next (0 for a
-    /// deterministic model); `None` for the first seed. In a summary, the mean over the
-    /// seeds' pairs.
+    /// FLIP between consecutive frames. Under a camera path (`render.path_frames > 1`),
+    /// of the image against the path's frame before it (on an orbit the motion is in
+    /// it too: a deterministic model's flicker is the motion's alone); otherwise of this
+    /// seed's image against the previous seed's, the same point with fresh samples, the
+    /// change a static camera shows from one image to the next (0 for a deterministic
+    /// model; `None` for the first seed). In a summary, the mean over the seeds.
     pub flicker: Option<f64>,
     /// The seed this row was rendered with (`render.seed + k`), and `k`.
     pub seed: u32,
@@ -1808,9 +1819,11 @@ pub const CSV_SCHEMA: [(&str, &str); 32] = [
     ),
     (
         "flicker_flip",
-        "FLIP of this seed's image against the previous seed's (fresh samples, same point: \
-         the change a static camera shows from image to image; 0 when deterministic); \
-         empty for the first seed",
+        "FLIP between consecutive frames: under a camera path (render.path_frames > 1) of the \
+         image against the path's frame before it (motion included on an orbit); otherwise \
+         of this seed's image against the previous seed's (fresh samples, same point: the \
+         change a static camera shows from image to image; 0 when deterministic; empty for \
+         the first seed)",
     ),
     ("reference_spp", "samples per pixel of the reference"),
     (

@@ -192,11 +192,12 @@ impl Session {
     }
 
     /// A whole render: under `[render] path_frames = K > 1` the camera path's K frames
-    /// (`RenderSettings::path_pose`), the history emptied before the first, and the
-    /// last frame's image, timings and counts, with the one before it kept in
-    /// [`Image::previous`]; otherwise one frame, which a temporal reconstruction
-    /// accumulates onto the session's history. A range of the accumulation (a display's
-    /// refinement) is one frame of the display's own path.
+    /// (`RenderSettings::path_pose`; without a temporal reconstruction only the last
+    /// two), the history emptied before the first, and the last frame's image, timings
+    /// and counts (the frames before it are warm-up, outside them), with the one before
+    /// it kept in [`Image::previous`]; otherwise one frame. A render starts with the
+    /// history empty; only a range of the accumulation (a display's refinement) is a
+    /// frame of the display's own path, accumulated onto the history the session keeps.
     fn render_reporting(
         &mut self,
         scene: &Scene,
@@ -205,14 +206,26 @@ impl Session {
         progress: impl Fn(&'static str) -> Option<Progress>,
     ) -> Result<Image> {
         let path = settings.path_frames.max(1);
-        if path == 1 || range.is_some() {
+        if range.is_some() {
+            return self.render_frame(scene, settings, range, progress);
+        }
+        // A render is its own: no history from another render reaches it (an ablation's
+        // points would otherwise depend on their order).
+        self.reset_history();
+        if path == 1 {
             return self.render_frame(scene, settings, range, progress);
         }
         let wall = Instant::now();
-        self.reset_history();
         let mut posed = scene.clone();
         let mut previous = None;
-        for k in 0..path - 1 {
+        // Without a temporal reconstruction the frames before the last change nothing
+        // but `previous`: only that one is rendered.
+        let first = if settings.features.reconstruction.temporal {
+            0
+        } else {
+            path - 2
+        };
+        for k in first..path - 1 {
             let (camera, s) = settings.path_pose(&scene.camera, k);
             posed.camera = camera;
             previous = Some(self.render_frame(&posed, &s, None, |_| None)?.frame);

@@ -1245,13 +1245,19 @@ fn only_the_filtered_curves_carry_the_reconstruction() {
     let mut filtered = 0;
     for p in &points {
         let r = p.settings.features.reconstruction.name;
-        if p.model.contains(" + atrous") {
-            assert_eq!(r, "atrous", "{}", p.model);
-            filtered += 1;
-        } else {
-            assert_eq!(r, "none", "{}", p.model);
+        match c
+            .reconstruction
+            .iter()
+            .find(|f| p.model.contains(&format!(" + {} (", f.name)))
+        {
+            Some(f) => {
+                assert_eq!(r, f.name, "{}", p.model);
+                filtered += 1;
+            }
+            None => assert_eq!(r, "none", "{}", p.model),
         }
     }
-    // stochastic, ratio and solid-angle over the six spp values.
-    assert_eq!(filtered, 3 * c.spp.len());
+    // stochastic, ratio and solid-angle over the six spp values, under each filter.
+    assert!(c.reconstruction.len() >= 2);
+    assert_eq!(filtered, 3 * c.spp.len() * c.reconstruction.len());
 }

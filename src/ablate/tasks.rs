@@ -187,6 +187,9 @@ pub struct SeedRender {
     pub plan: String,
     pub times_ns: Vec<u64>,
     pub setups_ns: Vec<u64>,
+    /// Under a camera path, FLIP of the image against the path's frame before it.
+    #[serde(default)]
+    pub path_flicker: Option<f64>,
     #[serde(skip, default = "empty_frame")]
     pub frame: Frame,
 }
@@ -555,6 +558,7 @@ impl Worker {
                 plan: r.plan.to_string(),
                 times_ns: ns(&times),
                 setups_ns: ns(&setups),
+                path_flicker: r.path_flicker,
                 frame: r.frame,
             });
         }
@@ -887,6 +891,7 @@ impl Driver {
                     seed: r.seed,
                     ..p.settings.clone()
                 };
+                let r_path_flicker = r.path_flicker;
                 let mut row = point_row(p, &scene, &s, r, &against.frame, against.noise_rmse)?;
                 row.seed_index = k as u32;
                 row.adapter = renders.adapter.clone();
@@ -894,9 +899,12 @@ impl Driver {
                 if let (Some(x), None) = (&external, own) {
                     row.external = Some(external::errors(x, &row.frame));
                 }
-                row.flicker = previous
-                    .as_ref()
-                    .map(|prev| crate::metrics::flip(prev, &row.frame).0);
+                let path_flicker = r_path_flicker;
+                row.flicker = path_flicker.or_else(|| {
+                    previous
+                        .as_ref()
+                        .map(|prev| crate::metrics::flip(prev, &row.frame).0)
+                });
                 previous = Some(row.frame.clone());
                 // Only the first seed's image is kept and written: the others are measured.
                 if row.seed_index > 0 {

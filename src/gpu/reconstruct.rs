@@ -86,8 +86,12 @@ pub(super) struct FilterBuffers {
     aux: wgpu::Buffer,
     colors: [wgpu::Buffer; 2],
     params: wgpu::Buffer,
-    /// Bound as `compensation` when the planes are one frame's values.
+    /// Bound as `compensation` when the planes are one frame's values, and as
+    /// `history_in` without a temporal reconstruction.
     no_compensation: wgpu::Buffer,
+    /// Bound as `history_out` without a temporal reconstruction (a buffer bound
+    /// writable may not be bound again in the group).
+    no_history: wgpu::Buffer,
 }
 
 /// What the tracer's readback of a filtered render reads.
@@ -131,6 +135,7 @@ impl GpuTracer {
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
             no_compensation: buffer(&self.device, "no compensation", 16, storage),
+            no_history: buffer(&self.device, "no history", 48, storage),
         };
         self.filter_buffers = Some(b.clone());
         b
@@ -254,6 +259,7 @@ impl GpuTracer {
             colors,
             params,
             no_compensation,
+            no_history,
             ..
         } = self.filter_buffers(pixels);
         // A temporal reconstruction reads the latest frame's history and writes the
@@ -266,7 +272,7 @@ impl GpuTracer {
                 h.camera,
             )
         } else {
-            (no_compensation.clone(), no_compensation.clone(), None)
+            (no_compensation.clone(), no_history.clone(), None)
         };
         let values = r.values(settings);
         debug_assert!(values.len() <= MAX_FILTER_SETTINGS);
