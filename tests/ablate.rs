@@ -1240,7 +1240,7 @@ fn an_external_reference_is_checked_and_measured_against() {
 fn only_the_filtered_curves_carry_the_reconstruction() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let (e, c, _) = ablate::load(root.join("experiments/reconstruction.toml")).unwrap();
-    assert_eq!(e.settings.features.reconstruction.name, "atrous");
+    assert_eq!(e.settings.features.reconstruction.name, "svgf");
     let points = ablate::points(&e, &c);
     let mut filtered = 0;
     for p in &points {
