@@ -2013,9 +2013,7 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
          reference against the whole); no point can be shown to be closer.\n\n\
          Pareto: the points no other point beats in both mean time and mean error (RMSE, \
          FLIP); where intervals overlap, the order is not established.\n\n\
-         Flicker: FLIP of each seed's image against the previous seed's (the same point \
-         with fresh samples: what a static camera shows changing from image to image; 0 \
-         for a deterministic model).\n\n\
+         {}\n\n\
          | model | knob | value | backend | ms (trace + setup) | runs min..max | trace ms | setup ms | RMSE | RMSE - noise | PSNR dB | FLIP mean | flicker (FLIP) | Pareto |\n\
          |---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
         e.name,
@@ -2036,6 +2034,26 @@ fn table(e: &Experiment, rows: &[Row], r: &Reference, adapter: &str, rev: &str) 
             None => "Each point: one seed (no interval; `[ablate] seeds` >= 2 gives \
                      95 % intervals).\n\n"
                 .to_string(),
+        },
+        if e.settings.path_frames > 1 {
+            format!(
+                "Flicker: FLIP of each image against the frame before it on the camera path \
+                 ({} frames, the camera turning {} degrees per frame; the time, rays and \
+                 image are the last frame's, the frames before it warm-up).{}",
+                e.settings.path_frames,
+                e.settings.orbit_deg,
+                if e.settings.orbit_deg != 0.0 {
+                    " The motion is in it: a deterministic model's flicker is the motion's \
+                     share alone."
+                } else {
+                    ""
+                }
+            )
+        } else {
+            "Flicker: FLIP of each seed's image against the previous seed's (the same point \
+             with fresh samples: what a static camera shows changing from image to image; \
+             0 for a deterministic model)."
+                .to_string()
         },
     );
     let rmse_front = pareto_front(rows, |r| r.rmse);

@@ -1261,3 +1261,47 @@ fn only_the_filtered_curves_carry_the_reconstruction() {
     assert!(c.reconstruction.len() >= 2);
     assert_eq!(filtered, 3 * c.spp.len() * c.reconstruction.len());
 }
+
+/// Under a camera path the flicker is of each image against the path's frame before it:
+/// every seed has one (the first too); a static path of a deterministic model has none
+/// to show (the same image twice), an orbit shows the motion; the sampled model's
+/// frames differ on a static camera too. The reference is one render of the
+/// experiment's camera, so a path leaves its key unchanged.
+#[test]
+fn a_camera_path_measures_the_flicker_between_its_frames() {
+    let dir = scratch("path-flicker");
+    let run_with = |orbit: f64| {
+        let text = experiment_text(
+            110.0,
+            &format!(
+                "[ablate]\nreference_spp = 64\nspp = [1]\nseeds = 2\nruns = 1\nwarmup = 0\n\
+                 backend = \"cpu\"\nreference_backend = \"cpu\"\ncone_step_factor = []\n\
+                 cone_aperture_deg = []\nreconstruction = []\n"
+            ),
+        )
+        .replace(
+            "[render]\n",
+            &format!("[render]\npath_frames = 3\norbit_deg = {orbit}\nwidth = 24\nheight = 24\n"),
+        )
+        .replace("width = 32\nheight = 32\n", "");
+        let (e, c) = load(&dir, &text);
+        let out = dir.join(format!("out-{orbit}"));
+        run(&e, &c, &out, &dir.join("cache"))
+    };
+    let still = run_with(0.0);
+    let orbit = run_with(3.0);
+    assert_eq!(still.reference.key, orbit.reference.key);
+    for (report, moving) in [(&still, false), (&orbit, true)] {
+        for r in &report.rows {
+            let f = r
+                .flicker
+                .unwrap_or_else(|| panic!("{} seed {}: no flicker on a path", r.model, r.seed_index));
+            if r.shadow_model == "hard" {
+                assert_eq!(f > 0.0, moving, "{} (orbit {moving}): {f}", r.model);
+            }
+            if r.shadow_model == "area" {
+                assert!(f > 0.0, "{}: {f}", r.model);
+            }
+        }
+    }
+}

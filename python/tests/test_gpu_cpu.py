@@ -114,6 +114,15 @@ def test_a_light_on_a_voxel_face(cpu, gpu):
             "techniques.atrous.iterations": 2,
             "render.spp": 4,
         },
+        # SVGF over a camera path of four frames on a slow orbit: the history crosses
+        # the session's renders of the path on both backends.
+        {
+            "features.shadow_model": "ratio",
+            "features.reconstruction": "svgf",
+            "render.path_frames": 4,
+            "render.orbit_deg": 1.5,
+            "techniques.svgf.iterations": 2,
+        },
     ],
 )
 def test_gpu_matches_cpu_with_area_lights(overrides, cpu, gpu):
