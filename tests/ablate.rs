@@ -1293,9 +1293,9 @@ fn a_camera_path_measures_the_flicker_between_its_frames() {
     assert_eq!(still.reference.key, orbit.reference.key);
     for (report, moving) in [(&still, false), (&orbit, true)] {
         for r in &report.rows {
-            let f = r
-                .flicker
-                .unwrap_or_else(|| panic!("{} seed {}: no flicker on a path", r.model, r.seed_index));
+            let f = r.flicker.unwrap_or_else(|| {
+                panic!("{} seed {}: no flicker on a path", r.model, r.seed_index)
+            });
             if r.shadow_model == "hard" {
                 assert_eq!(f > 0.0, moving, "{} (orbit {moving}): {f}", r.model);
             }
