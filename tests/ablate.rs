@@ -1273,11 +1273,9 @@ fn a_camera_path_measures_the_flicker_between_its_frames() {
     let run_with = |orbit: f64| {
         let text = experiment_text(
             110.0,
-            &format!(
-                "[ablate]\nreference_spp = 64\nspp = [1]\nseeds = 2\nruns = 1\nwarmup = 0\n\
-                 backend = \"cpu\"\nreference_backend = \"cpu\"\ncone_step_factor = []\n\
-                 cone_aperture_deg = []\nreconstruction = []\n"
-            ),
+            "[ablate]\nreference_spp = 64\nspp = [1]\nseeds = 2\nruns = 1\nwarmup = 0\n\
+             backend = \"cpu\"\nreference_backend = \"cpu\"\ncone_step_factor = []\n\
+             cone_aperture_deg = []\nreconstruction = []\n",
         )
         .replace(
             "[render]\n",

@@ -26,7 +26,11 @@ fn with(e: &Experiment, sets: &[&str]) -> Experiment {
 
 /// experiments/reconstruction.toml, small, one frame unless `sets` asks for a path.
 fn blocks(sets: &[&str]) -> Experiment {
-    let mut all = vec!["render.width=48", "render.height=40", "render.path_frames=1"];
+    let mut all = vec![
+        "render.width=48",
+        "render.height=40",
+        "render.path_frames=1",
+    ];
     all.extend_from_slice(sets);
     with(&experiment("reconstruction.toml"), &all)
 }
