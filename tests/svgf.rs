@@ -414,3 +414,30 @@ fn the_keys_are_checked() {
         );
     }
 }
+
+/// A display's own path (the viewer: `Session::render_frames` as the camera moves)
+/// accumulates like a render's path: the same frames shown one after another, the
+/// history kept between them, give the path's image; emptying the history starts anew.
+#[test]
+fn a_display_path_accumulates_like_a_render_path() {
+    let e = blocks(&[
+        "features.reconstruction=\"svgf\"",
+        "render.path_frames=3",
+        "render.orbit_deg=4",
+    ]);
+    let mut session = Session::new(Backend::Cpu).unwrap();
+    let path = session.render(&e).unwrap();
+    session.reset_history();
+    let mut last = None;
+    for k in 0..3 {
+        let (camera, s) = e.settings.path_pose(&e.scene.camera, k);
+        let mut scene = e.scene.clone();
+        scene.camera = camera;
+        last = Some(session.render_frames(&scene, &s, 0..1).unwrap());
+    }
+    assert_eq!(last.unwrap().frame.pixels, path.frame.pixels);
+    // Without the history the last frame alone is atrous-like, not the path's image.
+    session.reset_history();
+    let alone = session.render_frames(&e.scene, &e.settings, 0..1).unwrap();
+    assert_ne!(alone.frame.pixels, path.frame.pixels);
+}
