@@ -196,7 +196,7 @@ fn an_image_too_large_for_its_planes_is_refused_with_the_reason() {
 /// `svgf` over camera paths: the temporal accumulation (reprojection, rejection,
 /// exponential average) and the a-trous passes after it, on the device against the
 /// reference, the whole path rendered by a session on each backend. Generated cases:
-/// image sizes 8 to 160, paths of 1 to 6 frames, static and orbiting cameras both ways,
+/// image sizes 8 to 256, paths of 1 to 6 frames, static and orbiting cameras both ways,
 /// alphas from the mean of all frames to mostly the new one, the tolerances across
 /// their ranges, 1 to 4 passes, 1 to 3 frames per pose, the sampling models.
 #[test]
@@ -214,7 +214,7 @@ fn svgf_gpu_equals_cpu_over_generated_paths() {
     for case in 0..10 {
         let path = scenes[case % scenes.len()];
         let (w, h) = if case == 9 {
-            (160, 128)
+            (256, 192)
         } else {
             (rng.random_range(8..=64), rng.random_range(8..=48))
         };
