@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{experiment, rmse};
+use common::{experiment, overridden, rmse};
 use glam::DVec3;
 use rand::{RngExt, SeedableRng};
 use voxlab::cpu;
@@ -14,19 +14,10 @@ use voxlab::frame::{PrimaryLayers, PrimaryPixel};
 use voxlab::plan::Plan;
 use voxlab::technique::atrous;
 
-fn with(e: &Experiment, sets: &[&str]) -> Experiment {
-    let text = std::fs::read_to_string(e.source_path.as_ref().expect("loaded")).unwrap();
-    let overrides: Vec<Override> = sets.iter().map(|s| s.parse().unwrap()).collect();
-    let mut out = Experiment::from_str_with(&text, e.source_path.as_ref().unwrap(), &overrides)
-        .unwrap_or_else(|err| panic!("{sets:?}: {err}"));
-    out.source_path = e.source_path.clone();
-    out
-}
-
 fn small(path: &str, sets: &[&str]) -> Experiment {
     let mut all = vec!["render.width=24", "render.height=20"];
     all.extend_from_slice(sets);
-    with(&experiment(path), &all)
+    overridden(&experiment(path), &all)
 }
 
 /// Random layers: every pixel a hit (or not, at `miss` odds) with a random normal, depth,
@@ -325,7 +316,7 @@ fn the_filter_brings_one_sample_nearer_the_converged_image() {
         let e = |sets: &[&str]| {
             let mut all = base.to_vec();
             all.extend_from_slice(sets);
-            with(&experiment("mitsuba/rect_blocks.toml"), &all)
+            overridden(&experiment("mitsuba/rect_blocks.toml"), &all)
         };
         let converged = e(&["render.spp=1024"]);
         let converged = cpu::render(&converged.scene, &converged.settings).frame;
@@ -376,7 +367,7 @@ fn the_keys_are_checked_and_written_back() {
     let m = err(&["techniques.atrous.radius=2"]);
     assert!(m.contains("radius") && m.contains("iterations"), "{m}");
 
-    let set = with(
+    let set = overridden(
         &e,
         &[
             "features.reconstruction=atrous",

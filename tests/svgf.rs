@@ -7,22 +7,13 @@
 
 mod common;
 
-use common::{experiment, rmse};
+use common::{experiment, overridden, rmse};
 use glam::DVec3;
 use rand::{RngExt, SeedableRng};
 use voxlab::experiment::{Experiment, Override};
 use voxlab::frame::{History, PrimaryLayers, PrimaryPixel};
 use voxlab::technique::svgf;
 use voxlab::{Backend, Session, cpu, dda};
-
-fn with(e: &Experiment, sets: &[&str]) -> Experiment {
-    let text = std::fs::read_to_string(e.source_path.as_ref().expect("loaded")).unwrap();
-    let overrides: Vec<Override> = sets.iter().map(|s| s.parse().unwrap()).collect();
-    let mut out = Experiment::from_str_with(&text, e.source_path.as_ref().unwrap(), &overrides)
-        .unwrap_or_else(|err| panic!("{sets:?}: {err}"));
-    out.source_path = e.source_path.clone();
-    out
-}
 
 /// experiments/reconstruction.toml, small, one frame unless `sets` asks for a path.
 fn blocks(sets: &[&str]) -> Experiment {
@@ -32,7 +23,7 @@ fn blocks(sets: &[&str]) -> Experiment {
         "render.path_frames=1",
     ];
     all.extend_from_slice(sets);
-    with(&experiment("reconstruction.toml"), &all)
+    overridden(&experiment("reconstruction.toml"), &all)
 }
 
 /// The settings' values of svgf with `alpha` and the rest at their defaults.

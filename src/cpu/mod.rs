@@ -81,7 +81,7 @@ pub fn render_region(
     columns: std::ops::Range<u32>,
     rows: std::ops::Range<u32>,
 ) -> RenderOutput {
-    render_region_with_progress(scene, settings, columns, rows, None)
+    render_region_with_progress(scene, settings, (columns, rows), None, &mut None)
 }
 
 /// [`render`], telling `progress` of each finished row.
@@ -90,13 +90,7 @@ pub fn render_with_progress(
     settings: &RenderSettings,
     progress: Option<&crate::progress::Progress>,
 ) -> RenderOutput {
-    render_region_with_progress(
-        scene,
-        settings,
-        0..settings.width,
-        0..settings.height,
-        progress,
-    )
+    render_with_history(scene, settings, progress, &mut None)
 }
 
 /// [`render_with_progress`], with a temporal reconstruction accumulating onto
@@ -108,31 +102,16 @@ pub fn render_with_history(
     progress: Option<&crate::progress::Progress>,
     history: &mut Option<crate::frame::History>,
 ) -> RenderOutput {
-    let setup = Instant::now();
-    let plan = Plan::new(scene, settings);
-    let prepared = Prepared::new(scene, settings, &plan);
-    let setup_time = setup.elapsed();
-    let (columns, rows) = (0..settings.width, 0..settings.height);
-    RenderOutput {
-        setup_time,
-        ..trace_region(
-            scene,
-            settings,
-            &plan,
-            &prepared,
-            (columns, rows),
-            progress,
-            history,
-        )
-    }
+    let whole = (0..settings.width, 0..settings.height);
+    render_region_with_progress(scene, settings, whole, progress, history)
 }
 
 fn render_region_with_progress(
     scene: &Scene,
     settings: &RenderSettings,
-    columns: std::ops::Range<u32>,
-    rows: std::ops::Range<u32>,
+    region: (std::ops::Range<u32>, std::ops::Range<u32>),
     progress: Option<&crate::progress::Progress>,
+    history: &mut Option<crate::frame::History>,
 ) -> RenderOutput {
     let setup = Instant::now();
     let plan = Plan::new(scene, settings);
@@ -141,15 +120,7 @@ fn render_region_with_progress(
     let setup_time = setup.elapsed();
     RenderOutput {
         setup_time,
-        ..trace_region(
-            scene,
-            settings,
-            &plan,
-            &prepared,
-            (columns, rows),
-            progress,
-            &mut None,
-        )
+        ..trace_region(scene, settings, &plan, &prepared, region, progress, history)
     }
 }
 

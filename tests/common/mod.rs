@@ -118,6 +118,19 @@ pub fn experiment(file: impl AsRef<Path>) -> Experiment {
     Experiment::load(&path).unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// `e` read again from its file with `sets` (`key=value`) applied, as `--set` applies
+/// them; its source path kept.
+pub fn overridden(e: &Experiment, sets: &[&str]) -> Experiment {
+    let path = e.source_path.as_ref().expect("loaded from a file");
+    let text = std::fs::read_to_string(path).unwrap();
+    let overrides: Vec<voxlab::experiment::Override> =
+        sets.iter().map(|s| s.parse().unwrap()).collect();
+    let mut out = Experiment::from_str_with(&text, path, &overrides)
+        .unwrap_or_else(|err| panic!("{sets:?}: {err}"));
+    out.source_path = e.source_path.clone();
+    out
+}
+
 /// A real model from `experiments/data/` (made by others; its README gives sources and
 /// licences); a missing file fails the test with where it was looked for.
 pub fn example_data(name: &str) -> PathBuf {
