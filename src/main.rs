@@ -577,6 +577,22 @@ fn render_one(session: &mut Session, e: &Experiment, out: &Path, opts: &RenderOp
         trace_ms,
         image.wall_time.as_secs_f64() * 1e3
     );
+    if e.settings.path_frames > 1 {
+        say!(
+            opts,
+            "path:       {} frames, the camera turning {} degrees per frame; the image, time and rays are the last frame's ({})",
+            e.settings.path_frames,
+            e.settings.orbit_deg,
+            if e.settings.features.reconstruction.temporal {
+                format!(
+                    "the {} before it give its reconstruction's history",
+                    e.settings.path_frames - 1
+                )
+            } else {
+                "of the frames before it only the last is rendered, for the flicker: no temporal reconstruction".to_string()
+            }
+        );
+    }
     // What the trace reads is prepared before it, so the trace time leaves it out.
     if !image.setup_time.is_zero() {
         say!(

@@ -432,3 +432,34 @@ fn a_display_path_accumulates_like_a_render_path() {
     let alone = session.render_frames(&e.scene, &e.settings, 0..1).unwrap();
     assert_ne!(alone.frame.pixels, path.frame.pixels);
 }
+
+/// `voxlab render` says when an image is a path's last frame, and what the frames
+/// before it were for.
+#[test]
+fn render_says_the_image_is_the_path_end() {
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("svgf-cli");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = experiment("reconstruction.toml").source_path.unwrap();
+    let run = |reconstruction: &str| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_voxlab"))
+            .args(["render", file.to_str().unwrap(), "--backend", "cpu"])
+            .args(["--width", "24", "--height", "16", "--out"])
+            .arg(dir.join(format!("{reconstruction}.png")))
+            .args([
+                "--set",
+                &format!("features.reconstruction=\"{reconstruction}\""),
+            ])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr)
+    };
+    let svgf = run("svgf");
+    assert!(
+        svgf.contains("path:       8 frames")
+            && svgf.contains("the 7 before it give its reconstruction's history"),
+        "{svgf}"
+    );
+    let atrous = run("atrous");
+    assert!(atrous.contains("only the last is rendered"), "{atrous}");
+}
