@@ -387,7 +387,9 @@ fn the_keys_are_checked() {
         ("render.orbit_deg=nan", "orbit_deg"),
         ("techniques.svgf.alpha=1.5", "alpha"),
         ("techniques.svgf.depth_tolerance=-1", "depth_tolerance"),
+        ("techniques.svgf.depth_tolerance=0", "depth_tolerance"),
         ("techniques.svgf.normal_tolerance=2", "normal_tolerance"),
+        ("techniques.svgf.normal_tolerance=1", "normal_tolerance"),
     ] {
         let e = experiment("reconstruction.toml");
         let text = std::fs::read_to_string(e.source_path.as_ref().unwrap()).unwrap();

@@ -55,16 +55,19 @@ const SETTINGS: &[Setting] = &[
         "",
         "least weight of a new frame in the temporal accumulation (Schied et al.: 0.2; 0: the mean of the path's frames)",
     ),
+    // Bounded away from the values where single precision decides otherwise than f64
+    // (a tolerance below f32's rounding of a reprojected point, a cosine of exactly 1):
+    // there the device and the reference would reject different taps.
     Setting::new(
         "depth_tolerance",
-        Kind::closed(0.0, 1.0),
+        Kind::closed(1e-4, 1.0),
         0.005,
         "of the depth",
         "history is rejected where the hit lies farther than this from the tap's tangent plane",
     ),
     Setting::new(
         "normal_tolerance",
-        Kind::closed(-1.0, 1.0),
+        Kind::closed(-1.0, 0.9999),
         0.9,
         "cosine",
         "history is rejected where the normals' cosine is below this",
