@@ -12,6 +12,7 @@
 // frame of one pixel.
 
 #import voxlab::types::{BIG, Material, PIXEL_FILTER_BOX, PIXEL_FILTER_GAUSSIAN}
+#import voxlab::dielectric::split_weights
 #import voxlab::bindings::{params, materials, output}
 #import voxlab::traversal::cast_ray
 #ifdef TRIANGLES
@@ -165,19 +166,16 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Mate
         let eta = materials[r.medium].ior / materials[h].ior;
         let c = -dot(n, d);
         let k = 1.0 - eta * eta * (1.0 - c * c);
-        if k < 0.0 {
-            // Total internal reflection: the refracted share goes to the reflection;
-            // under the seed's rules it is lost (GLSL's refract gives the zero vector).
-#ifndef SEED_RULES
-            w_r += s.kt;
-#endif
-        } else {
+        // The material's split (dielectric.wgsl); k < 0: total internal reflection.
+        let w = split_weights(s, c, eta, k < 0.0);
+        w_r = w.x;
+        if k >= 0.0 && w.y > 0.0 {
 #ifdef REFRACTION
-            if may_spawn(r, false) && traced(r.throughput * s.kt) {
+            if may_spawn(r, false) && traced(r.throughput * w.y) {
                 var t: RayEntry;
                 t.origin = p - params.eps * ng;
                 t.dir = normalize(eta * d + (eta * c - sqrt(k)) * n);
-                t.throughput = r.throughput * s.kt;
+                t.throughput = r.throughput * w.y;
                 t.depth_reflection = r.depth_reflection;
                 t.depth_refraction = r.depth_refraction + 1u;
                 t.medium = h;

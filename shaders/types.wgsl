@@ -69,8 +69,13 @@ struct Material {
     sigma_b: f32,
     // Radiance the voxel emits towards the viewer (seen, not cast).
     emission: vec3<f32>,
-    pad_d: f32,
+    // crate::scene::Dielectric::code: how a refracting hit splits its ray (trace.wgsl).
+    dielectric: u32,
 }
+
+// crate::scene::Dielectric::code.
+const DIELECTRIC_FIXED: u32 = 0u;
+const DIELECTRIC_FRESNEL: u32 = 1u;
 
 // Light kinds: a point (also an area light of size 0), or a shape the shadow model may
 // sample (shadow_area.wgsl) or integrate (shadow_ratio.wgsl); hard shadows take every

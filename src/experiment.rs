@@ -29,8 +29,8 @@ use crate::surface::SurfaceMesh;
 use crate::render::{Features, RenderSettings};
 use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
 use crate::scene::{
-    AreaLight, AreaShape, DENSE_MAX_VOXELS, Emission, Grid, Light, MAX_SPARSE_SIDE, MAX_VOXEL_SIZE,
-    MIN_VOXEL_SIZE, Material, PointLight, SEED_SHININESS, Scene, Storage,
+    AreaLight, AreaShape, DENSE_MAX_VOXELS, Dielectric, Emission, Grid, Light, MAX_SPARSE_SIDE,
+    MAX_VOXEL_SIZE, MIN_VOXEL_SIZE, Material, PointLight, SEED_SHININESS, Scene, Storage,
 };
 
 /// Grid side of the seed scene (`[scene] size` when neither `size` nor `dims` is given).
@@ -313,6 +313,7 @@ struct RawMaterial {
     sigma: Option<[f64; 3]>,
     #[serde(default, deserialize_with = "exact::option")]
     emission: Option<[f64; 3]>,
+    dielectric: Option<String>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -2051,6 +2052,17 @@ fn build_materials(
         }
         if let Some(e) = m.emission {
             mat.emission = vec3_where(ctx, &key("emission"), e, |x| x >= 0.0, ">= 0 (radiance)")?;
+        }
+        if let Some(name) = m.dielectric.as_deref() {
+            mat.dielectric = Dielectric::from_name(name).ok_or_else(|| {
+                ctx.invalid(
+                    &key("dielectric"),
+                    format!(
+                        "must be one of {}; got {name:?}",
+                        Dielectric::NAMES.map(|n| format!("{n:?}")).join(", ")
+                    ),
+                )
+            })?;
         }
         match existing {
             Some(idx) => palette[idx] = mat,

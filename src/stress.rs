@@ -432,8 +432,7 @@ pub fn generated_cases(opts: &SuiteOptions) -> Result<Vec<StressCase>> {
     }));
     let mut st = settings(48, 48);
     st.features.shadow_model = crate::technique::reference_shadow_model();
-    st.features.transmittance =
-        crate::render::Transmittance(crate::technique::TRANSMITTANCES.last().unwrap());
+    st.features.transmittance = crate::technique::beer_lambert::ID;
     st.light_samples = 4;
     st.spp = 2;
     // (Each shadow model on this scene, the reference among them, is a case below.)

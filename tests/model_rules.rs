@@ -168,6 +168,7 @@ fn a_back_lit_transmitting_face_has_no_highlight() {
         ior: 1.0,
         sigma: None,
         emission: DVec3::ZERO,
+        dielectric: Default::default(),
     };
     let mut materials = seed_palette();
     materials[1] = pane;

@@ -34,6 +34,7 @@ fn material(name: &str, kd: f64, kt: f64) -> Material {
         ior: 1.0,
         sigma: None,
         emission: DVec3::ZERO,
+        dielectric: Default::default(),
     }
 }
 

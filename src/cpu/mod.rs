@@ -16,7 +16,7 @@ use crate::frame::{Frame, PrimaryLayers, PrimaryPixel, RayStats, RenderOutput, l
 use crate::plan::Plan;
 use crate::ray_cutoff::{light_shaded, spawned, traced};
 use crate::render::{RenderSettings, Rules};
-use crate::scene::Scene;
+use crate::scene::{Dielectric, Scene, fresnel_dielectric};
 use crate::sparse::Regions;
 use crate::triangles::SurfaceTrace;
 
@@ -620,19 +620,35 @@ fn spawn(
     let mut reflection_weight = m.kr;
     // The same weight in f32, as the kernel sums it, for the ray cutoff.
     let mut reflection_factor = m.kr as f32;
-    let refraction_weight = spawned(ray.weight, m.kt as f32);
+    let mut refraction = m.kt;
+    let mut refraction_factor = m.kt as f32;
     let (a, b) = (ray.reflection_depth, ray.refraction_depth);
     if m.kt > 0.0 {
         let eta = scene.materials[ray.medium as usize].ior / scene.materials[material as usize].ior;
-        match refract(ray.dir, n, eta) {
+        let refracted = refract(ray.dir, n, eta);
+        if m.dielectric == Dielectric::Fresnel {
+            // The interface's own split, 1 under total internal reflection
+            // (shaders/dielectric.wgsl is its f32 twin).
+            let f = fresnel_dielectric(-n.dot(ray.dir), eta);
+            reflection_weight = m.kr * f;
+            refraction = m.kt * (1.0 - f);
+            // The cutoff's weights as the kernel multiplies them, so a weight at the
+            // cutoff falls the same side of it.
+            reflection_factor = m.kr as f32 * f as f32;
+            refraction_factor = m.kt as f32 * (1.0 - f as f32);
+        }
+        let refraction_weight = spawned(ray.weight, refraction_factor);
+        match refracted {
             // Total internal reflection: the refracted share goes to the reflection,
             // except under the seed's rules, where it is lost (GLSL's refract gives
-            // the zero vector, a ray that hits nothing).
-            None if settings.rules == Rules::Seed => {}
+            // the zero vector, a ray that hits nothing), and under Fresnel, whose
+            // reflectance is already 1.
+            None if settings.rules == Rules::Seed || m.dielectric == Dielectric::Fresnel => {}
             None => {
                 reflection_weight += m.kt;
                 reflection_factor += m.kt as f32;
             }
+            Some(_) if refraction <= 0.0 => {}
             Some(_) if !settings.may_spawn(a, b, false) => {}
             Some(_) if !traced(refraction_weight, prepared.cutoff) => {}
             Some(refracted) => {
@@ -640,7 +656,7 @@ fn spawn(
                 stack.push(StackRay {
                     origin: p - eps * ng,
                     dir: refracted,
-                    throughput: ray.throughput * m.kt,
+                    throughput: ray.throughput * refraction,
                     reflection_depth: a,
                     refraction_depth: b + 1,
                     medium: material,

@@ -276,6 +276,7 @@ pub(crate) fn material_table(m: &Material) -> Table {
         t.insert("sigma".into(), v3(s));
     }
     t.insert("emission".into(), v3(m.emission));
+    t.insert("dielectric".into(), m.dielectric.name().into());
     t
 }
 
@@ -518,6 +519,7 @@ const MATERIAL_KEYS: &[&str] = &[
     "ior",
     "sigma",
     "emission",
+    "dielectric",
 ];
 const RENDER_KEYS: &[&str] = &[
     "width",

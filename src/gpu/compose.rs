@@ -33,6 +33,10 @@ const MODULES: &[(&str, &str)] = &[
     TYPES_MODULE,
     EMISSION_MODULE,
     (
+        "shaders/dielectric.wgsl",
+        include_str!("../../shaders/dielectric.wgsl"),
+    ),
+    (
         "shaders/bindings.wgsl",
         include_str!("../../shaders/bindings.wgsl"),
     ),

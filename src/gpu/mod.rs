@@ -106,7 +106,8 @@ struct GpuMaterial {
     /// Beer-Lambert absorption per voxel unit (per world unit times voxel_size).
     sigma: [f32; 3],
     emission: [f32; 3],
-    _pad_e: f32,
+    /// `crate::scene::Dielectric::code`.
+    dielectric: u32,
 }
 
 /// `Light` of `shaders/types.wgsl`: the centre, colour times intensity, and for a

@@ -269,7 +269,7 @@ impl GpuTracer {
                 // Per world unit times world units per voxel: per voxel unit.
                 sigma: f3(m.absorption(scene.grid.voxel_size()) * scene.grid.voxel_size()),
                 emission: f3(m.emission),
-                _pad_e: 0.0,
+                dielectric: m.dielectric.code(),
             })
             .collect();
         let mut lights: Vec<GpuLight> = scene

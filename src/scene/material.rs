@@ -30,6 +30,71 @@ pub struct Material {
     /// Emitted radiance (RGB), added to the local term of a hit: C += emission.
     /// Zero for every non-emissive material (MagicaVoxel `_emit` sets it).
     pub emission: DVec3,
+    /// How a refracting hit (`kt > 0`) splits its ray between reflection and refraction.
+    pub dielectric: Dielectric,
+}
+
+/// How a refracting material (`kt > 0`) weights the reflected and the refracted ray at
+/// a hit; `[[materials]] dielectric`. Materials with `kt = 0` reflect `kr` either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Dielectric {
+    /// The seed's Whitted weights: `kr` and `kt` whatever the angle (under voxlab's
+    /// rules, total internal reflection moves `kt` to the reflection).
+    #[default]
+    Fixed,
+    /// A smooth dielectric: reflection `kr F` and refraction `kt (1 - F)`, with `F` the
+    /// unpolarised Fresnel reflectance of the interface ([`fresnel_dielectric`]; 1 under
+    /// total internal reflection), so `kr` and `kt` scale the two lobes as Mitsuba 3's
+    /// `dielectric` `specular_reflectance` and `specular_transmittance` and pbrt-v4's
+    /// `DielectricMaterial` (with both 1) do. The radiance scaling by `(n_t/n_i)^2` at a
+    /// refraction is left out: it cancels on every path that leaves the medium it
+    /// entered, which is every path the Whitted tree lights (docs/mitsuba.md).
+    Fresnel,
+}
+
+impl Dielectric {
+    /// The names `[[materials]] dielectric` takes, in the order of the variants.
+    pub const NAMES: [&'static str; 2] = ["fixed", "fresnel"];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Dielectric::Fixed => Self::NAMES[0],
+            Dielectric::Fresnel => Self::NAMES[1],
+        }
+    }
+
+    pub(crate) fn from_name(name: &str) -> Option<Dielectric> {
+        match name {
+            "fixed" => Some(Dielectric::Fixed),
+            "fresnel" => Some(Dielectric::Fresnel),
+            _ => None,
+        }
+    }
+
+    /// Its code in the kernel's `Material.dielectric` (`shaders/types.wgsl`).
+    pub(crate) fn code(self) -> u32 {
+        self as u32
+    }
+}
+
+/// The unpolarised Fresnel reflectance of a smooth interface between dielectrics, for
+/// a ray arriving at `cos_i = cos(theta_i) >= 0` from the side of index `n_i` onto index
+/// `n_t`, with `eta = n_i / n_t` (the ratio Snell's law in [`crate::cpu::refract`]
+/// takes): `F = (r_s^2 + r_p^2) / 2`, `r_s = (n_i cos_i - n_t cos_t) / (n_i cos_i + n_t
+/// cos_t)`, `r_p = (n_t cos_i - n_i cos_t) / (n_t cos_i + n_i cos_t)` (Hecht, Optics,
+/// 4th ed., section 4.6.2; pbrt-v4 section 9.5.1 `FrDielectric`), and 1 under total
+/// internal reflection (`sin_t > 1`).
+pub fn fresnel_dielectric(cos_i: f64, eta: f64) -> f64 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    // Divided through by n_t: n_i / n_t = eta.
+    let r_s = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_p = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (r_s * r_s + r_p * r_p)
 }
 
 impl Material {
@@ -57,6 +122,7 @@ impl Material {
             ior,
             sigma: None,
             emission: DVec3::ZERO,
+            dielectric: Dielectric::Fixed,
         }
     }
 }

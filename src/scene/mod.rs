@@ -15,7 +15,10 @@ pub use grid::{
     Storage, VOID,
 };
 pub use light::{AreaLight, AreaShape, Emission, Light, PointLight};
-pub use material::{MIN_KT_FOR_SIGMA, Material, SEED_SHININESS, seed_ids, seed_palette};
+pub use material::{
+    Dielectric, MIN_KT_FOR_SIGMA, Material, SEED_SHININESS, fresnel_dielectric, seed_ids,
+    seed_palette,
+};
 pub use mesh::{Resolution, VoxelizeOptions, Voxelized, load_mesh, voxelize_mesh};
 pub use seed::{seed_scene, seed_scene_dims};
 pub use vox::{LoadError, LoadErrorKind, VoxScene, load_vox, load_vox_as, write_vox};

@@ -136,6 +136,7 @@ pub fn diffuse_material(name: impl Into<String>, albedo: DVec3) -> Material {
         ior: 1.0,
         sigma: None,
         emission: DVec3::ZERO,
+        dielectric: Default::default(),
     }
 }
 

@@ -16,7 +16,8 @@
 //! A transmittance model is one [`TransmittanceModel`] value in its own file (its name,
 //! summary, plan rule, WGSL module `voxlab::transmittance` and f64 functions, and the
 //! per-voxel transmittance the cone pyramids use), registered with one line in
-//! [`TRANSMITTANCES`]: `min-kt` ([`min_kt`]) and `beer-lambert` ([`beer_lambert`]).
+//! [`TRANSMITTANCES`]: `min-kt` ([`min_kt`]), `beer-lambert` ([`beer_lambert`]) and
+//! `opaque` ([`opaque`]).
 //! The shadow walks (voxels, dense or sparse, and triangle surfaces; `shaders/shadow.wgsl`,
 //! `shaders/shadow_surface.wgsl`, `crate::technique::shading::shadow_transmittance`) are generic over it.
 //!
@@ -54,6 +55,7 @@ pub mod indirect;
 pub mod mesh;
 pub mod min_kt;
 pub mod octant;
+pub mod opaque;
 pub mod proximity;
 pub mod ratio;
 pub mod sdf;
@@ -92,7 +94,8 @@ pub const LIGHTING_TERMS: &[&LightingTerm] = &[&ambient_occlusion::TERM, &indire
 
 /// Transmittance models, in the order they are listed and offered; the first is the
 /// default (the baseline's). One line each.
-pub const TRANSMITTANCES: &[&TransmittanceModel] = &[&min_kt::MODEL, &beer_lambert::MODEL];
+pub const TRANSMITTANCES: &[&TransmittanceModel] =
+    &[&min_kt::MODEL, &beer_lambert::MODEL, &opaque::MODEL];
 
 /// Traversals, in the order they are listed and offered; the first is the default (the
 /// baseline's), which `auto` takes unless another claims the scene. One line each.

@@ -20,7 +20,7 @@ use super::worker::{Job, Report, Update};
 use crate::experiment::Experiment;
 use crate::frame::Frame;
 use crate::metrics::{Domain, compare};
-use crate::scene::{AreaShape, Emission, Light};
+use crate::scene::{AreaShape, Dielectric, Emission, Light};
 
 /// One row of a declared setting (`crate::technique::Setting`): a drag value over its
 /// declared range; true when it changed to a value the declaration's check accepts.
@@ -1267,6 +1267,15 @@ impl ViewerApp {
                                 if let Some(s) = &mut m.sigma {
                                     changed |= vec3_row(ui, "", s, 0.01, Some(0.0));
                                 }
+                                ui.label("dielectric");
+                                ui.horizontal(|ui| {
+                                    for d in [Dielectric::Fixed, Dielectric::Fresnel] {
+                                        changed |= ui
+                                            .radio_value(&mut m.dielectric, d, d.name())
+                                            .changed();
+                                    }
+                                });
+                                ui.end_row();
                             });
                         });
                 }
