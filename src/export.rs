@@ -25,11 +25,12 @@
 //!   `conductor` of `specular_reflectance = kr`; diffuse plus mirror a `blendbsdf` of
 //!   the two when `kd + kr <= 1`. Exact. A Phong highlight (`ks > 0`) is dropped, and a
 //!   transparent material (`kt > 0`) is a `dielectric` of its `ior` with
-//!   `specular_transmittance = kt` and, under a transmittance model with distance in it
-//!   (`TransmittanceModel::interior_extinction`: Beer-Lambert), a homogeneous absorbing
-//!   interior (then the integrator is `volpath`): Mitsuba weighs reflection and refraction by Fresnel's
-//!   equations and its shadows do not pass through glass, where voxlab's fixed `kr`,
-//!   `kt` and semi-transparent shadows do.
+//!   `specular_reflectance = kr`, `specular_transmittance = kt` and, under a
+//!   transmittance model with distance in it (`TransmittanceModel::interior_extinction`:
+//!   Beer-Lambert), a homogeneous absorbing interior (then the integrator is `volpath`).
+//!   Exact when the material is `dielectric = "fresnel"` without a diffuse term, meets
+//!   only void, and shadows stop at it (`transmittance = "opaque"`, as Mitsuba's do);
+//!   otherwise each difference is an approximation (`Writer::dielectric`).
 //! - Camera: `perspective` at the orbit camera's eye, target and up, the vertical field
 //!   of view, the image's size; pixel `(i, j)` covers the same square. voxlab's
 //!   `pixel_filter = "box"` (`filter_width = 0.5`) is Mitsuba's `box` filter exactly;
@@ -37,7 +38,9 @@
 //! - Integrator: `path` (`volpath` when a glass has an absorbing interior) with `max_depth = 2` (direct light only, as the Whitted model
 //!   lights a diffuse hit) and `hide_emitters` (voxlab's lights are not seen). A scene
 //!   with mirrors or glass needs longer paths, which also carry the diffuse
-//!   interreflection voxlab leaves out: an approximation.
+//!   interreflection voxlab leaves out: an approximation. `scene.xml.json` records the
+//!   Whitted tree's depth limits, from which `voxlab.mitsuba.Whitted` (python) renders
+//!   Whitted's paths alone in Mitsuba.
 //! - Left out, as approximations: the ambient term, emissive voxels (voxlab shows them
 //!   and they light nothing), the lighting terms (AO, indirect), falloff turned off,
 //!   `d_min` where a light comes within it of a surface.
@@ -49,7 +52,7 @@ use glam::{DVec3, IVec3};
 
 use crate::experiment::Experiment;
 use crate::render::PixelFilter;
-use crate::scene::{AreaShape, Emission, Grid, Light, Material, VOID};
+use crate::scene::{AreaShape, Dielectric, Emission, Grid, Light, Material, VOID};
 use crate::surface::SurfaceMesh;
 
 /// A part of the scene Mitsuba cannot hold exactly, and what the export does instead.
@@ -206,6 +209,55 @@ impl Writer<'_> {
             .flatten()
     }
 
+    /// The approximations of a transparent material `m` as Mitsuba's `dielectric` of
+    /// `specular_reflectance = kr`, `specular_transmittance = kt`: exact when it splits
+    /// its rays by Fresnel's equations, has no diffuse term, meets only void (Mitsuba's
+    /// exterior is vacuum) and shadows stop at it (`opaque`), as a path tracer's do.
+    fn dielectric(&mut self, m: &Material) {
+        let key = |k: &str| format!("materials[{}].{k}", m.name);
+        if m.dielectric != Dielectric::Fresnel {
+            self.approx(
+                &key("dielectric"),
+                format!(
+                    "fixed kr and kt as Mitsuba's dielectric (ior {}), which weights reflection \
+                     and refraction by Fresnel's equations (dielectric = \"fresnel\" is exact)",
+                    m.ior
+                ),
+            );
+        }
+        if m.kd > 0.0 {
+            self.approx(
+                &key("kd"),
+                "the diffuse term of a transparent material is left out".into(),
+            );
+        }
+        if m.ior == 1.0 {
+            self.approx(
+                &key("ior"),
+                "ior 1 as 1.000001: Mitsuba's dielectric needs two different indices".into(),
+            );
+        }
+        let model = self.e.settings.features.transmittance;
+        if model != crate::technique::opaque::ID {
+            let absorbs = self.interior(m).is_some();
+            self.approx(
+                "features.transmittance",
+                format!(
+                    "{}: voxlab's shadow rays pass through {}, Mitsuba's stop at a dielectric \
+                     (transmittance = \"opaque\" is exact){}",
+                    model.name(),
+                    m.name,
+                    if absorbs {
+                        "; its paths inside the glass are also absorbed in Mitsuba (a medium), \
+                         not in voxlab, whose kt weighs each crossing"
+                    } else {
+                        ""
+                    }
+                ),
+            );
+        }
+    }
+
     /// Direct light only unless specular chains are needed.
     fn integrator(&mut self) {
         let (scene, s) = (&self.e.scene, &self.e.settings);
@@ -223,7 +275,8 @@ impl Writer<'_> {
             self.approx(
                 "materials",
                 "mirrors or glass: Mitsuba's path tracer follows them to max_depth and also \
-             carries the diffuse interreflection that voxlab's Whitted model leaves out"
+             carries the diffuse interreflection that voxlab's Whitted model leaves out \
+             (voxlab.mitsuba.Whitted, from Python, renders the Whitted paths alone)"
                     .into(),
             );
             2 + s.max_reflection_depth + s.max_refraction_depth
@@ -309,14 +362,7 @@ impl Writer<'_> {
                 );
             }
             if m.kt > 0.0 {
-                self.approx(
-                    &key("kt"),
-                    format!(
-                        "glass as Mitsuba's dielectric (ior {}): Fresnel-weighted reflection and \
-                     refraction instead of kr and kt, and no light through it in shadows",
-                        m.ior
-                    ),
-                );
+                self.dielectric(m);
             }
             if m.kd > 0.0 && m.kr > 0.0 && m.kt == 0.0 && m.kd + m.kr > 1.0 {
                 self.approx(
@@ -354,17 +400,11 @@ impl Writer<'_> {
 
     /// The meshes, one per material: the voxels' faces merged, or the traced surface's
     /// triangles; each written as a PLY file.
-    fn geometry(&mut self) -> Result<Vec<MaterialTriangles>, ExportError> {
-        let (scene, s) = (&self.e.scene, &self.e.settings);
-        let meshes: Vec<MaterialTriangles> = match s.surface.0.triangles {
-            Some(triangles) => {
-                let mesh = triangles(scene).map_err(|e| ExportError::Triangles {
-                    file: self.file.clone(),
-                    message: e.to_string(),
-                })?;
-                per_material(&mesh)
-            }
-            None => greedy_faces(&scene.grid, &scene.materials, MAX_EXPORT_TRIANGLES)
+    /// The grid's faces (greedy meshing), or the error that there would be too many.
+    fn voxel_faces(&self) -> Result<Vec<MaterialTriangles>, ExportError> {
+        let scene = &self.e.scene;
+        Ok(
+            greedy_faces(&scene.grid, &scene.materials, MAX_EXPORT_TRIANGLES)
                 .ok_or_else(|| ExportError::TooLarge {
                     file: self.file.clone(),
                     what: format!(
@@ -375,6 +415,32 @@ impl Writer<'_> {
                 .into_iter()
                 .map(|(m, tris)| (m, tris, Vec::new()))
                 .collect(),
+        )
+    }
+
+    fn geometry(&mut self) -> Result<Vec<MaterialTriangles>, ExportError> {
+        let (scene, s) = (&self.e.scene, &self.e.settings);
+        let meshes: Vec<MaterialTriangles> = match s.surface.0.triangles {
+            Some(triangles) => {
+                let mesh = triangles(scene).map_err(|e| ExportError::Triangles {
+                    file: self.file.clone(),
+                    message: e.to_string(),
+                })?;
+                per_material(&mesh)
+            }
+            None if let Some((a, b)) = glass_contact(&scene.grid, &scene.materials) => {
+                let (a, b) = (&scene.materials[a as usize], &scene.materials[b as usize]);
+                self.approx(
+                    &format!("materials[{}].ior", a.name),
+                    format!(
+                        "{} touches {}: their interface as {}'s dielectric against vacuum \
+                         (voxlab refracts by the ratio of the two indices)",
+                        a.name, b.name, a.name
+                    ),
+                );
+                self.voxel_faces()?
+            }
+            None => self.voxel_faces()?,
         };
         for (m, tris, normals) in &meshes {
             let name = PathBuf::from("meshes").join(format!("material{m}.ply"));
@@ -550,6 +616,34 @@ fn esc(s: &str) -> String {
         .replace("--", "- -")
 }
 
+/// Two different transparent materials (`kt > 0`) in face-adjacent voxels, if any:
+/// their shared face is one dielectric in the export, against vacuum.
+fn glass_contact(grid: &Grid, materials: &[Material]) -> Option<(u8, u8)> {
+    let clear = |m: u8| m != VOID && materials[m as usize].kt > 0.0;
+    let d = grid.dims().as_ivec3();
+    for z in 0..d.z {
+        for y in 0..d.y {
+            for x in 0..d.x {
+                let p = IVec3::new(x, y, z);
+                let a = grid.get(p);
+                if !clear(a) {
+                    continue;
+                }
+                for step in [IVec3::X, IVec3::Y, IVec3::Z] {
+                    let q = p + step;
+                    if q.cmplt(d).all() {
+                        let b = grid.get(q);
+                        if b != a && clear(b) {
+                            return Some((a.min(b), a.max(b)));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    None
+}
+
 /// Which palette entries some voxel uses.
 fn used_materials(grid: &Grid) -> [bool; 256] {
     let mut used = [false; 256];
@@ -572,9 +666,12 @@ fn bsdf(i: usize, m: &Material) -> String {
         return format!(
             "  <bsdf type=\"dielectric\" id=\"{id}\">\n    <float name=\"int_ior\" value=\"{}\"/>\n    \
              <float name=\"ext_ior\" value=\"1\"/>\n    \
+             <spectrum name=\"specular_reflectance\" value=\"{}\"/>\n    \
              <spectrum name=\"specular_transmittance\" value=\"{}\"/>\n  </bsdf>",
-            m.ior.max(1.0 + 1e-6),
-            m.kt.min(1.0)
+            // Mitsuba refuses equal indices (an approximation: Writer::dielectric).
+            if m.ior == 1.0 { 1.0 + 1e-6 } else { m.ior },
+            m.kr,
+            m.kt
         );
     }
     let diffuse = m.albedo * m.kd;
@@ -888,6 +985,13 @@ pub fn write_mitsuba(
             "approximations": scene.approximations.iter()
                 .map(|a| serde_json::json!({"key": a.key, "mapping": a.mapping}))
                 .collect::<Vec<_>>(),
+            // The Whitted tree's limits, which `voxlab.mitsuba.Whitted` (python) follows.
+            "whitted": {
+                "max_reflection_depth": e.settings.max_reflection_depth,
+                "max_refraction_depth": e.settings.max_refraction_depth,
+                "max_depth": e.settings.max_depth,
+                "seed_rules": e.settings.rules == crate::render::Rules::Seed,
+            },
         }),
     );
     let record_text = serde_json::to_string_pretty(&record).expect("a JSON value serialises");

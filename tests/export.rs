@@ -241,6 +241,82 @@ fn approximations_are_listed_and_strict_refuses_them() {
     }
 }
 
+/// Glass is Mitsuba's dielectric of `specular_reflectance = kr` and
+/// `specular_transmittance = kt`: exact only as a Fresnel dielectric without a diffuse
+/// term, against void, with shadows that stop at it; each other case is listed with
+/// its key, and the index is written as given (below 1 too).
+#[test]
+fn glass_is_exact_only_as_a_path_tracer_sees_it() {
+    let base = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/mitsuba/glass_block.toml"),
+    )
+    .unwrap();
+    let keys = |text: &str| -> Vec<String> {
+        let e = Experiment::from_str(text, "glass.toml").unwrap();
+        mitsuba(&e, false)
+            .unwrap()
+            .approximations
+            .into_iter()
+            .map(|a| a.key)
+            .filter(|k| k != "materials")
+            .collect()
+    };
+    assert_eq!(keys(&base), Vec::<String>::new());
+    let e = Experiment::from_str(&base, "glass.toml").unwrap();
+    let xml = String::from_utf8(mitsuba(&e, false).unwrap().files[0].1.clone()).unwrap();
+    for want in [
+        "<float name=\"int_ior\" value=\"1.5\"/>",
+        "<spectrum name=\"specular_reflectance\" value=\"1\"/>",
+        "<spectrum name=\"specular_transmittance\" value=\"0.9\"/>",
+    ] {
+        assert!(xml.contains(want), "{want} not in {xml}");
+    }
+    let cases = [
+        (
+            "dielectric = \"fresnel\"",
+            "dielectric = \"fixed\"",
+            "materials[glass].dielectric",
+        ),
+        (
+            "transmittance = \"opaque\"",
+            "transmittance = \"min-kt\"",
+            "features.transmittance",
+        ),
+        (
+            "transmittance = \"opaque\"",
+            "transmittance = \"beer-lambert\"",
+            "features.transmittance",
+        ),
+        (
+            "kd = 0.0\nks = 0.0\nkr = 1.0",
+            "kd = 0.2\nks = 0.0\nkr = 1.0",
+            "materials[glass].kd",
+        ),
+        ("ior = 1.5", "ior = 1.0", "materials[glass].ior"),
+    ];
+    for (from, to, key) in cases {
+        assert!(base.contains(from), "{from}");
+        let got = keys(&base.replace(from, to));
+        assert_eq!(got, vec![key.to_string()], "{to}");
+    }
+    // Two glasses touching: their interface is one dielectric against vacuum.
+    let two = base.replace(
+        "[[materials]]\nname = \"floor\"",
+        "[[scene.boxes]]\nmin = [14, 1, 8]\nmax = [16, 6, 14]\nmaterial = \"semi-solid\"\n\n\
+         [[materials]]\nname = \"semi-solid\"\nkd = 0.0\nks = 0.0\ndielectric = \"fresnel\"\n\n\
+         [[materials]]\nname = \"floor\"",
+    );
+    let got = keys(&two);
+    assert!(got.contains(&"materials[glass].ior".to_string()), "{got:?}");
+    // An index below 1 is written as it is (it was clamped to 1 once, silently).
+    let e = Experiment::from_str(&base.replace("ior = 1.5", "ior = 0.7"), "g.toml").unwrap();
+    let xml = String::from_utf8(mitsuba(&e, false).unwrap().files[0].1.clone()).unwrap();
+    assert!(
+        xml.contains("<float name=\"int_ior\" value=\"0.7\"/>"),
+        "{xml}"
+    );
+}
+
 struct Scratch(std::path::PathBuf);
 impl Scratch {
     fn path(&self) -> &std::path::Path {
