@@ -28,9 +28,10 @@
 //!   `specular_reflectance = kr`, `specular_transmittance = kt` and, under a
 //!   transmittance model with distance in it (`TransmittanceModel::interior_extinction`:
 //!   Beer-Lambert), a homogeneous absorbing interior (then the integrator is `volpath`).
-//!   Exact when the material is `dielectric = "fresnel"` without a diffuse term, meets
-//!   only void, and shadows stop at it (`transmittance = "opaque"`, as Mitsuba's do);
-//!   otherwise each difference is an approximation (`Writer::dielectric`).
+//!   Exact when the material is `dielectric = "fresnel"`, meets only void, and shadows
+//!   stop at it (`transmittance = "opaque"`, as Mitsuba's do); a diffuse term makes it a
+//!   `blendbsdf` of diffuse and dielectric, exact while `kd max(albedo) + max(kr, kt)
+//!   <= 1`. Otherwise each difference is an approximation (`Writer::dielectric`).
 //! - Camera: `perspective` at the orbit camera's eye, target and up, the vertical field
 //!   of view, the image's size; pixel `(i, j)` covers the same square. voxlab's
 //!   `pixel_filter = "box"` (`filter_width = 0.5`) is Mitsuba's `box` filter exactly;
@@ -210,9 +211,10 @@ impl Writer<'_> {
     }
 
     /// The approximations of a transparent material `m` as Mitsuba's `dielectric` of
-    /// `specular_reflectance = kr`, `specular_transmittance = kt`: exact when it splits
-    /// its rays by Fresnel's equations, has no diffuse term, meets only void (Mitsuba's
-    /// exterior is vacuum) and shadows stop at it (`opaque`), as a path tracer's do.
+    /// `specular_reflectance = kr`, `specular_transmittance = kt` (blended with a
+    /// diffuse term where it has one): exact when it splits its rays by Fresnel's
+    /// equations, its blend fits, it meets only void (Mitsuba's exterior is vacuum) and
+    /// shadows stop at it (`opaque`), as a path tracer's do.
     fn dielectric(&mut self, m: &Material) {
         let key = |k: &str| format!("materials[{}].{k}", m.name);
         if m.dielectric != Dielectric::Fresnel {
@@ -225,10 +227,14 @@ impl Writer<'_> {
                 ),
             );
         }
-        if m.kd > 0.0 {
+        if m.kd > 0.0 && diffuse_dielectric_blend(m).is_none() {
             self.approx(
                 &key("kd"),
-                "the diffuse term of a transparent material is left out".into(),
+                format!(
+                    "kd max(albedo) + max(kr, kt) = {} > 1: the blend of diffuse and \
+                     dielectric is scaled to fit",
+                    m.kd * m.albedo.max_element() + m.kr.max(m.kt)
+                ),
             );
         }
         if m.ior == 1.0 {
@@ -663,15 +669,30 @@ fn bsdf(i: usize, m: &Material) -> String {
     let rgb = |v: DVec3| format!("<rgb name=\"reflectance\" value=\"{}\"/>", v3(v));
     let id = format!("material{i}");
     if m.kt > 0.0 {
+        let dielectric = |id: &str, scale: f64| {
+            format!(
+                "<bsdf type=\"dielectric\"{id}>\n    <float name=\"int_ior\" value=\"{}\"/>\n    \
+                 <float name=\"ext_ior\" value=\"1\"/>\n    \
+                 <spectrum name=\"specular_reflectance\" value=\"{}\"/>\n    \
+                 <spectrum name=\"specular_transmittance\" value=\"{}\"/>\n  </bsdf>",
+                // Mitsuba refuses equal indices (an approximation: Writer::dielectric).
+                if m.ior == 1.0 { 1.0 + 1e-6 } else { m.ior },
+                m.kr * scale,
+                m.kt * scale
+            )
+        };
+        if m.kd <= 0.0 {
+            return format!("  {}", dielectric(&format!(" id=\"{id}\""), 1.0));
+        }
+        // (1 - w) rho + w D(kr / w, kt / w) = kd albedo + D(kr, kt) with w = max(kr, kt)
+        // and rho = kd albedo / (1 - w); past 1, rho is scaled to 1 (an approximation).
+        let w = diffuse_dielectric_blend(m).unwrap_or_else(|| m.kr.max(m.kt).min(0.5));
+        let rho = (m.albedo * m.kd / (1.0 - w)).min(DVec3::ONE);
         return format!(
-            "  <bsdf type=\"dielectric\" id=\"{id}\">\n    <float name=\"int_ior\" value=\"{}\"/>\n    \
-             <float name=\"ext_ior\" value=\"1\"/>\n    \
-             <spectrum name=\"specular_reflectance\" value=\"{}\"/>\n    \
-             <spectrum name=\"specular_transmittance\" value=\"{}\"/>\n  </bsdf>",
-            // Mitsuba refuses equal indices (an approximation: Writer::dielectric).
-            if m.ior == 1.0 { 1.0 + 1e-6 } else { m.ior },
-            m.kr,
-            m.kt
+            "  <bsdf type=\"blendbsdf\" id=\"{id}\">\n    <float name=\"weight\" value=\"{w}\"/>\n    \
+             <bsdf type=\"diffuse\">\n      {}\n    </bsdf>\n    {}\n  </bsdf>",
+            rgb(rho),
+            dielectric("", 1.0 / w)
         );
     }
     let diffuse = m.albedo * m.kd;
@@ -703,6 +724,14 @@ fn bsdf(i: usize, m: &Material) -> String {
         rgb(m.albedo * s.min(1.0)),
         mirror(s.min(1.0))
     )
+}
+
+/// The blend weight `w = max(kr, kt)` of the dielectric when a transparent material
+/// with a diffuse term maps exactly onto Mitsuba's `blendbsdf` of `diffuse` and
+/// `dielectric` (the diffuse reflectance `kd albedo / (1 - w)` at most 1).
+fn diffuse_dielectric_blend(m: &Material) -> Option<f64> {
+    let w = m.kr.max(m.kt);
+    (w > 0.0 && w < 1.0 && m.kd * m.albedo.max_element() <= 1.0 - w).then_some(w)
 }
 
 /// The triangles of a traced mesh, with their shading normals, per material.

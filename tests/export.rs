@@ -299,6 +299,23 @@ fn glass_is_exact_only_as_a_path_tracer_sees_it() {
         let got = keys(&base.replace(from, to));
         assert_eq!(got, vec![key.to_string()], "{to}");
     }
+    // A diffuse term fits a blend of diffuse and dielectric exactly while kd max(albedo)
+    // + max(kr, kt) <= 1.
+    let blend = base.replace(
+        "kd = 0.0\nks = 0.0\nkr = 1.0\nkt = 0.9",
+        "kd = 0.2\nks = 0.0\nkr = 0.3\nkt = 0.6",
+    );
+    assert_eq!(keys(&blend), Vec::<String>::new());
+    let e = Experiment::from_str(&blend, "blend.toml").unwrap();
+    let xml = String::from_utf8(mitsuba(&e, false).unwrap().files[0].1.clone()).unwrap();
+    for want in [
+        "<bsdf type=\"blendbsdf\" id=\"material1\">",
+        "<float name=\"weight\" value=\"0.6\"/>",
+        "<spectrum name=\"specular_transmittance\" value=\"1\"/>",
+        "<spectrum name=\"specular_reflectance\" value=\"0.5\"/>",
+    ] {
+        assert!(xml.contains(want), "{want} not in {xml}");
+    }
     // Two glasses touching: their interface is one dielectric against vacuum.
     let two = base.replace(
         "[[materials]]\nname = \"floor\"",

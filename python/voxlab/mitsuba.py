@@ -21,7 +21,10 @@ test. Only the tree's shape comes from voxlab (docs/mitsuba.md).
 
 The integrator is Python called once per sample, so it is meant for Mitsuba's scalar
 variants (a 48 x 48 image at 16 spp takes about a second); a vectorised variant is
-refused.
+refused. A converged reference for `voxlab ablate`'s `[ablate] reference`, over as many
+processes as the machine has cores:
+
+    python -m voxlab.mitsuba out/glass --spp 4096 --jobs 2 --out out/glass/mitsuba.exr
 """
 
 from __future__ import annotations
@@ -31,9 +34,11 @@ import os
 from pathlib import Path
 from typing import Any, Union
 
+import numpy as np
+
 PathLike = Union[str, "os.PathLike[str]"]
 
-__all__ = ["Whitted", "load", "limits"]
+__all__ = ["Whitted", "load", "limits", "render", "main"]
 
 
 def _mi():
@@ -134,7 +139,14 @@ def Whitted(
         def to_string(self):
             return f"Whitted[max_reflection_depth={max_reflection_depth}, max_refraction_depth={max_refraction_depth}, max_depth={max_depth}]"
 
-    return _Whitted(mi.Properties())
+    # Mitsuba warns that a Python integrator is slow in scalar variants, which this one
+    # is by design (the module's note); the warning says nothing the caller can act on.
+    level = mi.log_level()
+    mi.set_log_level(mi.LogLevel.Error)
+    try:
+        return _Whitted(mi.Properties())
+    finally:
+        mi.set_log_level(level)
 
 
 def load(directory: PathLike):
@@ -142,3 +154,97 @@ def load(directory: PathLike):
     mi = _mi()
     directory = Path(directory)
     return mi.load_file(str(directory / "scene.xml")), Whitted(**limits(directory))
+
+
+def _render_part(directory: str, spp: int, seed: int, integrator: str):
+    import mitsuba as mi
+
+    if not mi.variant():
+        mi.set_variant("scalar_rgb")
+    scene, whitted = load(directory)
+    chosen = whitted if integrator == "whitted" else None
+    return np.asarray(mi.render(scene, integrator=chosen, spp=spp, seed=seed), dtype=np.float64)
+
+
+def render(
+    directory: PathLike, spp: int, seed: int = 0, jobs: int = 1, integrator: str = "whitted"
+):
+    """The mean of `jobs` independent renders of `spp / jobs` samples each (seeds
+    `seed`, `seed + 1`, ...; in parallel processes when `jobs > 1`), as float64 RGB:
+    Mitsuba's estimate of the export in `directory` at `spp` samples per pixel, by
+    Whitted's paths or by Mitsuba's own `path` integrator (`integrator="path"`)."""
+    if integrator not in ("whitted", "path"):
+        raise ValueError(f"integrator {integrator!r}: must be 'whitted' or 'path'")
+    if not (isinstance(spp, int) and 1 <= spp <= 1 << 20):
+        raise ValueError(f"spp {spp!r}: must be an integer in 1..={1 << 20}")
+    if not (isinstance(jobs, int) and 1 <= jobs <= spp):
+        raise ValueError(f"jobs {jobs!r}: must be an integer in 1..=spp ({spp})")
+    limits(directory)  # the directory is an export, before any work
+    parts = [spp // jobs + (1 if k < spp % jobs else 0) for k in range(jobs)]
+    args = [(str(directory), n, seed + k, integrator) for k, n in enumerate(parts)]
+    if jobs == 1:
+        images = [_render_part(*args[0])]
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(jobs, mp_context=context, initializer=_variant_of_parent,
+                                 initargs=(_mi().variant(),)) as pool:
+            images = list(pool.map(_render_part, *zip(*args)))
+    image = sum(n * im for n, im in zip(parts, images)) / spp
+    return image[..., :3]
+
+
+def _variant_of_parent(variant: str):
+    import mitsuba as mi
+
+    mi.set_variant(variant)
+
+
+def main(argv: list | None = None) -> int:
+    """`python -m voxlab.mitsuba DIR --spp N [--jobs J] [--seed S] [--integrator
+    whitted|path] --out FILE.exr`: a reference render of an export, written whole or
+    not at all."""
+    import argparse
+    import sys
+    import tempfile
+
+    parser = argparse.ArgumentParser(prog="python -m voxlab.mitsuba")
+    parser.add_argument("directory", help="a directory `voxlab export --to mitsuba` wrote")
+    parser.add_argument("--spp", type=int, required=True)
+    parser.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--integrator", choices=["whitted", "path"], default="whitted")
+    parser.add_argument("--out", required=True, help="the image to write (.exr, linear RGB)")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    if out.suffix.lower() != ".exr":
+        parser.error(f"--out {out}: must name an .exr file")
+    if out.is_dir():
+        parser.error(f"--out {out}: is a directory")
+    import mitsuba as mi
+
+    mi.set_variant("scalar_rgb")
+    try:
+        image = render(args.directory, args.spp, args.seed, args.jobs, args.integrator)
+    except (FileNotFoundError, ValueError) as e:
+        print(f"python -m voxlab.mitsuba: {e}", file=sys.stderr)
+        return 2
+    out.parent.mkdir(parents=True, exist_ok=True)
+    # Written beside its destination and renamed: the file is whole or absent.
+    fd, tmp = tempfile.mkstemp(suffix=".exr", dir=out.parent, prefix=".mitsuba-")
+    os.close(fd)
+    try:
+        mi.Bitmap(image.astype(np.float32)).write(tmp)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, out)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    print(f"{out}: Mitsuba {mi.__version__} {mi.variant()}, {args.integrator}, {args.spp} spp")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
