@@ -10,7 +10,7 @@
 
 mod common;
 
-use common::{assert_agree, tracer};
+use common::{assert_same_tree, tracer};
 use rand::{RngExt, SeedableRng};
 use voxlab::RenderSettings;
 use voxlab::experiment::Experiment;
@@ -265,12 +265,7 @@ fn gpu_equals_cpu_over_generated_cases() {
         );
         let c = voxlab::cpu::render(&scene, &s);
         let g = gpu.render_counted(&scene, &s).unwrap();
-        assert_agree(&name, &g.frame, &c.frame);
-        let (gs, cs) = (g.stats.secondary as f64, c.stats.secondary as f64);
-        assert!(
-            (gs - cs).abs() <= 0.01 * cs.max(100.0),
-            "{name}: secondary rays GPU {gs} against CPU {cs}"
-        );
+        assert_same_tree(&name, &g, &c);
     }
 }
 

@@ -86,6 +86,18 @@ pub fn assert_agree(name: &str, g: &Frame, c: &Frame) -> ImageDiff {
     assert_agree_within(name, g, c, 0.005)
 }
 
+/// [`assert_agree`] of a counted GPU render and the CPU's, and the same decisions: their
+/// secondary-ray counts within 1 % (a grazing ray may take another path in f32).
+#[track_caller]
+pub fn assert_same_tree(name: &str, g: &voxlab::RenderOutput, c: &voxlab::RenderOutput) {
+    assert_agree(name, &g.frame, &c.frame);
+    let (gs, cs) = (g.stats.secondary as f64, c.stats.secondary as f64);
+    assert!(
+        (gs - cs).abs() <= 0.01 * cs.max(100.0),
+        "{name}: secondary rays GPU {gs} against CPU {cs}"
+    );
+}
+
 pub fn golden_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
 }
