@@ -203,10 +203,32 @@ def test_reference_command_writes_the_mean_image_whole_or_not_at_all(tmp_path):
         proc = run_reference(*args)
         assert proc.returncode != 0 and words in proc.stderr, (args, proc.stderr)
         assert not bad.exists() and not (tmp_path / "x.png").exists()
+    long = tmp_path / ("x" * 300 + ".exr")
+    proc = run_reference(tmp_path / "scene", "--spp", 2, "--out", long)
+    assert proc.returncode != 0 and "at most 255" in proc.stderr, proc.stderr
     (tmp_path / "dir.exr").mkdir()
     proc = run_reference(tmp_path / "scene", "--spp", 2, "--out", tmp_path / "dir.exr")
     assert proc.returncode != 0 and "is a directory" in proc.stderr, proc.stderr
     assert sorted(p.name for p in (tmp_path / "refs").iterdir()) == ["mitsuba.exr"]
+
+
+def test_reference_command_leaves_nothing_when_the_write_fails(tmp_path, monkeypatch, capsys):
+    exp = vx.load(EXPERIMENTS / "mitsuba" / "glass_block.toml")
+    exp.export_mitsuba(tmp_path / "scene")
+    out = tmp_path / "refs" / "mitsuba.exr"
+
+    class Failing:
+        def __init__(self, image):
+            pass
+
+        def write(self, path):
+            Path(path).write_bytes(b"half an EXR")
+            raise RuntimeError("disk full")
+
+    monkeypatch.setattr(mi, "Bitmap", Failing)
+    assert voxlab.mitsuba.main([str(tmp_path / "scene"), "--spp", "1", "--out", str(out)]) == 2
+    assert "cannot write" in capsys.readouterr().err
+    assert list(out.parent.iterdir()) == []
 
 
 def test_whitted_limits_refuse_a_directory_export_did_not_write(tmp_path):

@@ -221,6 +221,8 @@ def main(argv: list | None = None) -> int:
     out = Path(args.out)
     if out.suffix.lower() != ".exr":
         parser.error(f"--out {out}: must name an .exr file")
+    if len(out.name.encode()) > 255:
+        parser.error(f"--out: a file name of {len(out.name.encode())} bytes; at most 255")
     if out.is_dir():
         parser.error(f"--out {out}: is a directory")
     import mitsuba as mi
@@ -231,17 +233,21 @@ def main(argv: list | None = None) -> int:
     except (FileNotFoundError, ValueError) as e:
         print(f"python -m voxlab.mitsuba: {e}", file=sys.stderr)
         return 2
-    out.parent.mkdir(parents=True, exist_ok=True)
     # Written beside its destination and renamed: the file is whole or absent.
-    fd, tmp = tempfile.mkstemp(suffix=".exr", dir=out.parent, prefix=".mitsuba-")
-    os.close(fd)
+    tmp = None
     try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(suffix=".exr", dir=out.parent, prefix=".mitsuba-")
+        os.close(fd)
         mi.Bitmap(image.astype(np.float32)).write(tmp)
         os.chmod(tmp, 0o644)
         os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    except (OSError, RuntimeError) as e:
+        print(f"python -m voxlab.mitsuba: cannot write {out}: {e}", file=sys.stderr)
+        return 2
+    finally:
+        if tmp is not None and Path(tmp).exists():
+            Path(tmp).unlink()
     print(f"{out}: Mitsuba {mi.__version__} {mi.variant()}, {args.integrator}, {args.spp} spp")
     return 0
 
