@@ -241,6 +241,12 @@ fn approximations_are_listed_and_strict_refuses_them() {
     }
 }
 
+/// The `scene.xml` the export writes for an experiment's text (approximations allowed).
+fn scene_xml(text: &str) -> String {
+    let e = Experiment::from_str(text, "scene.toml").unwrap();
+    String::from_utf8(mitsuba(&e, false).unwrap().files[0].1.clone()).unwrap()
+}
+
 /// Glass is Mitsuba's dielectric of `specular_reflectance = kr` and
 /// `specular_transmittance = kt`: exact only as a Fresnel dielectric without a diffuse
 /// term, against void, with shadows that stop at it; each other case is listed with
@@ -262,8 +268,7 @@ fn glass_is_exact_only_as_a_path_tracer_sees_it() {
             .collect()
     };
     assert_eq!(keys(&base), Vec::<String>::new());
-    let e = Experiment::from_str(&base, "glass.toml").unwrap();
-    let xml = String::from_utf8(mitsuba(&e, false).unwrap().files[0].1.clone()).unwrap();
+    let xml = scene_xml(&base);
     for want in [
         "<float name=\"int_ior\" value=\"1.5\"/>",
         "<spectrum name=\"specular_reflectance\" value=\"1\"/>",
@@ -306,8 +311,7 @@ fn glass_is_exact_only_as_a_path_tracer_sees_it() {
         "kd = 0.2\nks = 0.0\nkr = 0.3\nkt = 0.6",
     );
     assert_eq!(keys(&blend), Vec::<String>::new());
-    let e = Experiment::from_str(&blend, "blend.toml").unwrap();
-    let xml = String::from_utf8(mitsuba(&e, false).unwrap().files[0].1.clone()).unwrap();
+    let xml = scene_xml(&blend);
     for want in [
         "<bsdf type=\"blendbsdf\" id=\"material1\">",
         "<float name=\"weight\" value=\"0.6\"/>",
@@ -326,8 +330,7 @@ fn glass_is_exact_only_as_a_path_tracer_sees_it() {
     let got = keys(&two);
     assert!(got.contains(&"materials[glass].ior".to_string()), "{got:?}");
     // An index below 1 is written as it is (it was clamped to 1 once, silently).
-    let e = Experiment::from_str(&base.replace("ior = 1.5", "ior = 0.7"), "g.toml").unwrap();
-    let xml = String::from_utf8(mitsuba(&e, false).unwrap().files[0].1.clone()).unwrap();
+    let xml = scene_xml(&base.replace("ior = 1.5", "ior = 0.7"));
     assert!(
         xml.contains("<float name=\"int_ior\" value=\"0.7\"/>"),
         "{xml}"
