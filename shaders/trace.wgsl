@@ -14,7 +14,7 @@
 #import voxlab::types::{BIG, Material, PIXEL_FILTER_BOX, PIXEL_FILTER_GAUSSIAN}
 #import voxlab::dielectric::split_weights
 #import voxlab::bindings::{params, materials, output}
-#import voxlab::traversal::cast_ray
+#import voxlab::traversal::{cast_ray, leaves_grid}
 #ifdef TRIANGLES
 #import voxlab::triangles::shadow_medium
 #endif
@@ -158,7 +158,11 @@ fn traced(throughput: vec3<f32>) -> bool {
 
 // Pushes the refraction ray, then the reflection ray (contract order), for a hit of
 // ray r at p with shading normal n and the surface's own normal ng (the rays start off
-// the surface along it) on material h, shaded by s.
+// the surface along it) on material h, shaded by s. A ray that leaves the grid from
+// where it starts (leaves_grid) is counted and not traced: it would hit nothing, and
+// tracing it costs a pass of the ray-tree loop, which on a software driver's lanes is a
+// whole hit's shading. Under voxlab's rules every ray refracted out of a pane on the
+// grid's boundary is one (docs/benchmarks.md, "Where the default model's time goes").
 fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Material) {
     let d = r.dir;
     var w_r = s.kr;
@@ -179,7 +183,11 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Mate
                 t.depth_reflection = r.depth_reflection;
                 t.depth_refraction = r.depth_refraction + 1u;
                 t.medium = h;
-                push(t);
+                if leaves_grid(t.origin, t.dir) {
+                    count_secondary();
+                } else {
+                    push(t);
+                }
             }
 #endif
         }
@@ -194,7 +202,7 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Mate
         f.depth_refraction = r.depth_refraction;
         f.medium = r.medium;
         next_ray = f;
-        has_next = true;
+        has_next = !leaves_grid(f.origin, f.dir);
         count_secondary();
     }
 #endif

@@ -56,6 +56,15 @@ fn origin_inside(o: vec3<f32>) -> bool {
     return all(o >= vec3<f32>(0.0)) && all(o < vec3<f32>(params.dims));
 }
 
+// Whether a ray from o along d starts outside the grid and does not move towards it on
+// some axis: its slab on that axis lies behind it, so `enter` finds no entry and the ray
+// hits nothing. The tracer counts such a ray without tracing it (trace.wgsl, spawn).
+fn leaves_grid(o: vec3<f32>, d: vec3<f32>) -> bool {
+    let zero = vec3<f32>(0.0);
+    let hi = vec3<f32>(params.dims);
+    return any(((o < zero) & (d <= zero)) | ((o > hi) & (d >= zero)));
+}
+
 // Contract step 1: the start voxel of a ray from o along d (unit).
 fn enter(o: vec3<f32>, d: vec3<f32>) -> Entry {
     var e: Entry;
@@ -66,15 +75,16 @@ fn enter(o: vec3<f32>, d: vec3<f32>) -> Entry {
         e.axis = -1;
         return e;
     }
-    let hi = vec3<f32>(params.dims);
-    // An axis the ray does not move along is a slab of everything or nothing (no 0 * inf).
-    // Written on whole vectors, without a loop over the axes: per component the same
-    // operations as the contract's, and no loop for the driver's limiter to cut.
-    let parallel = d == vec3<f32>(0.0);
-    if any(parallel & ((o < vec3<f32>(0.0)) | (o > hi))) {
+    // Among these: an axis the ray does not move along is a slab of everything or
+    // nothing (no 0 * inf below).
+    if leaves_grid(o, d) {
         e.valid = false;
         return e;
     }
+    let hi = vec3<f32>(params.dims);
+    // Written on whole vectors, without a loop over the axes: per component the same
+    // operations as the contract's, and no loop for the driver's limiter to cut.
+    let parallel = d == vec3<f32>(0.0);
     let safe = select(d, vec3<f32>(1.0), parallel);
     let t0 = (vec3<f32>(0.0) - o) / safe;
     let t1 = (hi - o) / safe;
