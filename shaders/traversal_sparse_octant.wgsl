@@ -2,7 +2,8 @@
 // 64-tree's cubes of 2^log_cell voxels. In a cell the tree holds as one material the
 // region is the walk's octant's cube of such cells (as traversal_octant.wgsl's cube of
 // voxels); in a cell the tree holds as a node, the tree's region below that node
-// (shaders/tree.wgsl). The f64 reference: crate::technique::sparse_octant::SparseOctant.
+// (shaders/tree.wgsl), and in a leaf with codes the voxel's own octant cube. The f64
+// reference: crate::technique::sparse_octant::SparseOctant.
 #define_import_path voxlab::regions
 
 #import voxlab::types::Region
@@ -13,13 +14,17 @@
 const REGIONS_ARE_VOXELS: bool = false;
 
 // Read once a walk: the walk's octant (where its code sits in a cell's word, the axes it
-// heads down) and the cut (its first cell's vec4, log2 of a cell's side, its dims).
+// heads down), the cut (its first cell's vec4, log2 of a cell's side, its dims) and the
+// leaves' codes (the first leaf's node, how many have codes, their first vec4).
 struct RegionCursor {
     shift: u32,
     down: vec3<i32>,
     cells: u32,
     log_cell: u32,
     cut_dims: vec3<u32>,
+    leaf_first: u32,
+    leaf_count: u32,
+    codes: u32,
 }
 
 // An axis of step 0 takes the positive side (crate::technique::octant::octant).
@@ -29,7 +34,18 @@ fn region_cursor(step: vec3<i32>) -> RegionCursor {
     // After the tree: its header vec4 and five vec4s a node (voxlab::tree).
     let at = 1u + walk_data[0].z * NODE_VEC4S;
     let cut = walk_data[at];
-    return RegionCursor(8u + 3u * o, down, at + 1u, cut.x, cut.yzw);
+    let leaves = walk_data[at + 1u];
+    return RegionCursor(8u + 3u * o, down, at + 2u, cut.x, cut.yzw, leaves.x, leaves.y, at + leaves.z);
+}
+
+// The cube toward the walk's octant of `cell` (of 2^log voxels a side) whose octant word
+// is `word` (crate::technique::octant::corner_cube), in voxels, clipped to the grid.
+fn corner_region(c: ptr<function, RegionCursor>, cell: vec3<i32>, word: u32, log: u32) -> Region {
+    let k = (word >> (*c).shift) & 7u;
+    let reach = vec3<i32>(i32((1u << k) >> 1u));
+    let lo = (cell - reach * (*c).down) << vec3<u32>(log);
+    let hi = (cell + 1 + reach * (1 - (*c).down)) << vec3<u32>(log);
+    return Region(word & 255u, max(lo, vec3<i32>(0)), min(hi, vec3<i32>(params.dims)));
 }
 
 // The uniform region holding voxel v (inside the grid), for the walk's octant.
@@ -44,11 +60,15 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
     if word.y != 0u {
         // The node of the tree's level at or above the cell (src/sparse.rs, cut_node_log).
         let node_log = ((*c).log_cell + 1u) & ~1u;
-        return region_below(v, word.y - 1u, node_log - 2u).region;
+        let found = region_below(v, word.y - 1u, node_log - 2u);
+        // Found in a leaf with codes (its children are voxels): the voxel's own cube.
+        let leaf = found.node - (*c).leaf_first;
+        if found.shift == 0u && leaf < (*c).leaf_count {
+            let p = u & vec3<u32>(3u);
+            let w = 4u * (*c).codes + 64u * leaf + p.x + 4u * p.y + 16u * p.z;
+            return corner_region(c, v, walk_data[w >> 2u][w & 3u], 0u);
+        }
+        return found.region;
     }
-    let k = (word.x >> (*c).shift) & 7u;
-    let reach = vec3<i32>(i32((1u << k) >> 1u));
-    let lo = (vec3<i32>(cell) - reach * (*c).down) << vec3<u32>((*c).log_cell);
-    let hi = (vec3<i32>(cell) + 1 + reach * (1 - (*c).down)) << vec3<u32>((*c).log_cell);
-    return Region(word.x & 255u, max(lo, vec3<i32>(0)), min(hi, vec3<i32>(params.dims)));
+    return corner_region(c, vec3<i32>(cell), word.x, (*c).log_cell);
 }

@@ -567,6 +567,12 @@ impl SparseTree {
     /// The uniform region holding voxel `v` (inside the grid), found by descending from
     /// `node`, whose cube holds `v` and whose children are `2^shift` voxels a side.
     pub fn region_below(&self, v: IVec3, node: u32, shift: u32) -> Region {
+        self.descend(v, node, shift).0
+    }
+
+    /// [`Self::region_below`], with the node the descent ended in and its children's
+    /// shift (0: a leaf, [`Self::leaves`]), as shaders/tree.wgsl's `Found`.
+    pub fn descend(&self, v: IVec3, node: u32, shift: u32) -> (Region, u32, u32) {
         debug_assert!(v.cmpge(IVec3::ZERO).all() && v.as_uvec3().cmplt(self.dims).all());
         let (mask_at, first_at, materials_at) = self.offsets();
         let b = self.log_branch;
@@ -588,8 +594,47 @@ impl SparseTree {
             let material = (self.words[base + materials_at + i / 4] >> (8 * (i % 4))) as u8;
             let lo = (v >> shift as i32) << shift as i32;
             let hi = (lo + IVec3::splat(1 << shift)).min(self.dims.as_ivec3());
-            return Region { material, lo, hi };
+            return (Region { material, lo, hi }, node as u32, shift);
         }
+    }
+
+    /// The leaves: the nodes whose children are voxels, all on the tree's lowest level,
+    /// which the breadth-first layout stores last. The index of the first and each
+    /// leaf's first voxel, in index order.
+    pub fn leaves(&self) -> (u32, Vec<IVec3>) {
+        let count = self.node_count();
+        if self.levels == 1 {
+            return (0, vec![IVec3::ZERO; count]);
+        }
+        let mut found = Vec::new();
+        self.visit(|child| match child {
+            Visited::Node {
+                index,
+                lo,
+                log_side,
+            } => {
+                // A leaf's children are voxels: nothing below it to visit.
+                let leaf = log_side == self.log_branch;
+                if leaf {
+                    found.push((index, lo));
+                }
+                !leaf
+            }
+            Visited::Uniform { .. } => true,
+        });
+        found.sort_unstable_by_key(|&(i, _)| i);
+        let first = count - found.len();
+        debug_assert!(found.iter().enumerate().all(|(k, &(i, _))| i == first + k));
+        (first as u32, found.into_iter().map(|(_, lo)| lo).collect())
+    }
+
+    /// The children's materials of node `node` (x fastest).
+    pub fn node_materials(&self, node: u32) -> Vec<u8> {
+        let (_, _, materials_at) = self.offsets();
+        let base = HEADER_WORDS + node as usize * self.node_words() + materials_at;
+        (0..self.children())
+            .map(|i| (self.words[base + i / 4] >> (8 * (i % 4))) as u8)
+            .collect()
     }
 
     /// The tree cut at the cubes of `2^log_side` voxels a side (at most the root's

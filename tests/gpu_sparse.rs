@@ -220,15 +220,17 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
         sparse.walk_data > 0 && sparse.walk_data < dense.grid,
         "{sparse:?}"
     );
-    // The sparse octant walk: the tree, the cut's header and two words for each of its
-    // cells (of 4 voxels a side at 64^3).
+    // The sparse octant walk: the tree, the cut's two header vec4s, two words for each
+    // of its cells (of 4 voxels a side at 64^3) and a word for each voxel of each leaf.
     gpu.render(&scene, &settings(16, 16, 1, SPARSE_OCTANT_WALK))
         .unwrap();
     let cut = gpu.last_memory().unwrap();
     assert_eq!(cut.grid, 0, "{cut:?}");
+    let leaves = scene.grid.tree(2).leaves().1.len() as u64;
+    assert!(leaves > 0);
     assert_eq!(
         cut.walk_data,
-        sparse.walk_data + 16 + 8 * 16 * 16 * 16,
+        sparse.walk_data + 32 + 8 * 16 * 16 * 16 + 256 * leaves,
         "{cut:?}"
     );
     // The proximity walk: two bytes a voxel of its own, no voxel buffer.

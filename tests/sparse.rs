@@ -542,7 +542,8 @@ fn the_trees_cut_says_which_cubes_are_uniform() {
 }
 
 /// The sparse octant walk's regions with cells of every side the cut can have (on these
-/// grids `"auto"` takes only cubes of 4): uniform, holding their voxel, for every step.
+/// grids `"auto"` takes only cubes of 4), with and without the leaves' codes: uniform,
+/// holding their voxel, for every step.
 #[test]
 fn sparse_octant_regions_hold_the_grid_at_every_cell_side() {
     use voxlab::technique::sparse_octant::SparseOctant;
@@ -557,8 +558,41 @@ fn sparse_octant_regions_hold_the_grid_at_every_cell_side() {
         let tree = g.tree(2);
         for log_cell in 1..=2 * tree.levels() {
             let walk = SparseOctant::with_cell_side(tree.clone(), log_cell);
+            assert!(walk.has_leaf_codes() || tree.leaves().1.is_empty());
             assert_regions_hold_the_grid(&g, &walk, &format!("cells of 2^{log_cell}"));
+            let walk = SparseOctant::without_leaf_codes(tree.clone(), log_cell);
+            let name = format!("cells of 2^{log_cell}, no codes in the leaves");
+            assert_regions_hold_the_grid(&g, &walk, &name);
         }
+    }
+}
+
+/// What the octant cells and the leaves' codes are for: on the seed scene (CPU, where
+/// steps are counted exactly), the sparse octant walk takes fewer steps than the plain
+/// tree walk at every size, with the same image, and from 64^3 at most 1.2 times the
+/// steps of the dense octant field, whose codes it holds only at the leaves (the seed's
+/// rules, 64x64: 4.60 against 4.17 steps a ray at 64^3, 6.71 against 6.04 at 256^3;
+/// 12.29 and 18.57 before the leaves had codes).
+#[test]
+fn the_leaves_codes_walk_as_the_dense_octant_field() {
+    let octant = Traversal::Walk(&voxlab::technique::octant::TRAVERSAL);
+    for size in [64, 200] {
+        let scene = seed_scene(size).unwrap();
+        let settings = |traversal| RenderSettings {
+            width: 32,
+            height: 32,
+            traversal,
+            rules: voxlab::render::Rules::Seed,
+            ..Default::default()
+        };
+        let dense = voxlab::cpu::render(&scene, &settings(octant));
+        let leaves = voxlab::cpu::render(&scene, &settings(SPARSE_OCTANT_WALK));
+        assert_eq!(dense.frame.pixels, leaves.frame.pixels, "{size}^3");
+        let ratio = leaves.stats.voxel_steps as f64 / dense.stats.voxel_steps as f64;
+        assert!(
+            ratio <= 1.2,
+            "{size}^3: {ratio:.3}x the dense octant walk's steps"
+        );
     }
 }
 
