@@ -1,9 +1,10 @@
 // The sparse octant traversal (src/technique/sparse_octant.rs): the octant field over the
 // 64-tree's cubes of 2^log_cell voxels. In a cell the tree holds as one material the
 // region is the walk's octant's cube of such cells (as traversal_octant.wgsl's cube of
-// voxels); in a cell the tree holds as a node, the tree's region below that node
-// (shaders/tree.wgsl), and in a leaf with codes the voxel's own octant cube. The f64
-// reference: crate::technique::sparse_octant::SparseOctant.
+// voxels); in a cell the tree holds as a node, the uniform child the tree's descent from
+// that node finds (shaders/tree.wgsl), and where the child's node has its children's
+// codes, the child's octant cube of its node's children. The f64 reference:
+// crate::technique::sparse_octant::SparseOctant.
 #define_import_path voxlab::regions
 
 #import voxlab::types::Region
@@ -15,15 +16,15 @@ const REGIONS_ARE_VOXELS: bool = false;
 
 // Read once a walk: the walk's octant (where its code sits in a cell's word, the axes it
 // heads down), the cut (its first cell's vec4, log2 of a cell's side, its dims) and the
-// leaves' codes (the first leaf's node, how many have codes, their first vec4).
+// codes below it (the first node with its children's codes, how many, their first vec4).
 struct RegionCursor {
     shift: u32,
     down: vec3<i32>,
     cells: u32,
     log_cell: u32,
     cut_dims: vec3<u32>,
-    leaf_first: u32,
-    leaf_count: u32,
+    coded_first: u32,
+    coded_count: u32,
     codes: u32,
 }
 
@@ -34,8 +35,8 @@ fn region_cursor(step: vec3<i32>) -> RegionCursor {
     // After the tree: its header vec4 and five vec4s a node (voxlab::tree).
     let at = 1u + walk_data[0].z * NODE_VEC4S;
     let cut = walk_data[at];
-    let leaves = walk_data[at + 1u];
-    return RegionCursor(8u + 3u * o, down, at + 2u, cut.x, cut.yzw, leaves.x, leaves.y, at + leaves.z);
+    let coded = walk_data[at + 1u];
+    return RegionCursor(8u + 3u * o, down, at + 2u, cut.x, cut.yzw, coded.x, coded.y, at + coded.z);
 }
 
 // The cube toward the walk's octant of `cell` (of 2^log voxels a side) whose octant word
@@ -61,12 +62,14 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
         // The node of the tree's level at or above the cell (src/sparse.rs, cut_node_log).
         let node_log = ((*c).log_cell + 1u) & ~1u;
         let found = region_below(v, word.y - 1u, node_log - 2u);
-        // Found in a leaf with codes (its children are voxels): the voxel's own cube.
-        let leaf = found.node - (*c).leaf_first;
-        if found.shift == 0u && leaf < (*c).leaf_count {
-            let p = u & vec3<u32>(3u);
-            let w = 4u * (*c).codes + 64u * leaf + p.x + 4u * p.y + 16u * p.z;
-            return corner_region(c, v, walk_data[w >> 2u][w & 3u], 0u);
+        // Found in a node with its children's codes: the uniform child's own cube, in
+        // children of that node.
+        let k = found.node - (*c).coded_first;
+        if k < (*c).coded_count {
+            let child = u >> vec3<u32>(found.shift);
+            let p = child & vec3<u32>(3u);
+            let w = 4u * (*c).codes + 64u * k + p.x + 4u * p.y + 16u * p.z;
+            return corner_region(c, vec3<i32>(child), walk_data[w >> 2u][w & 3u], found.shift);
         }
         return found.region;
     }

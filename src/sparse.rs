@@ -598,42 +598,48 @@ impl SparseTree {
         }
     }
 
-    /// The leaves: the nodes whose children are voxels, all on the tree's lowest level,
-    /// which the breadth-first layout stores last. The index of the first and each
-    /// leaf's first voxel, in index order.
-    pub fn leaves(&self) -> (u32, Vec<IVec3>) {
+    /// The nodes of side at most `2^log_side`: the tree's lowest levels, which the
+    /// breadth-first layout stores last. The index of the first and each one's first
+    /// voxel and log2 side, in index order. `nodes_up_to(log_branch)` are the leaves,
+    /// the nodes whose children are voxels.
+    pub fn nodes_up_to(&self, log_side: u32) -> (u32, Vec<(IVec3, u32)>) {
         let count = self.node_count();
-        if self.levels == 1 {
-            return (0, vec![IVec3::ZERO; count]);
-        }
+        let root_side = self.log_branch * self.levels;
         let mut found = Vec::new();
+        if root_side <= log_side && count > 0 {
+            found.push((0, (IVec3::ZERO, root_side)));
+        }
         self.visit(|child| match child {
             Visited::Node {
                 index,
                 lo,
-                log_side,
+                log_side: side,
             } => {
-                // A leaf's children are voxels: nothing below it to visit.
-                let leaf = log_side == self.log_branch;
-                if leaf {
-                    found.push((index, lo));
+                if side <= log_side {
+                    found.push((index, (lo, side)));
                 }
-                !leaf
+                // A leaf's children are voxels: nothing below it to visit.
+                side > self.log_branch
             }
             Visited::Uniform { .. } => true,
         });
         found.sort_unstable_by_key(|&(i, _)| i);
         let first = count - found.len();
         debug_assert!(found.iter().enumerate().all(|(k, &(i, _))| i == first + k));
-        (first as u32, found.into_iter().map(|(_, lo)| lo).collect())
+        (first as u32, found.into_iter().map(|(_, n)| n).collect())
     }
 
-    /// The children's materials of node `node` (x fastest).
-    pub fn node_materials(&self, node: u32) -> Vec<u8> {
-        let (_, _, materials_at) = self.offsets();
-        let base = HEADER_WORDS + node as usize * self.node_words() + materials_at;
+    /// The children of node `node` (x fastest): the material of a uniform one, `None`
+    /// for a node.
+    pub fn node_children(&self, node: u32) -> Vec<Option<u8>> {
+        let (mask_at, _, materials_at) = self.offsets();
+        let base = HEADER_WORDS + node as usize * self.node_words();
         (0..self.children())
-            .map(|i| (self.words[base + i / 4] >> (8 * (i % 4))) as u8)
+            .map(|i| {
+                let is_node = self.words[base + mask_at + i / 32] & (1 << (i % 32)) != 0;
+                let m = (self.words[base + materials_at + i / 4] >> (8 * (i % 4))) as u8;
+                (!is_node).then_some(m)
+            })
             .collect()
     }
 

@@ -221,16 +221,17 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
         "{sparse:?}"
     );
     // The sparse octant walk: the tree, the cut's two header vec4s, two words for each
-    // of its cells (of 4 voxels a side at 64^3) and a word for each voxel of each leaf.
+    // of its cells (of 4 voxels a side at 64^3) and a word for each voxel of each leaf
+    // (the nodes below the cut there).
     gpu.render(&scene, &settings(16, 16, 1, SPARSE_OCTANT_WALK))
         .unwrap();
     let cut = gpu.last_memory().unwrap();
     assert_eq!(cut.grid, 0, "{cut:?}");
-    let leaves = scene.grid.tree(2).leaves().1.len() as u64;
-    assert!(leaves > 0);
+    let coded = scene.grid.tree(2).nodes_up_to(2).1.len() as u64;
+    assert!(coded > 0);
     assert_eq!(
         cut.walk_data,
-        sparse.walk_data + 32 + 8 * 16 * 16 * 16 + 256 * leaves,
+        sparse.walk_data + 32 + 8 * 16 * 16 * 16 + 256 * coded,
         "{cut:?}"
     );
     // The proximity walk: two bytes a voxel of its own, no voxel buffer.

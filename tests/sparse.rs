@@ -558,10 +558,10 @@ fn sparse_octant_regions_hold_the_grid_at_every_cell_side() {
         let tree = g.tree(2);
         for log_cell in 1..=2 * tree.levels() {
             let walk = SparseOctant::with_cell_side(tree.clone(), log_cell);
-            assert!(walk.has_leaf_codes() || tree.leaves().1.is_empty());
+            assert!(walk.has_codes() || tree.nodes_up_to(2 * tree.levels()).1.is_empty());
             assert_regions_hold_the_grid(&g, &walk, &format!("cells of 2^{log_cell}"));
-            let walk = SparseOctant::without_leaf_codes(tree.clone(), log_cell);
-            let name = format!("cells of 2^{log_cell}, no codes in the leaves");
+            let walk = SparseOctant::without_codes(tree.clone(), log_cell);
+            let name = format!("cells of 2^{log_cell}, no codes below the cut");
             assert_regions_hold_the_grid(&g, &walk, &name);
         }
     }

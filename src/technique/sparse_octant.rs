@@ -8,26 +8,30 @@
 //! walk climbs at most the levels of one cell.
 //!
 //!
-//! Below a node's cell, the tree's leaves (its 4^3 cubes that hold more than one
-//! material, the voxels next to surfaces) carry the octant field at the voxel: each of
-//! their voxels has the octant word of [`super::octant::OctantField`], its largest cube
-//! of its material toward each octant, so a ray that runs along a surface (a shadow ray
-//! to a light beside a wall) skips along it instead of stepping voxel by voxel through
-//! the leaves. The codes are the recurrence of [`super::octant::octant_radii`] swept
-//! over the leaves alone ([`leaf_words`]): a neighbour outside the leaves lies in a
-//! uniform region the cut or the tree holds, whose cube bounds its radius from below, so
-//! every cube is uniform (a lower bound of the dense field's), and the walk leaves it
-//! where the dense DDA does. They cost a word a voxel of each leaf, 256 bytes a leaf,
-//! and are built only while the walk's data stays within [`MAX_WALK_BYTES`].
+//! Below a node's cell, the tree's nodes carry the octant field of their children: each
+//! node of the cut's node level and below (the leaves among them, whose children are the
+//! voxels next to surfaces) has, for each of its 64 children that is uniform, the octant
+//! word of [`super::octant::OctantField`] over its node's children: the child's largest
+//! cube of children of its material toward each octant. A ray that runs along a surface
+//! (a shadow ray to a light beside a wall) then skips along it instead of stepping voxel
+//! by voxel through the leaves, and one in a uniform child of a node skips that child's
+//! cube of such children. The codes are the recurrence of
+//! [`super::octant::octant_radii`] swept over a level's nodes alone ([`level_words`]),
+//! the levels from the top: a neighbour outside them lies in a uniform region the cut,
+//! the tree or a level above holds, whose cube bounds its radius from below, so every
+//! cube is uniform (a lower bound of the dense field's) and the walk leaves it where the
+//! dense DDA does. They cost a word a child, 256 bytes a node, and are built only while
+//! the walk's data stays within [`MAX_WALK_BYTES`].
 //!
 //! Layout of its words (`walk_data`, shaders/traversal_sparse_octant.wgsl): the tree's
 //! words ([`crate::sparse`]: a header vec4 and five vec4s a node), then, at vec4 `h = 1 +
-//! 5 * node count`, two vec4s (log2 of the cell side, the cut's dims; the first leaf's
-//! node index, the number of leaves with codes, the vec4 of the first leaf's codes
-//! counted from `h`, 0) and from `h + 2` two words a cell (x fastest): the octant
+//! 5 * node count`, two vec4s (log2 of the cell side, the cut's dims; the index of the
+//! first node with codes, the number of such nodes, the vec4 of its codes counted from
+//! `h`, 0) and from `h + 2` two words a cell (x fastest): the octant
 //! field's word (material and eight codes, [`super::octant::OctantField`]) and 0 for a
 //! uniform cell, or 0 and the node's index plus one for a cell the tree holds as a node;
-//! then, from a vec4 boundary, 64 words a leaf (its voxels, x fastest), in node order.
+//! then, from a vec4 boundary, 64 words a node with codes (its children, x fastest; 0
+//! for a child that is a node), in node order.
 //! The tree is not copied: its words and the cut's are uploaded as two parts of one
 //! buffer.
 
@@ -49,8 +53,8 @@ pub const MAX_CELLS: u64 = 1 << 21;
 /// lavapipe (and wgpu's default limit). A larger tree is walked without them.
 pub const MAX_WALK_BYTES: usize = 120 << 20;
 
-/// Voxels a leaf of the 64-tree holds, each with a word of codes.
-const LEAF_VOXELS: usize = 64;
+/// Children of a node of the 64-tree, each with a word of codes.
+const CHILDREN: usize = 64;
 
 /// Log2 of the side of the cut's cells for a tree of these dims and branching: the
 /// smallest side (4, 8, 16 ... voxels) whose cells number at most [`MAX_CELLS`]: the
@@ -102,7 +106,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
     device_bytes: None,
 };
 
-/// The tree and the octant field over its cut and in its leaves (see the module
+/// The tree and the octant field over its cut and below it (see the module
 /// documentation).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SparseOctant {
@@ -111,12 +115,15 @@ pub struct SparseOctant {
     /// The shift of the children of a cell's node (`SparseTree::cut_node_log`).
     node_shift: u32,
     cut_dims: UVec3,
-    /// The first leaf's node index and how many leaves have codes (0: none).
-    leaf_first: u32,
-    leaf_count: u32,
-    /// Where the leaves' codes start in `cut`.
+    /// The first node whose children have words, and how many do (0: none).
+    coded_first: u32,
+    coded_count: u32,
+    /// The smallest children's shift whose words are in (during the build, the levels
+    /// done so far; then 0).
+    coded_shift: u32,
+    /// Where the children's words start in `cut`.
     codes_at: usize,
-    /// The cut's two header vec4s, its cells, then the leaves' codes.
+    /// The cut's two header vec4s, its cells, then the children's words.
     cut: Vec<u32>,
 }
 
@@ -124,26 +131,48 @@ pub struct SparseOctant {
 const CUT_HEADER_WORDS: usize = 8;
 
 impl SparseOctant {
+    /// Cells of [`log_cell_side`], with the codes below the cut where the walk's data
+    /// stays within [`MAX_WALK_BYTES`]. A side between the tree's levels (8 for the
+    /// 64-tree) that leaves no room for them takes the next side, whose cells are
+    /// walked from the same nodes (a cell's node, the codes and the kernel's descent
+    /// are the same).
     pub fn build(tree: Arc<SparseTree>) -> Self {
-        let log_cell = log_cell_side(tree.dims(), tree.log_branch(), tree.levels());
+        let b = tree.log_branch();
+        let log_cell = log_cell_side(tree.dims(), b, tree.levels());
+        let node_log = tree.cut_node_log(log_cell);
+        if log_cell < node_log
+            && Self::bytes_with_codes(&tree, log_cell) > MAX_WALK_BYTES
+            && Self::bytes_with_codes(&tree, node_log) <= MAX_WALK_BYTES
+        {
+            return Self::with_cell_side(tree, node_log);
+        }
         Self::with_cell_side(tree, log_cell)
     }
 
-    /// With cells of `2^log_cell` voxels (1 up to the root's cube) whatever the grid: the
-    /// tests walk every side the cut can have. The leaves have codes within
-    /// [`MAX_WALK_BYTES`].
-    pub fn with_cell_side(tree: Arc<SparseTree>, log_cell: u32) -> Self {
-        let cut = Self::without_leaf_codes(tree, log_cell);
-        let (leaf_first, leaves) = cut.tree.leaves();
-        let bytes = 4 * (cut.tree.words().len() + cut.cut.len() + 3 + LEAF_VOXELS * leaves.len());
-        if leaves.is_empty() || bytes > MAX_WALK_BYTES {
-            return cut;
-        }
-        cut.with_leaf_codes(leaf_first, &leaves)
+    /// The walk's bytes with cells of `2^log_cell` and the codes below them.
+    fn bytes_with_codes(tree: &SparseTree, log_cell: u32) -> usize {
+        let side = 1u64 << log_cell;
+        let cells = ((tree.dims().as_u64vec3() + (side - 1)) / side).element_product() as usize;
+        let coded = tree.nodes_up_to(tree.cut_node_log(log_cell)).1.len();
+        4 * (tree.words().len() + CUT_HEADER_WORDS + 2 * cells + 3 + CHILDREN * coded)
     }
 
-    /// Only the cut: a node's cell is walked through the tree down to the voxel.
-    pub fn without_leaf_codes(tree: Arc<SparseTree>, log_cell: u32) -> Self {
+    /// With cells of `2^log_cell` voxels (1 up to the root's cube) whatever the grid: the
+    /// tests walk every side the cut can have. The nodes below the cut have their
+    /// children's codes within [`MAX_WALK_BYTES`].
+    pub fn with_cell_side(tree: Arc<SparseTree>, log_cell: u32) -> Self {
+        let cut = Self::without_codes(tree, log_cell);
+        let (first, nodes) = cut.tree.nodes_up_to(cut.node_shift + cut.tree.log_branch());
+        let bytes = 4 * (cut.tree.words().len() + cut.cut.len() + 3 + CHILDREN * nodes.len());
+        // The codes' layout is the 64-tree's (64 children a node, shaders/tree.wgsl).
+        if nodes.is_empty() || bytes > MAX_WALK_BYTES || cut.tree.log_branch() != GPU_LOG_BRANCH {
+            return cut;
+        }
+        cut.with_codes(first, &nodes)
+    }
+
+    /// Only the cut: a node's cell is walked through the tree down to its uniform child.
+    pub fn without_codes(tree: Arc<SparseTree>, log_cell: u32) -> Self {
         let (cut_dims, cut) = tree.cut(log_cell);
         // A node's cell matches no other: uniform cells' cubes stop at it.
         let cells: Vec<Option<u8>> = cut
@@ -160,66 +189,103 @@ impl SparseOctant {
         debug_assert_eq!(tree.words().len() % 4, 0, "the tree ends on a vec4");
         let mut words = Vec::with_capacity(CUT_HEADER_WORDS + 2 * cut.len());
         words.extend_from_slice(&[log_cell, cut_dims.x, cut_dims.y, cut_dims.z]);
+        // The second header vec4 is the codes', filled in by with_codes.
+        words.extend_from_slice(&[0; 4]);
         for (i, c) in cut.iter().enumerate() {
             match c {
                 Cut::Uniform(m) => words.extend_from_slice(&[word(*m, &radii, i), 0]),
                 Cut::Node(n) => words.extend_from_slice(&[0, n + 1]),
             }
         }
-        // The header's second vec4 is filled in by with_leaf_codes.
-        words.splice(4..4, [0; 4]);
         Self {
             node_shift: tree.cut_node_log(log_cell) - tree.log_branch(),
             tree,
             log_cell,
             cut_dims,
-            leaf_first: 0,
-            leaf_count: 0,
+            coded_first: 0,
+            coded_count: 0,
+            coded_shift: 0,
             codes_at: 0,
             cut: words,
         }
     }
 
-    /// The cut with the leaves' codes after it (`leaves`: the first leaf's node index and
-    /// each leaf's first voxel, [`SparseTree::leaves`]).
-    fn with_leaf_codes(mut self, leaf_first: u32, leaves: &[IVec3]) -> Self {
-        let codes = leaf_words(&self, leaf_first, leaves);
+    /// The cut with the codes of the children of `nodes` after it (the nodes from the
+    /// cut's level down, [`SparseTree::nodes_up_to`]: the first's index, then each one's
+    /// first voxel and log2 side), built a level at a time from the top, so that a
+    /// level's sweep finds the cubes of the levels above it.
+    fn with_codes(mut self, first: u32, nodes: &[(IVec3, u32)]) -> Self {
         let at = self.cut.len().next_multiple_of(4);
-        self.cut.resize(at, 0);
-        self.cut.extend_from_slice(&codes);
-        self.leaf_first = leaf_first;
-        self.leaf_count = leaves.len() as u32;
+        self.cut.resize(at + CHILDREN * nodes.len(), 0);
+        self.coded_first = first;
+        self.coded_count = nodes.len() as u32;
         self.codes_at = at;
-        self.cut[4..8].copy_from_slice(&[leaf_first, self.leaf_count, (at / 4) as u32, 0]);
+        let b = self.tree.log_branch();
+        let mut sides: Vec<u32> = nodes.iter().map(|&(_, l)| l).collect();
+        sides.sort_unstable();
+        sides.dedup();
+        self.coded_shift = u32::MAX;
+        for &log_side in sides.iter().rev() {
+            let words = level_words(&self, first, nodes, log_side);
+            for (k, w) in words {
+                let at = self.codes_at + CHILDREN * k;
+                self.cut[at..at + CHILDREN].copy_from_slice(&w);
+            }
+            self.coded_shift = log_side - b;
+        }
+        self.coded_shift = 0;
+        self.cut[4..8].copy_from_slice(&[first, self.coded_count, (at / 4) as u32, 0]);
         self
     }
 
-    /// Whether the leaves carry their voxels' codes.
-    pub fn has_leaf_codes(&self) -> bool {
-        self.leaf_count > 0
+    /// Whether the nodes below the cut carry their children's codes.
+    pub fn has_codes(&self) -> bool {
+        self.coded_count > 0
+    }
+
+    /// The cells' log2 side.
+    pub fn log_cell(&self) -> u32 {
+        self.log_cell
     }
 }
 
-/// The octant words of every voxel of the leaves (64 a leaf, x fastest, in node order):
-/// the recurrence of [`octant_radii`] swept over the leaves, for each octant, from its
-/// far corner (leaves in the sweep's order, then each leaf's voxels). A neighbour in
-/// another leaf has its radius already; one outside the leaves lies in the uniform
-/// region `cut` finds for it (the cut's cube toward the octant, or the tree's child),
-/// whose extent toward the octant bounds its radius from below; one outside the grid
-/// does not count (as in the dense field: the walk ends there by its own test).
-fn leaf_words(cut: &SparseOctant, leaf_first: u32, leaves: &[IVec3]) -> Vec<u32> {
-    let tree = &cut.tree;
+/// The children's octant words of the nodes of side `2^log_side` among `nodes` (each
+/// with its ordinal among them), by the recurrence of [`octant_radii`] over those
+/// children, for each octant swept from its far corner (nodes in the sweep's order, then
+/// each node's children). A child that is a node matches nothing. A neighbour in
+/// another such node has its radius already; one outside them lies in the uniform
+/// region `walk` finds for it (the cut's cube toward the octant, the tree's child, or a
+/// level above's cube), whose extent toward the octant bounds its radius from below;
+/// one outside the grid does not count (as in the dense field: the walk ends there by
+/// its own test).
+fn level_words(
+    walk: &SparseOctant,
+    first: u32,
+    nodes: &[(IVec3, u32)],
+    log_side: u32,
+) -> Vec<(usize, Vec<u32>)> {
+    let tree = &walk.tree;
+    let b = tree.log_branch() as i32;
+    let branch = 1i32 << b;
+    let log_unit = log_side as i32 - b;
+    let unit = 1i32 << log_unit;
     let dims = tree.dims().as_ivec3();
-    let materials: Vec<Vec<u8>> = (0..leaves.len())
-        .into_par_iter()
-        .map(|l| tree.node_materials(leaf_first + l as u32))
+    // Past the grid in units: a unit there does not count.
+    let unit_dims = (dims + (unit - 1)) >> log_unit;
+    let level: Vec<usize> = (0..nodes.len())
+        .filter(|&k| nodes[k].1 == log_side)
         .collect();
-    let index: FxHashMap<IVec3, u32> = leaves
+    let children: Vec<Vec<Option<u8>>> = level
+        .par_iter()
+        .map(|&k| tree.node_children(first + k as u32))
+        .collect();
+    // A node of the level by its position in nodes' sides: its place in `level`.
+    let index: FxHashMap<IVec3, u32> = level
         .iter()
         .enumerate()
-        .map(|(l, &lo)| (lo >> 2, l as u32))
+        .map(|(j, &k)| (nodes[k].0 >> log_side as i32, j as u32))
         .collect();
-    let local = |u: IVec3| (u.x + 4 * u.y + 16 * u.z) as usize;
+    let child = |p: IVec3| (p.x + branch * (p.y + branch * p.z)) as usize;
     let radii: Vec<Vec<u8>> = (0..8)
         .into_par_iter()
         .map(|o| {
@@ -229,116 +295,155 @@ fn leaf_words(cut: &SparseOctant, leaf_first: u32, leaves: &[IVec3]) -> Vec<u32>
                 if down(1) { -1 } else { 1 },
                 if down(2) { -1 } else { 1 },
             );
-            // The sweep visits a voxel after its neighbours toward the octant: leaves by
-            // their position against the octant, z first.
-            let mut order: Vec<u32> = (0..leaves.len() as u32).collect();
-            order.sort_unstable_by_key(|&l| {
-                let k = -(leaves[l as usize] * s);
+            let offset =
+                |e: usize| s * IVec3::new((e & 1) as i32, (e >> 1 & 1) as i32, (e >> 2) as i32);
+            // The sweep visits a child after its neighbours toward the octant: nodes by
+            // their position against the octant, z first, then their children so.
+            let mut order: Vec<u32> = (0..level.len() as u32).collect();
+            order.sort_unstable_by_key(|&j| {
+                let k = -(nodes[level[j as usize]].0 * s);
                 (k.z, k.y, k.x)
             });
-            let sweep =
-                |a: usize| -> [i32; 4] { if down(a) { [0, 1, 2, 3] } else { [3, 2, 1, 0] } };
-            let mut radii = vec![0u8; LEAF_VOXELS * leaves.len()];
-            for &l in &order {
-                let lo = leaves[l as usize];
-                // The block of 4^3 toward the octant along the axes of `e`: a leaf, or the
-                // uniform region holding it (None: past the grid).
-                let block = |e: usize| -> Option<Result<u32, Region>> {
-                    let b = lo
-                        + 4 * s * IVec3::new((e & 1) as i32, (e >> 1 & 1) as i32, (e >> 2) as i32);
-                    if b.cmplt(IVec3::ZERO).any() || b.cmpge(dims).any() {
-                        return None;
+            let sweep: Vec<IVec3> = {
+                let along = |a: usize| -> Vec<i32> {
+                    if down(a) {
+                        (0..branch).collect()
+                    } else {
+                        (0..branch).rev().collect()
                     }
-                    Some(match index.get(&(b >> 2)) {
-                        Some(&n) => Ok(n),
-                        None => Err(cut.region(b, s)),
-                    })
                 };
-                let blocks: [Option<Result<u32, Region>>; 8] =
-                    std::array::from_fn(|e| if e == 0 { Some(Ok(l)) } else { block(e) });
-                for z in sweep(2) {
-                    for y in sweep(1) {
-                        for x in sweep(0) {
-                            let p = IVec3::new(x, y, z);
-                            if (lo + p).cmpge(dims).any() {
-                                continue;
-                            }
-                            let m = materials[l as usize][local(p)];
-                            let mut r = u8::MAX;
-                            for e in 1..8usize {
-                                let q = p + s * IVec3::new(
-                                    (e & 1) as i32,
-                                    (e >> 1 & 1) as i32,
-                                    (e >> 2) as i32,
-                                );
-                                let u = lo + q;
-                                if u.cmplt(IVec3::ZERO).any() || u.cmpge(dims).any() {
-                                    continue;
-                                }
-                                // Which block q falls in: the axes on which it left this leaf.
-                                let out = (0..3)
-                                    .fold(0, |k, a| k | usize::from(!(0..4).contains(&q[a])) << a);
-                                let inner = q.rem_euclid(IVec3::splat(4));
-                                let allowed = match blocks[out].as_ref() {
-                                    None => continue,
-                                    Some(Ok(n)) => {
-                                        let i = *n as usize * LEAF_VOXELS + local(inner);
-                                        if materials[*n as usize][local(inner)] == m {
-                                            radii[i].saturating_add(1)
-                                        } else {
-                                            0
-                                        }
-                                    }
-                                    Some(Err(region)) => {
-                                        // Cells of 4 and more hold a block whole; smaller
-                                        // ones (the tests' cuts) are asked per voxel.
-                                        let region = if cut.log_cell >= 2 {
-                                            *region
-                                        } else {
-                                            cut.region(u, s)
-                                        };
-                                        debug_assert!(
-                                            u.cmpge(region.lo).all() && u.cmplt(region.hi).all()
-                                        );
-                                        if region.material == m {
-                                            reach(u, &region, s, dims).saturating_add(1)
-                                        } else {
-                                            0
-                                        }
-                                    }
-                                };
-                                r = r.min(allowed);
-                            }
-                            radii[l as usize * LEAF_VOXELS + local(p)] = r;
+                let mut v = Vec::with_capacity(1 << (3 * b));
+                for z in along(2) {
+                    for y in along(1) {
+                        for x in along(0) {
+                            v.push(IVec3::new(x, y, z));
                         }
                     }
+                }
+                v
+            };
+            // For each child in the sweep, its seven neighbours toward the octant: the
+            // node each lies in (bit a: past this node's side on axis a) and its child
+            // index there.
+            let neighbours: Vec<[(u8, u8); 7]> = sweep
+                .iter()
+                .map(|&p| {
+                    std::array::from_fn(|i| {
+                        let q = p + offset(i + 1);
+                        let out =
+                            (0..3).fold(0, |k, a| k | u8::from(!(0..branch).contains(&q[a])) << a);
+                        (out, child(q.rem_euclid(IVec3::splat(branch))) as u8)
+                    })
+                })
+                .collect();
+            let mut radii = vec![0u8; CHILDREN * level.len()];
+            for &j in &order {
+                let lo = nodes[level[j as usize]].0 >> log_unit;
+                // The node of the level toward the octant along the axes of `e`, or the
+                // uniform region at its first unit (None: past the grid).
+                let blocks: [Option<Result<u32, Region>>; 8] = std::array::from_fn(|e| {
+                    if e == 0 {
+                        return Some(Ok(j));
+                    }
+                    let n = lo + branch * offset(e);
+                    if n.cmplt(IVec3::ZERO).any() || n.cmpge(unit_dims).any() {
+                        return None;
+                    }
+                    Some(match index.get(&(n >> b)) {
+                        Some(&m) => Ok(m),
+                        None => Err(walk.region(n << log_unit, s)),
+                    })
+                });
+                // Whether every neighbour of the node's children lies inside the grid.
+                let inside = (lo + branch * s.min(IVec3::ZERO)).cmpge(IVec3::ZERO).all()
+                    && (lo + branch + branch * s.max(IVec3::ZERO))
+                        .cmple(unit_dims)
+                        .all();
+                let mine = &children[j as usize];
+                for (p, near) in sweep.iter().zip(&neighbours) {
+                    let Some(m) = mine[child(*p)] else {
+                        continue;
+                    };
+                    if (lo + *p).cmpge(unit_dims).any() {
+                        continue;
+                    }
+                    let mut r = u8::MAX;
+                    for (e, &(out, inner)) in near.iter().enumerate() {
+                        let inner = inner as usize;
+                        let allowed = match &blocks[out as usize] {
+                            None => continue,
+                            Some(Ok(n)) => {
+                                let n = *n as usize;
+                                if children[n][inner] == Some(m) {
+                                    radii[n * CHILDREN + inner].saturating_add(1)
+                                } else {
+                                    0
+                                }
+                            }
+                            Some(Err(region)) => {
+                                let u = lo + *p + offset(e + 1);
+                                if !inside
+                                    && (u.cmplt(IVec3::ZERO).any() || u.cmpge(unit_dims).any())
+                                {
+                                    continue;
+                                }
+                                // The region at the node's first unit holds the whole
+                                // node where cells are as large; else ask at the unit.
+                                let (ulo, uhi) = (u << log_unit, (u + 1) << log_unit);
+                                let region = if ulo.cmpge(region.lo).all()
+                                    && uhi.min(dims).cmple(region.hi).all()
+                                {
+                                    *region
+                                } else {
+                                    walk.region(ulo, s)
+                                };
+                                if region.material == m {
+                                    reach(u, &region, s, log_unit, dims).saturating_add(1)
+                                } else {
+                                    0
+                                }
+                            }
+                        };
+                        r = r.min(allowed);
+                    }
+                    radii[j as usize * CHILDREN + child(*p)] = r;
                 }
             }
             radii
         })
         .collect();
-    (0..leaves.len() * LEAF_VOXELS)
-        .into_par_iter()
-        .map(|i| word(materials[i / LEAF_VOXELS][i % LEAF_VOXELS], &radii, i))
+    level
+        .par_iter()
+        .enumerate()
+        .map(|(j, &k)| {
+            let words = (0..CHILDREN)
+                .map(|i| match children[j][i] {
+                    Some(m) => word(m, &radii, j * CHILDREN + i),
+                    None => 0,
+                })
+                .collect();
+            (k, words)
+        })
         .collect()
 }
 
-/// How far voxel `u`'s cube toward the octant of `s` reaches inside `region`, which holds
-/// `u`: its radius, at most 255; a side of the region on the grid's face does not bound
-/// it (past the grid nothing counts).
-fn reach(u: IVec3, region: &Region, s: IVec3, dims: IVec3) -> u8 {
+/// How far unit `u`'s cube (units of `2^log_unit` voxels) toward the octant of `s`
+/// reaches inside `region`, which holds it: its radius in units, at most 255; a side of
+/// the region on the grid's face does not bound it (past the grid nothing counts).
+fn reach(u: IVec3, region: &Region, s: IVec3, log_unit: i32, dims: IVec3) -> u8 {
+    let unit = 1i32 << log_unit;
     let mut r = i32::from(u8::MAX);
     for a in 0..3 {
         let room = if s[a] > 0 {
-            (region.hi[a] < dims[a]).then(|| region.hi[a] - 1 - u[a])
+            (region.hi[a] < dims[a]).then(|| (region.hi[a] >> log_unit) - 1 - u[a])
         } else {
-            (region.lo[a] > 0).then(|| u[a] - region.lo[a])
+            (region.lo[a] > 0).then(|| u[a] - ((region.lo[a] + unit - 1) >> log_unit))
         };
         if let Some(room) = room {
             r = r.min(room);
         }
     }
-    r as u8
+    r.max(0) as u8
 }
 
 impl Regions for SparseOctant {
@@ -350,19 +455,22 @@ impl Regions for SparseOctant {
         let node = self.cut[i + 1];
         if node != 0 {
             let (region, found, shift) = self.tree.descend(v, node - 1, self.node_shift);
-            let leaf = found.wrapping_sub(self.leaf_first);
-            if shift > 0 || leaf >= self.leaf_count {
+            let k = found.wrapping_sub(self.coded_first);
+            if k >= self.coded_count || shift < self.coded_shift {
                 return region;
             }
-            let p = v & 3;
-            let at =
-                self.codes_at + LEAF_VOXELS * leaf as usize + (p.x + 4 * p.y + 16 * p.z) as usize;
+            // The uniform child's own cube, in children of its node.
+            let b = self.tree.log_branch() as i32;
+            let p = (v >> shift as i32) & ((1 << b) - 1);
+            let at = self.codes_at
+                + CHILDREN * k as usize
+                + (p.x + (p.y << b) + (p.z << (2 * b))) as usize;
             let word = self.cut[at];
-            let (lo, hi) = corner_cube(v, word, octant(step));
+            let (lo, hi) = corner_cube(v >> shift as i32, word, octant(step));
             return Region {
                 material: word as u8,
-                lo: lo.max(IVec3::ZERO),
-                hi: hi.min(self.tree.dims().as_ivec3()),
+                lo: (lo << shift as i32).max(IVec3::ZERO),
+                hi: (hi << shift as i32).min(self.tree.dims().as_ivec3()),
             };
         }
         let word = self.cut[i];
