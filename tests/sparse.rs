@@ -541,6 +541,66 @@ fn the_trees_cut_says_which_cubes_are_uniform() {
     }
 }
 
+/// The nodes the sparse octant walk gives codes: `nodes_up_to` lists, after the index
+/// of the first, every node of side at most its argument, in index order as the
+/// breadth-first layout stores them (the tail of the nodes), each with its cube; and
+/// `node_children` reads a node's children as the grid holds them (a uniform child's
+/// material over its whole cube inside the grid, `None` for a node: mixed, or reaching
+/// past the grid with a material other than void).
+#[test]
+fn the_nodes_below_a_side_are_the_trees_last() {
+    let mut rng = StdRng::seed_from_u64(31);
+    for dims in SIZES {
+        let g = random_sparse_grid(&mut rng, UVec3::from_array(dims), 4);
+        let tree = g.tree(2);
+        let d = g.dims().as_ivec3();
+        let (first, all) = tree.nodes_up_to(2 * tree.levels());
+        assert_eq!(
+            (first, all.len()),
+            (0, tree.node_count()),
+            "{dims:?}: every node"
+        );
+        for log_side in (2..=2 * tree.levels()).step_by(2) {
+            let (first, nodes) = tree.nodes_up_to(log_side);
+            assert_eq!(first as usize + nodes.len(), tree.node_count(), "{dims:?}");
+            assert_eq!(
+                nodes,
+                all.iter()
+                    .copied()
+                    .filter(|&(_, side)| side <= log_side)
+                    .collect::<Vec<_>>(),
+                "{dims:?} up to 2^{log_side}"
+            );
+        }
+        for (k, &(lo, log_side)) in all.iter().enumerate() {
+            let shift = log_side as i32 - 2;
+            for (i, child) in tree.node_children(k as u32).into_iter().enumerate() {
+                let c = lo + (IVec3::new(i as i32 % 4, i as i32 / 4 % 4, i as i32 / 16) << shift);
+                let hi = (c + IVec3::splat(1 << shift)).min(d);
+                if c.cmpge(d).any() {
+                    continue;
+                }
+                let cube: Vec<u8> = (c.z..hi.z)
+                    .flat_map(|z| {
+                        (c.y..hi.y).flat_map(move |y| (c.x..hi.x).map(move |x| IVec3::new(x, y, z)))
+                    })
+                    .map(|v| g.get(v))
+                    .collect();
+                match child {
+                    Some(m) => assert!(cube.iter().all(|&v| v == m), "{dims:?} node {k} child {i}"),
+                    // Mixed, or past the grid, where the tree counts void.
+                    None => assert!(
+                        shift > 0
+                            && (cube.iter().any(|&v| v != cube[0])
+                                || (c + IVec3::splat(1 << shift)).cmpgt(d).any()),
+                        "{dims:?} node {k} child {i}: a node child holds one material"
+                    ),
+                }
+            }
+        }
+    }
+}
+
 /// The sparse octant walk's regions with cells of every side the cut can have (on these
 /// grids `"auto"` takes only cubes of 4), with and without the leaves' codes: uniform,
 /// holding their voxel, for every step.
