@@ -251,173 +251,26 @@ impl SparseOctant {
 
 /// The children's octant words of the nodes of side `2^log_side` among `nodes` (each
 /// with its ordinal among them), by the recurrence of [`octant_radii`] over those
-/// children, for each octant swept from its far corner (nodes in the sweep's order, then
-/// each node's children). A child that is a node matches nothing. A neighbour in
-/// another such node has its radius already; one outside them lies in the uniform
-/// region `walk` finds for it (the cut's cube toward the octant, the tree's child, or a
-/// level above's cube), whose extent toward the octant bounds its radius from below;
-/// one outside the grid does not count (as in the dense field: the walk ends there by
-/// its own test).
+/// children, for each octant swept from its far corner ([`Level::radii`]). A child that
+/// is a node matches nothing and has the word 0.
 fn level_words(
     walk: &SparseOctant,
     first: u32,
     nodes: &[(IVec3, u32)],
     log_side: u32,
 ) -> Vec<(usize, Vec<u32>)> {
-    let tree = &walk.tree;
-    let b = tree.log_branch() as i32;
-    let branch = 1i32 << b;
-    let log_unit = log_side as i32 - b;
-    let unit = 1i32 << log_unit;
-    let dims = tree.dims().as_ivec3();
-    // Past the grid in units: a unit there does not count.
-    let unit_dims = (dims + (unit - 1)) >> log_unit;
-    let level: Vec<usize> = (0..nodes.len())
-        .filter(|&k| nodes[k].1 == log_side)
-        .collect();
-    let children: Vec<Vec<Option<u8>>> = level
-        .par_iter()
-        .map(|&k| tree.node_children(first + k as u32))
-        .collect();
-    // A node of the level by its position in nodes' sides: its place in `level`.
-    let index: FxHashMap<IVec3, u32> = level
-        .iter()
-        .enumerate()
-        .map(|(j, &k)| (nodes[k].0 >> log_side as i32, j as u32))
-        .collect();
-    let child = |p: IVec3| (p.x + branch * (p.y + branch * p.z)) as usize;
+    let level = Level::new(walk, first, nodes, log_side);
     let radii: Vec<Vec<u8>> = (0..8)
         .into_par_iter()
-        .map(|o| {
-            let down = |a: usize| o >> a & 1 == 1;
-            let s = IVec3::new(
-                if down(0) { -1 } else { 1 },
-                if down(1) { -1 } else { 1 },
-                if down(2) { -1 } else { 1 },
-            );
-            let offset =
-                |e: usize| s * IVec3::new((e & 1) as i32, (e >> 1 & 1) as i32, (e >> 2) as i32);
-            // The sweep visits a child after its neighbours toward the octant: nodes by
-            // their position against the octant, z first, then their children so.
-            let mut order: Vec<u32> = (0..level.len() as u32).collect();
-            order.sort_unstable_by_key(|&j| {
-                let k = -(nodes[level[j as usize]].0 * s);
-                (k.z, k.y, k.x)
-            });
-            let sweep: Vec<IVec3> = {
-                let along = |a: usize| -> Vec<i32> {
-                    if down(a) {
-                        (0..branch).collect()
-                    } else {
-                        (0..branch).rev().collect()
-                    }
-                };
-                let mut v = Vec::with_capacity(1 << (3 * b));
-                for z in along(2) {
-                    for y in along(1) {
-                        for x in along(0) {
-                            v.push(IVec3::new(x, y, z));
-                        }
-                    }
-                }
-                v
-            };
-            // For each child in the sweep, its seven neighbours toward the octant: the
-            // node each lies in (bit a: past this node's side on axis a) and its child
-            // index there.
-            let neighbours: Vec<[(u8, u8); 7]> = sweep
-                .iter()
-                .map(|&p| {
-                    std::array::from_fn(|i| {
-                        let q = p + offset(i + 1);
-                        let out =
-                            (0..3).fold(0, |k, a| k | u8::from(!(0..branch).contains(&q[a])) << a);
-                        (out, child(q.rem_euclid(IVec3::splat(branch))) as u8)
-                    })
-                })
-                .collect();
-            let mut radii = vec![0u8; CHILDREN * level.len()];
-            for &j in &order {
-                let lo = nodes[level[j as usize]].0 >> log_unit;
-                // The node of the level toward the octant along the axes of `e`, or the
-                // uniform region at its first unit (None: past the grid).
-                let blocks: [Option<Result<u32, Region>>; 8] = std::array::from_fn(|e| {
-                    if e == 0 {
-                        return Some(Ok(j));
-                    }
-                    let n = lo + branch * offset(e);
-                    if n.cmplt(IVec3::ZERO).any() || n.cmpge(unit_dims).any() {
-                        return None;
-                    }
-                    Some(match index.get(&(n >> b)) {
-                        Some(&m) => Ok(m),
-                        None => Err(walk.region(n << log_unit, s)),
-                    })
-                });
-                // Whether every neighbour of the node's children lies inside the grid.
-                let inside = (lo + branch * s.min(IVec3::ZERO)).cmpge(IVec3::ZERO).all()
-                    && (lo + branch + branch * s.max(IVec3::ZERO))
-                        .cmple(unit_dims)
-                        .all();
-                let mine = &children[j as usize];
-                for (p, near) in sweep.iter().zip(&neighbours) {
-                    let Some(m) = mine[child(*p)] else {
-                        continue;
-                    };
-                    if (lo + *p).cmpge(unit_dims).any() {
-                        continue;
-                    }
-                    let mut r = u8::MAX;
-                    for (e, &(out, inner)) in near.iter().enumerate() {
-                        let inner = inner as usize;
-                        let allowed = match &blocks[out as usize] {
-                            None => continue,
-                            Some(Ok(n)) => {
-                                let n = *n as usize;
-                                if children[n][inner] == Some(m) {
-                                    radii[n * CHILDREN + inner].saturating_add(1)
-                                } else {
-                                    0
-                                }
-                            }
-                            Some(Err(region)) => {
-                                let u = lo + *p + offset(e + 1);
-                                if !inside
-                                    && (u.cmplt(IVec3::ZERO).any() || u.cmpge(unit_dims).any())
-                                {
-                                    continue;
-                                }
-                                // The region at the node's first unit holds the whole
-                                // node where cells are as large; else ask at the unit.
-                                let (ulo, uhi) = (u << log_unit, (u + 1) << log_unit);
-                                let region = if ulo.cmpge(region.lo).all()
-                                    && uhi.min(dims).cmple(region.hi).all()
-                                {
-                                    *region
-                                } else {
-                                    walk.region(ulo, s)
-                                };
-                                if region.material == m {
-                                    reach(u, &region, s, log_unit, dims).saturating_add(1)
-                                } else {
-                                    0
-                                }
-                            }
-                        };
-                        r = r.min(allowed);
-                    }
-                    radii[j as usize * CHILDREN + child(*p)] = r;
-                }
-            }
-            radii
-        })
+        .map(|o| level.radii(walk, o))
         .collect();
     level
+        .members
         .par_iter()
         .enumerate()
-        .map(|(j, &k)| {
+        .map(|(j, &(k, _))| {
             let words = (0..CHILDREN)
-                .map(|i| match children[j][i] {
+                .map(|i| match level.children[j][i] {
                     Some(m) => word(m, &radii, j * CHILDREN + i),
                     None => 0,
                 })
@@ -425,6 +278,190 @@ fn level_words(
             (k, words)
         })
         .collect()
+}
+
+/// The nodes of one level below the cut, as the sweep of their children reads them.
+struct Level {
+    /// Each node's ordinal among the coded nodes and its first child, in units.
+    members: Vec<(usize, IVec3)>,
+    /// Each node's children (x fastest): a uniform child's material, `None` for a node.
+    children: Vec<Vec<Option<u8>>>,
+    /// A node's place in `members` by its position in nodes of its side.
+    index: FxHashMap<IVec3, u32>,
+    log_branch: i32,
+    /// Log2 of a child's side (the unit the level's cubes count in).
+    log_unit: i32,
+    /// The grid in voxels and in units (a unit past it does not count).
+    dims: IVec3,
+    unit_dims: IVec3,
+}
+
+impl Level {
+    fn new(walk: &SparseOctant, first: u32, nodes: &[(IVec3, u32)], log_side: u32) -> Self {
+        let tree = &walk.tree;
+        let log_branch = tree.log_branch() as i32;
+        let log_unit = log_side as i32 - log_branch;
+        let dims = tree.dims().as_ivec3();
+        let members: Vec<(usize, IVec3)> = (0..nodes.len())
+            .filter(|&k| nodes[k].1 == log_side)
+            .map(|k| (k, nodes[k].0 >> log_unit))
+            .collect();
+        let children = members
+            .par_iter()
+            .map(|&(k, _)| tree.node_children(first + k as u32))
+            .collect();
+        let index = members
+            .iter()
+            .enumerate()
+            .map(|(j, &(_, lo))| (lo >> log_branch, j as u32))
+            .collect();
+        Self {
+            members,
+            children,
+            index,
+            log_branch,
+            log_unit,
+            dims,
+            unit_dims: (dims + ((1 << log_unit) - 1)) >> log_unit,
+        }
+    }
+
+    fn child(&self, p: IVec3) -> usize {
+        let b = self.log_branch;
+        (p.x | (p.y << b) | (p.z << (2 * b))) as usize
+    }
+
+    /// Every child's radius toward octant `o` (the level's nodes' children, 64 a node in
+    /// `members`' order), swept from the octant's far corner: nodes by their position
+    /// against the octant, z first, then their children so, each after its seven
+    /// neighbours toward the octant. A neighbour in another node of the level has its
+    /// radius already; one outside them lies in the uniform region `walk` finds for it
+    /// (the cut's cube toward the octant, the tree's child, or a level above's cube),
+    /// whose extent toward the octant bounds its radius from below; one outside the grid
+    /// does not count (as in the dense field: the walk ends there by its own test).
+    fn radii(&self, walk: &SparseOctant, o: usize) -> Vec<u8> {
+        let branch = 1i32 << self.log_branch;
+        let down = |a: usize| o >> a & 1 == 1;
+        let s = IVec3::new(
+            if down(0) { -1 } else { 1 },
+            if down(1) { -1 } else { 1 },
+            if down(2) { -1 } else { 1 },
+        );
+        let offset =
+            |e: usize| s * IVec3::new((e & 1) as i32, (e >> 1 & 1) as i32, (e >> 2) as i32);
+        let mut order: Vec<u32> = (0..self.members.len() as u32).collect();
+        order.sort_unstable_by_key(|&j| {
+            let k = -(self.members[j as usize].1 * s);
+            (k.z, k.y, k.x)
+        });
+        let along = |a: usize| -> Vec<i32> {
+            if down(a) {
+                (0..branch).collect()
+            } else {
+                (0..branch).rev().collect()
+            }
+        };
+        let sweep: Vec<IVec3> = along(2)
+            .into_iter()
+            .flat_map(|z| {
+                along(1)
+                    .into_iter()
+                    .flat_map(move |y| along(0).into_iter().map(move |x| IVec3::new(x, y, z)))
+            })
+            .collect();
+        // For each child in the sweep, its seven neighbours toward the octant: the node
+        // each lies in (bit a: past this node's side on axis a) and its child index there.
+        let neighbours: Vec<[(u8, u8); 7]> = sweep
+            .iter()
+            .map(|&p| {
+                std::array::from_fn(|i| {
+                    let q = p + offset(i + 1);
+                    let out =
+                        (0..3).fold(0, |k, a| k | u8::from(!(0..branch).contains(&q[a])) << a);
+                    (out, self.child(q.rem_euclid(IVec3::splat(branch))) as u8)
+                })
+            })
+            .collect();
+        let mut radii = vec![0u8; CHILDREN * self.members.len()];
+        for &j in &order {
+            let lo = self.members[j as usize].1;
+            // The node of the level toward the octant along the axes of `e`, or the
+            // uniform region at its first unit (None: past the grid).
+            let blocks: [Option<Result<u32, Region>>; 8] = std::array::from_fn(|e| {
+                if e == 0 {
+                    return Some(Ok(j));
+                }
+                let n = lo + branch * offset(e);
+                if n.cmplt(IVec3::ZERO).any() || n.cmpge(self.unit_dims).any() {
+                    return None;
+                }
+                Some(match self.index.get(&(n >> self.log_branch)) {
+                    Some(&m) => Ok(m),
+                    None => Err(walk.region(n << self.log_unit, s)),
+                })
+            });
+            // Whether every neighbour of the node's children lies inside the grid.
+            let inside = (lo + branch * s.min(IVec3::ZERO)).cmpge(IVec3::ZERO).all()
+                && (lo + branch + branch * s.max(IVec3::ZERO))
+                    .cmple(self.unit_dims)
+                    .all();
+            let mine = &self.children[j as usize];
+            for (p, near) in sweep.iter().zip(&neighbours) {
+                let Some(m) = mine[self.child(*p)] else {
+                    continue;
+                };
+                if (lo + *p).cmpge(self.unit_dims).any() {
+                    continue;
+                }
+                let mut r = u8::MAX;
+                for (e, &(out, inner)) in near.iter().enumerate() {
+                    let inner = inner as usize;
+                    let allowed = match &blocks[out as usize] {
+                        None => continue,
+                        Some(Ok(n)) => {
+                            let n = *n as usize;
+                            if self.children[n][inner] == Some(m) {
+                                radii[n * CHILDREN + inner].saturating_add(1)
+                            } else {
+                                0
+                            }
+                        }
+                        Some(Err(region)) => {
+                            let u = lo + *p + offset(e + 1);
+                            if !inside
+                                && (u.cmplt(IVec3::ZERO).any() || u.cmpge(self.unit_dims).any())
+                            {
+                                continue;
+                            }
+                            self.allowed(walk, u, region, m, s)
+                        }
+                    };
+                    r = r.min(allowed);
+                }
+                radii[j as usize * CHILDREN + self.child(*p)] = r;
+            }
+        }
+        radii
+    }
+
+    /// What unit `u`, a neighbour outside the level's nodes, allows a cube of material
+    /// `m` toward the octant of `s`: 0 unless it holds `m`, else one more than how far
+    /// its uniform region reaches from it. `region` is the one at its node's first unit,
+    /// which holds the whole node where the cut's cells are as large; else the region is
+    /// asked at the unit.
+    fn allowed(&self, walk: &SparseOctant, u: IVec3, region: &Region, m: u8, s: IVec3) -> u8 {
+        let (lo, hi) = (u << self.log_unit, (u + 1) << self.log_unit);
+        let region = if lo.cmpge(region.lo).all() && hi.min(self.dims).cmple(region.hi).all() {
+            *region
+        } else {
+            walk.region(lo, s)
+        };
+        if region.material == m {
+            reach(u, &region, s, self.log_unit, self.dims).saturating_add(1)
+        } else {
+            0
+        }
+    }
 }
 
 /// How far unit `u`'s cube (units of `2^log_unit` voxels) toward the octant of `s`
