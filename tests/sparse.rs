@@ -627,6 +627,23 @@ fn sparse_octant_regions_hold_the_grid_at_every_cell_side() {
     }
 }
 
+/// At 1024^3 the cut's cubes of 8 leave no room for the codes within the walk's budget,
+/// so the walk takes cubes of 16, walked from the same nodes: the codes are built, the
+/// data fits, and the kernel's descent (compiled from the grid's dims alone) is the one
+/// the cells need.
+#[test]
+fn cubes_of_sixteen_make_room_for_the_codes_at_1024() {
+    use voxlab::technique::sparse_octant::{MAX_WALK_BYTES, SparseOctant, TRAVERSAL};
+    let scene = seed_scene(1024).unwrap();
+    let walk = SparseOctant::build(scene.grid.tree(2));
+    assert_eq!(walk.log_cell(), 4);
+    assert!(walk.has_codes());
+    let bytes: usize = walk.device_words().iter().map(|w| 4 * w.len()).sum();
+    assert!(bytes <= MAX_WALK_BYTES, "{bytes}");
+    let descent = (TRAVERSAL.descent_levels.unwrap())(scene.grid.dims());
+    assert_eq!(descent, walk.log_cell().div_ceil(2));
+}
+
 /// What the octant cells and the leaves' codes are for: on the seed scene (CPU, where
 /// steps are counted exactly), the sparse octant walk takes fewer steps than the plain
 /// tree walk at every size, with the same image, and from 64^3 at most 1.2 times the
