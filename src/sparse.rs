@@ -571,7 +571,7 @@ impl SparseTree {
     }
 
     /// [`Self::region_below`], with the node the descent ended in and its children's
-    /// shift (0: a leaf, [`Self::leaves`]), as shaders/tree.wgsl's `Found`.
+    /// shift (0: a leaf, [`Self::nodes_up_to`]), as shaders/tree.wgsl's `Found`.
     pub fn descend(&self, v: IVec3, node: u32, shift: u32) -> (Region, u32, u32) {
         debug_assert!(v.cmpge(IVec3::ZERO).all() && v.as_uvec3().cmplt(self.dims).all());
         let (mask_at, first_at, materials_at) = self.offsets();

@@ -15,7 +15,7 @@
 //! (a shadow ray to a light beside a wall) then skips along it instead of stepping voxel
 //! by voxel through the leaves, and one in a uniform child of a node skips that child's
 //! cube of such children. The codes are the recurrence of
-//! [`super::octant::octant_radii`] swept over a level's nodes alone ([`level_words`]),
+//! [`super::octant::octant_radii`] swept over a level's nodes alone (`level_words`),
 //! the levels from the top: a neighbour outside them lies in a uniform region the cut,
 //! the tree or a level above holds, whose cube bounds its radius from below, so every
 //! cube is uniform (a lower bound of the dense field's) and the walk leaves it where the
