@@ -14,6 +14,7 @@
 //! timed frames, which are the tracers' own controls and not the facade's.
 
 pub mod cutoff;
+pub mod lanes;
 pub mod reconstruction;
 
 use std::time::{Duration, Instant};

@@ -79,6 +79,12 @@ pub(crate) struct BenchArgs {
           value_parser = clap::value_parser!(u32).range(8..=4096),
           conflicts_with_all = ["voxelize", "plan", "trees", "cutoffs"])]
     reconstruction: Option<Vec<u32>>,
+    /// Measure how evenly the kernel's SIMD lanes share the work instead: each
+    /// experiment (--experiments, default experiments/baseline.toml and
+    /// experiments/seed_rules.toml) at --size on the CPU reference, the rays each pixel
+    /// traces, and what the software driver's vectors (4x2 pixel blocks) run for them.
+    #[arg(long, conflicts_with_all = ["voxelize", "plan", "trees", "cutoffs", "reconstruction"])]
+    lanes: bool,
     /// Benchmark the render plan instead: the reduced kernel against the full one on
     /// scenes that do not need a feature (time and device memory, as ratios), on the
     /// seed geometry at the first of --sizes.
@@ -119,6 +125,9 @@ pub(crate) fn cmd_bench(a: &BenchArgs) -> Result<()> {
     }
     if let Some(sizes) = &a.reconstruction {
         return bench_reconstruction(a, sizes);
+    }
+    if a.lanes {
+        return bench_lanes(a);
     }
     if a.plan {
         return bench_plan(a);
@@ -410,6 +419,35 @@ fn bench_cutoffs(a: &BenchArgs, cutoffs: &[f64]) -> Result<()> {
         }
         None => println!("no cutoff measured stays within 1/255 on every experiment"),
     }
+    Ok(())
+}
+
+/// `voxlab bench --lanes`.
+fn bench_lanes(a: &BenchArgs) -> Result<()> {
+    let files = if a.experiments.is_empty() {
+        vec![
+            PathBuf::from("experiments/baseline.toml"),
+            PathBuf::from("experiments/seed_rules.toml"),
+        ]
+    } else {
+        a.experiments.clone()
+    };
+    let experiments = files
+        .iter()
+        .map(|f| Experiment::load_with(f, &a.set).map_err(anyhow::Error::from))
+        .collect::<Result<Vec<_>>>()?;
+    let rows = voxlab::bench::lanes::bench_lanes(&experiments, a.size);
+    if a.json {
+        let head = bench_head("lanes", None, a);
+        return print_json_rows(&head, rows.iter().map(|r| r.json()));
+    }
+    println!(
+        "SIMD lanes: each experiment at {0}x{0}, frame 0, the rays of each pixel (CPU \
+         reference) in the kernel's vectors of 4x2 pixels; lane efficiency = the rays \
+         traced over 8 times each vector's largest count\n",
+        a.size
+    );
+    println!("{}", voxlab::bench::lanes::lanes_table(&rows));
     Ok(())
 }
 
