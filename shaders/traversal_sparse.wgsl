@@ -37,7 +37,7 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
         node = (*c).node;
         shift = (*c).shift;
     }
-    let f = region_below(v, node, shift);
+    let f = region_below(v, node, shift, true);
     (*c).node = f.node;
     (*c).shift = f.shift;
     (*c).key = u >> vec3<u32>(f.shift + 2u);

@@ -61,7 +61,9 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
     if word.y != 0u {
         // The node of the tree's level at or above the cell (src/sparse.rs, cut_node_log).
         let node_log = ((*c).log_cell + 1u) & ~1u;
-        let found = region_below(v, word.y - 1u, node_log - 2u);
+        // With codes every node below the cut has them (the tree's last nodes,
+        // src/technique/sparse_octant.rs), and a child's word holds its material.
+        let found = region_below(v, word.y - 1u, node_log - 2u, (*c).coded_count == 0u);
         // Found in a node with its children's codes: the uniform child's own cube, in
         // children of that node.
         let k = found.node - (*c).coded_first;

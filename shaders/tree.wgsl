@@ -13,21 +13,26 @@
 const NODE_VEC4S: u32 = 5u;
 
 // The descent's state: the node, the shift of its children's side (2 per level), and
-// the material once a uniform child holds the voxel.
+// whether the child that holds the voxel is uniform.
 struct Descent {
     node: u32,
     shift: u32,
     found: bool,
-    material: u32,
 }
 
-// One level: the child of the current node that holds v is either uniform (found) or
-// the node to descend into. Written once and repeated TREE_LEVELS times in
-// region_below rather than looped: Mesa's software driver limits back edges, not work
-// (shaders/counters.wgsl).
+// Which of a node's 64 children holds v, for children of 2^shift a side.
+fn child_index(v: vec3<u32>, shift: u32) -> u32 {
+    let c = (v >> vec3<u32>(shift)) & vec3<u32>(3u);
+    return c.x | (c.y << 2u) | (c.z << 4u);
+}
+
+// One level above the last: the child of the current node that holds v is either
+// uniform (found) or the node to descend into. Written once and repeated for the tree's
+// levels in region_below rather than looped: Mesa's software driver limits back edges,
+// not work (shaders/counters.wgsl). It reads the node's mask alone: the material is
+// read once, for the child the descent ends at.
 fn descend(v: vec3<u32>, d: ptr<function, Descent>) {
-    let c = (v >> vec3<u32>((*d).shift)) & vec3<u32>(3u);
-    let i = c.x | (c.y << 2u) | (c.z << 4u);
+    let i = child_index(v, (*d).shift);
     let base = 1u + (*d).node * NODE_VEC4S;
     // Mask and first child in one load.
     let head = walk_data[base];
@@ -35,8 +40,6 @@ fn descend(v: vec3<u32>, d: ptr<function, Descent>) {
     let bit = 1u << (i & 31u);
     if (word & bit) == 0u {
         (*d).found = true;
-        let m = walk_data[base + 1u + (i >> 4u)][(i >> 2u) & 3u];
-        (*d).material = (m >> (8u * (i & 3u))) & 255u;
         return;
     }
     let below = countOneBits(word & (bit - 1u)) + select(0u, countOneBits(head.x), i >= 32u);
@@ -54,16 +57,20 @@ struct Found {
 
 // The uniform region holding voxel v (inside the grid), descending from `node`, whose
 // children are 2^shift a side and whose cube holds v, at most TREE_LEVELS levels (the
-// plan's: the tree's depth, or a cell's levels for a walk that starts at a cell).
-fn region_below(v: vec3<i32>, node: u32, shift: u32) -> Found {
+// plan's: the tree's depth, or a cell's levels for a walk that starts at a cell). The
+// last level's children are voxels, uniform whatever its mask says, so only the levels
+// above it read a mask. The region's material is read only `with_material`: a walk that
+// has the child's word from elsewhere (the sparse octant walk's codes) leaves it out,
+// a storage read fewer for every lane of a step on a software driver, which runs a
+// branch's reads whatever its lanes take.
+fn region_below(v: vec3<i32>, node: u32, shift: u32, with_material: bool) -> Found {
     let u = vec3<u32>(v);
     var d: Descent;
     d.node = node;
     d.shift = shift;
     d.found = false;
-    descend(u, &d);
 #if TREE_LEVELS >= 2
-    if !d.found { descend(u, &d); }
+    descend(u, &d);
 #endif
 #if TREE_LEVELS >= 3
     if !d.found { descend(u, &d); }
@@ -84,7 +91,13 @@ fn region_below(v: vec3<i32>, node: u32, shift: u32) -> Found {
     if !d.found { descend(u, &d); }
 #endif
     var f: Found;
-    f.region.material = d.material;
+    f.region.material = 0u;
+    if with_material {
+        // Four materials a word, sixteen a vec4, after the node's head.
+        let i = child_index(u, d.shift);
+        let m = walk_data[1u + d.node * NODE_VEC4S + 1u + (i >> 4u)][(i >> 2u) & 3u];
+        f.region.material = (m >> (8u * (i & 3u))) & 255u;
+    }
     f.region.lo = vec3<i32>((u >> vec3<u32>(d.shift)) << vec3<u32>(d.shift));
     f.region.hi = min(f.region.lo + vec3<i32>(1 << d.shift), vec3<i32>(params.dims));
     f.node = d.node;
