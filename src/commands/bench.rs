@@ -296,11 +296,7 @@ fn bench_seed(a: &BenchArgs) -> Result<()> {
         } else {
             a.rules.clone()
         },
-        experiments: a
-            .experiments
-            .iter()
-            .map(|f| Experiment::load_with(f, &a.set).map_err(anyhow::Error::from))
-            .collect::<Result<Vec<_>>>()?,
+        experiments: load_experiments(a, Some(&[]))?,
         surfaces: if a.surfaces.is_empty() {
             vec![voxlab::render::Surface::default()]
         } else {
@@ -368,21 +364,7 @@ fn bench_seed(a: &BenchArgs) -> Result<()> {
 /// `voxlab bench --cutoffs`.
 fn bench_cutoffs(a: &BenchArgs, cutoffs: &[f64]) -> Result<()> {
     let mut gpu = GpuTracer::new().context("the cutoff benchmark needs a GPU adapter")?;
-    let files = if a.experiments.is_empty() {
-        let mut files: Vec<PathBuf> = std::fs::read_dir("experiments")
-            .context("reading experiments/ (run from the repository, or name --experiments)")?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-            .collect();
-        files.sort();
-        files
-    } else {
-        a.experiments.clone()
-    };
-    let experiments = files
-        .iter()
-        .map(|f| Experiment::load_with(f, &a.set).map_err(anyhow::Error::from))
-        .collect::<Result<Vec<_>>>()?;
+    let experiments = load_experiments(a, None)?;
     eprintln!("GPU: {}", gpu.adapter_summary());
     let rows = voxlab::bench::cutoff::bench_cutoffs(
         &mut gpu,
@@ -422,20 +404,32 @@ fn bench_cutoffs(a: &BenchArgs, cutoffs: &[f64]) -> Result<()> {
     Ok(())
 }
 
-/// `voxlab bench --lanes`.
-fn bench_lanes(a: &BenchArgs) -> Result<()> {
-    let files = if a.experiments.is_empty() {
-        vec![
-            PathBuf::from("experiments/baseline.toml"),
-            PathBuf::from("experiments/seed_rules.toml"),
-        ]
-    } else {
+/// The --experiments files, each loaded with the --set overrides; without any, the files
+/// of `default`, or every `experiments/*.toml` where there is no default.
+fn load_experiments(a: &BenchArgs, default: Option<&[&str]>) -> Result<Vec<Experiment>> {
+    let files = if !a.experiments.is_empty() {
         a.experiments.clone()
+    } else if let Some(default) = default {
+        default.iter().map(PathBuf::from).collect()
+    } else {
+        let mut files: Vec<PathBuf> = std::fs::read_dir("experiments")
+            .context("reading experiments/ (run from the repository, or name --experiments)")?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .collect();
+        files.sort();
+        files
     };
-    let experiments = files
+    files
         .iter()
         .map(|f| Experiment::load_with(f, &a.set).map_err(anyhow::Error::from))
-        .collect::<Result<Vec<_>>>()?;
+        .collect()
+}
+
+/// `voxlab bench --lanes`.
+fn bench_lanes(a: &BenchArgs) -> Result<()> {
+    let default = ["experiments/baseline.toml", "experiments/seed_rules.toml"];
+    let experiments = load_experiments(a, Some(&default))?;
     let rows = voxlab::bench::lanes::bench_lanes(&experiments, a.size);
     if a.json {
         let head = bench_head("lanes", None, a);
