@@ -4,7 +4,9 @@
 
 mod common;
 
-use common::{DENSE_WALK, experiment, tracer};
+use common::{
+    DENSE_WALK, OCTANT_WALK, PROXIMITY_WALK, SPARSE_OCTANT_WALK, SPARSE_WALK, experiment, tracer,
+};
 
 use glam::DVec3;
 use voxlab::Frame;
@@ -128,4 +130,48 @@ fn opacity_pyramid_ignores_lights_and_rebuilds_on_grid_and_layout() {
         "levels changed, opacity not rebuilt"
     );
     assert_eq!(levels, fresh(&e), "levels changed: stale pyramid");
+}
+
+/// Walks of one grid in turn build their data once each while two are kept (what
+/// `voxlab bench` does frame by frame), give a fresh tracer's images, and a third walk
+/// or another grid builds again: what is kept stays bounded.
+#[test]
+fn walks_in_turn_build_their_data_once() {
+    let mut e = load("baseline.toml", 24);
+    let at = |e: &Experiment, walk| Experiment {
+        settings: voxlab::RenderSettings {
+            traversal: walk,
+            ..e.settings.clone()
+        },
+        ..e.clone()
+    };
+    let mut gpu = tracer();
+    let mut builds = Vec::new();
+    for walk in [
+        SPARSE_WALK,
+        SPARSE_OCTANT_WALK,
+        SPARSE_WALK,
+        SPARSE_OCTANT_WALK,
+    ] {
+        let frame = render(&mut gpu, &at(&e, walk));
+        assert_eq!(frame, fresh(&at(&e, walk)), "{}", walk.name());
+        builds.push(gpu.walk_data_builds());
+    }
+    assert_eq!(builds, [1, 2, 2, 2]);
+    // A walk without data of its own (the dense walk) keeps them too.
+    render(&mut gpu, &at(&e, DENSE_WALK));
+    render(&mut gpu, &at(&e, SPARSE_WALK));
+    assert_eq!(gpu.walk_data_builds(), 2);
+    // Two more walks with data: the oldest two give way.
+    for walk in [OCTANT_WALK, PROXIMITY_WALK] {
+        render(&mut gpu, &at(&e, walk));
+    }
+    assert_eq!(gpu.walk_data_builds(), 4);
+    render(&mut gpu, &at(&e, SPARSE_OCTANT_WALK));
+    assert_eq!(gpu.walk_data_builds(), 5, "the oldest build gave way");
+    // Another grid: its own data.
+    e.scene.grid.set(glam::IVec3::new(3, 1, 3), 1);
+    let frame = render(&mut gpu, &at(&e, SPARSE_OCTANT_WALK));
+    assert_eq!(gpu.walk_data_builds(), 6, "another grid builds again");
+    assert_eq!(frame, fresh(&at(&e, SPARSE_OCTANT_WALK)));
 }

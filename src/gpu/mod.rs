@@ -150,6 +150,10 @@ const WATCHED_SPLIT: u32 = 16;
 /// iterations Mesa's software driver allows an invocation (shaders/counters.wgsl).
 const MAX_FRAMES_PER_DISPATCH: u32 = 4096;
 
+/// Walks' data kept built on the host (`GpuTracer::walk_builds`): two, so that two walks
+/// of one grid alternate without building again (at 1024^3 about 110 MiB each).
+pub const WALK_BUILDS_KEPT: usize = 2;
+
 /// Ray counters (4 x 64 bit), the invocations whose loops the driver cut, one unused word.
 const COUNTER_WORDS: usize = 10;
 const COUNTER_BYTES: u64 = COUNTER_WORDS as u64 * 4;
@@ -335,6 +339,18 @@ pub struct GpuTracer {
         blake3::Hash,
         wgpu::Buffer,
     )>,
+    /// The latest walks' data as built on the host (which traversal, the voxels' hash,
+    /// the data), at most [`WALK_BUILDS_KEPT`]: switching between walks of one grid (the
+    /// benchmark's interleaved frames, the viewer's menu) uploads again but does not
+    /// build again (the sparse octant walk's codes take seconds at 1024^3). Only the
+    /// `walk_data` buffer is on the device.
+    walk_builds: Vec<(
+        &'static crate::technique::TraversalModel,
+        blake3::Hash,
+        std::sync::Arc<dyn crate::sparse::Regions>,
+    )>,
+    /// Builds of a walk's data since the tracer was made.
+    walk_data_builds: u64,
     /// The triangle surfaces of the latest render that traced them: what they were made
     /// from (a hash), the cells, the hash of their tagged grid and their buffer
     /// (`surface` of shaders/bindings.wgsl).
@@ -643,6 +659,8 @@ impl GpuTracer {
             technique_data_builds: 0,
             no_technique_data,
             walk_data: None,
+            walk_builds: Vec::new(),
+            walk_data_builds: 0,
             surfaces: None,
         })
     }
@@ -705,6 +723,13 @@ impl GpuTracer {
     /// model's `data_settings`) did not change does not add one.
     pub fn technique_data_builds(&self) -> u64 {
         self.technique_data_builds
+    }
+
+    /// Diagnostics counter: builds of a walk's own data (`TraversalModel::data`: the
+    /// sparse tree's words, the octant codes) since the tracer was made. A render of a
+    /// grid and walk among the latest [`WALK_BUILDS_KEPT`] built does not add one.
+    pub fn walk_data_builds(&self) -> u64 {
+        self.walk_data_builds
     }
 
     /// Device time of the latest render's trace (the sum of its compute passes, from

@@ -143,7 +143,22 @@ impl GpuTracer {
             return Ok(b.size());
         }
         self.walk_data = None;
-        let data = build(grid);
+        let kept = self
+            .walk_builds
+            .iter()
+            .position(|(t, h, _)| *h == hash && std::ptr::eq(*t, traversal));
+        let data = match kept {
+            Some(i) => self.walk_builds.remove(i).2,
+            None => {
+                self.walk_data_builds += 1;
+                build(grid)
+            }
+        };
+        // The latest last; the oldest gives way.
+        self.walk_builds.push((traversal, hash, data.clone()));
+        if self.walk_builds.len() > WALK_BUILDS_KEPT {
+            self.walk_builds.remove(0);
+        }
         let parts = data.device_words();
         let bytes = (parts.iter().map(|p| p.len()).sum::<usize>() * 4).next_multiple_of(16) as u64;
         let max = self.max_voxel_buffer_bytes();
