@@ -15,8 +15,9 @@ use super::TraversalModel;
 /// all the steps the tree saves: on lavapipe the seed scene rendered at 0.80x the dense
 /// walk's speed with this walk at 256^3 and at 2.03x at 512^3, the bunny voxelized at
 /// 512 at 2.11x (`voxlab bench --sizes 256,512 --experiments experiments/bunny_512.toml`,
-/// docs/sparse-traversal.md), and the octant field beats both tree walks there (256^3,
-/// seed rules, 256x256: 90 ms against 427 ms for the sparse octant walk). A grid
+/// docs/sparse-traversal.md). Below 512 the octant field is at least as fast as both
+/// tree walks (256^3, seed rules, 256x256: 65.1 ms against 66.0 for the sparse octant
+/// walk, "A descent's reads"; 90 against 427 before its codes). A grid
 /// larger than the device binds as one buffer is walked through the tree whatever its
 /// side (`crate::gpu`).
 pub const SPARSE_FROM_SIDE: u32 = 512;
