@@ -56,14 +56,19 @@ pub fn pixel_stats(
     height: u32,
     rows: std::ops::Range<u32>,
 ) -> Vec<RayStats> {
+    let (settings, prepared) = prepare(e, width, height);
+    pixels_of(e, &settings, &prepared, rows)
+}
+
+/// The experiment's settings at `width` x `height` and what its trees read, prepared once.
+fn prepare(e: &Experiment, width: u32, height: u32) -> (crate::RenderSettings, Prepared) {
     let settings = crate::RenderSettings {
         width,
         height,
         ..e.settings.clone()
     };
-    let scene = &e.scene;
-    let prepared = Prepared::new(scene, &settings, &Plan::new(scene, &settings));
-    pixels_of(e, &settings, &prepared, rows)
+    let prepared = Prepared::new(&e.scene, &settings, &Plan::new(&e.scene, &settings));
+    (settings, prepared)
 }
 
 fn pixels_of(
@@ -158,12 +163,7 @@ pub fn bench_lanes(experiments: &[Experiment], side: u32) -> Vec<LaneRow> {
     experiments
         .iter()
         .map(|e| {
-            let settings = crate::RenderSettings {
-                width: side,
-                height: side,
-                ..e.settings.clone()
-            };
-            let prepared = Prepared::new(&e.scene, &settings, &Plan::new(&e.scene, &settings));
+            let (settings, prepared) = prepare(e, side, side);
             let (mut tree, mut shadow) = (Lanes::default(), Lanes::default());
             for start in (0..side).step_by(BAND as usize) {
                 let band = pixels_of(e, &settings, &prepared, start..(start + BAND).min(side));
