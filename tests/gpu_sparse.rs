@@ -456,3 +456,19 @@ fn every_walk_renders_the_stress_cases_as_the_dense_walk() {
     // Every case with every skipping walk: all of them walk dense grids.
     assert_eq!(compared, cases.len() * skipping_walks().len());
 }
+
+/// The GPU builds a walk's data within its device's largest binding less the slack; on
+/// lavapipe that is the CPU reference's budget, so both walk the same cells and codes
+/// (and count the same steps).
+#[test]
+fn the_walk_budget_is_the_devices_binding() {
+    use voxlab::technique::{HOST_WALK_BYTES, WALK_BYTES_SLACK};
+    let gpu = tracer();
+    let max = usize::try_from(gpu.max_voxel_buffer_bytes()).unwrap();
+    assert_eq!(gpu.walk_budget(), max - WALK_BYTES_SLACK);
+    let adapter = gpu.adapter_info();
+    if adapter.name.contains("llvmpipe") {
+        assert_eq!(max, 128 << 20, "{adapter:?}");
+        assert_eq!(gpu.walk_budget(), HOST_WALK_BYTES);
+    }
+}

@@ -28,7 +28,10 @@ const SPARSE_OCTANT_WALK: voxlab::render::Traversal =
 fn walk_data(g: &Grid) -> Vec<(&'static str, std::sync::Arc<dyn Regions>)> {
     voxlab::technique::TRAVERSALS
         .iter()
-        .filter_map(|t| t.data.map(|data| (t.name, data(g))))
+        .filter_map(|t| {
+            t.data
+                .map(|data| (t.name, data(g, voxlab::technique::HOST_WALK_BYTES)))
+        })
         .collect()
 }
 
@@ -642,6 +645,50 @@ fn cubes_of_sixteen_make_room_for_the_codes_at_1024() {
     assert!(bytes <= MAX_WALK_BYTES, "{bytes}");
     let descent = (TRAVERSAL.descent_levels.unwrap())(scene.grid.dims());
     assert_eq!(descent, walk.log_cell().div_ceil(2));
+}
+
+/// The codes are held where the walk's data fits the budget it is built within (the
+/// device's binding on the GPU): one byte short of what they need, the walk holds the
+/// cut alone and walks to the same regions; `build` is the CPU reference's budget.
+#[test]
+fn the_codes_are_held_within_the_budget_they_are_built_for() {
+    use voxlab::technique::sparse_octant::{MAX_WALK_BYTES, SparseOctant};
+    let scene = seed_scene(64).unwrap();
+    let tree = scene.grid.tree(2);
+    let bytes = |w: &SparseOctant| -> usize { w.device_words().iter().map(|p| 4 * p.len()).sum() };
+    let coded = SparseOctant::build_within(tree.clone(), usize::MAX);
+    assert!(coded.has_codes());
+    let need = bytes(&coded);
+    // The build reckons the codes' room to the vec4, within a few words of the data.
+    assert!(SparseOctant::build_within(tree.clone(), need + 16) == coded);
+    let without = SparseOctant::build_within(tree.clone(), need - 1);
+    assert!(!without.has_codes());
+    assert!(bytes(&without) < need);
+    assert!(SparseOctant::build(tree.clone()) == SparseOctant::build_within(tree, MAX_WALK_BYTES));
+    assert_eq!(MAX_WALK_BYTES, voxlab::technique::HOST_WALK_BYTES);
+    // Without codes, the same regions for every voxel and octant.
+    let dims = scene.grid.dims().as_ivec3();
+    let mut rng = StdRng::seed_from_u64(37);
+    for _ in 0..2000 {
+        let v = IVec3::new(
+            rng.random_range(0..dims.x),
+            rng.random_range(0..dims.y),
+            rng.random_range(0..dims.z),
+        );
+        let step = IVec3::new(
+            rng.random_range(-1..=1),
+            rng.random_range(-1..=1),
+            rng.random_range(-1..=1),
+        );
+        let (a, b) = (coded.region(v, step), without.region(v, step));
+        assert_eq!(a.material, b.material, "{v} {step}");
+        for r in [a, b] {
+            assert!(
+                r.lo.cmple(v).all() && r.hi.cmpgt(v).all(),
+                "{v} {step}: {r:?}"
+            );
+        }
+    }
 }
 
 /// What the octant cells and the leaves' codes are for: on the seed scene (CPU, where

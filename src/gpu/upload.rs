@@ -31,6 +31,17 @@ impl GpuTracer {
             .min(limits.max_buffer_size)
     }
 
+    /// The most bytes a walk's data may take where the walk chooses what to hold (the
+    /// sparse octant walk's codes): the largest binding less
+    /// [`crate::technique::WALK_BYTES_SLACK`]. On lavapipe it is the CPU reference's
+    /// [`crate::technique::HOST_WALK_BYTES`], so both walk alike; a device that binds
+    /// more holds the codes of larger trees (images the same, fewer steps).
+    pub fn walk_budget(&self) -> usize {
+        usize::try_from(self.max_voxel_buffer_bytes())
+            .unwrap_or(usize::MAX)
+            .saturating_sub(crate::technique::WALK_BYTES_SLACK)
+    }
+
     /// Makes the voxel buffer of `grid` (the uploaded grid, or its copy with the cells
     /// tagged), whose voxels hash to `hash`, unless the upload holds it.
     pub(super) fn upload_voxel_buffer(&mut self, grid: &crate::scene::Grid, hash: blake3::Hash) {
@@ -151,7 +162,7 @@ impl GpuTracer {
             Some(i) => self.walk_builds.remove(i).2,
             None => {
                 self.walk_data_builds += 1;
-                build(grid)
+                build(grid, self.walk_budget())
             }
         };
         // The latest last; the oldest gives way.

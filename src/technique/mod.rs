@@ -803,8 +803,19 @@ pub fn default_shadow_model() -> &'static ShadowModel {
 }
 
 /// A traversal's data of a grid: its regions for the f64 walks, its words for the
-/// kernel.
-pub(crate) type WalkData = fn(&crate::scene::Grid) -> std::sync::Arc<dyn crate::sparse::Regions>;
+/// kernel. The second argument is the most bytes the data may take where the traversal
+/// chooses what to hold (the sparse octant walk's codes): the device's binding on the
+/// GPU, [`HOST_WALK_BYTES`] on the CPU reference.
+pub(crate) type WalkData =
+    fn(&crate::scene::Grid, usize) -> std::sync::Arc<dyn crate::sparse::Regions>;
+
+/// The walk data budget of the CPU reference: what the GPU tracer takes on lavapipe
+/// (its 128 MiB binding less [`WALK_BYTES_SLACK`]), so that the reference walks what the
+/// software driver walks, step for step.
+pub const HOST_WALK_BYTES: usize = (128 << 20) - WALK_BYTES_SLACK;
+
+/// What a device's walk data budget leaves of its largest binding.
+pub const WALK_BYTES_SLACK: usize = 8 << 20;
 
 /// A traversal's claim on a scene under `render.traversal = "auto"`: `Ok(why)` or
 /// `Err(why not)`.

@@ -51,7 +51,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
     ),
     walks_tree: false,
     descent_levels: None,
-    data: Some(|grid| Arc::new(OctantField::build(grid))),
+    data: Some(|grid, _| Arc::new(OctantField::build(grid))),
     // One word a voxel.
     device_bytes: Some(|dims| super::per_voxel_bytes(dims, 4)),
 };

@@ -59,7 +59,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
     ),
     walks_tree: false,
     descent_levels: None,
-    data: Some(|grid| Arc::new(ProximityField::build(grid))),
+    data: Some(|grid, _| Arc::new(ProximityField::build(grid))),
     // Two bytes a voxel.
     device_bytes: Some(|dims| super::per_voxel_bytes(dims, 2)),
 };

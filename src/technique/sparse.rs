@@ -35,6 +35,6 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
     ),
     walks_tree: true,
     descent_levels: None,
-    data: Some(|grid| grid.tree(crate::sparse::GPU_LOG_BRANCH)),
+    data: Some(|grid, _| grid.tree(crate::sparse::GPU_LOG_BRANCH)),
     device_bytes: None,
 };

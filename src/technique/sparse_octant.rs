@@ -48,9 +48,11 @@ use crate::sparse::{Cut, GPU_LOG_BRANCH, Region, Regions, SparseTree};
 pub const MAX_CELLS: u64 = 1 << 21;
 
 /// The most bytes of the walk's data (tree, cut and the leaves' codes) with which the
-/// leaves get their codes: 120 MiB, within the 128 MiB a storage buffer binding holds on
-/// lavapipe (and wgpu's default limit). A larger tree is walked without them.
-pub const MAX_WALK_BYTES: usize = 120 << 20;
+/// leaves get their codes in [`SparseOctant::build`]: 120 MiB, within the 128 MiB a
+/// storage buffer binding holds on lavapipe (and wgpu's default limit), the CPU
+/// reference's budget. The GPU tracer builds within its device's binding instead
+/// ([`SparseOctant::build_within`]). A larger tree is walked without them.
+pub const MAX_WALK_BYTES: usize = super::HOST_WALK_BYTES;
 
 /// Children of a node of the 64-tree, each with a word of codes.
 const CHILDREN: usize = 64;
@@ -103,7 +105,12 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
         let levels = crate::sparse::levels_for(dims, GPU_LOG_BRANCH);
         log_cell_side(dims, GPU_LOG_BRANCH, levels).div_ceil(GPU_LOG_BRANCH)
     }),
-    data: Some(|grid| Arc::new(SparseOctant::build(grid.tree(GPU_LOG_BRANCH)))),
+    data: Some(|grid, budget| {
+        Arc::new(SparseOctant::build_within(
+            grid.tree(GPU_LOG_BRANCH),
+            budget,
+        ))
+    }),
     device_bytes: None,
 };
 
@@ -138,16 +145,22 @@ impl SparseOctant {
     /// walked from the same nodes (a cell's node, the codes and the kernel's descent
     /// are the same).
     pub fn build(tree: Arc<SparseTree>) -> Self {
+        Self::build_within(tree, MAX_WALK_BYTES)
+    }
+
+    /// [`Self::build`] within `budget` bytes of walk data instead of [`MAX_WALK_BYTES`]:
+    /// a device that binds more holds the codes of larger trees.
+    pub fn build_within(tree: Arc<SparseTree>, budget: usize) -> Self {
         let b = tree.log_branch();
         let log_cell = log_cell_side(tree.dims(), b, tree.levels());
         let node_log = tree.cut_node_log(log_cell);
         if log_cell < node_log
-            && Self::bytes_with_codes(&tree, log_cell) > MAX_WALK_BYTES
-            && Self::bytes_with_codes(&tree, node_log) <= MAX_WALK_BYTES
+            && Self::bytes_with_codes(&tree, log_cell) > budget
+            && Self::bytes_with_codes(&tree, node_log) <= budget
         {
-            return Self::with_cell_side(tree, node_log);
+            return Self::with_cell_side_within(tree, node_log, budget);
         }
-        Self::with_cell_side(tree, log_cell)
+        Self::with_cell_side_within(tree, log_cell, budget)
     }
 
     /// The walk's bytes with cells of `2^log_cell` and the codes below them.
@@ -162,11 +175,15 @@ impl SparseOctant {
     /// tests walk every side the cut can have. The nodes below the cut have their
     /// children's codes within [`MAX_WALK_BYTES`].
     pub fn with_cell_side(tree: Arc<SparseTree>, log_cell: u32) -> Self {
+        Self::with_cell_side_within(tree, log_cell, MAX_WALK_BYTES)
+    }
+
+    fn with_cell_side_within(tree: Arc<SparseTree>, log_cell: u32, budget: usize) -> Self {
         let cut = Self::without_codes(tree, log_cell);
         let (first, nodes) = cut.tree.nodes_up_to(cut.node_shift + cut.tree.log_branch());
         let bytes = 4 * (cut.tree.words().len() + cut.cut.len() + 3 + CHILDREN * nodes.len());
         // The codes' layout is the 64-tree's (64 children a node, shaders/tree.wgsl).
-        if nodes.is_empty() || bytes > MAX_WALK_BYTES || cut.tree.log_branch() != GPU_LOG_BRANCH {
+        if nodes.is_empty() || bytes > budget || cut.tree.log_branch() != GPU_LOG_BRANCH {
             return cut;
         }
         cut.with_codes(first, &nodes)
