@@ -8,7 +8,7 @@
 //! the same text to find the line. Either way every message starts with `file:line:`.
 //!
 //! The file format is documented by example in `experiments/baseline.toml`. The way
-//! back, an [`Experiment`] written as a file that parses to it again, is [`write`].
+//! back, an [`Experiment`] written as a file that parses to it again, is [`mod@write`].
 
 mod models;
 pub mod write;

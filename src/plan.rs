@@ -142,7 +142,7 @@ fn auto_traversal(scene: &Scene, settings: &RenderSettings) -> (&'static Travers
     (t, format!("auto: {why}"))
 }
 
-/// [`auto_traversal`] among the traversals `fits` allows (those whose data a device
+/// The `"auto"` traversal's choice among the traversals `fits` allows (those whose data a device
 /// binds; the tree walk binds any grid), with the reason.
 pub fn auto_traversal_within(
     scene: &Scene,

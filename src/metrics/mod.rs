@@ -136,7 +136,7 @@ pub fn flip(reference: &Frame, test: &Frame) -> (f64, image::RgbImage) {
     (mean, magma(&map, reference.width, reference.height))
 }
 
-/// [`flip`] at `ppd` pixels per degree: its mean and the per-pixel error in [0, 1],
+/// [`flip()`] at `ppd` pixels per degree: its mean and the per-pixel error in [0, 1],
 /// row-major (the Python `flip()`). The frames must have one size.
 pub fn flip_at(reference: &Frame, test: &Frame, ppd: f32) -> (f64, Vec<f32>) {
     let (w, h) = (reference.width, reference.height);
@@ -151,14 +151,14 @@ pub fn flip_at(reference: &Frame, test: &Frame, ppd: f32) -> (f64, Vec<f32>) {
     (mean, map)
 }
 
-/// The mean of [`flip`].
+/// The mean of [`flip()`].
 pub fn flip_mean(reference: &Frame, test: &Frame) -> f64 {
     flip(reference, test).0
 }
 
 /// FLIP of the display images quantised to 8 bits, by NVIDIA's implementation
 /// (`nv-flip`): what a FLIP of two PNGs measures. Quantising adds an error of its own,
-/// so this is above [`flip`] for small differences.
+/// so this is above [`flip()`] for small differences.
 pub fn flip_8bit(reference: &Frame, test: &Frame) -> f64 {
     let (w, h) = (reference.width, reference.height);
     let srgb = crate::frame::DisplayTransform {

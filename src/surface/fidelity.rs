@@ -299,7 +299,7 @@ fn point_triangle_distance(p: DVec3, &[a, b, c]: &[DVec3; 3]) -> f64 {
 /// Plain marching cubes of `material`'s voxels (every non-void one with `None`):
 /// vertices at the midpoints of the edges between inside and outside voxel centres,
 /// each piece of a cell a polygon through them, fanned into triangles (Lorensen and
-/// Cline 1987, with the faces' pairings of [`super::cell_case`], so it is the same
+/// Cline 1987, with the faces' pairings of the smooth surface's `cell_case`, so it is the same
 /// closed 2-manifold topology as the smooth surface). The reference the smooth
 /// surface is measured against.
 pub fn marching_cubes(grid: &Grid, material: Option<u8>) -> SurfaceMesh {

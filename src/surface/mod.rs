@@ -4,13 +4,13 @@
 //! (one vertex per piece of surface in each dual cell, quads between them; Gibson,
 //! "Constrained Elastic Surface Nets", MERL TR 1998) on the volume padded by one voxel
 //! of outside. Where voxels of the material touch only along an edge or at a corner, the
-//! cell's vertex is split by the pieces of surface in it ([`cell_case`], as manifold
+//! cell's vertex is split by the pieces of surface in it (`cell_case`, as manifold
 //! dual contouring does), so every surface is a closed 2-manifold: each edge shared by
 //! exactly two triangles, each vertex's triangles one fan ([`SurfaceMesh::is_closed`]
 //! checks it as trimesh and open3d do). On a binary volume every vertex starts at the
 //! mean of its crossings' midpoints (a staircase with chamfers); it is then relaxed,
 //! each vertex kept in its own cell, and the material's volume restored (see
-//! [`relax`]).
+//! `relax_nets`).
 //!
 //! A boundary between two non-void materials gets a surface from each side (coincident,
 //! opposite normals): each material's surface is closed on its own.
