@@ -359,8 +359,11 @@ fn the_seed_scene_at_2048_renders_through_its_tree() {
     let memory = gpu.last_memory().unwrap();
     println!("seed 2048^3 on the device: {memory:?}");
     assert_eq!(memory.grid, 0);
+    // A small part of the 8 GiB dense grid, whatever the device binds: lavapipe holds
+    // the tree and its cut (about 120 MiB), a device that binds about 470 MB the codes
+    // below the cut too (GpuTracer::walk_budget).
     assert!(
-        memory.walk_data > 0 && memory.walk_data < 256 << 20,
+        memory.walk_data > 100 << 20 && memory.walk_data < 1 << 30,
         "{} bytes",
         memory.walk_data
     );
