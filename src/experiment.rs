@@ -339,6 +339,7 @@ struct RawRender {
     pixel_filter: Option<String>,
     filter_width: Option<f64>,
     traversal: Option<String>,
+    walk_budget_mib: Option<i64>,
     surface: Option<String>,
 }
 
@@ -1317,6 +1318,7 @@ fn build(
         ("falloff_min_distance", r.falloff_min_distance),
         ("ray_offset", r.ray_offset),
         ("ray_cutoff", r.ray_cutoff),
+        ("walk_budget_mib", int(r.walk_budget_mib)),
     ];
     apply_fields(settings::RENDER, "render", &given, &mut settings, ctx)?;
     // serde takes each group's table as a field of RawExperiment.

@@ -437,7 +437,26 @@ pub const RENDER: &[Field<RenderSettings>] = &[
         get: |s| s.ray_cutoff,
         set: |s, v| s.ray_cutoff = v,
     },
+    Field {
+        setting: Setting::new(
+            "walk_budget_mib",
+            Kind::Int {
+                min: 0,
+                max: MAX_WALK_BUDGET_MIB as i64,
+            },
+            0.0,
+            "MiB",
+            "the most a traversal's own data may take where it chooses what to hold (the sparse \
+             octant walk's codes): the same image, other steps (0: the tracer's own, the \
+             device's largest binding less 8 MiB on the GPU, 120 MiB on the CPU reference)",
+        ),
+        get: |s| s.walk_budget_mib as f64,
+        set: |s, v| s.walk_budget_mib = v as u32,
+    },
 ];
+
+/// Largest `render.walk_budget_mib`: 64 GiB, past any device's binding.
+pub const MAX_WALK_BUDGET_MIB: u32 = 1 << 16;
 
 /// `[render] max_depth`: optional, so not a [`Field`] of [`RENDER`].
 pub(crate) const MAX_DEPTH: Setting = Setting::new(

@@ -475,3 +475,72 @@ fn the_walk_budget_is_the_devices_binding() {
         assert_eq!(gpu.walk_budget(), HOST_WALK_BYTES);
     }
 }
+
+/// `render.walk_budget_mib` bounds what a walk's data holds on both tracers alike: the
+/// seed scene at 256^3 under the sparse octant walk holds its codes within the
+/// tracers' own budgets (0) and not within 1 MiB, so the steps differ and the images do
+/// not; at each budget the GPU counts the CPU reference's steps (a device that binds
+/// more than lavapipe walks as the reference does once the budget is set). A budget is
+/// a key of the device's walk cache, and one above the device's binding is refused
+/// with the key and the range it allows.
+#[test]
+fn the_walk_budget_setting_changes_the_steps_alike_and_never_the_image() {
+    let scene = seed_scene(256).unwrap();
+    let mut gpu = tracer();
+    let at = |gpu: &mut voxlab::gpu::GpuTracer, mib: u32| {
+        let s = RenderSettings {
+            width: 24,
+            height: 20,
+            max_reflection_depth: 2,
+            max_refraction_depth: 2,
+            traversal: SPARSE_OCTANT_WALK,
+            walk_budget_mib: mib,
+            ..RenderSettings::default()
+        };
+        let g = gpu.render_counted(&scene, &s).unwrap();
+        let c = voxlab::cpu::render(&scene, &s);
+        assert_agree(&format!("walk budget {mib} MiB"), &g.frame, &c.frame);
+        // The same regions on both tracers, so the same steps but where f32 and f64
+        // take another voxel at an edge.
+        let (gs, cs) = (g.stats.voxel_steps, c.stats.voxel_steps);
+        assert!(
+            gs.abs_diff(cs) as f64 <= 0.005 * cs as f64,
+            "{mib} MiB: GPU {gs} steps, CPU {cs}"
+        );
+        (g, c)
+    };
+    let (g_own, c_own) = at(&mut gpu, 0);
+    let (g_one, c_one) = at(&mut gpu, 1);
+    assert_eq!(
+        g_own.frame.pixels, g_one.frame.pixels,
+        "the GPU's image moved"
+    );
+    assert_eq!(
+        c_own.frame.pixels, c_one.frame.pixels,
+        "the CPU's image moved"
+    );
+    assert!(
+        c_one.stats.voxel_steps > 2 * c_own.stats.voxel_steps,
+        "without the codes the walk takes more steps: {} against {}",
+        c_one.stats.voxel_steps,
+        c_own.stats.voxel_steps
+    );
+    // Each budget built once: its own data, kept for the next render at it.
+    let builds = gpu.walk_data_builds();
+    at(&mut gpu, 0);
+    assert_eq!(gpu.walk_data_builds(), builds);
+
+    let above = (gpu.walk_budget() >> 20) as u32 + 1;
+    let s = RenderSettings {
+        width: 8,
+        height: 8,
+        walk_budget_mib: above,
+        ..RenderSettings::default()
+    };
+    let e = format!("{:#}", gpu.render(&scene, &s).unwrap_err());
+    assert!(
+        e.contains(&format!("render.walk_budget_mib = {above}"))
+            && e.contains(&format!("allowed 0..={}", above - 1)),
+        "{e}"
+    );
+}

@@ -420,10 +420,10 @@ impl Prepared {
             cones: crate::technique::cones::march::ConeScene::new(scene, settings, plan),
             shadow_model: (plan.shadow_model.cpu)(scene, settings),
             terms: plan.terms.clone(),
-            regions: plan
-                .traversal
-                .data
-                .map(|data| data(grid, crate::technique::HOST_WALK_BYTES)),
+            regions: plan.traversal.data.map(|data| {
+                let own = crate::technique::HOST_WALK_BYTES;
+                data(grid, crate::technique::walk_budget(settings, own))
+            }),
             surfaces,
             cutoff: if plan.ray_cutoff {
                 crate::ray_cutoff::cutoff(settings)

@@ -307,6 +307,7 @@ pub fn render_table(s: &RenderSettings, ambient: DVec3) -> Table {
         pixel_filter: _,
         filter_width: _,
         traversal: _,
+        walk_budget_mib: _,
         surface: _,
     } = s;
     let mut t = Table::new();
@@ -541,6 +542,7 @@ const RENDER_KEYS: &[&str] = &[
     "pixel_filter",
     "filter_width",
     "traversal",
+    "walk_budget_mib",
     "surface",
 ];
 

@@ -132,7 +132,7 @@ impl GpuTracer {
                     7,
                     self.walk_data
                         .as_ref()
-                        .map_or(&self.no_technique_data, |t| &t.2),
+                        .map_or(&self.no_technique_data, |t| &t.1),
                 ),
                 buffer_entry(
                     8,
@@ -233,7 +233,12 @@ impl GpuTracer {
         let (walk_bytes, walk_time) = if plan.traversal.data.is_some() {
             let start = Instant::now();
             (
-                self.upload_walk_data(plan.traversal, walk_grid, walk_hash)?,
+                self.upload_walk_data(
+                    plan.traversal,
+                    walk_grid,
+                    walk_hash,
+                    crate::technique::walk_budget(settings, self.walk_budget()),
+                )?,
                 start.elapsed(),
             )
         } else {

@@ -333,28 +333,38 @@ pub struct GpuTracer {
     /// and as `walk_data` when the plan walks the voxel buffer.
     no_technique_data: wgpu::Buffer,
     /// The planned traversal's own data of the voxels the walks read (which traversal,
-    /// the voxels' hash, the buffer: the sparse tree, say), while renders walk it.
-    walk_data: Option<(
-        &'static crate::technique::TraversalModel,
-        blake3::Hash,
-        wgpu::Buffer,
-    )>,
-    /// The latest walks' data as built on the host (which traversal, the voxels' hash,
-    /// the data), at most [`WALK_BUILDS_KEPT`]: switching between walks of one grid (the
+    /// the voxels' hash, the budget; the buffer: the sparse tree, say), while renders
+    /// walk it.
+    walk_data: Option<(WalkKey, wgpu::Buffer)>,
+    /// The latest walks' data as built on the host (what each was built from, the
+    /// data), at most [`WALK_BUILDS_KEPT`]: switching between walks of one grid (the
     /// benchmark's interleaved frames, the viewer's menu) uploads again but does not
     /// build again (the sparse octant walk's codes take seconds at 1024^3). Only the
     /// `walk_data` buffer is on the device.
-    walk_builds: Vec<(
-        &'static crate::technique::TraversalModel,
-        blake3::Hash,
-        std::sync::Arc<dyn crate::sparse::Regions>,
-    )>,
+    walk_builds: Vec<(WalkKey, std::sync::Arc<dyn crate::sparse::Regions>)>,
     /// Builds of a walk's data since the tracer was made.
     walk_data_builds: u64,
     /// The triangle surfaces of the latest render that traced them: what they were made
     /// from (a hash), the cells, the hash of their tagged grid and their buffer
     /// (`surface` of shaders/bindings.wgsl).
     surfaces: Option<SurfaceUpload>,
+}
+
+/// What a walk's data is built from: the traversal, the hash of the voxels it walks
+/// and the budget it is built within (`crate::technique::walk_budget`).
+#[derive(Clone, Copy)]
+struct WalkKey {
+    traversal: &'static crate::technique::TraversalModel,
+    hash: blake3::Hash,
+    budget: usize,
+}
+
+impl WalkKey {
+    fn same(&self, other: &WalkKey) -> bool {
+        std::ptr::eq(self.traversal, other.traversal)
+            && self.hash == other.hash
+            && self.budget == other.budget
+    }
 }
 
 /// Triangle surfaces on the device (`crate::triangles`).
@@ -799,6 +809,16 @@ impl GpuTracer {
             if d > MAX_DEPTH_LIMIT {
                 bail!("{name} {d}: at most {MAX_DEPTH_LIMIT}");
             }
+        }
+        let own = self.walk_budget() >> 20;
+        if settings.walk_budget_mib as usize > own {
+            bail!(
+                "render.walk_budget_mib = {}: {} binds at most {own} MiB of a walk's data \
+                 (max_storage_buffer_binding_size less 8 MiB); allowed 0..={own} (0: all \
+                 of it)",
+                settings.walk_budget_mib,
+                self.adapter.get_info().name,
+            );
         }
         let limits = self.device.limits();
         let dims = scene.grid.dims();

@@ -136,37 +136,39 @@ impl GpuTracer {
     }
 
     /// Builds and uploads the data `traversal` walks in `grid` (whose voxels hash to
-    /// `hash`: the sparse tree, say) unless the device holds it already; returns its
-    /// bytes.
+    /// `hash`: the sparse tree, say) within `budget` bytes where the traversal chooses
+    /// what to hold, unless the device holds it already; returns its bytes.
     pub(super) fn upload_walk_data(
         &mut self,
         traversal: &'static crate::technique::TraversalModel,
         grid: &crate::scene::Grid,
         hash: blake3::Hash,
+        budget: usize,
     ) -> Result<u64> {
         let build = traversal
             .data
             .expect("only a traversal with data of its own uploads it");
-        if let Some((t, h, b)) = &self.walk_data
-            && *h == hash
-            && std::ptr::eq(*t, traversal)
+        let key = super::WalkKey {
+            traversal,
+            hash,
+            budget,
+        };
+        if let Some((k, b)) = &self.walk_data
+            && k.same(&key)
         {
             return Ok(b.size());
         }
         self.walk_data = None;
-        let kept = self
-            .walk_builds
-            .iter()
-            .position(|(t, h, _)| *h == hash && std::ptr::eq(*t, traversal));
+        let kept = self.walk_builds.iter().position(|(k, _)| k.same(&key));
         let data = match kept {
-            Some(i) => self.walk_builds.remove(i).2,
+            Some(i) => self.walk_builds.remove(i).1,
             None => {
                 self.walk_data_builds += 1;
-                build(grid, self.walk_budget())
+                build(grid, budget)
             }
         };
         // The latest last; the oldest gives way.
-        self.walk_builds.push((traversal, hash, data.clone()));
+        self.walk_builds.push((key, data.clone()));
         if self.walk_builds.len() > WALK_BUILDS_KEPT {
             self.walk_builds.remove(0);
         }
@@ -196,7 +198,7 @@ impl GpuTracer {
                 .write_buffer(&buf, offset, bytemuck::cast_slice(part));
             offset += 4 * part.len() as u64;
         }
-        self.walk_data = Some((traversal, hash, buf));
+        self.walk_data = Some((key, buf));
         Ok(bytes)
     }
 

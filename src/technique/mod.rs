@@ -817,6 +817,17 @@ pub const HOST_WALK_BYTES: usize = (128 << 20) - WALK_BYTES_SLACK;
 /// What a device's walk data budget leaves of its largest binding.
 pub const WALK_BYTES_SLACK: usize = 8 << 20;
 
+/// The budget a render's walk data is built within: `render.walk_budget_mib` where it
+/// is set, else `own`, the tracer's (the device's binding less [`WALK_BYTES_SLACK`], or
+/// [`HOST_WALK_BYTES`] on the CPU reference). Set alike on both tracers, it gives them
+/// the same data on any device, step for step.
+pub fn walk_budget(settings: &crate::render::RenderSettings, own: usize) -> usize {
+    match settings.walk_budget_mib {
+        0 => own,
+        mib => (mib as usize) << 20,
+    }
+}
+
 /// A traversal's claim on a scene under `render.traversal = "auto"`: `Ok(why)` or
 /// `Err(why not)`.
 pub(crate) type AutoClaim = fn(&Scene) -> Result<String, String>;
