@@ -21,9 +21,9 @@
 // image per frame of the dispatch, frame by frame (shaders/accumulate.wgsl sums them).
 @group(0) @binding(4) var<storage, read_write> output: array<vec4<f32>>;
 // Ray counters as 64-bit (lo, hi) pairs: primary, secondary, shadow, voxel steps; then
-// the invocations whose loops the driver cut short (shaders/counters.wgsl, loop_cut)
-// and one unused word.
-@group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, 10>;
+// the invocations whose loops the driver cut short (shaders/counters.wgsl, loop_cut),
+// one unused word, and the pair of the secondary rays counted untraced.
+@group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>, 12>;
 // What a plug-in technique reads (src/technique/, `ShadowModel::gpu_data`): made on the
 // host when the plan uses the technique, a placeholder otherwise.
 @group(0) @binding(6) var<storage, read> technique_data: array<f32>;

@@ -71,6 +71,15 @@ fn count_step() {
 #endif
 }
 
+// A secondary ray counted without being traced (trace.wgsl, spawn: it leaves the grid
+// where it starts), also counted by count_secondary.
+var<private> local_untraced: u32;
+fn count_untraced() {
+#ifdef COUNT_RAYS
+    local_untraced += 1u;
+#endif
+}
+
 #ifdef COUNT_RAYS
 // A 64-bit add from two u32 atomics: the old low word tells exactly whether this add
 // carried, because each atomicAdd is applied alone.
@@ -94,5 +103,6 @@ fn flush_counts() {
     add64(1u, local_counts.y);
     add64(2u, local_counts.z);
     add64(3u, local_counts.w);
+    add64(5u, local_untraced);
 #endif
 }

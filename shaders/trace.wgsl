@@ -18,7 +18,7 @@
 #ifdef TRIANGLES
 #import voxlab::triangles::shadow_medium
 #endif
-#import voxlab::counters::{count_primary, count_secondary, flush_counts, loop_cut, shadows_clear}
+#import voxlab::counters::{count_primary, count_secondary, count_untraced, flush_counts, loop_cut, shadows_clear}
 #import voxlab::sampling::{SampleKey, pixel_sample}
 #ifdef CONES
 #import voxlab::cone::cone_loop_cut
@@ -185,6 +185,7 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Mate
                 t.medium = h;
                 if leaves_grid(t.origin, t.dir) {
                     count_secondary();
+                    count_untraced();
                 } else {
                     push(t);
                 }
@@ -204,6 +205,9 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Mate
         next_ray = f;
         has_next = !leaves_grid(f.origin, f.dir);
         count_secondary();
+        if !has_next {
+            count_untraced();
+        }
     }
 #endif
 }

@@ -102,6 +102,11 @@ pub struct RayStats {
     /// Ray/triangle tests of triangle surfaces (`render.surface`), over all rays:
     /// counted by the CPU reference only (the GPU's counters stop at voxel steps).
     pub triangle_tests: u64,
+    /// The secondary rays that start outside the grid heading away from it on some
+    /// axis, which hit nothing: the kernel counts them without a pass of its ray-tree
+    /// loop (`leaves_grid`, shaders/traversal.wgsl). Among `secondary`; the CPU
+    /// reference traces them to nothing and counts them alike (`voxlab bench --lanes`).
+    pub untraced: u64,
 }
 
 impl RayStats {
@@ -117,6 +122,7 @@ impl std::ops::AddAssign for RayStats {
         self.shadow += o.shadow;
         self.voxel_steps += o.voxel_steps;
         self.triangle_tests += o.triangle_tests;
+        self.untraced += o.untraced;
     }
 }
 

@@ -63,6 +63,41 @@ fn seed_counts_match_the_cpu() {
     close("voxel steps", g.voxel_steps, c.voxel_steps, 0.005);
 }
 
+/// The secondary rays that leave the grid where they start are counted untraced alike:
+/// the kernel counts them without tracing them, the reference traces them to nothing and
+/// tells them by the same test in f64. Under voxlab's rules most are refracted out of
+/// the seed's panes on its boundary; under either rules, and without refraction, the
+/// reflections off the grid's outer faces leave it too.
+#[test]
+fn both_tracers_count_the_rays_the_kernel_leaves_untraced() {
+    let scene = seed_scene(16).unwrap();
+    let mut gpu = tracer();
+    for (name, settings) in [
+        ("default rules", small(96, 96)),
+        (
+            "seed rules",
+            RenderSettings {
+                rules: voxlab::render::Rules::Seed,
+                ..small(96, 96)
+            },
+        ),
+        (
+            "no refraction",
+            RenderSettings {
+                max_refraction_depth: 0,
+                ..small(96, 96)
+            },
+        ),
+    ] {
+        let g = gpu.render_counted(&scene, &settings).unwrap().stats;
+        let c = voxlab::cpu::render(&scene, &settings).stats;
+        println!("{name}: GPU {g:?}\nCPU {c:?}");
+        close("untraced", g.untraced, c.untraced, 0.002);
+        assert!(c.untraced <= c.secondary);
+        assert!(c.untraced > 0, "{name}: {c:?}");
+    }
+}
+
 /// A shadow ray is cast only towards a light that can light the hit (contract,
 /// "Shading a hit"): a light behind every lit face casts none, on both tracers, and one
 /// in front casts one per hit. A floor of one solid layer under a camera above it; the

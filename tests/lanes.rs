@@ -3,7 +3,7 @@
 
 use std::process::Command;
 
-use voxlab::bench::lanes::{VECTOR_BLOCK, efficiency, pixel_stats};
+use voxlab::bench::lanes::{VECTOR_BLOCK, efficiency, passes, pixel_stats};
 use voxlab::experiment::Experiment;
 
 fn experiment(file: &str) -> Experiment {
@@ -50,8 +50,10 @@ fn the_pixels_sum_to_the_references_frame() {
         assert_eq!(sum(|s| s.secondary), frame.secondary, "{file} {sets:?}");
         assert_eq!(sum(|s| s.shadow), frame.shadow, "{file} {sets:?}");
         assert_eq!(sum(|s| s.voxel_steps), frame.voxel_steps, "{file} {sets:?}");
+        assert_eq!(sum(|s| s.untraced), frame.untraced, "{file} {sets:?}");
+        assert!(frame.untraced > 0 && frame.untraced < frame.secondary);
         // The trees differ from pixel to pixel on the seed scene.
-        let trees: Vec<u64> = pixels.iter().map(|s| s.primary + s.secondary).collect();
+        let trees: Vec<u64> = pixels.iter().map(passes).collect();
         let e = efficiency(&trees, w, h);
         assert!(e > 0.2 && e < 1.0, "{file}: {e}");
     }
@@ -64,12 +66,16 @@ fn the_bands_add_up_to_the_image() {
     let side = 70;
     let pixels = pixel_stats(&e, side, side, 0..side);
     let row = &voxlab::bench::lanes::bench_lanes(std::slice::from_ref(&e), side)[0];
-    let trees: Vec<u64> = pixels.iter().map(|s| s.primary + s.secondary).collect();
+    let trees: Vec<u64> = pixels.iter().map(passes).collect();
     let shadows: Vec<u64> = pixels.iter().map(|s| s.shadow).collect();
     assert_eq!(row.tree_efficiency, efficiency(&trees, side, side));
     assert_eq!(row.shadow_efficiency, efficiency(&shadows, side, side));
-    let mean = trees.iter().sum::<u64>() as f64 / f64::from(side * side);
-    assert_eq!(row.tree_rays_per_pixel, mean);
+    let mean = |v: &[u64]| v.iter().sum::<u64>() as f64 / f64::from(side * side);
+    assert_eq!(row.tree_passes_per_pixel, mean(&trees));
+    let rays: Vec<u64> = pixels.iter().map(|s| s.primary + s.secondary).collect();
+    assert_eq!(row.tree_rays_per_pixel, mean(&rays));
+    // The kernel leaves some of the tree's rays untraced on the seed scene.
+    assert!(row.tree_passes_per_pixel < row.tree_rays_per_pixel);
 }
 
 /// Each vector runs 8 lanes for as long as its largest count, also where the image's
@@ -124,6 +130,8 @@ fn the_command_prints_a_row_per_experiment() {
             assert!(e > 0.0 && e <= 1.0, "{k}: {e}");
         }
         assert!(r["tree_rays_per_pixel"].as_f64().unwrap() >= 1.0);
+        let passes = r["tree_passes_per_pixel"].as_f64().unwrap();
+        assert!(passes >= 1.0 && passes <= r["tree_rays_per_pixel"].as_f64().unwrap());
     }
     // The seed's rules trace the smaller trees.
     assert!(rows[0]["tree_rays_per_pixel"].as_f64() > rows[1]["tree_rays_per_pixel"].as_f64());

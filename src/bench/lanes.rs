@@ -7,8 +7,9 @@
 //! lanes (a wavefront, a shared ray queue) could save on that loop.
 //!
 //! The counts are the CPU reference's (frame 0, every pixel its own tree, as the
-//! kernel's rays): the ray tree's rays (primary and secondary, as both tracers count
-//! them) and the shadow rays each pixel casts.
+//! kernel's rays): the passes of the ray-tree loop (the tree's primary and secondary
+//! rays, as both tracers count them, less those the kernel counts without tracing,
+//! `RayStats::untraced`) and the shadow rays each pixel casts.
 
 use rayon::prelude::*;
 
@@ -26,10 +27,12 @@ pub const VECTOR_BLOCK: (u32, u32) = (4, 2);
 pub struct LaneRow {
     pub experiment: String,
     pub side: u32,
-    /// Ray-tree rays (primary and secondary) and shadow rays per pixel, means.
+    /// Ray-tree rays (primary and secondary), the ray-tree loop's passes (those rays
+    /// less the untraced) and shadow rays per pixel, means.
     pub tree_rays_per_pixel: f64,
+    pub tree_passes_per_pixel: f64,
     pub shadow_rays_per_pixel: f64,
-    /// [`efficiency`] of the two counts.
+    /// [`efficiency`] of the passes and of the shadow rays.
     pub tree_efficiency: f64,
     pub shadow_efficiency: f64,
 }
@@ -40,6 +43,7 @@ impl LaneRow {
             "experiment": self.experiment,
             "side": self.side,
             "tree_rays_per_pixel": self.tree_rays_per_pixel,
+            "tree_passes_per_pixel": self.tree_passes_per_pixel,
             "shadow_rays_per_pixel": self.shadow_rays_per_pixel,
             "tree_lane_efficiency": self.tree_efficiency,
             "shadow_lane_efficiency": self.shadow_efficiency,
@@ -165,17 +169,20 @@ pub fn bench_lanes(experiments: &[Experiment], side: u32) -> Vec<LaneRow> {
         .map(|e| {
             let (settings, prepared) = prepare(e, side, side);
             let (mut tree, mut shadow) = (Lanes::default(), Lanes::default());
+            let mut rays = 0;
             for start in (0..side).step_by(BAND as usize) {
                 let band = pixels_of(e, &settings, &prepared, start..(start + BAND).min(side));
                 let counts = |f: fn(&RayStats) -> u64| band.iter().map(f).collect::<Vec<_>>();
-                tree.add(&counts(|s| s.primary + s.secondary), side);
+                rays += band.iter().map(|s| s.primary + s.secondary).sum::<u64>();
+                tree.add(&counts(passes), side);
                 shadow.add(&counts(|s| s.shadow), side);
             }
             let pixels = f64::from(side) * f64::from(side);
             LaneRow {
                 experiment: e.name.clone(),
                 side,
-                tree_rays_per_pixel: tree.done as f64 / pixels,
+                tree_rays_per_pixel: rays as f64 / pixels,
+                tree_passes_per_pixel: tree.done as f64 / pixels,
                 shadow_rays_per_pixel: shadow.done as f64 / pixels,
                 tree_efficiency: tree.efficiency(),
                 shadow_efficiency: shadow.efficiency(),
@@ -184,19 +191,26 @@ pub fn bench_lanes(experiments: &[Experiment], side: u32) -> Vec<LaneRow> {
         .collect()
 }
 
+/// The passes of the kernel's ray-tree loop a pixel's tree takes: its rays less those
+/// the kernel counts without tracing.
+pub fn passes(s: &RayStats) -> u64 {
+    s.primary + s.secondary - s.untraced
+}
+
 /// The rows as a Markdown table.
 pub fn lanes_table(rows: &[LaneRow]) -> String {
     let mut t = String::from(
-        "| experiment | image | tree rays a pixel | lane efficiency | shadow rays a pixel | lane efficiency |\n\
-         |---|---:|---:|---:|---:|---:|\n",
+        "| experiment | image | tree rays a pixel | loop passes a pixel | lane efficiency | shadow rays a pixel | lane efficiency |\n\
+         |---|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         t += &format!(
-            "| {} | {}x{} | {:.2} | {:.3} | {:.2} | {:.3} |\n",
+            "| {} | {}x{} | {:.2} | {:.2} | {:.3} | {:.2} | {:.3} |\n",
             r.experiment,
             r.side,
             r.side,
             r.tree_rays_per_pixel,
+            r.tree_passes_per_pixel,
             r.tree_efficiency,
             r.shadow_rays_per_pixel,
             r.shadow_efficiency

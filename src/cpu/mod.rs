@@ -513,7 +513,11 @@ fn trace_tree(
     });
     stats.primary += 1;
 
+    let mut first = true;
     while let Some(ray) = stack.pop() {
+        if !std::mem::take(&mut first) && leaves_grid(walk_grid, ray.origin, ray.dir) {
+            stats.untraced += 1;
+        }
         let exit_hits = settings.rules == Rules::Consistent;
         let (hit, steps) = cast_through(
             walk_grid,
@@ -602,6 +606,16 @@ fn trace_tree(
         );
     }
     color
+}
+
+/// Whether a ray from `origin` along `dir` starts outside the grid and does not move
+/// towards it on some axis, so that it hits nothing: the f64 twin of the kernel's
+/// `leaves_grid` (shaders/traversal.wgsl), which counts such a secondary ray without
+/// tracing it. The reference traces it (to nothing) and counts it as `untraced`.
+fn leaves_grid(grid: &crate::scene::Grid, origin: DVec3, dir: DVec3) -> bool {
+    let local = grid.to_local(origin);
+    let dims = grid.dims().as_dvec3();
+    (0..3).any(|a| (local[a] < 0.0 && dir[a] <= 0.0) || (local[a] > dims[a] && dir[a] >= 0.0))
 }
 
 /// Pushes the refraction ray, then the reflection ray (the contract's order), of `ray`'s

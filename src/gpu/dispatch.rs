@@ -649,6 +649,7 @@ fn ray_stats(counts: &[u32]) -> RayStats {
         shadow: c(2),
         voxel_steps: c(3),
         triangle_tests: 0,
+        untraced: c(5),
     }
 }
 

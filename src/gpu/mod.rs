@@ -154,8 +154,9 @@ const MAX_FRAMES_PER_DISPATCH: u32 = 4096;
 /// of one grid alternate without building again (at 1024^3 about 110 MiB each).
 pub const WALK_BUILDS_KEPT: usize = 2;
 
-/// Ray counters (4 x 64 bit), the invocations whose loops the driver cut, one unused word.
-const COUNTER_WORDS: usize = 10;
+/// Ray counters (4 x 64 bit), the invocations whose loops the driver cut, one unused word,
+/// the untraced secondary rays (64 bit).
+const COUNTER_WORDS: usize = 12;
 const COUNTER_BYTES: u64 = COUNTER_WORDS as u64 * 4;
 /// Word of `counters` that counts invocations whose loops the driver cut short.
 const LOOPS_CUT: usize = 8;
