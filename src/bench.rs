@@ -123,7 +123,12 @@ impl BenchRow {
             "ms_per_frame": self.ms(),
             "mrays_per_s": self.mrays_per_s(),
             "msteps_per_s": self.msteps_per_s(),
-            "rays": {"primary": s.primary, "secondary": s.secondary, "shadow": s.shadow},
+            "rays": {
+                "primary": s.primary,
+                "secondary": s.secondary,
+                "shadow": s.shadow,
+                "untraced": s.untraced,
+            },
             "voxel_steps": s.voxel_steps,
             "steps_per_ray": s.voxel_steps as f64 / rays,
             "bytes_per_voxel": self.bytes_per_voxel,

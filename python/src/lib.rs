@@ -691,7 +691,8 @@ impl Image {
     }
 
     /// Rays and voxel steps, counted by the tracer: primary, secondary, shadow,
-    /// voxel_steps.
+    /// voxel_steps, and untraced (the secondary rays counted without being traced: they
+    /// leave the grid where they start).
     #[getter]
     fn rays<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let s = &self.meta.stats;
@@ -700,6 +701,7 @@ impl Image {
         d.set_item("secondary", s.secondary)?;
         d.set_item("shadow", s.shadow)?;
         d.set_item("voxel_steps", s.voxel_steps)?;
+        d.set_item("untraced", s.untraced)?;
         Ok(d)
     }
 
