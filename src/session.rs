@@ -422,6 +422,7 @@ impl Image {
                 "secondary": s.secondary,
                 "shadow": s.shadow,
                 "voxel_steps": s.voxel_steps,
+                "untraced": s.untraced,
                 "counted": s.total_rays() > 0,
             },
             // The voxels rendered, whatever made them (a file, a generator, an array).

@@ -107,8 +107,10 @@ class Image:
         files read with their hashes, revision, backend, plan, timings, rays, grid."""
     @property
     def rays(self) -> dict[str, int]:
-        """primary, secondary, shadow, voxel_steps: counted by the tracer (the GPU counts
-        only when its plan asks to; `provenance["rays"]["counted"]` says)."""
+        """primary, secondary, shadow, voxel_steps, untraced (the secondary rays that
+        leave the grid where they start, counted without being traced): counted by the
+        tracer (the GPU counts only when its plan asks to; `provenance["rays"]["counted"]`
+        says)."""
     @property
     def time_ms(self) -> float:
         """The trace: device time from timestamp queries where the GPU has them, else
