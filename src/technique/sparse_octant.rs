@@ -138,6 +138,13 @@ pub struct SparseOctant {
 /// Words before the cut's first cell.
 const CUT_HEADER_WORDS: usize = 8;
 
+/// The bytes of the walk's data: the tree, the cut's header and its `cells` (two words
+/// each), up to three words aligning the codes to a vec4, and the codes of `coded`
+/// nodes.
+fn walk_bytes(tree: &SparseTree, cells: usize, coded: usize) -> usize {
+    4 * (tree.words().len() + CUT_HEADER_WORDS + 2 * cells + 3 + CHILDREN * coded)
+}
+
 impl SparseOctant {
     /// Cells of [`log_cell_side`], with the codes below the cut where the walk's data
     /// stays within [`MAX_WALK_BYTES`]. Where that side lies between the tree's levels
@@ -169,7 +176,7 @@ impl SparseOctant {
         let side = 1u64 << log_cell;
         let cells = ((tree.dims().as_u64vec3() + (side - 1)) / side).element_product() as usize;
         let coded = tree.nodes_up_to(tree.cut_node_log(log_cell)).1.len();
-        4 * (tree.words().len() + CUT_HEADER_WORDS + 2 * cells + 3 + CHILDREN * coded)
+        walk_bytes(tree, cells, coded)
     }
 
     /// With cells of `2^log_cell` voxels (1 up to the root's cube) whatever the grid: the
@@ -182,7 +189,8 @@ impl SparseOctant {
     fn with_cell_side_within(tree: Arc<SparseTree>, log_cell: u32, budget: usize) -> Self {
         let cut = Self::without_codes(tree, log_cell);
         let (first, nodes) = cut.tree.nodes_up_to(cut.node_shift + cut.tree.log_branch());
-        let bytes = 4 * (cut.tree.words().len() + cut.cut.len() + 3 + CHILDREN * nodes.len());
+        let cells = cut.cut_dims.as_u64vec3().element_product() as usize;
+        let bytes = walk_bytes(&cut.tree, cells, nodes.len());
         // The codes' layout is the 64-tree's (64 children a node, shaders/tree.wgsl).
         if nodes.is_empty() || bytes > budget || cut.tree.log_branch() != GPU_LOG_BRANCH {
             return cut;
