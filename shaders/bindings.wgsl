@@ -34,6 +34,36 @@
 // The triangle surfaces (TRIANGLES; src/triangles.rs, shaders/triangles.wgsl), a
 // placeholder otherwise.
 @group(0) @binding(8) var<storage, read> surface: array<vec4<u32>>;
+// A walk's words beyond `walk_data` (`Regions::device_more_words`: the sparse octant
+// walk's codes), one array laid over three bindings of params.walk_part_words words
+// each, so that a walk's data may outgrow one binding (lavapipe binds 128 MiB; the seed
+// scene's codes at 2048^3 take 333 MiB). Placeholders where the walk has fewer.
+@group(0) @binding(9) var<storage, read> walk_more_0: array<u32>;
+@group(0) @binding(10) var<storage, read> walk_more_1: array<u32>;
+@group(0) @binding(11) var<storage, read> walk_more_2: array<u32>;
+
+// Word i of the walk's further words. Only the WALK_MORE_BINDINGS bindings the data
+// takes are read (crate::plan::Plan::walk_more_bindings): on a software driver each
+// binding's read is a loop over the lanes whatever branch they take
+// (docs/sparse-traversal.md, "Codes past one binding").
+fn walk_more_word(i: u32) -> u32 {
+#if WALK_MORE_BINDINGS >= 2
+    let n = params.walk_part_words;
+#if WALK_MORE_BINDINGS >= 3
+    if i >= 2u * n {
+        return walk_more_2[i - 2u * n];
+    }
+#endif
+    if i >= n {
+        return walk_more_1[i - n];
+    }
+#endif
+#if WALK_MORE_BINDINGS >= 1
+    return walk_more_0[i];
+#else
+    return 0u;
+#endif
+}
 fn voxel_material(v: vec3<i32>) -> u32 {
     let u = vec3<u32>(v);
     let i = u.x + params.dims.x * (u.y + params.dims.y * u.z);

@@ -8,7 +8,7 @@
 #define_import_path voxlab::regions
 
 #import voxlab::types::Region
-#import voxlab::bindings::{params, walk_data}
+#import voxlab::bindings::{params, walk_data, walk_more_word}
 #import voxlab::tree::{NODE_VEC4S, region_below}
 
 // Regions are cubes of any size: dda_skip leaves them whole.
@@ -16,7 +16,8 @@ const REGIONS_ARE_VOXELS: bool = false;
 
 // Read once a walk: the walk's octant (where its code sits in a cell's word, the axes it
 // heads down), the cut (its first cell's vec4, log2 of a cell's side, its dims) and the
-// codes below it (the first node with its children's codes, how many, their first vec4).
+// codes below it (the first node with its children's codes, how many, their first vec4
+// where they follow the cut; 64 words a node).
 struct RegionCursor {
     shift: u32,
     down: vec3<i32>,
@@ -70,8 +71,16 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
         if k < (*c).coded_count {
             let child = u >> vec3<u32>(found.shift);
             let p = child & vec3<u32>(3u);
-            let w = 4u * (*c).codes + 64u * k + p.x + 4u * p.y + 16u * p.z;
-            return corner_region(c, vec3<i32>(child), walk_data[w >> 2u][w & 3u], found.shift);
+            let i = 64u * k + p.x + 4u * p.y + 16u * p.z;
+            // After the cut where the walk's data fits one binding, else in the walk's
+            // further bindings (crate::technique::sparse_octant::CodesAt).
+#if WALK_MORE_BINDINGS >= 1
+            let word = walk_more_word(i);
+#else
+            let w = 4u * (*c).codes + i;
+            let word = walk_data[w >> 2u][w & 3u];
+#endif
+            return corner_region(c, vec3<i32>(child), word, found.shift);
         }
         return found.region;
     }

@@ -45,6 +45,8 @@ struct Params {
     // PIXEL_FILTER_* (crate::render::PixelFilter) and its width in pixels (PIXEL_FILTER).
     pixel_filter: u32,
     filter_width: f32,
+    // Words of each binding of a walk's further words (bindings::walk_more_word).
+    walk_part_words: u32,
     // The plan's shadow model's settings in declared order (src/technique/mod.rs,
     // ShadowModel::gpu_settings); read them with bindings::technique_setting.
     technique: vec4<f32>,

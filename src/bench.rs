@@ -262,8 +262,7 @@ fn bench_cpu(name: &str, scene: &Scene, walks: &[RenderSettings], runs: usize) -
             // The walk's own data (the sparse tree, say); the dense grid's one byte a
             // voxel otherwise.
             let bytes_per_voxel = prepared.regions.as_ref().map_or(1.0, |r| {
-                (r.device_words().iter().map(|w| w.len()).sum::<usize>() * 4) as f64
-                    / scene.grid.voxel_count() as f64
+                r.device_bytes() as f64 / scene.grid.voxel_count() as f64
             });
             let warm = crate::cpu::render_prepared(scene, s, &plan, &prepared);
             let row = BenchRow {

@@ -95,6 +95,14 @@ pub struct Plan {
     /// only how often a loop takes its back edge, which Mesa's software driver limits
     /// (shaders/counters.wgsl).
     pub dda_unroll: u32,
+    /// The bindings of the walk's further words the kernel reads (`WALK_MORE_BINDINGS`,
+    /// 0 up to [`crate::technique::WALK_MORE_BINDINGS`]; shaders/bindings.wgsl,
+    /// `walk_more_word`). Not the scene's choice but the walk's data's on the device
+    /// (`GpuTracer` sets it once the data is built): Mesa's software driver runs every
+    /// binding's read for every lane, so a kernel reads only the bindings the data
+    /// takes (the sparse octant walk at 256^3 on lavapipe: 15 % slower with all three
+    /// read, docs/sparse-traversal.md, "Codes past one binding").
+    pub walk_more_bindings: u32,
     /// How rays walk the grid: the traversal whose module `voxlab::regions` is composed
     /// in (`TRAVERSAL_ID`, with `TREE_LEVELS` the tree's depth for one that walks the
     /// tree). Only the data it walks is built and uploaded: the tree, or the voxel buffer.
@@ -612,6 +620,7 @@ impl Plan {
             count_rays: false,
             ray_stack_size,
             dda_unroll: 1,
+            walk_more_bindings: 0,
             reasons,
         }
     }
@@ -828,6 +837,7 @@ impl Plan {
                     count_rays: false,
                     ray_stack_size,
                     dda_unroll: 1,
+                    walk_more_bindings: 0,
                     traversal: crate::technique::default_traversal(),
                     tree_levels: 0,
                     traversal_reason: String::new(),
@@ -908,6 +918,10 @@ impl Plan {
         defs.insert(
             "DDA_UNROLL".to_string(),
             ShaderDefValue::UInt(self.dda_unroll),
+        );
+        defs.insert(
+            "WALK_MORE_BINDINGS".to_string(),
+            ShaderDefValue::UInt(self.walk_more_bindings),
         );
         defs.insert(
             "RAY_STACK_SIZE".to_string(),
@@ -997,18 +1011,24 @@ mod tests {
         assert_eq!(p.ray_stack_size, 1);
         // Depth 0/0 needs one stack entry anyway: no stack note.
         assert_eq!(p.reasons.len(), 4, "{p}");
-        // RAY_STACK_SIZE and DDA_UNROLL, always defined, and the walk's id where
+        // RAY_STACK_SIZE, DDA_UNROLL and WALK_MORE_BINDINGS, always defined, and the walk's id where
         // `"auto"` takes a walk other than the default (the octant walk from side 16).
         let names: Vec<String> = p.shader_defs().into_keys().collect();
         for n in &names {
             assert!(
-                ["RAY_STACK_SIZE", "DDA_UNROLL", "TRAVERSAL_ID"].contains(&n.as_str()),
+                [
+                    "RAY_STACK_SIZE",
+                    "DDA_UNROLL",
+                    "WALK_MORE_BINDINGS",
+                    "TRAVERSAL_ID"
+                ]
+                .contains(&n.as_str()),
                 "{names:?}"
             );
         }
         assert_eq!(
             names.len(),
-            2 + usize::from(p.traversal.index() != 0),
+            3 + usize::from(p.traversal.index() != 0),
             "{names:?}"
         );
     }

@@ -367,11 +367,12 @@ pub struct RenderSettings {
     pub filter_width: f64,
     /// Dense DDA, sparse tree, or the plan's choice.
     pub traversal: Traversal,
-    /// The most MiB a traversal's own data may take where it chooses what to hold (the
-    /// sparse octant walk's codes): 0 is the tracer's own budget, the device's largest
-    /// binding less 8 MiB on the GPU and lavapipe's 120 MiB on the CPU reference
-    /// (`crate::technique::walk_budget`). The image is the same at any budget; the
-    /// steps are not.
+    /// The most MiB each binding of a traversal's own data may take where it chooses what
+    /// to hold (the sparse octant walk's codes, in up to
+    /// [`crate::technique::WALK_MORE_BINDINGS`] bindings beside its tree and cut): 0 is
+    /// the tracer's own budget, the device's largest binding on the GPU and lavapipe's
+    /// 128 MiB on the CPU reference (`crate::technique::walk_budget`). The image is the
+    /// same at any budget; the steps are not.
     pub walk_budget_mib: u32,
     /// Voxel faces, or triangles found through the voxels.
     pub surface: Surface,

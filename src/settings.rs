@@ -446,9 +446,10 @@ pub const RENDER: &[Field<RenderSettings>] = &[
             },
             0.0,
             "MiB",
-            "the most a traversal's own data may take where it chooses what to hold (the sparse \
-             octant walk's codes): the same image, other steps (0: the tracer's own, the \
-             device's largest binding less 8 MiB on the GPU, 120 MiB on the CPU reference)",
+            "the most each binding of a traversal's own data may take where it chooses what to \
+             hold (the sparse octant walk's codes, in up to three bindings beside its tree): \
+             the same image, other steps (0: the tracer's own, the device's largest binding \
+             on the GPU, 128 MiB on the CPU reference)",
         ),
         get: |s| s.walk_budget_mib as f64,
         set: |s, v| s.walk_budget_mib = v as u32,

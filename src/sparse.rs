@@ -376,6 +376,19 @@ pub trait Regions: Send + Sync {
     /// in parts laid one after another (so a walk that adds to the tree need not copy
     /// it).
     fn device_words(&self) -> Vec<&[u32]>;
+    /// Words the WGSL module reads beyond `walk_data`, as one array
+    /// (`walk_more_word`, shaders/bindings.wgsl) that the GPU tracer lays over up to
+    /// [`crate::technique::WALK_MORE_BINDINGS`] bindings of
+    /// [`crate::technique::walk_part_words`] words each: data that outgrows one
+    /// binding (the sparse octant walk's codes at 2048^3). None by default.
+    fn device_more_words(&self) -> &[u32] {
+        &[]
+    }
+    /// The bytes of all the words the kernel reads.
+    fn device_bytes(&self) -> usize {
+        let words: usize = self.device_words().iter().map(|w| w.len()).sum();
+        4 * (words + self.device_more_words().len())
+    }
 }
 
 impl Regions for SparseTree {

@@ -630,19 +630,24 @@ fn sparse_octant_regions_hold_the_grid_at_every_cell_side() {
     }
 }
 
-/// At 1024^3 the cut's cubes of 8 leave no room for the codes within the walk's budget,
-/// so the walk takes cubes of 16, walked from the same nodes: the codes are built, the
-/// data fits, and the kernel's descent (compiled from the grid's dims alone) is the one
-/// the cells need. Within any larger budget it takes the same.
+/// At 1024^3 the walk takes cubes of 16 with the codes below them, walked from the same
+/// nodes as the cubes of 8 its cells would otherwise be: the codes are built, the data
+/// fits one of lavapipe's bindings, and the kernel's descent (compiled from the grid's dims
+/// alone) is the one the cells need. Within any larger budget it takes the same.
 #[test]
 fn cubes_of_sixteen_make_room_for_the_codes_at_1024() {
-    use voxlab::technique::sparse_octant::{MAX_WALK_BYTES, SparseOctant, TRAVERSAL};
+    use voxlab::technique::sparse_octant::{CodesAt, MAX_WALK_BYTES, SparseOctant, TRAVERSAL};
     let scene = seed_scene(1024).unwrap();
     let walk = SparseOctant::build(scene.grid.tree(2));
     assert_eq!(walk.log_cell(), 4);
     assert!(walk.has_codes());
-    let bytes: usize = walk.device_words().iter().map(|w| 4 * w.len()).sum();
-    assert!(bytes <= MAX_WALK_BYTES, "{bytes}");
+    // All of it in one of lavapipe's bindings: the codes follow the cut.
+    assert_eq!(walk.codes_at(), CodesAt::WalkData);
+    assert!(
+        walk.device_bytes() <= MAX_WALK_BYTES,
+        "{}",
+        walk.device_bytes()
+    );
     let descent = (TRAVERSAL.descent_levels.unwrap())(scene.grid.dims());
     assert_eq!(descent, walk.log_cell().div_ceil(2));
     // A budget that would hold cubes of 8 with the codes takes the same cubes of 16:
@@ -651,23 +656,40 @@ fn cubes_of_sixteen_make_room_for_the_codes_at_1024() {
     assert!(SparseOctant::build_within(scene.grid.tree(2), usize::MAX) == walk);
 }
 
-/// The codes are held where the walk's data fits the budget it is built within (the
-/// device's binding on the GPU): one byte short of what they need, the walk holds the
-/// cut alone and walks to the same regions; `build` is the CPU reference's budget.
+/// The codes are held where the walk's data fits the budget it is built within, in
+/// bytes a binding (the device's binding on the GPU): after the cut where all of it fits
+/// one binding; one byte short of that, with the tree and the cut in one and the codes
+/// in `WALK_MORE_BINDINGS` more (the same codes; on the seed scene the tree and the cut
+/// decide there: the codes take under 3.2 times their bytes, 2.2 times at 64^3); one
+/// byte short of that, the walk holds the cut alone and walks to the same regions.
+/// `build` is the CPU reference's budget.
 #[test]
 fn the_codes_are_held_within_the_budget_they_are_built_for() {
-    use voxlab::technique::sparse_octant::{MAX_WALK_BYTES, SparseOctant};
+    use voxlab::technique::sparse_octant::{CodesAt, MAX_WALK_BYTES, SparseOctant};
+    use voxlab::technique::{WALK_MORE_BINDINGS, walk_part_words};
     let scene = seed_scene(64).unwrap();
     let tree = scene.grid.tree(2);
-    let bytes = |w: &SparseOctant| -> usize { w.device_words().iter().map(|p| 4 * p.len()).sum() };
+    let first = |w: &SparseOctant| -> usize { w.device_words().iter().map(|p| 4 * p.len()).sum() };
     let coded = SparseOctant::build_within(tree.clone(), usize::MAX);
     assert!(coded.has_codes());
-    let need = bytes(&coded);
-    // The build reckons the codes' room to the vec4, within a few words of the data.
-    assert!(SparseOctant::build_within(tree.clone(), need + 16) == coded);
+    assert_eq!(coded.codes_at(), CodesAt::WalkData);
+    assert!(coded.device_more_words().is_empty());
+    let all = first(&coded);
+    assert_eq!(all, coded.device_bytes());
+    assert!(SparseOctant::build_within(tree.clone(), all) == coded);
+    let split = SparseOctant::build_within(tree.clone(), all - 1);
+    assert_eq!(split.codes_at(), CodesAt::MoreBindings);
+    assert_eq!(split.codes(), coded.codes());
+    assert_eq!(split.device_more_words(), coded.codes());
+    let codes = coded.codes().len();
+    let need = first(&split).max(4 * codes.div_ceil(WALK_MORE_BINDINGS));
+    assert!(WALK_MORE_BINDINGS * walk_part_words(need) >= codes);
+    assert!(SparseOctant::build_within(tree.clone(), need) == split);
     let without = SparseOctant::build_within(tree.clone(), need - 1);
     assert!(!without.has_codes());
-    assert!(bytes(&without) < need);
+    assert!(without.device_more_words().is_empty());
+    // The same tree and cut: only the codes go.
+    assert_eq!(first(&without), first(&split));
     assert!(SparseOctant::build(tree.clone()) == SparseOctant::build_within(tree, MAX_WALK_BYTES));
     assert_eq!(MAX_WALK_BYTES, voxlab::technique::HOST_WALK_BYTES);
     // Without codes, the same regions for every voxel and octant.
@@ -686,6 +708,7 @@ fn the_codes_are_held_within_the_budget_they_are_built_for() {
         );
         let (a, b) = (coded.region(v, step), without.region(v, step));
         assert_eq!(a.material, b.material, "{v} {step}");
+        assert_eq!(a, split.region(v, step), "{v} {step}");
         for r in [a, b] {
             assert!(
                 r.lo.cmple(v).all() && r.hi.cmpgt(v).all(),

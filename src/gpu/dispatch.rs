@@ -117,6 +117,9 @@ impl GpuTracer {
             .as_ref()
             .and_then(|g| g.voxels.as_ref().map(|v| &v.1))
             .unwrap_or(&self.no_technique_data);
+        let placeholder = &self.no_technique_data;
+        let walk = self.walk_data.as_ref().map(|w| &w.1);
+        let walk_more = |i: usize| walk.and_then(|w| w.more.get(i)).unwrap_or(placeholder);
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("voxlab tracer"),
             layout: &self.layout,
@@ -128,18 +131,11 @@ impl GpuTracer {
                 buffer_entry(4, slices.unwrap_or(output)),
                 buffer_entry(5, &self.counters),
                 buffer_entry(6, technique_data),
-                buffer_entry(
-                    7,
-                    self.walk_data
-                        .as_ref()
-                        .map_or(&self.no_technique_data, |t| &t.1),
-                ),
-                buffer_entry(
-                    8,
-                    self.surfaces
-                        .as_ref()
-                        .map_or(&self.no_technique_data, |u| &u.buffer),
-                ),
+                buffer_entry(7, walk.map_or(placeholder, |w| &w.main)),
+                buffer_entry(8, self.surfaces.as_ref().map_or(placeholder, |u| &u.buffer)),
+                buffer_entry(9, walk_more(0)),
+                buffer_entry(10, walk_more(1)),
+                buffer_entry(11, walk_more(2)),
             ],
         })
     }
@@ -193,12 +189,11 @@ impl GpuTracer {
         frames: Range<u32>,
         continuable: bool,
     ) -> Result<RenderOutput> {
-        let plan = self.fit_plan(scene, settings, plan);
+        let mut plan = self.fit_plan(scene, settings, plan);
         let count = plan.count_rays;
         self.check(scene, settings, &plan)?;
         plan.check_frames(settings, &frames)
             .map_err(anyhow::Error::msg)?;
-        self.pipeline(&plan)?;
         if plan.layer_slices() > 1 {
             self.make_filter_pipelines(plan.reconstruction)?;
         }
@@ -246,6 +241,9 @@ impl GpuTracer {
             self.walk_data = None;
             (0, Duration::ZERO)
         };
+        // The kernel reads the bindings the walk's data takes, known once it is built.
+        plan.walk_more_bindings = self.walk_data.as_ref().map_or(0, |w| w.1.more.len() as u32);
+        self.pipeline(&plan)?;
         let key = continuable.then(|| AccumulationKey::new(scene, settings, &plan));
         if frames.start > 0 {
             // Only render_frames asks for a start above 0.
@@ -269,6 +267,7 @@ impl GpuTracer {
         params.technique = plan.shadow_model.gpu_settings(settings);
         params.frame_begin = frames.start;
         params.frame_count = per_dispatch;
+        params.walk_part_words = self.walk_data.as_ref().map_or(0, |w| w.1.part_words);
         self.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
 

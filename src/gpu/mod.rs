@@ -78,6 +78,9 @@ struct GpuParams {
     ray_cutoff: f32,
     pixel_filter: u32,
     filter_width: f32,
+    // Words of each binding of a walk's further words (`WalkBuffers::part_words`).
+    walk_part_words: u32,
+    _pad: [u32; 3],
     // The plan's shadow model's settings (`ShadowModel::gpu_settings`).
     technique: [f32; crate::technique::MAX_GPU_SETTINGS],
 }
@@ -164,8 +167,8 @@ const LOOPS_CUT: usize = 8;
 /// `@workgroup_size(64, 1, 1)` of `shaders/accumulate.wgsl`.
 const REDUCE_WORKGROUP: u32 = 64;
 
-// The WGSL uniform struct is 144 bytes (9 rows of 16).
-const _: () = assert!(std::mem::size_of::<GpuParams>() == 160);
+// The WGSL uniform struct is 176 bytes (11 rows of 16).
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 176);
 const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuLight>() == 80);
 
@@ -334,9 +337,9 @@ pub struct GpuTracer {
     /// and as `walk_data` when the plan walks the voxel buffer.
     no_technique_data: wgpu::Buffer,
     /// The planned traversal's own data of the voxels the walks read (which traversal,
-    /// the voxels' hash, the budget; the buffer: the sparse tree, say), while renders
+    /// the voxels' hash, the budget; the buffers: the sparse tree, say), while renders
     /// walk it.
-    walk_data: Option<(WalkKey, wgpu::Buffer)>,
+    walk_data: Option<(WalkKey, WalkBuffers)>,
     /// The latest walks' data as built on the host (what each was built from, the
     /// data), at most [`WALK_BUILDS_KEPT`]: switching between walks of one grid (the
     /// benchmark's interleaved frames, the viewer's menu) uploads again but does not
@@ -349,6 +352,21 @@ pub struct GpuTracer {
     /// from (a hash), the cells, the hash of their tagged grid and their buffer
     /// (`surface` of shaders/bindings.wgsl).
     surfaces: Option<SurfaceUpload>,
+}
+
+/// A walk's data on the device: `walk_data`, and its further words over up to
+/// [`crate::technique::WALK_MORE_BINDINGS`] buffers of `part_words` words each
+/// (`walk_more_0` ... of shaders/bindings.wgsl).
+struct WalkBuffers {
+    main: wgpu::Buffer,
+    more: Vec<wgpu::Buffer>,
+    part_words: u32,
+}
+
+impl WalkBuffers {
+    fn bytes(&self) -> u64 {
+        self.main.size() + self.more.iter().map(|b| b.size()).sum::<u64>()
+    }
 }
 
 /// What a walk's data is built from: the traversal, the hash of the voxels it walks
@@ -584,19 +602,18 @@ impl GpuTracer {
         .with_context(|| format!("opening a device on {}", adapter.get_info().name))?;
 
         let dda_unroll = dda_unroll_for(&adapter.get_info());
+        // shaders/bindings.wgsl: the params and materials uniform, the output and the
+        // counters written, every other binding a storage buffer read.
+        let entries: Vec<_> = (0..12)
+            .map(|b| match b {
+                0 | 2 => uniform_entry(b),
+                4 | 5 => storage_entry(b, false),
+                _ => storage_entry(b, true),
+            })
+            .collect();
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("voxlab tracer"),
-            entries: &[
-                uniform_entry(0),
-                storage_entry(1, true),
-                uniform_entry(2),
-                storage_entry(3, true),
-                storage_entry(4, false),
-                storage_entry(5, false),
-                storage_entry(6, true),
-                storage_entry(7, true),
-                storage_entry(8, true),
-            ],
+            entries: &entries,
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("voxlab tracer"),
@@ -743,6 +760,13 @@ impl GpuTracer {
         self.walk_data_builds
     }
 
+    /// The bindings the walk's data on the device takes: `walk_data` and those of its
+    /// further words (`crate::sparse::Regions::device_more_words`); 0 while renders
+    /// walk the voxel buffer.
+    pub fn walk_data_bindings(&self) -> usize {
+        self.walk_data.as_ref().map_or(0, |w| 1 + w.1.more.len())
+    }
+
     /// Device time of the latest render's trace (the sum of its compute passes, from
     /// timestamp queries), or `None` when the adapter has no timestamp queries; then
     /// `RenderOutput::trace_time`, wall time around a synchronised submit, is the timer.
@@ -815,8 +839,8 @@ impl GpuTracer {
         if settings.walk_budget_mib as usize > own {
             bail!(
                 "render.walk_budget_mib = {}: {} binds at most {own} MiB of a walk's data \
-                 (max_storage_buffer_binding_size less 8 MiB); allowed 0..={own} (0: all \
-                 of it)",
+                 a binding (max_storage_buffer_binding_size); allowed 0..={own} (0: all of \
+                 it)",
                 settings.walk_budget_mib,
                 self.adapter.get_info().name,
             );

@@ -31,15 +31,13 @@ impl GpuTracer {
             .min(limits.max_buffer_size)
     }
 
-    /// The most bytes a walk's data may take where the walk chooses what to hold (the
-    /// sparse octant walk's codes): the largest binding less
-    /// [`crate::technique::WALK_BYTES_SLACK`]. On lavapipe it is the CPU reference's
-    /// [`crate::technique::HOST_WALK_BYTES`], so both walk alike; a device that binds
-    /// more holds the codes of larger trees (images the same, fewer steps).
+    /// The most bytes a binding of a walk's data may take where the walk chooses what to
+    /// hold (the sparse octant walk's codes): the largest binding. On lavapipe it is the
+    /// CPU reference's [`crate::technique::HOST_WALK_BYTES`], so both walk alike; a
+    /// device that binds more holds the codes of larger trees (images the same, fewer
+    /// steps).
     pub fn walk_budget(&self) -> usize {
-        usize::try_from(self.max_voxel_buffer_bytes())
-            .unwrap_or(usize::MAX)
-            .saturating_sub(crate::technique::WALK_BYTES_SLACK)
+        usize::try_from(self.max_voxel_buffer_bytes()).unwrap_or(usize::MAX)
     }
 
     /// Makes the voxel buffer of `grid` (the uploaded grid, or its copy with the cells
@@ -156,7 +154,7 @@ impl GpuTracer {
         if let Some((k, b)) = &self.walk_data
             && k.same(&key)
         {
-            return Ok(b.size());
+            return Ok(b.bytes());
         }
         self.walk_data = None;
         let kept = self.walk_builds.iter().position(|(k, _)| k.same(&key));
@@ -186,19 +184,49 @@ impl GpuTracer {
                 grid.dims().z
             );
         }
-        let buf = buffer(
-            &self.device,
-            traversal.label,
-            bytes,
-            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        );
+        let more = data.device_more_words();
+        let part_words = crate::technique::walk_part_words(budget);
+        let parts_more = more.len().div_ceil(part_words.max(1));
+        // The build keeps within both (it knows the budget); a traversal that does not
+        // is refused here rather than bound past the device's limits.
+        if parts_more > crate::technique::WALK_MORE_BINDINGS
+            || (!more.is_empty() && 4 * part_words as u64 > max)
+        {
+            bail!(
+                "the {} traversal's further data of grid {}x{}x{} needs {} bytes in \
+                 bindings of {} bytes; the device binds {} more of at most {max} bytes",
+                traversal.name,
+                grid.dims().x,
+                grid.dims().y,
+                grid.dims().z,
+                4 * more.len(),
+                4 * part_words,
+                crate::technique::WALK_MORE_BINDINGS,
+            );
+        }
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        let main = buffer(&self.device, traversal.label, bytes, usage);
         let mut offset = 0;
         for part in parts {
             self.queue
-                .write_buffer(&buf, offset, bytemuck::cast_slice(part));
+                .write_buffer(&main, offset, bytemuck::cast_slice(part));
             offset += 4 * part.len() as u64;
         }
-        self.walk_data = Some((key, buf));
+        let more = more
+            .chunks(part_words.max(1))
+            .map(|words| {
+                let b = buffer(&self.device, traversal.label, 4 * words.len() as u64, usage);
+                self.queue.write_buffer(&b, 0, bytemuck::cast_slice(words));
+                b
+            })
+            .collect();
+        let walk = super::WalkBuffers {
+            main,
+            more,
+            part_words: part_words as u32,
+        };
+        let bytes = walk.bytes();
+        self.walk_data = Some((key, walk));
         Ok(bytes)
     }
 
@@ -402,6 +430,8 @@ impl GpuTracer {
             ray_cutoff: crate::ray_cutoff::cutoff(settings),
             pixel_filter: settings.pixel_filter.code(),
             filter_width: settings.filter_width as f32,
+            walk_part_words: 0,
+            _pad: [0; 3],
             technique: [0.0; crate::technique::MAX_GPU_SETTINGS],
         }
     }

@@ -803,24 +803,34 @@ pub fn default_shadow_model() -> &'static ShadowModel {
 }
 
 /// A traversal's data of a grid: its regions for the f64 walks, its words for the
-/// kernel. The second argument is the most bytes the data may take where the traversal
-/// chooses what to hold (the sparse octant walk's codes): the device's binding on the
-/// GPU, [`HOST_WALK_BYTES`] on the CPU reference.
+/// kernel. The second argument is the most bytes each binding of the data may take
+/// where the traversal chooses what to hold (the sparse octant walk's codes): the
+/// device's largest binding on the GPU, [`HOST_WALK_BYTES`] on the CPU reference.
 pub(crate) type WalkData =
     fn(&crate::scene::Grid, usize) -> std::sync::Arc<dyn crate::sparse::Regions>;
 
-/// The walk data budget of the CPU reference: what the GPU tracer takes on lavapipe
-/// (its 128 MiB binding less [`WALK_BYTES_SLACK`]), so that the reference walks what the
-/// software driver walks, step for step.
-pub const HOST_WALK_BYTES: usize = (128 << 20) - WALK_BYTES_SLACK;
+/// The walk data budget of the CPU reference: lavapipe's largest binding (128 MiB, also
+/// wgpu's default limit), so that the reference walks what the software driver walks,
+/// step for step.
+pub const HOST_WALK_BYTES: usize = 128 << 20;
 
-/// What a device's walk data budget leaves of its largest binding.
-pub const WALK_BYTES_SLACK: usize = 8 << 20;
+/// The bindings beyond `walk_data` that hold a walk's further words
+/// (`crate::sparse::Regions::device_more_words`; `walk_more_0` to `walk_more_2` in
+/// shaders/bindings.wgsl). Three hold the seed scene's codes at 2048^3 (333 MiB) on a
+/// device that binds 128 MiB, beside its tree and cut (120 MiB) in `walk_data`.
+pub const WALK_MORE_BINDINGS: usize = 3;
 
-/// The budget a render's walk data is built within: `render.walk_budget_mib` where it
-/// is set, else `own`, the tracer's (the device's binding less [`WALK_BYTES_SLACK`], or
-/// [`HOST_WALK_BYTES`] on the CPU reference). Set alike on both tracers, it gives them
-/// the same data on any device, step for step.
+/// The words of each binding that holds a walk's further words, for a walk built
+/// within `budget` bytes a binding: the kernel finds word `i` in binding `i / n` at
+/// `i % n`. A build holds at most [`WALK_MORE_BINDINGS`] times this many.
+pub fn walk_part_words(budget: usize) -> usize {
+    (budget / 4).min(u32::MAX as usize)
+}
+
+/// The budget a render's walk data is built within, in bytes a binding:
+/// `render.walk_budget_mib` where it is set, else `own`, the tracer's (the device's
+/// largest binding, or [`HOST_WALK_BYTES`] on the CPU reference). Set alike on both
+/// tracers, it gives them the same data on any device, step for step.
 pub fn walk_budget(settings: &crate::render::RenderSettings, own: usize) -> usize {
     match settings.walk_budget_mib {
         0 => own,

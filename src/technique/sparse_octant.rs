@@ -20,19 +20,21 @@
 //! the tree or a level above holds, whose cube bounds its radius from below, so every
 //! cube is uniform (a lower bound of the dense field's) and the walk leaves it where the
 //! dense DDA does. They cost a word a child, 256 bytes a node, and are built only while
-//! the walk's data stays within [`MAX_WALK_BYTES`].
+//! they fit the walk's budget (a binding's bytes, [`MAX_WALK_BYTES`] by default): after
+//! the cut where the whole fits one binding, else the tree and the cut within one and
+//! the codes within [`super::WALK_MORE_BINDINGS`] more ([`CodesAt`]).
 //!
 //! Layout of its words (`walk_data`, shaders/traversal_sparse_octant.wgsl): the tree's
 //! words ([`crate::sparse`]: a header vec4 and five vec4s a node), then, at vec4 `h = 1 +
 //! 5 * node count`, two vec4s (log2 of the cell side, the cut's dims; the index of the
 //! first node with codes, the number of such nodes, the vec4 of its codes counted from
-//! `h`, 0) and from `h + 2` two words a cell (x fastest): the octant
-//! field's word (material and eight codes, [`super::octant::OctantField`]) and 0 for a
-//! uniform cell, or 0 and the node's index plus one for a cell the tree holds as a node;
-//! then, from a vec4 boundary, 64 words a node with codes (its children, x fastest; 0
-//! for a child that is a node), in node order.
-//! The tree is not copied: its words and the cut's are uploaded as two parts of one
-//! buffer.
+//! `h` where they follow the cut, 0) and from `h + 2` two words a cell (x fastest): the
+//! octant field's word (material and eight codes, [`super::octant::OctantField`]) and 0
+//! for a uniform cell, or 0 and the node's index plus one for a cell the tree holds as
+//! a node; then the codes, 64 words a node with codes (its children, x fastest; 0 for a
+//! child that is a node), in node order: from a vec4 boundary after the cut, or as the
+//! walk's further words (`walk_more_word`, [`Regions::device_more_words`]). The tree is
+//! not copied: its words, the cut's and the codes are uploaded as parts of one buffer.
 
 use std::sync::Arc;
 
@@ -47,11 +49,11 @@ use crate::sparse::{Cut, GPU_LOG_BRANCH, Region, Regions, SparseTree};
 /// The most cells the cut has: 2 M, 16 MiB.
 pub const MAX_CELLS: u64 = 1 << 21;
 
-/// The most bytes of the walk's data (tree, cut and the leaves' codes) with which the
-/// leaves get their codes in [`SparseOctant::build`]: 120 MiB, within the 128 MiB a
-/// storage buffer binding holds on lavapipe (and wgpu's default limit), the CPU
-/// reference's budget. The GPU tracer builds within its device's binding instead
-/// ([`SparseOctant::build_within`]). A larger tree is walked without them.
+/// The most bytes a binding of the walk's data takes in [`SparseOctant::build`]: the
+/// 128 MiB a storage buffer binding holds on lavapipe (and wgpu's default limit), the
+/// CPU reference's budget. The GPU tracer builds within its device's binding instead
+/// ([`SparseOctant::build_within`]). A tree whose codes do not fit is walked without
+/// them.
 pub const MAX_WALK_BYTES: usize = super::HOST_WALK_BYTES;
 
 /// Children of a node of the 64-tree, each with a word of codes.
@@ -85,8 +87,9 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
     // Where the plain tree walk claimed grids: on lavapipe (`voxlab bench --sizes
     // 256,512,1024,2048 --size 256 --no-cpu --gpu-runs 5 --rules seed --traversal
     // octant,sparse,sparse_octant`) 3.7x its speed at 256^3 and 512^3, 3.4x at 1024^3
-    // and 1.6x at 2048^3, where the codes below the cut do not fit
-    // (docs/sparse-traversal.md, "Codes below the cut"). Where the dense octant field
+    // and 1.6x at 2048^3 without the codes below the cut, which now take bindings of
+    // their own there and make its frame 2.4x as fast again (docs/sparse-traversal.md,
+    // "Codes below the cut", "Codes past one binding"). Where the dense octant field
     // fits it is as fast (256^3: 65.1 against 66.0 ms since a descent reads less, "A
     // descent's reads") and keeps its claim.
     auto: Some(|scene| {
@@ -129,25 +132,50 @@ pub struct SparseOctant {
     /// The smallest children's shift whose words are in (during the build, the levels
     /// done so far; then 0).
     coded_shift: u32,
-    /// Where the children's words start in `cut`.
-    codes_at: usize,
-    /// The cut's two header vec4s, its cells, then the children's words.
+    /// The cut's two header vec4s and its cells (and, with the codes after it, up to
+    /// two words to a vec4 boundary).
     cut: Vec<u32>,
+    /// The children's words, 64 a node with codes.
+    codes: Vec<u32>,
+    codes_at: CodesAt,
 }
 
 /// Words before the cut's first cell.
 const CUT_HEADER_WORDS: usize = 8;
 
-/// The bytes of the walk's data: the tree, the cut's header and its `cells` (two words
-/// each), up to three words aligning the codes to a vec4, and the codes of `coded`
-/// nodes.
-fn walk_bytes(tree: &SparseTree, cells: usize, coded: usize) -> usize {
-    4 * (tree.words().len() + CUT_HEADER_WORDS + 2 * cells + 3 + CHILDREN * coded)
+/// Where the codes are held.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CodesAt {
+    /// After the cut in `walk_data`, where the whole data fits one binding: the kernel
+    /// reads a code from the binding that holds the tree.
+    WalkData,
+    /// In the walk's further bindings (`walk_more_word`), where the tree and the cut fit
+    /// one binding and the codes [`super::WALK_MORE_BINDINGS`] more: a kernel that reads
+    /// a code from another binding than the tree's is slower where both would fit one
+    /// (lavapipe, the seed scene: 4 % at 256^3, 10 % at 1024^3; docs/sparse-traversal.md,
+    /// "Codes past one binding").
+    MoreBindings,
+}
+
+/// Where the codes of `coded` nodes go beside the tree and the cut's `cells` (two
+/// words each) within `budget` bytes a binding, if anywhere.
+fn codes_at(tree: &SparseTree, cells: usize, coded: usize, budget: usize) -> Option<CodesAt> {
+    let first = tree.words().len() + CUT_HEADER_WORDS + 2 * cells;
+    let codes = CHILDREN * coded;
+    if 4 * (first.next_multiple_of(4) + codes) <= budget {
+        Some(CodesAt::WalkData)
+    } else if 4 * first <= budget
+        && codes <= super::WALK_MORE_BINDINGS * super::walk_part_words(budget)
+    {
+        Some(CodesAt::MoreBindings)
+    } else {
+        None
+    }
 }
 
 impl SparseOctant {
     /// Cells of [`log_cell_side`], with the codes below the cut where the walk's data
-    /// stays within [`MAX_WALK_BYTES`]. Where that side lies between the tree's levels
+    /// fits [`MAX_WALK_BYTES`] a binding. Where that side lies between the tree's levels
     /// (8 for the 64-tree) and the codes fit with the next side's cells, the walk takes
     /// those: its cells are walked from the same nodes (a cell's node, the codes and the
     /// kernel's descent are the same), and below a node's cell the codes skip in
@@ -159,24 +187,24 @@ impl SparseOctant {
         Self::build_within(tree, MAX_WALK_BYTES)
     }
 
-    /// [`Self::build`] within `budget` bytes of walk data instead of [`MAX_WALK_BYTES`]:
-    /// a device that binds more holds the codes of larger trees.
+    /// [`Self::build`] within `budget` bytes a binding instead of [`MAX_WALK_BYTES`]: a
+    /// device that binds more holds the codes of larger trees.
     pub fn build_within(tree: Arc<SparseTree>, budget: usize) -> Self {
         let b = tree.log_branch();
         let log_cell = log_cell_side(tree.dims(), b, tree.levels());
         let node_log = tree.cut_node_log(log_cell);
-        if log_cell < node_log && Self::bytes_with_codes(&tree, node_log) <= budget {
+        if log_cell < node_log && Self::codes_fit(&tree, node_log, budget).is_some() {
             return Self::with_cell_side_within(tree, node_log, budget);
         }
         Self::with_cell_side_within(tree, log_cell, budget)
     }
 
-    /// The walk's bytes with cells of `2^log_cell` and the codes below them.
-    fn bytes_with_codes(tree: &SparseTree, log_cell: u32) -> usize {
+    /// Where the codes below cells of `2^log_cell` go within `budget` bytes a binding.
+    fn codes_fit(tree: &SparseTree, log_cell: u32, budget: usize) -> Option<CodesAt> {
         let side = 1u64 << log_cell;
         let cells = ((tree.dims().as_u64vec3() + (side - 1)) / side).element_product() as usize;
         let coded = tree.nodes_up_to(tree.cut_node_log(log_cell)).1.len();
-        walk_bytes(tree, cells, coded)
+        codes_at(tree, cells, coded, budget)
     }
 
     /// With cells of `2^log_cell` voxels (1 up to the root's cube) whatever the grid: the
@@ -190,12 +218,14 @@ impl SparseOctant {
         let cut = Self::without_codes(tree, log_cell);
         let (first, nodes) = cut.tree.nodes_up_to(cut.node_shift + cut.tree.log_branch());
         let cells = cut.cut_dims.as_u64vec3().element_product() as usize;
-        let bytes = walk_bytes(&cut.tree, cells, nodes.len());
         // The codes' layout is the 64-tree's (64 children a node, shaders/tree.wgsl).
-        if nodes.is_empty() || bytes > budget || cut.tree.log_branch() != GPU_LOG_BRANCH {
+        if nodes.is_empty() || cut.tree.log_branch() != GPU_LOG_BRANCH {
             return cut;
         }
-        cut.with_codes(first, &nodes)
+        match codes_at(&cut.tree, cells, nodes.len(), budget) {
+            Some(at) => cut.with_codes(first, &nodes, at),
+            None => cut,
+        }
     }
 
     /// Only the cut: a node's cell is walked through the tree down to its uniform child.
@@ -232,8 +262,9 @@ impl SparseOctant {
             coded_first: 0,
             coded_count: 0,
             coded_shift: 0,
-            codes_at: 0,
             cut: words,
+            codes: Vec::new(),
+            codes_at: CodesAt::WalkData,
         }
     }
 
@@ -241,12 +272,11 @@ impl SparseOctant {
     /// cut's level down, [`SparseTree::nodes_up_to`]: the first's index, then each one's
     /// first voxel and log2 side), built a level at a time from the top, so that a
     /// level's sweep finds the cubes of the levels above it.
-    fn with_codes(mut self, first: u32, nodes: &[(IVec3, u32)]) -> Self {
-        let at = self.cut.len().next_multiple_of(4);
-        self.cut.resize(at + CHILDREN * nodes.len(), 0);
+    fn with_codes(mut self, first: u32, nodes: &[(IVec3, u32)], at: CodesAt) -> Self {
+        self.codes = vec![0; CHILDREN * nodes.len()];
+        self.codes_at = at;
         self.coded_first = first;
         self.coded_count = nodes.len() as u32;
-        self.codes_at = at;
         let b = self.tree.log_branch();
         let mut sides: Vec<u32> = nodes.iter().map(|&(_, l)| l).collect();
         sides.sort_unstable();
@@ -255,19 +285,35 @@ impl SparseOctant {
         for &log_side in sides.iter().rev() {
             let words = level_words(&self, first, nodes, log_side);
             for (k, w) in words {
-                let at = self.codes_at + CHILDREN * k;
-                self.cut[at..at + CHILDREN].copy_from_slice(&w);
+                self.codes[CHILDREN * k..CHILDREN * (k + 1)].copy_from_slice(&w);
             }
             self.coded_shift = log_side - b;
         }
         self.coded_shift = 0;
-        self.cut[4..8].copy_from_slice(&[first, self.coded_count, (at / 4) as u32, 0]);
+        let after_cut = match at {
+            CodesAt::WalkData => {
+                self.cut.resize(self.cut.len().next_multiple_of(4), 0);
+                (self.cut.len() / 4) as u32
+            }
+            CodesAt::MoreBindings => 0,
+        };
+        self.cut[4..8].copy_from_slice(&[first, self.coded_count, after_cut, 0]);
         self
     }
 
     /// Whether the nodes below the cut carry their children's codes.
     pub fn has_codes(&self) -> bool {
         self.coded_count > 0
+    }
+
+    /// Where the codes are held (with none, [`CodesAt::WalkData`]).
+    pub fn codes_at(&self) -> CodesAt {
+        self.codes_at
+    }
+
+    /// The codes: 64 words a node with codes.
+    pub fn codes(&self) -> &[u32] {
+        &self.codes
     }
 
     /// The cells' log2 side.
@@ -526,10 +572,8 @@ impl Regions for SparseOctant {
             // The uniform child's own cube, in children of its node.
             let b = self.tree.log_branch() as i32;
             let p = (v >> shift as i32) & ((1 << b) - 1);
-            let at = self.codes_at
-                + CHILDREN * k as usize
-                + (p.x + (p.y << b) + (p.z << (2 * b))) as usize;
-            let word = self.cut[at];
+            let at = CHILDREN * k as usize + (p.x + (p.y << b) + (p.z << (2 * b))) as usize;
+            let word = self.codes[at];
             let (lo, hi) = corner_cube(v >> shift as i32, word, octant(step));
             return Region {
                 material: word as u8,
@@ -548,6 +592,16 @@ impl Regions for SparseOctant {
     }
 
     fn device_words(&self) -> Vec<&[u32]> {
-        vec![self.tree.words(), &self.cut]
+        match self.codes_at {
+            CodesAt::WalkData => vec![self.tree.words(), &self.cut, &self.codes],
+            CodesAt::MoreBindings => vec![self.tree.words(), &self.cut],
+        }
+    }
+
+    fn device_more_words(&self) -> &[u32] {
+        match self.codes_at {
+            CodesAt::WalkData => &[],
+            CodesAt::MoreBindings => &self.codes,
+        }
     }
 }
