@@ -484,6 +484,35 @@ fn the_walk_budget_is_the_devices_binding() {
     }
 }
 
+/// The sparse octant walk at a small image, depth 2/2, its data built within `mib` MiB
+/// a binding.
+fn within_budget(mib: u32) -> RenderSettings {
+    RenderSettings {
+        width: 24,
+        height: 20,
+        max_reflection_depth: 2,
+        max_refraction_depth: 2,
+        traversal: SPARSE_OCTANT_WALK,
+        walk_budget_mib: mib,
+        ..RenderSettings::default()
+    }
+}
+
+/// The GPU's render as the CPU reference's: the image, and the steps of the same
+/// regions on both tracers but where f32 and f64 take another voxel at an edge.
+fn assert_walked_alike(
+    name: &str,
+    g: &voxlab::frame::RenderOutput,
+    c: &voxlab::frame::RenderOutput,
+) {
+    assert_agree(name, &g.frame, &c.frame);
+    let (gs, cs) = (g.stats.voxel_steps, c.stats.voxel_steps);
+    assert!(
+        gs.abs_diff(cs) as f64 <= 0.005 * cs as f64,
+        "{name}: GPU {gs} steps, CPU {cs}"
+    );
+}
+
 /// `render.walk_budget_mib` bounds what a walk's data holds on both tracers alike: the
 /// seed scene at 256^3 under the sparse octant walk holds its codes within the
 /// tracers' own budgets (0) and not within 1 MiB, so the steps differ and the images do
@@ -496,25 +525,10 @@ fn the_walk_budget_setting_changes_the_steps_alike_and_never_the_image() {
     let scene = seed_scene(256).unwrap();
     let mut gpu = tracer();
     let at = |gpu: &mut voxlab::gpu::GpuTracer, mib: u32| {
-        let s = RenderSettings {
-            width: 24,
-            height: 20,
-            max_reflection_depth: 2,
-            max_refraction_depth: 2,
-            traversal: SPARSE_OCTANT_WALK,
-            walk_budget_mib: mib,
-            ..RenderSettings::default()
-        };
+        let s = within_budget(mib);
         let g = gpu.render_counted(&scene, &s).unwrap();
         let c = voxlab::cpu::render(&scene, &s);
-        assert_agree(&format!("walk budget {mib} MiB"), &g.frame, &c.frame);
-        // The same regions on both tracers, so the same steps but where f32 and f64
-        // take another voxel at an edge.
-        let (gs, cs) = (g.stats.voxel_steps, c.stats.voxel_steps);
-        assert!(
-            gs.abs_diff(cs) as f64 <= 0.005 * cs as f64,
-            "{mib} MiB: GPU {gs} steps, CPU {cs}"
-        );
+        assert_walked_alike(&format!("walk budget {mib} MiB"), &g, &c);
         (g, c)
     };
     let (g_own, c_own) = at(&mut gpu, 0);
@@ -564,21 +578,12 @@ fn codes_over_three_bindings_walk_as_codes_in_one() {
     use voxlab::technique::WALK_MORE_BINDINGS;
     let scene = seed_scene(1024).unwrap();
     let mut gpu = tracer();
-    let settings = |mib: u32| RenderSettings {
-        width: 24,
-        height: 20,
-        max_reflection_depth: 2,
-        max_refraction_depth: 2,
-        traversal: SPARSE_OCTANT_WALK,
-        walk_budget_mib: mib,
-        ..RenderSettings::default()
-    };
-    let own = gpu.render_counted(&scene, &settings(0)).unwrap();
+    let own = gpu.render_counted(&scene, &within_budget(0)).unwrap();
     let bindings = gpu.walk_data_bindings();
     assert!(bindings < 3, "{bindings} bindings");
-    let split = gpu.render_counted(&scene, &settings(30)).unwrap();
+    let split = gpu.render_counted(&scene, &within_budget(30)).unwrap();
     assert_eq!(gpu.walk_data_bindings(), 1 + WALK_MORE_BINDINGS);
-    let halves = gpu.render_counted(&scene, &settings(42)).unwrap();
+    let halves = gpu.render_counted(&scene, &within_budget(42)).unwrap();
     assert_eq!(gpu.walk_data_bindings(), 3);
     for (name, r) in [("three", &split), ("two", &halves)] {
         assert!(
@@ -590,11 +595,6 @@ fn codes_over_three_bindings_walk_as_codes_in_one() {
             "{name} bindings"
         );
     }
-    let cpu = voxlab::cpu::render(&scene, &settings(30));
-    assert_agree("codes over three bindings", &split.frame, &cpu.frame);
-    let (gs, cs) = (split.stats.voxel_steps, cpu.stats.voxel_steps);
-    assert!(
-        gs.abs_diff(cs) as f64 <= 0.005 * cs as f64,
-        "GPU {gs} steps, CPU {cs}"
-    );
+    let cpu = voxlab::cpu::render(&scene, &within_budget(30));
+    assert_walked_alike("codes over three bindings", &split, &cpu);
 }
