@@ -39,8 +39,9 @@ pub const MAX_RADIUS: u8 = 255;
 /// [`super::sparse::SPARSE_FROM_SIDE`]. On lavapipe the seed scene renders at 0.75x the
 /// dense walk's speed at 16^3, where a walk is a few steps and a skip costs more than
 /// a step, at 1.48x at 64^3 and 3.23x at 256^3 (docs/sparse-traversal.md, "Speed
-/// now"). A field larger than the device binds as one buffer (lavapipe: 128 MiB, 64 M
-/// voxels) is left to the tree under "auto" (`crate::gpu`).
+/// now"). On lavapipe every grid below that side binds the octant field, so "auto"
+/// takes this walk only on a device that binds less; one whose field it cannot bind
+/// either is left to the dense grid's buffer, then the tree (`crate::gpu`).
 pub(crate) const PROXIMITY_FROM_SIDE: u32 = 64;
 
 pub const TRAVERSAL: TraversalModel = TraversalModel {

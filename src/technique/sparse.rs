@@ -15,12 +15,17 @@ use super::TraversalModel;
 /// all the steps the tree saves: on lavapipe the seed scene rendered at 0.80x the dense
 /// walk's speed with this walk at 256^3 and at 2.03x at 512^3, the bunny voxelized at
 /// 512 at 2.11x (`voxlab bench --sizes 256,512 --experiments experiments/bunny_512.toml`,
-/// docs/sparse-traversal.md). Below 512 the octant field is at least as fast as both
-/// tree walks (256^3, seed rules, 256x256: 65.1 ms against 66.0 for the sparse octant
-/// walk, "A descent's reads"; 90 against 427 before its codes). A grid
-/// larger than the device binds as one buffer is walked through the tree whatever its
-/// side (`crate::gpu`).
-pub const SPARSE_FROM_SIDE: u32 = 512;
+/// docs/sparse-traversal.md). Since the sparse octant walk's codes it is as fast as the
+/// octant field from 256^3 and faster from 320^3, in a tenth of its memory (seed rules,
+/// 256x256, two runs of `voxlab bench --sizes 256,320 --size 256 --gpu-runs 3 --no-cpu
+/// --rules seed --traversal octant,sparse_octant`: 256^3 69.4 and 62.4 ms against 74.4
+/// and 68.2, 320^3 69.0 and 73.1 against 77.4 and 81.9; "A descent's reads" had 66.0
+/// against 65.1 at 256^3), so it takes the grid from 320: a grid of a smaller side has
+/// at most 32.5 M voxels, whose octant field lavapipe binds. From 320 up to 512 "auto"
+/// took on lavapipe the proximity field (384^3: 157 ms) or, past its two bytes a voxel,
+/// the dense DDA (448^3: 1691 ms), where this walk takes 86 ms and 85 ms
+/// (docs/sparse-traversal.md, "Where auto walks the tree").
+pub const SPARSE_FROM_SIDE: u32 = 320;
 
 pub const TRAVERSAL: TraversalModel = TraversalModel {
     name: "sparse",
