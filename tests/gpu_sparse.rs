@@ -576,9 +576,11 @@ fn the_walk_budget_setting_changes_the_steps_alike_and_never_the_image() {
 
 /// A walk's data past one binding: the seed scene at 1024^3 within 30 MiB a binding
 /// holds its tree and cut (28 MiB) in `walk_data` and its codes (83 MiB) over all three
-/// further bindings (`walk_more_word`, shaders/bindings.wgsl), within 42 MiB over two.
+/// further bindings (`walk_more_word`, shaders/bindings.wgsl), within 42 MiB over two,
+/// within 100 MiB in one (all of it, 111 MiB, would not fit one).
 /// The GPU walks them to the image and the steps of the same data in the device's own
-/// bindings (one for the codes on lavapipe), and to the CPU reference's image and
+/// budget (on lavapipe all of it in one binding, the codes after the cut), and to the
+/// CPU reference's image and
 /// steps at 30 MiB. Each count of bindings is its own kernel (`WALK_MORE_BINDINGS`).
 #[test]
 fn codes_over_three_bindings_walk_as_codes_in_one() {
@@ -592,7 +594,9 @@ fn codes_over_three_bindings_walk_as_codes_in_one() {
     assert_eq!(gpu.walk_data_bindings(), 1 + WALK_MORE_BINDINGS);
     let halves = gpu.render_counted(&scene, &within_budget(42)).unwrap();
     assert_eq!(gpu.walk_data_bindings(), 3);
-    for (name, r) in [("three", &split), ("two", &halves)] {
+    let apart = gpu.render_counted(&scene, &within_budget(100)).unwrap();
+    assert_eq!(gpu.walk_data_bindings(), 2);
+    for (name, r) in [("three", &split), ("two", &halves), ("one", &apart)] {
         assert!(
             r.frame.pixels == own.frame.pixels,
             "the codes over {name} bindings render another image"
