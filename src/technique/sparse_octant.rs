@@ -159,7 +159,7 @@ pub enum CodesAt {
 
 /// Where the codes of `coded` nodes go beside the tree and the cut's `cells` (two
 /// words each) within `budget` bytes a binding, if anywhere.
-fn codes_at(tree: &SparseTree, cells: usize, coded: usize, budget: usize) -> Option<CodesAt> {
+fn place_codes(tree: &SparseTree, cells: usize, coded: usize, budget: usize) -> Option<CodesAt> {
     let first = tree.words().len() + CUT_HEADER_WORDS + 2 * cells;
     let codes = CHILDREN * coded;
     if 4 * (first.next_multiple_of(4) + codes) <= budget {
@@ -193,18 +193,18 @@ impl SparseOctant {
         let b = tree.log_branch();
         let log_cell = log_cell_side(tree.dims(), b, tree.levels());
         let node_log = tree.cut_node_log(log_cell);
-        if log_cell < node_log && Self::codes_fit(&tree, node_log, budget).is_some() {
+        if log_cell < node_log && Self::place_codes_below(&tree, node_log, budget).is_some() {
             return Self::with_cell_side_within(tree, node_log, budget);
         }
         Self::with_cell_side_within(tree, log_cell, budget)
     }
 
     /// Where the codes below cells of `2^log_cell` go within `budget` bytes a binding.
-    fn codes_fit(tree: &SparseTree, log_cell: u32, budget: usize) -> Option<CodesAt> {
+    fn place_codes_below(tree: &SparseTree, log_cell: u32, budget: usize) -> Option<CodesAt> {
         let side = 1u64 << log_cell;
         let cells = ((tree.dims().as_u64vec3() + (side - 1)) / side).element_product() as usize;
         let coded = tree.nodes_up_to(tree.cut_node_log(log_cell)).1.len();
-        codes_at(tree, cells, coded, budget)
+        place_codes(tree, cells, coded, budget)
     }
 
     /// With cells of `2^log_cell` voxels (1 up to the root's cube) whatever the grid: the
@@ -222,7 +222,7 @@ impl SparseOctant {
         if nodes.is_empty() || cut.tree.log_branch() != GPU_LOG_BRANCH {
             return cut;
         }
-        match codes_at(&cut.tree, cells, nodes.len(), budget) {
+        match place_codes(&cut.tree, cells, nodes.len(), budget) {
             Some(at) => cut.with_codes(first, &nodes, at),
             None => cut,
         }
