@@ -78,7 +78,7 @@ struct GpuParams {
     ray_cutoff: f32,
     pixel_filter: u32,
     filter_width: f32,
-    // Words of each binding of a walk's further words (`WalkBuffers::part_words`).
+    // Words of each binding of a walk's further words (`technique::walk_part_words`).
     walk_part_words: u32,
     _pad: [u32; 3],
     // The plan's shadow model's settings (`ShadowModel::gpu_settings`).
@@ -355,12 +355,12 @@ pub struct GpuTracer {
 }
 
 /// A walk's data on the device: `walk_data`, and its further words over up to
-/// [`crate::technique::WALK_MORE_BINDINGS`] buffers of `part_words` words each
-/// (`walk_more_0` ... of shaders/bindings.wgsl).
+/// [`crate::technique::WALK_MORE_BINDINGS`] buffers of
+/// `crate::technique::walk_part_words(budget)` words each (`walk_more_0` ... of
+/// shaders/bindings.wgsl; the budget is its [`WalkKey`]'s).
 struct WalkBuffers {
     main: wgpu::Buffer,
     more: Vec<wgpu::Buffer>,
-    part_words: u32,
 }
 
 impl WalkBuffers {

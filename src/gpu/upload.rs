@@ -220,11 +220,7 @@ impl GpuTracer {
                 b
             })
             .collect();
-        let walk = super::WalkBuffers {
-            main,
-            more,
-            part_words: part_words as u32,
-        };
+        let walk = super::WalkBuffers { main, more };
         let bytes = walk.bytes();
         self.walk_data = Some((key, walk));
         Ok(bytes)
