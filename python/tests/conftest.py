@@ -4,8 +4,11 @@ A GPU session needs a Vulkan adapter (lavapipe on a machine without a GPU, insta
 tests/run.sh): a missing adapter fails the GPU tests, it never skips them.
 """
 
+import contextlib
 import os
+import signal
 import subprocess
+import threading
 from pathlib import Path
 
 import pytest
@@ -35,6 +38,27 @@ def cli(*args, check=True, cwd=None):
     if check and proc.returncode != 0:
         raise AssertionError(f"voxlab {' '.join(map(str, args))} failed:\n{proc.stderr}")
     return proc
+
+
+@contextlib.contextmanager
+def ctrl_c_after(seconds: float):
+    """Sends this process SIGINT `seconds` after the block starts, as Ctrl-C would.
+
+    Python installs its KeyboardInterrupt handler only where SIGINT was not ignored when
+    it started, and a job started in the background of a shell (`cmd &`, some CI
+    runners) inherits SIGINT ignored: there the signal would do nothing and the render
+    meant to be stopped would run to its end. So the handler is installed for the
+    block and the inherited one put back after it.
+    """
+    inherited = signal.signal(signal.SIGINT, signal.default_int_handler)
+    timer = threading.Timer(seconds, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()
+        timer.join()
+        signal.signal(signal.SIGINT, inherited)
 
 
 @pytest.fixture(scope="session")

@@ -7,7 +7,7 @@ import pytest
 
 import voxlab as vx
 
-from conftest import cli
+from conftest import cli, ctrl_c_after
 
 
 def test_techniques_are_the_command_lines_registry():
@@ -127,19 +127,12 @@ def test_the_type_stubs_cover_every_public_name():
 
 
 def test_ctrl_c_stops_ablate_between_renders(tmp_path):
-    import os
-    import signal
-    import threading
-
     src = tmp_path / "tiny.toml"
     # Many points and runs: the sweep takes far longer than the test waits.
     src.write_text(ABLATE.replace("runs = 1", "runs = 50"))
     seen = []
-    timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))
-    timer.start()
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(KeyboardInterrupt), ctrl_c_after(1.0):
         vx.ablate(src, tmp_path / "out", progress=lambda d, t: seen.append((d, t)))
-    timer.join()
     assert seen and seen[-1][1] > 0
     # No table of a sweep that did not finish.
     assert not (tmp_path / "out" / "ablation.csv").exists()

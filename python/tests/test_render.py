@@ -2,8 +2,6 @@
 or nothing, Ctrl-C stops a render, the GIL is released, progress is reported."""
 
 import json
-import os
-import signal
 import threading
 import time
 
@@ -13,7 +11,7 @@ from PIL import Image as PILImage
 
 import voxlab as vx
 
-from conftest import EXPERIMENTS, cli, small
+from conftest import EXPERIMENTS, cli, ctrl_c_after, small
 
 
 def test_image_fields(cpu):
@@ -79,13 +77,10 @@ def long_render():
 
 def test_ctrl_c_stops_a_render_within_a_second_and_the_session_goes_on(cpu):
     e = long_render()
-    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
     start = time.monotonic()
-    timer.start()
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(KeyboardInterrupt), ctrl_c_after(0.5):
         cpu.render(e, progress=False)
     stopped = time.monotonic() - start - 0.5
-    timer.join()
     # Within a row of the reference (a row of 96 pixels x 64 frames); the whole render
     # takes far longer.
     assert stopped < 2.0, f"stopped {stopped:.2f} s after Ctrl-C"
@@ -95,11 +90,8 @@ def test_ctrl_c_stops_a_render_within_a_second_and_the_session_goes_on(cpu):
 
 def test_ctrl_c_stops_a_gpu_render_and_the_session_goes_on(gpu):
     e = small("area_lights.toml", 256, 256, spp=4096)
-    timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))
-    timer.start()
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(KeyboardInterrupt), ctrl_c_after(1.0):
         gpu.render(e, progress=False)
-    timer.join()
     a = gpu.render(small("baseline.toml")).radiance
     assert np.isfinite(a).all()
 
