@@ -506,16 +506,18 @@ fn within_budget(mib: u32) -> RenderSettings {
 }
 
 /// The GPU's render as the CPU reference's: the image, and the steps of the same
-/// regions on both tracers but where f32 and f64 take another voxel at an edge.
+/// regions on both tracers but where f32 and f64 take another voxel at an edge (within
+/// `steps` of the CPU's, a fraction).
 fn assert_walked_alike(
     name: &str,
     g: &voxlab::frame::RenderOutput,
     c: &voxlab::frame::RenderOutput,
+    steps: f64,
 ) {
     assert_agree(name, &g.frame, &c.frame);
     let (gs, cs) = (g.stats.voxel_steps, c.stats.voxel_steps);
     assert!(
-        gs.abs_diff(cs) as f64 <= 0.005 * cs as f64,
+        gs.abs_diff(cs) as f64 <= steps * cs as f64,
         "{name}: GPU {gs} steps, CPU {cs}"
     );
 }
@@ -535,7 +537,7 @@ fn the_walk_budget_setting_changes_the_steps_alike_and_never_the_image() {
         let s = within_budget(mib);
         let g = gpu.render_counted(&scene, &s).unwrap();
         let c = voxlab::cpu::render(&scene, &s);
-        assert_walked_alike(&format!("walk budget {mib} MiB"), &g, &c);
+        assert_walked_alike(&format!("walk budget {mib} MiB"), &g, &c, 0.005);
         (g, c)
     };
     let (g_own, c_own) = at(&mut gpu, 0);
@@ -607,5 +609,97 @@ fn codes_over_three_bindings_walk_as_codes_in_one() {
         );
     }
     let cpu = voxlab::cpu::render(&scene, &within_budget(30));
-    assert_walked_alike("codes over three bindings", &split, &cpu);
+    assert_walked_alike("codes over three bindings", &split, &cpu, 0.005);
+}
+
+/// A scene of `random_scene` with a box of voxel noise in it (each voxel one of the seed's
+/// materials at random, solid ones at `density`): nearly every 4-voxel cube of the box is
+/// a leaf of the tree with its own codes, so the box's side sets how many MiB of codes
+/// the sparse octant walk has.
+fn noisy_scene(rng: &mut StdRng, dims: UVec3, noise: u32, density: f64) -> Scene {
+    let mut scene = random_scene(rng, dims);
+    let n = IVec3::splat(noise as i32).min(dims.as_ivec3());
+    let lo = (dims.as_ivec3() - n) / 2;
+    let solid = [seed_ids::GLASS, seed_ids::SEMI_SOLID, seed_ids::SOLID];
+    for z in lo.z..lo.z + n.z {
+        for y in lo.y..lo.y + n.y {
+            for x in lo.x..lo.x + n.x {
+                let m = if rng.random_bool(density) {
+                    solid[rng.random_range(0..solid.len())]
+                } else {
+                    seed_ids::VOID
+                };
+                scene.grid.set(IVec3::new(x, y, z), m);
+            }
+        }
+    }
+    scene
+}
+
+/// The sparse octant walk's codes over one, two and three further bindings on generated
+/// scenes (grids of 112 to 176 a side, non-cubic, a box of noise whose leaves hold a few
+/// MiB of codes): for each scene the smallest whole-MiB budget that puts its codes in
+/// each count of bindings, found by building the walk's data as the tracers do. At each,
+/// the GPU holds that many bindings and renders the image and the steps of its own
+/// budget (lavapipe: every code after the cut, one binding), and the CPU reference's at
+/// the same budget. Each count must occur among the scenes, or the test says so.
+#[test]
+fn generated_scenes_walk_their_codes_over_further_bindings() {
+    use voxlab::technique::sparse_octant::{CodesAt, SparseOctant};
+    use voxlab::technique::{WALK_MORE_BINDINGS, walk_part_words};
+    let mut rng = StdRng::seed_from_u64(37);
+    let mut gpu = tracer();
+    let mut seen = [0; WALK_MORE_BINDINGS];
+    for case in 0..4 {
+        let dims = UVec3::new(
+            rng.random_range(112..=176),
+            rng.random_range(112..=176),
+            rng.random_range(112..=176),
+        );
+        let noise = rng.random_range(80..=116);
+        let density = rng.random_range(0.1..0.6);
+        let scene = noisy_scene(&mut rng, dims, noise, density);
+        let tree = scene.grid.tree(2);
+        // The smallest budget for each count of further bindings.
+        let mut budgets = [None; WALK_MORE_BINDINGS];
+        for mib in 1..=32u32 {
+            let budget = (mib as usize) << 20;
+            let walk = SparseOctant::build_within(tree.clone(), budget);
+            match (walk.has_codes(), walk.codes_at()) {
+                (true, CodesAt::MoreBindings) => {
+                    let n = walk.codes().len().div_ceil(walk_part_words(budget));
+                    budgets[n - 1].get_or_insert(mib);
+                }
+                // All of it in one binding from here on.
+                (true, CodesAt::WalkData) => break,
+                (false, _) => {}
+            }
+        }
+        let name = format!("case {case}: {dims} noise {noise} density {density:.2}");
+        eprintln!("{name}: budgets for 1, 2, 3 further bindings {budgets:?}");
+        let own = gpu.render_counted(&scene, &within_budget(0)).unwrap();
+        assert_eq!(gpu.walk_data_bindings(), 1, "{name}");
+        for (n, mib) in budgets.iter().enumerate() {
+            let Some(mib) = *mib else { continue };
+            seen[n] += 1;
+            let s = within_budget(mib);
+            let g = gpu.render_counted(&scene, &s).unwrap();
+            let at = format!("{name}, {mib} MiB a binding");
+            assert_eq!(gpu.walk_data_bindings(), 2 + n, "{at}");
+            assert!(
+                g.frame.pixels == own.frame.pixels,
+                "{at}: the codes over {} further bindings render another image",
+                n + 1
+            );
+            assert_eq!(g.stats.voxel_steps, own.stats.voxel_steps, "{at}");
+            // Noise has far more edges than the seed scene for a ray to graze, where f32
+            // and f64 may take another voxel and a pixel another ray tree.
+            let c = voxlab::cpu::render(&scene, &s);
+            assert_walked_alike(&at, &g, &c, 0.02);
+        }
+    }
+    assert!(
+        seen.iter().all(|&n| n > 0),
+        "scenes with codes over 1, 2, 3 further bindings: {seen:?}"
+    );
 }
