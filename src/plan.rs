@@ -103,6 +103,10 @@ pub struct Plan {
     /// takes (the sparse octant walk at 256^3 on lavapipe: 15 % slower with all three
     /// read, docs/sparse-traversal.md, "Codes past one binding").
     pub walk_more_bindings: u32,
+    /// The kernel of the walk's data (`WALK_VARIANT`,
+    /// [`crate::sparse::Regions::kernel_variant`]): like `walk_more_bindings`, the
+    /// data's on the device, set by `GpuTracer` once it is built.
+    pub walk_variant: u32,
     /// How rays walk the grid: the traversal whose module `voxlab::regions` is composed
     /// in (`TRAVERSAL_ID`, with `TREE_LEVELS` the tree's depth for one that walks the
     /// tree). Only the data it walks is built and uploaded: the tree, or the voxel buffer.
@@ -621,6 +625,7 @@ impl Plan {
             ray_stack_size,
             dda_unroll: 1,
             walk_more_bindings: 0,
+            walk_variant: 0,
             reasons,
         }
     }
@@ -838,6 +843,7 @@ impl Plan {
                     ray_stack_size,
                     dda_unroll: 1,
                     walk_more_bindings: 0,
+                    walk_variant: 0,
                     traversal: crate::technique::default_traversal(),
                     tree_levels: 0,
                     traversal_reason: String::new(),
@@ -922,6 +928,10 @@ impl Plan {
         defs.insert(
             "WALK_MORE_BINDINGS".to_string(),
             ShaderDefValue::UInt(self.walk_more_bindings),
+        );
+        defs.insert(
+            "WALK_VARIANT".to_string(),
+            ShaderDefValue::UInt(self.walk_variant),
         );
         defs.insert(
             "RAY_STACK_SIZE".to_string(),
@@ -1011,7 +1021,7 @@ mod tests {
         assert_eq!(p.ray_stack_size, 1);
         // Depth 0/0 needs one stack entry anyway: no stack note.
         assert_eq!(p.reasons.len(), 4, "{p}");
-        // RAY_STACK_SIZE, DDA_UNROLL and WALK_MORE_BINDINGS, always defined, and the walk's id where
+        // RAY_STACK_SIZE, DDA_UNROLL, WALK_MORE_BINDINGS and WALK_VARIANT, always defined, and the walk's id where
         // `"auto"` takes a walk other than the default (the octant walk from side 16).
         let names: Vec<String> = p.shader_defs().into_keys().collect();
         for n in &names {
@@ -1020,6 +1030,7 @@ mod tests {
                     "RAY_STACK_SIZE",
                     "DDA_UNROLL",
                     "WALK_MORE_BINDINGS",
+                    "WALK_VARIANT",
                     "TRAVERSAL_ID"
                 ]
                 .contains(&n.as_str()),
@@ -1028,7 +1039,7 @@ mod tests {
         }
         assert_eq!(
             names.len(),
-            3 + usize::from(p.traversal.index() != 0),
+            4 + usize::from(p.traversal.index() != 0),
             "{names:?}"
         );
     }

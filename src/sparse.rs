@@ -384,6 +384,14 @@ pub trait Regions: Send + Sync {
     fn device_more_words(&self) -> &[u32] {
         &[]
     }
+    /// Which kernel this data is walked by (`WALK_VARIANT`, a shader def of the
+    /// traversal's WGSL module), where what the data holds decides the reads a step
+    /// needs: Mesa's software driver runs a branch's storage reads for every lane
+    /// whatever the lanes take, so a step that reads only what this data has is faster
+    /// (the sparse octant walk with and without its codes). 0 by default.
+    fn kernel_variant(&self) -> u32 {
+        0
+    }
     /// The bytes of all the words the kernel reads.
     fn device_bytes(&self) -> usize {
         let words: usize = self.device_words().iter().map(|w| w.len()).sum();

@@ -241,8 +241,12 @@ impl GpuTracer {
             self.walk_data = None;
             (0, Duration::ZERO)
         };
-        // The kernel reads the bindings the walk's data takes, known once it is built.
-        plan.walk_more_bindings = self.walk_data.as_ref().map_or(0, |w| w.1.more.len() as u32);
+        // The kernel reads the bindings the walk's data takes, and what that data holds,
+        // known once it is built.
+        if let Some((_, walk)) = &self.walk_data {
+            plan.walk_more_bindings = walk.more.len() as u32;
+            plan.walk_variant = walk.variant;
+        }
         self.pipeline(&plan)?;
         let key = continuable.then(|| AccumulationKey::new(scene, settings, &plan));
         if frames.start > 0 {

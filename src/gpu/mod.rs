@@ -361,6 +361,8 @@ pub struct GpuTracer {
 struct WalkBuffers {
     main: wgpu::Buffer,
     more: Vec<wgpu::Buffer>,
+    /// The data's `Regions::kernel_variant`.
+    variant: u32,
 }
 
 impl WalkBuffers {

@@ -220,7 +220,11 @@ impl GpuTracer {
                 b
             })
             .collect();
-        let walk = super::WalkBuffers { main, more };
+        let walk = super::WalkBuffers {
+            main,
+            more,
+            variant: data.kernel_variant(),
+        };
         let bytes = walk.bytes();
         self.walk_data = Some((key, walk));
         Ok(bytes)
