@@ -2,9 +2,10 @@
 // 64-tree's cubes of 2^log_cell voxels. In a cell the tree holds as one material the
 // region is the walk's octant's cube of such cells (as traversal_octant.wgsl's cube of
 // voxels); in a cell the tree holds as a node, the uniform child the tree's descent from
-// that node finds (shaders/tree.wgsl), and where the child's node has its children's
-// codes, the child's octant cube of its node's children. The f64 reference:
-// crate::technique::sparse_octant::SparseOctant.
+// that node finds (shaders/tree.wgsl), and where the walk has codes, the child's octant
+// cube of its node's children. A walk with codes and one without are two kernels
+// (WALK_VARIANT, crate::sparse::Regions::kernel_variant), each without the other's
+// reads. The f64 reference: crate::technique::sparse_octant::SparseOctant.
 #define_import_path voxlab::regions
 
 #import voxlab::types::Region
@@ -16,8 +17,8 @@ const REGIONS_ARE_VOXELS: bool = false;
 
 // Read once a walk: the walk's octant (where its code sits in a cell's word, the axes it
 // heads down), the cut (its first cell's vec4, log2 of a cell's side, its dims) and the
-// codes below it (the first node with its children's codes, how many, their first vec4
-// where they follow the cut; 64 words a node).
+// codes below it (the first node with its children's codes and their first vec4 where
+// they follow the cut; 64 words a node).
 struct RegionCursor {
     shift: u32,
     down: vec3<i32>,
@@ -25,7 +26,6 @@ struct RegionCursor {
     log_cell: u32,
     cut_dims: vec3<u32>,
     coded_first: u32,
-    coded_count: u32,
     codes: u32,
 }
 
@@ -37,7 +37,7 @@ fn region_cursor(step: vec3<i32>) -> RegionCursor {
     let at = 1u + walk_data[0].z * NODE_VEC4S;
     let cut = walk_data[at];
     let coded = walk_data[at + 1u];
-    return RegionCursor(8u + 3u * o, down, at + 2u, cut.x, cut.yzw, coded.x, coded.y, at + coded.z);
+    return RegionCursor(8u + 3u * o, down, at + 2u, cut.x, cut.yzw, coded.x, at + coded.z);
 }
 
 // The cube toward the walk's octant of `cell` (of 2^log voxels a side) whose octant word
@@ -59,30 +59,38 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
     let i = cell.x + d.x * (cell.y + d.y * cell.z);
     let pair = walk_data[(*c).cells + (i >> 1u)];
     let word = select(pair.xy, pair.zw, (i & 1u) == 1u);
+    // The node of the tree's level at or above the cell (src/sparse.rs, cut_node_log).
+    let node_log = ((*c).log_cell + 1u) & ~1u;
+#if WALK_VARIANT == 1
+    // With codes (KERNEL_WITH_CODES): every node below the cut has them (the tree's last
+    // nodes), and a child's word holds its material. In a node's cell, the uniform
+    // child's own cube in children of the node the descent ends at; else the cell's cube
+    // of cells. One cube for both, so the driver, which runs both sides of the branch,
+    // builds one.
+    var at = cell;
+    var code = word.x;
+    var log = (*c).log_cell;
     if word.y != 0u {
-        // The node of the tree's level at or above the cell (src/sparse.rs, cut_node_log).
-        let node_log = ((*c).log_cell + 1u) & ~1u;
-        // With codes every node below the cut has them (the tree's last nodes,
-        // src/technique/sparse_octant.rs), and a child's word holds its material.
-        let found = region_below(v, word.y - 1u, node_log - 2u, (*c).coded_count == 0u);
-        // Found in a node with its children's codes: the uniform child's own cube, in
-        // children of that node.
-        let k = found.node - (*c).coded_first;
-        if k < (*c).coded_count {
-            let child = u >> vec3<u32>(found.shift);
-            let p = child & vec3<u32>(3u);
-            let i = 64u * k + p.x + 4u * p.y + 16u * p.z;
-            // After the cut where the walk's data fits one binding, else in the walk's
-            // further bindings (crate::technique::sparse_octant::CodesAt).
+        let found = region_below(v, word.y - 1u, node_log - 2u, false);
+        at = u >> vec3<u32>(found.shift);
+        let p = at & vec3<u32>(3u);
+        let i = 64u * (found.node - (*c).coded_first) + p.x + 4u * p.y + 16u * p.z;
+        // After the cut where the walk's data fits one binding, else in the walk's
+        // further bindings (crate::technique::sparse_octant::CodesAt).
 #if WALK_MORE_BINDINGS >= 1
-            let word = walk_more_word(i);
+        code = walk_more_word(i);
 #else
-            let w = 4u * (*c).codes + i;
-            let word = walk_data[w >> 2u][w & 3u];
+        let w = 4u * (*c).codes + i;
+        code = walk_data[w >> 2u][w & 3u];
 #endif
-            return corner_region(c, vec3<i32>(child), word, found.shift);
-        }
-        return found.region;
+        log = found.shift;
+    }
+    return corner_region(c, vec3<i32>(at), code, log);
+#else
+    // Without codes: the uniform child itself, its material read from the tree.
+    if word.y != 0u {
+        return region_below(v, word.y - 1u, node_log - 2u, true).region;
     }
     return corner_region(c, vec3<i32>(cell), word.x, (*c).log_cell);
+#endif
 }

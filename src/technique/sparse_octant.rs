@@ -59,6 +59,15 @@ pub const MAX_WALK_BYTES: usize = super::HOST_WALK_BYTES;
 /// Children of a node of the 64-tree, each with a word of codes.
 const CHILDREN: usize = 64;
 
+/// The kernel of a walk with codes (`WALK_VARIANT == 1` in
+/// shaders/traversal_sparse_octant.wgsl; 0 without them): every node a cell's descent
+/// can end at has its children's codes, so the step reads the child's word and never
+/// the tree's materials, and without codes the reverse. Each kernel leaves out the
+/// other's reads, which lavapipe would run for every lane (at 256^3 and 1024^3 on the
+/// seed scene, 7 % of the frame: docs/sparse-traversal.md, "One kernel for codes, one
+/// without").
+const KERNEL_WITH_CODES: u32 = 1;
+
 /// Log2 of the side of the cut's cells for a tree of these dims and branching: the
 /// smallest side (4, 8, 16 ... voxels) whose cells number at most [`MAX_CELLS`]: the
 /// smaller the cells, the nearer to a surface the octant cubes reach, and the fewer
@@ -602,6 +611,14 @@ impl Regions for SparseOctant {
         match self.codes_at {
             CodesAt::WalkData => &[],
             CodesAt::MoreBindings => &self.codes,
+        }
+    }
+
+    fn kernel_variant(&self) -> u32 {
+        if self.has_codes() {
+            KERNEL_WITH_CODES
+        } else {
+            0
         }
     }
 }
