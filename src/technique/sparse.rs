@@ -15,17 +15,19 @@ use super::TraversalModel;
 /// all the steps the tree saves: on lavapipe the seed scene rendered at 0.80x the dense
 /// walk's speed with this walk at 256^3 and at 2.03x at 512^3, the bunny voxelized at
 /// 512 at 2.11x (`voxlab bench --sizes 256,512 --experiments experiments/bunny_512.toml`,
-/// docs/sparse-traversal.md). Since the sparse octant walk's codes it is as fast as the
-/// octant field from 256^3 and faster from 320^3, in a tenth of its memory (seed rules,
-/// 256x256, two runs of `voxlab bench --sizes 256,320 --size 256 --gpu-runs 3 --no-cpu
-/// --rules seed --traversal octant,sparse_octant`: 256^3 69.4 and 62.4 ms against 74.4
-/// and 68.2, 320^3 69.0 and 73.1 against 77.4 and 81.9; "A descent's reads" had 66.0
-/// against 65.1 at 256^3), so it takes the grid from 320: a grid of a smaller side has
-/// at most 32.5 M voxels, whose octant field lavapipe binds. From 320 up to 512 "auto"
-/// took on lavapipe the proximity field (384^3: 157 ms) or, past its two bytes a voxel,
-/// the dense DDA (448^3: 1691 ms), where this walk takes 86 ms and 85 ms
+/// docs/sparse-traversal.md). Since its kernel with codes leaves out the tree's material
+/// reads it is faster than the octant field from 256^3, in an eighth of its memory, and
+/// slower below 240^3 (seed rules, 256x256, three runs of `voxlab bench --sizes
+/// 16,64,128,192,256 --size 256 --gpu-runs 5 --no-cpu --rules seed --traversal
+/// octant,sparse_octant` and of `--sizes 208,224,240`: 55.2 to 57.7 ms against 61.4 to
+/// 64.6 at 256^3, 54.4 to 56.4 against 53.4 to 56.2 at 240^3, 50.0 to 50.6 against 47.0
+/// to 48.3 at 192^3; the bunny voxelized at 256, 166.6 and 173.4 against 150.8 and 179.1),
+/// so it takes the grid from 256 (320 before, 512 before that: from 320 up to 512 "auto"
+/// took on lavapipe the proximity field, 384^3: 157 ms, or, past its two bytes a voxel,
+/// the dense DDA, 448^3: 1691 ms, where this walk takes 86 ms and 85 ms). A grid of a
+/// smaller side has at most 16.6 M voxels, whose octant field lavapipe binds
 /// (docs/sparse-traversal.md, "Where auto walks the tree").
-pub const SPARSE_FROM_SIDE: u32 = 320;
+pub const SPARSE_FROM_SIDE: u32 = 256;
 
 pub const TRAVERSAL: TraversalModel = TraversalModel {
     name: "sparse",

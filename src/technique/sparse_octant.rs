@@ -98,9 +98,9 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
     // octant,sparse,sparse_octant`) 3.7x its speed at 256^3 and 512^3, 3.4x at 1024^3
     // and 1.6x at 2048^3 without the codes below the cut, which now take bindings of
     // their own there and make its frame 2.4x as fast again (docs/sparse-traversal.md,
-    // "Codes below the cut", "Codes past one binding"). It claims from side 320
+    // "Codes below the cut", "Codes past one binding"). It claims from side 256
     // (`SPARSE_FROM_SIDE`), where it is faster than the dense octant field; below, that
-    // field is as fast and keeps its claim ("Where auto walks the tree").
+    // field is faster and keeps its claim ("Where auto walks the tree").
     auto: Some(|scene| {
         if scene.grid.is_sparse() {
             return Ok("the grid is held only as its sparse tree".into());
