@@ -63,9 +63,9 @@ const CHILDREN: usize = 64;
 /// shaders/traversal_sparse_octant.wgsl; 0 without them): every node a cell's descent
 /// can end at has its children's codes, so the step reads the child's word and never
 /// the tree's materials, and without codes the reverse. Each kernel leaves out the
-/// other's reads, which lavapipe would run for every lane (at 256^3 and 1024^3 on the
-/// seed scene, 7 % of the frame: docs/sparse-traversal.md, "One kernel for codes, one
-/// without").
+/// other's reads, which lavapipe would run for every lane (on the seed scene 12 % of
+/// the frame at 256^3, 7 % at 1024^3: docs/sparse-traversal.md, "One kernel for codes,
+/// one without").
 const KERNEL_WITH_CODES: u32 = 1;
 
 /// Log2 of the side of the cut's cells for a tree of these dims and branching: the
