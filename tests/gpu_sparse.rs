@@ -417,6 +417,28 @@ fn the_sparse_octant_walk_with_cells_of_eight() {
     assert_eq!(plan.tree_levels, 2, "{plan}");
     let c = voxlab::cpu::render(&scene, &s);
     assert_agree("seed 1024x1024x512, cells of 8", &g.frame, &c.frame);
+    // Without the codes (not within 1 MiB a binding): the kernel without them, whose
+    // descent also takes two levels here.
+    let bare = RenderSettings {
+        walk_budget_mib: 1,
+        ..s.clone()
+    };
+    let g_bare = gpu.render_counted(&scene, &bare).unwrap();
+    assert_eq!(gpu.walk_data_bindings(), 1);
+    let c_bare = voxlab::cpu::render(&scene, &bare);
+    assert_walked_alike(
+        "seed 1024x1024x512, cells of 8, no codes",
+        &g_bare,
+        &c_bare,
+        0.005,
+    );
+    let g_coded = gpu.render_counted(&scene, &s).unwrap();
+    assert!(
+        g_bare.stats.voxel_steps > g_coded.stats.voxel_steps,
+        "without codes {} steps, with {}",
+        g_bare.stats.voxel_steps,
+        g_coded.stats.voxel_steps
+    );
     let tree = voxlab::cpu::render(
         &scene,
         &RenderSettings {
