@@ -661,7 +661,7 @@ fn noisy_scene(rng: &mut StdRng, dims: UVec3, noise: u32, density: f64) -> Scene
 
 /// The sparse octant walk's codes wherever its budget puts them, on generated scenes
 /// (grids of 112 to 176 a side, non-cubic, a box of noise whose leaves hold a few MiB of
-/// codes): for each scene the smallest whole-MiB budget that leaves them out (the
+/// codes; images of 12 to 36 by 10 to 30 pixels, depth limits 0 to 4): for each scene the smallest whole-MiB budget that leaves them out (the
 /// kernel without codes) and that puts them in one, two and three further bindings,
 /// found by building the walk's data as the tracers do. At each, the GPU holds that many
 /// bindings and renders the image of its own budget (lavapipe: every code after the
@@ -684,6 +684,19 @@ fn generated_scenes_walk_their_codes_wherever_held() {
         );
         let noise = rng.random_range(80..=116);
         let density = rng.random_range(0.1..0.6);
+        // The image and the depth limits vary too: each case its own ray trees.
+        let (w, h, depth) = (
+            rng.random_range(12..=36),
+            rng.random_range(10..=30),
+            rng.random_range(0..=4),
+        );
+        let budget = |mib: u32| RenderSettings {
+            width: w,
+            height: h,
+            max_reflection_depth: depth,
+            max_refraction_depth: depth,
+            ..within_budget(mib)
+        };
         let scene = noisy_scene(&mut rng, dims, noise, density);
         let tree = scene.grid.tree(2);
         // The smallest budget for each place.
@@ -703,14 +716,16 @@ fn generated_scenes_walk_their_codes_wherever_held() {
                 }
             }
         }
-        let name = format!("case {case}: {dims} noise {noise} density {density:.2}");
+        let name = format!(
+            "case {case}: {dims} noise {noise} density {density:.2}, {w}x{h} depth {depth}"
+        );
         eprintln!("{name}: budgets without codes, for 1, 2, 3 further bindings {budgets:?}");
-        let own = gpu.render_counted(&scene, &within_budget(0)).unwrap();
+        let own = gpu.render_counted(&scene, &budget(0)).unwrap();
         assert_eq!(gpu.walk_data_bindings(), 1, "{name}");
         for (n, mib) in budgets.iter().enumerate() {
             let Some(mib) = *mib else { continue };
             seen[n] += 1;
-            let s = within_budget(mib);
+            let s = budget(mib);
             let g = gpu.render_counted(&scene, &s).unwrap();
             let at = format!("{name}, {mib} MiB a binding");
             assert_eq!(gpu.walk_data_bindings(), 1 + n, "{at}");
