@@ -139,6 +139,9 @@ pub struct RenderOutput {
     /// Both backends keep it out of `trace_time`, so a frame's time is comparable
     /// whichever backend traced it and however the preparation was cached.
     pub setup_time: Duration,
+    /// What the walk's own data holds where the walk chose it within its budget
+    /// ([`crate::sparse::Regions::summary`]; the plan's `walk data:` line).
+    pub walk_data: Option<String>,
 }
 
 /// The luminance of linear RGB (ITU-R BT.709 weights), what the reconstructions' edge

@@ -107,6 +107,10 @@ pub struct Plan {
     /// [`crate::sparse::Regions::kernel_variant`]): like `walk_more_bindings`, the
     /// data's on the device, set by `GpuTracer` once it is built.
     pub walk_variant: u32,
+    /// What the walk's data holds where the walk chose it within its budget
+    /// ([`crate::sparse::Regions::summary`]), printed on its own line: set by each
+    /// tracer once the data is built (None before, and for walks that have no choice).
+    pub walk_data: Option<String>,
     /// How rays walk the grid: the traversal whose module `voxlab::regions` is composed
     /// in (`TRAVERSAL_ID`, with `TREE_LEVELS` the tree's depth for one that walks the
     /// tree). Only the data it walks is built and uploaded: the tree, or the voxel buffer.
@@ -626,6 +630,7 @@ impl Plan {
             dda_unroll: 1,
             walk_more_bindings: 0,
             walk_variant: 0,
+            walk_data: None,
             reasons,
         }
     }
@@ -844,6 +849,7 @@ impl Plan {
                     dda_unroll: 1,
                     walk_more_bindings: 0,
                     walk_variant: 0,
+                    walk_data: None,
                     traversal: crate::technique::default_traversal(),
                     tree_levels: 0,
                     traversal_reason: String::new(),
@@ -964,6 +970,9 @@ impl fmt::Display for Plan {
             write!(f, ", descents of {} level{s}", self.tree_levels)?;
         }
         write!(f, " ({})", self.traversal_reason)?;
+        if let Some(data) = &self.walk_data {
+            write!(f, "\n  walk data: {data}")?;
+        }
         if self.surface.traces_triangles() {
             write!(
                 f,

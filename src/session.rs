@@ -277,7 +277,7 @@ impl Session {
             Tracer::Cpu { .. } => {
                 // The CPU's plan is derived the same way, for the record: it needs no
                 // shader variant, but the scene's needs are the same.
-                let plan = Plan::new(scene, settings);
+                let mut plan = Plan::new(scene, settings);
                 // A range of the accumulation is, on the CPU, the render of its first
                 // frames, the range checked by the rule the GPU tracer checks its own by.
                 let ranged;
@@ -303,6 +303,7 @@ impl Session {
                 if progress.is_some_and(|p| p.stopped()) {
                     return Err(Error::new(ErrorKind::Interrupted, "render stopped"));
                 }
+                plan.walk_data = out.walk_data.clone();
                 (out, plan, "wall", false)
             }
         };

@@ -392,6 +392,13 @@ pub trait Regions: Send + Sync {
     fn kernel_variant(&self) -> u32 {
         0
     }
+    /// What this data holds where the walk chose it within its budget (the plan's
+    /// `walk data:` line, in the render's record): a choice that changes the steps and
+    /// not the image (the sparse octant walk's codes, left out where they do not fit)
+    /// must not pass unsaid. None where the data is always the same.
+    fn summary(&self) -> Option<String> {
+        None
+    }
     /// The bytes of all the words the kernel reads.
     fn device_bytes(&self) -> usize {
         let words: usize = self.device_words().iter().map(|w| w.len()).sum();

@@ -932,16 +932,6 @@ fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1e3
 }
 
-fn bytes_text(b: u64) -> String {
-    if b >= 1 << 20 {
-        format!("{:.1} MiB", b as f64 / (1u64 << 20) as f64)
-    } else if b >= 1 << 10 {
-        format!("{:.1} KiB", b as f64 / 1024.0)
-    } else {
-        format!("{b} B")
-    }
-}
-
 fn finite_text(f: Option<bool>) -> &'static str {
     match f {
         Some(true) => "yes",
@@ -994,7 +984,7 @@ fn cells(r: &StressRow, markdown: bool) -> Vec<String> {
         format!("{}x{}", r.image.0, r.image.1),
         format!("{}x{}x{}", r.grid.x, r.grid.y, r.grid.z),
         if markdown {
-            bytes_text(r.grid_bytes)
+            crate::info::bytes_text(r.grid_bytes)
         } else {
             r.grid_bytes.to_string()
         },

@@ -561,6 +561,8 @@ fn the_walk_budget_setting_changes_the_steps_alike_and_never_the_image() {
         let g = gpu.render_counted(&scene, &s).unwrap();
         let c = voxlab::cpu::render(&scene, &s);
         assert_walked_alike(&format!("walk budget {mib} MiB"), &g, &c, 0.005);
+        // Both tracers say what their data holds, alike.
+        assert_eq!(g.walk_data, c.walk_data, "walk budget {mib} MiB");
         (g, c)
     };
     let (g_own, c_own) = at(&mut gpu, 0);
@@ -578,6 +580,27 @@ fn the_walk_budget_setting_changes_the_steps_alike_and_never_the_image() {
         "without the codes the walk takes more steps: {} against {}",
         c_one.stats.voxel_steps,
         c_own.stats.voxel_steps
+    );
+    // The plan says so: a budget that leaves the codes out is never silent.
+    let own_text = c_own.walk_data.clone().unwrap();
+    assert!(
+        own_text.contains("children's codes of") && own_text.contains("after the tree"),
+        "{own_text}"
+    );
+    let one_text = c_one.walk_data.clone().unwrap();
+    assert!(
+        one_text.contains("no codes, so more steps")
+            && one_text.contains("within 1.0 MiB a binding")
+            && one_text.contains("render.walk_budget_mib"),
+        "{one_text}"
+    );
+    assert!(
+        gpu.last_plan()
+            .unwrap()
+            .to_string()
+            .contains(&format!("walk data: {one_text}")),
+        "{}",
+        gpu.last_plan().unwrap()
     );
     // Each budget built once: its own data, kept for the next render at it.
     let builds = gpu.walk_data_builds();
@@ -621,11 +644,17 @@ fn codes_over_three_bindings_walk_as_codes_in_one() {
     assert_eq!(gpu.walk_data_bindings(), 3);
     let apart = gpu.render_counted(&scene, &within_budget(100)).unwrap();
     assert_eq!(gpu.walk_data_bindings(), 2);
-    for (name, r) in [("three", &split), ("two", &halves), ("one", &apart)] {
+    for (name, more, r) in [
+        ("three", 3, &split),
+        ("two", 2, &halves),
+        ("one", 1, &apart),
+    ] {
         assert!(
             r.frame.pixels == own.frame.pixels,
             "the codes over {name} bindings render another image"
         );
+        let text = r.walk_data.clone().unwrap();
+        assert!(text.contains(&format!(") in {more} more of ")), "{text}");
         assert_eq!(
             r.stats.voxel_steps, own.stats.voxel_steps,
             "{name} bindings"
@@ -633,6 +662,7 @@ fn codes_over_three_bindings_walk_as_codes_in_one() {
     }
     let cpu = voxlab::cpu::render(&scene, &within_budget(30));
     assert_walked_alike("codes over three bindings", &split, &cpu, 0.005);
+    assert_eq!(split.walk_data, cpu.walk_data);
 }
 
 /// A scene of `random_scene` with a box of voxel noise in it (each voxel one of the seed's

@@ -173,6 +173,7 @@ fn trace_region(
             stats,
             trace_time: start.elapsed(),
             setup_time: Duration::ZERO,
+            walk_data: prepared.regions.as_ref().and_then(|r| r.summary()),
         };
     }
     // A filter reads around each pixel: the region is traced as far wider as it reads,
@@ -211,6 +212,7 @@ fn trace_region(
         stats,
         trace_time: start.elapsed(),
         setup_time: Duration::ZERO,
+        walk_data: prepared.regions.as_ref().and_then(|r| r.summary()),
     }
 }
 

@@ -246,6 +246,7 @@ impl GpuTracer {
         if let Some((_, walk)) = &self.walk_data {
             plan.walk_more_bindings = walk.more.len() as u32;
             plan.walk_variant = walk.variant;
+            plan.walk_data = walk.summary.clone();
         }
         self.pipeline(&plan)?;
         let key = continuable.then(|| AccumulationKey::new(scene, settings, &plan));
@@ -567,6 +568,7 @@ impl GpuTracer {
             stats,
             trace_time,
             setup_time: self.last_setup_time,
+            walk_data: self.walk_data.as_ref().and_then(|w| w.1.summary.clone()),
         })
     }
 

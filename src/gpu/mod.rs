@@ -363,6 +363,8 @@ struct WalkBuffers {
     more: Vec<wgpu::Buffer>,
     /// The data's `Regions::kernel_variant`.
     variant: u32,
+    /// The data's `Regions::summary`, for the plan.
+    summary: Option<String>,
 }
 
 impl WalkBuffers {

@@ -224,6 +224,7 @@ impl GpuTracer {
             main,
             more,
             variant: data.kernel_variant(),
+            summary: data.summary(),
         };
         let bytes = walk.bytes();
         self.walk_data = Some((key, walk));

@@ -147,6 +147,11 @@ pub struct SparseOctant {
     /// The children's words, 64 a node with codes.
     codes: Vec<u32>,
     codes_at: CodesAt,
+    /// The bytes a binding the data was built within, and the nodes below the cut whose
+    /// codes did not fit them (0 where they did, or where there are none): said in the
+    /// plan ([`Regions::summary`]), as the walk then takes more steps.
+    budget: usize,
+    uncoded: usize,
 }
 
 /// Words before the cut's first cell.
@@ -229,11 +234,18 @@ impl SparseOctant {
         let cells = cut.cut_dims.as_u64vec3().element_product() as usize;
         // The codes' layout is the 64-tree's (64 children a node, shaders/tree.wgsl).
         if nodes.is_empty() || cut.tree.log_branch() != GPU_LOG_BRANCH {
-            return cut;
+            return Self { budget, ..cut };
         }
         match place_codes(&cut.tree, cells, nodes.len(), budget) {
-            Some(at) => cut.with_codes(first, &nodes, at),
-            None => cut,
+            Some(at) => Self {
+                budget,
+                ..cut.with_codes(first, &nodes, at)
+            },
+            None => Self {
+                budget,
+                uncoded: nodes.len(),
+                ..cut
+            },
         }
     }
 
@@ -274,6 +286,8 @@ impl SparseOctant {
             cut: words,
             codes: Vec::new(),
             codes_at: CodesAt::WalkData,
+            budget: MAX_WALK_BYTES,
+            uncoded: 0,
         }
     }
 
@@ -620,5 +634,45 @@ impl Regions for SparseOctant {
         } else {
             0
         }
+    }
+
+    fn summary(&self) -> Option<String> {
+        let size = |words: usize| crate::info::bytes_text(4 * words as u64);
+        let budget = crate::info::bytes_text(self.budget as u64);
+        let cells = format!("cells of {} voxels a side", 1u64 << self.log_cell);
+        let tree = size(self.tree.words().len() + self.cut.len());
+        Some(if self.has_codes() {
+            let codes = format!(
+                "the children's codes of {} nodes ({})",
+                self.coded_count,
+                size(self.codes.len())
+            );
+            match self.codes_at {
+                CodesAt::WalkData => format!(
+                    "{cells}; {codes} after the tree and the cut ({tree}), \
+                     within {budget} a binding"
+                ),
+                CodesAt::MoreBindings => format!(
+                    "{cells}; the tree and the cut ({tree}) in one binding, {codes} in \
+                     {} more of {budget}",
+                    self.codes
+                        .len()
+                        .div_ceil(super::walk_part_words(self.budget))
+                ),
+            }
+        } else if self.tree.log_branch() != GPU_LOG_BRANCH {
+            format!("{cells}; no codes (theirs are the 64-tree's children)")
+        } else if self.uncoded > 0 {
+            format!(
+                "{cells}; no codes, so more steps a ray: the children's codes of its {} nodes \
+                 ({}) do not fit beside the tree and the cut ({tree}) within \
+                 {budget} a binding and {} more (render.walk_budget_mib)",
+                self.uncoded,
+                size(CHILDREN * self.uncoded),
+                super::WALK_MORE_BINDINGS
+            )
+        } else {
+            format!("{cells}, no node below them ({tree})")
+        })
     }
 }
