@@ -70,8 +70,11 @@ fn the_bands_add_up_to_the_image() {
     let shadows: Vec<u64> = pixels.iter().map(|s| s.shadow).collect();
     assert_eq!(row.tree_efficiency, efficiency(&trees, side, side));
     assert_eq!(row.shadow_efficiency, efficiency(&shadows, side, side));
+    let steps: Vec<u64> = pixels.iter().map(|s| s.voxel_steps).collect();
+    assert_eq!(row.steps_efficiency, efficiency(&steps, side, side));
     let mean = |v: &[u64]| v.iter().sum::<u64>() as f64 / f64::from(side * side);
     assert_eq!(row.tree_passes_per_pixel, mean(&trees));
+    assert_eq!(row.steps_per_pixel, mean(&steps));
     let rays: Vec<u64> = pixels.iter().map(|s| s.primary + s.secondary).collect();
     assert_eq!(row.tree_rays_per_pixel, mean(&rays));
     // The kernel leaves some of the tree's rays untraced on the seed scene.

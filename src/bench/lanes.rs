@@ -35,6 +35,12 @@ pub struct LaneRow {
     /// [`efficiency`] of the passes and of the shadow rays.
     pub tree_efficiency: f64,
     pub shadow_efficiency: f64,
+    /// Voxel steps per pixel (every walk of its tree, shadow walks included), and their
+    /// [`efficiency`]: a coarser bound than the rays', as the kernel runs each walk's
+    /// steps in step with the vector's other lanes' same walk, not a pixel's whole
+    /// tree's; where it falls as a grid grows, the vectors run more idle steps a step.
+    pub steps_per_pixel: f64,
+    pub steps_efficiency: f64,
 }
 
 impl LaneRow {
@@ -47,6 +53,8 @@ impl LaneRow {
             "shadow_rays_per_pixel": self.shadow_rays_per_pixel,
             "tree_lane_efficiency": self.tree_efficiency,
             "shadow_lane_efficiency": self.shadow_efficiency,
+            "voxel_steps_per_pixel": self.steps_per_pixel,
+            "voxel_steps_lane_efficiency": self.steps_efficiency,
         })
     }
 }
@@ -168,7 +176,8 @@ pub fn bench_lanes(experiments: &[Experiment], side: u32) -> Vec<LaneRow> {
         .iter()
         .map(|e| {
             let (settings, prepared) = prepare(e, side, side);
-            let (mut tree, mut shadow) = (Lanes::default(), Lanes::default());
+            let (mut tree, mut shadow, mut steps) =
+                (Lanes::default(), Lanes::default(), Lanes::default());
             let mut rays = 0;
             for start in (0..side).step_by(BAND as usize) {
                 let band = pixels_of(e, &settings, &prepared, start..(start + BAND).min(side));
@@ -176,6 +185,7 @@ pub fn bench_lanes(experiments: &[Experiment], side: u32) -> Vec<LaneRow> {
                 rays += band.iter().map(|s| s.primary + s.secondary).sum::<u64>();
                 tree.add(&counts(passes), side);
                 shadow.add(&counts(|s| s.shadow), side);
+                steps.add(&counts(|s| s.voxel_steps), side);
             }
             let pixels = f64::from(side) * f64::from(side);
             LaneRow {
@@ -186,6 +196,8 @@ pub fn bench_lanes(experiments: &[Experiment], side: u32) -> Vec<LaneRow> {
                 shadow_rays_per_pixel: shadow.done as f64 / pixels,
                 tree_efficiency: tree.efficiency(),
                 shadow_efficiency: shadow.efficiency(),
+                steps_per_pixel: steps.done as f64 / pixels,
+                steps_efficiency: steps.efficiency(),
             }
         })
         .collect()
@@ -200,12 +212,12 @@ pub fn passes(s: &RayStats) -> u64 {
 /// The rows as a Markdown table.
 pub fn lanes_table(rows: &[LaneRow]) -> String {
     let mut t = String::from(
-        "| experiment | image | tree rays a pixel | loop passes a pixel | lane efficiency | shadow rays a pixel | lane efficiency |\n\
-         |---|---:|---:|---:|---:|---:|---:|\n",
+        "| experiment | image | tree rays a pixel | loop passes a pixel | lane efficiency | shadow rays a pixel | lane efficiency | voxel steps a pixel | lane efficiency |\n\
+         |---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         t += &format!(
-            "| {} | {}x{} | {:.2} | {:.2} | {:.3} | {:.2} | {:.3} |\n",
+            "| {} | {}x{} | {:.2} | {:.2} | {:.3} | {:.2} | {:.3} | {:.2} | {:.3} |\n",
             r.experiment,
             r.side,
             r.side,
@@ -213,7 +225,9 @@ pub fn lanes_table(rows: &[LaneRow]) -> String {
             r.tree_passes_per_pixel,
             r.tree_efficiency,
             r.shadow_rays_per_pixel,
-            r.shadow_efficiency
+            r.shadow_efficiency,
+            r.steps_per_pixel,
+            r.steps_efficiency
         );
     }
     t

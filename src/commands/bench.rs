@@ -82,7 +82,8 @@ pub(crate) struct BenchArgs {
     /// Measure how evenly the kernel's SIMD lanes share the work instead: each
     /// experiment (--experiments, default experiments/baseline.toml and
     /// experiments/seed_rules.toml) at --size on the CPU reference, the rays each pixel
-    /// traces, and what the software driver's vectors (4x2 pixel blocks) run for them.
+    /// traces and the voxel steps it walks, and what the software driver's vectors (4x2
+    /// pixel blocks) run for them.
     #[arg(long, conflicts_with_all = ["voxelize", "plan", "trees", "cutoffs", "reconstruction"])]
     lanes: bool,
     /// Benchmark the render plan instead: the reduced kernel against the full one on
@@ -436,9 +437,9 @@ fn bench_lanes(a: &BenchArgs) -> Result<()> {
         return print_json_rows(&head, rows.iter().map(|r| r.json()));
     }
     println!(
-        "SIMD lanes: each experiment at {0}x{0}, frame 0, the rays of each pixel (CPU \
-         reference) in the kernel's vectors of 4x2 pixels; lane efficiency = the rays \
-         traced over 8 times each vector's largest count\n",
+        "SIMD lanes: each experiment at {0}x{0}, frame 0, the rays and voxel steps of \
+         each pixel (CPU reference) in the kernel's vectors of 4x2 pixels; lane \
+         efficiency = what the lanes trace over 8 times each vector's largest count\n",
         a.size
     );
     println!("{}", voxlab::bench::lanes::lanes_table(&rows));
