@@ -36,8 +36,9 @@
 @group(0) @binding(8) var<storage, read> surface: array<vec4<u32>>;
 // A walk's words beyond `walk_data` (`Regions::device_more_words`: the sparse octant
 // walk's codes), one array laid over three bindings of params.walk_part_words words
-// each, so that a walk's data may outgrow one binding (lavapipe binds 128 MiB; the seed
-// scene's codes at 2048^3 take 333 MiB). Placeholders where the walk has fewer.
+// each, so that a walk's data may outgrow one binding (lavapipe binds 128 MiB; the codes
+// of a grid of voxel noise, whose blocks are nearly all distinct, can take more).
+// Placeholders where the walk has fewer.
 @group(0) @binding(9) var<storage, read> walk_more_0: array<u32>;
 @group(0) @binding(10) var<storage, read> walk_more_1: array<u32>;
 @group(0) @binding(11) var<storage, read> walk_more_2: array<u32>;

@@ -17,8 +17,9 @@ const REGIONS_ARE_VOXELS: bool = false;
 
 // Read once a walk: the walk's octant (where its code sits in a cell's word, the axes it
 // heads down), the cut (its first cell's vec4, log2 of a cell's side, its dims) and the
-// codes below it (the first node with its children's codes and their first vec4 where
-// they follow the cut; 64 words a node).
+// codes below it (the first node with its children's codes, their first vec4 where
+// they follow the cut, and where their distinct blocks of 64 words start after the
+// nodes' block indices).
 struct RegionCursor {
     shift: u32,
     down: vec3<i32>,
@@ -27,6 +28,7 @@ struct RegionCursor {
     cut_dims: vec3<u32>,
     coded_first: u32,
     codes: u32,
+    blocks: u32,
 }
 
 // An axis of step 0 takes the positive side (crate::technique::octant::octant).
@@ -37,8 +39,21 @@ fn region_cursor(step: vec3<i32>) -> RegionCursor {
     let at = 1u + walk_data[0].z * NODE_VEC4S;
     let cut = walk_data[at];
     let coded = walk_data[at + 1u];
-    return RegionCursor(8u + 3u * o, down, at + 2u, cut.x, cut.yzw, coded.x, at + coded.z);
+    return RegionCursor(8u + 3u * o, down, at + 2u, cut.x, cut.yzw, coded.x, at + coded.z, coded.w);
 }
+
+#if WALK_VARIANT == 1
+// Word i of the codes: after the cut where the walk's data fits one binding, else in
+// the walk's further bindings (crate::technique::sparse_octant::CodesAt).
+fn code_word(c: ptr<function, RegionCursor>, i: u32) -> u32 {
+#if WALK_MORE_BINDINGS >= 1
+    return walk_more_word(i);
+#else
+    let w = 4u * (*c).codes + i;
+    return walk_data[w >> 2u][w & 3u];
+#endif
+}
+#endif
 
 // The cube toward the walk's octant of `cell` (of 2^log voxels a side) whose octant word
 // is `word` (crate::technique::octant::corner_cube), in voxels, clipped to the grid.
@@ -74,15 +89,15 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
         let found = region_below(v, word.y - 1u, node_log - 2u, false);
         at = u >> vec3<u32>(found.shift);
         let p = at & vec3<u32>(3u);
-        let i = 64u * (found.node - (*c).coded_first) + p.x + 4u * p.y + 16u * p.z;
-        // After the cut where the walk's data fits one binding, else in the walk's
-        // further bindings (crate::technique::sparse_octant::CodesAt).
-#if WALK_MORE_BINDINGS >= 1
-        code = walk_more_word(i);
+        // The node's block of its children's words, shared by the nodes with the same
+        // words (crate::technique::sparse_octant::dedup_blocks): a descent of one level
+        // ends at the cell's node, whose index the cell holds.
+#if TREE_LEVELS == 1
+        let block = word.x;
 #else
-        let w = 4u * (*c).codes + i;
-        code = walk_data[w >> 2u][w & 3u];
+        let block = code_word(c, found.node - (*c).coded_first);
 #endif
+        code = code_word(c, (*c).blocks + 64u * block + p.x + 4u * p.y + 16u * p.z);
         log = found.shift;
     }
     return corner_region(c, vec3<i32>(at), code, log);

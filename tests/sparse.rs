@@ -650,6 +650,21 @@ fn cubes_of_sixteen_make_room_for_the_codes_at_1024() {
     );
     let descent = (TRAVERSAL.descent_levels.unwrap())(scene.grid.dims());
     assert_eq!(descent, walk.log_cell().div_ceil(2));
+    // Each node's block index, then each distinct block of 64 words once: along the
+    // walls most nodes share one (338,896 nodes, 9,698 blocks).
+    let nodes = scene.grid.tree(2).nodes_up_to(4).1.len();
+    let codes = walk.codes();
+    let head = nodes.next_multiple_of(4);
+    let distinct = (codes.len() - head) / 64;
+    assert_eq!((codes.len() - head) % 64, 0);
+    assert!(
+        distinct > 0 && distinct * 30 < nodes,
+        "{distinct} of {nodes}"
+    );
+    assert!(codes[..nodes].iter().all(|&b| (b as usize) < distinct));
+    let blocks: std::collections::HashSet<&[u32]> = codes[head..].chunks(64).collect();
+    assert_eq!(blocks.len(), distinct, "a block held twice");
+    assert!(4 * codes.len() < 4 << 20, "{} bytes", 4 * codes.len());
     // A budget that would hold cubes of 8 with the codes takes the same cubes of 16:
     // below a node's cell the codes skip what the finer cut would, so a device that
     // binds more walks this grid as lavapipe and the CPU reference do.

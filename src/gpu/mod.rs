@@ -154,7 +154,7 @@ const WATCHED_SPLIT: u32 = 16;
 const MAX_FRAMES_PER_DISPATCH: u32 = 4096;
 
 /// Walks' data kept built on the host (`GpuTracer::walk_builds`): two, so that two walks
-/// of one grid alternate without building again (at 1024^3 about 110 MiB each).
+/// of one grid alternate without building again (at 1024^3 about 32 MiB each).
 pub const WALK_BUILDS_KEPT: usize = 2;
 
 /// Ray counters (4 x 64 bit), the invocations whose loops the driver cut, one unused word,

@@ -816,8 +816,10 @@ pub const HOST_WALK_BYTES: usize = 128 << 20;
 
 /// The bindings beyond `walk_data` that hold a walk's further words
 /// (`crate::sparse::Regions::device_more_words`; `walk_more_0` to `walk_more_2` in
-/// shaders/bindings.wgsl). Three hold the seed scene's codes at 2048^3 (333 MiB) on a
-/// device that binds 128 MiB, beside its tree and cut (120 MiB) in `walk_data`.
+/// shaders/bindings.wgsl): the sparse octant walk's codes where they do not fit beside
+/// its tree and cut, those of a grid of voxel noise, whose blocks of codes are nearly all
+/// distinct (`tests/gpu_sparse.rs`; the seed scene's 2048^3 fits after its tree and
+/// cut, 7.5 MiB beside 120 MiB).
 pub const WALK_MORE_BINDINGS: usize = 3;
 
 /// The words of each binding that holds a walk's further words, for a walk built

@@ -19,20 +19,24 @@
 //! the levels from the top: a neighbour outside them lies in a uniform region the cut,
 //! the tree or a level above holds, whose cube bounds its radius from below, so every
 //! cube is uniform (a lower bound of the dense field's) and the walk leaves it where the
-//! dense DDA does. They cost a word a child, 256 bytes a node, and are built only while
-//! they fit the walk's budget (a binding's bytes, [`MAX_WALK_BYTES`] by default): after
-//! the cut where the whole fits one binding, else the tree and the cut within one and
-//! the codes within [`super::WALK_MORE_BINDINGS`] more ([`CodesAt`]).
+//! dense DDA does. They cost a word a child, 256 bytes a block of a node's children,
+//! each distinct block held once and a node's block index a word (`dedup_blocks`: along
+//! a wall most nodes share their block), and are kept only while they fit the walk's
+//! budget (a binding's bytes, [`MAX_WALK_BYTES`] by default): after the cut where the
+//! whole fits one binding, else the tree and the cut within one and the codes within
+//! [`super::WALK_MORE_BINDINGS`] more ([`CodesAt`]).
 //!
 //! Layout of its words (`walk_data`, shaders/traversal_sparse_octant.wgsl): the tree's
 //! words ([`crate::sparse`]: a header vec4 and five vec4s a node), then, at vec4 `h = 1 +
 //! 5 * node count`, two vec4s (log2 of the cell side, the cut's dims; the index of the
 //! first node with codes, the number of such nodes, the vec4 of its codes counted from
-//! `h` where they follow the cut, 0) and from `h + 2` two words a cell (x fastest): the
+//! `h` where they follow the cut, the word of the first block in its codes) and from
+//! `h + 2` two words a cell (x fastest): the
 //! octant field's word (material and eight codes, [`super::octant::OctantField`]) and 0
-//! for a uniform cell, or 0 and the node's index plus one for a cell the tree holds as
-//! a node; then the codes, 64 words a node with codes (its children, x fastest; 0 for a
-//! child that is a node), in node order: from a vec4 boundary after the cut, or as the
+//! for a uniform cell, or the node's block index (0 without codes) and the node's index
+//! plus one for a cell the tree holds as a node; then the codes: each node's block index in node order (to a vec4 boundary),
+//! then the distinct blocks, 64 words each (a node's children, x fastest; 0 for a child
+//! that is a node): from a vec4 boundary after the cut, or as the
 //! walk's further words (`walk_more_word`, [`Regions::device_more_words`]). The tree is
 //! not copied: its words, the cut's and the codes are uploaded as parts of one buffer.
 
@@ -128,7 +132,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
 
 /// The tree and the octant field over its cut and below it (see the module
 /// documentation).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct SparseOctant {
     tree: Arc<SparseTree>,
     log_cell: u32,
@@ -144,14 +148,38 @@ pub struct SparseOctant {
     /// The cut's two header vec4s and its cells (and, with the codes after it, up to
     /// two words to a vec4 boundary).
     cut: Vec<u32>,
-    /// The children's words, 64 a node with codes.
+    /// The codes as the kernel reads them: for each node with codes its block's index
+    /// (`blocks_words` words, the nodes' count to a vec4 boundary), then the distinct
+    /// blocks of its children's words, 64 words each ([`dedup_blocks`]).
     codes: Vec<u32>,
+    blocks_words: usize,
     codes_at: CodesAt,
     /// The bytes a binding the data was built within, and the nodes below the cut whose
-    /// codes did not fit them (0 where they did, or where there are none): said in the
-    /// plan ([`Regions::summary`]), as the walk then takes more steps.
+    /// codes did not fit them (0 where they did, or where there are none) with the bytes
+    /// those would have taken (0 where the tree and the cut left no room to build them):
+    /// said in the plan ([`Regions::summary`]), as the walk then takes more steps.
     budget: usize,
     uncoded: usize,
+    uncoded_bytes: usize,
+}
+
+/// The same data, walked the same way: the budget it was built within and what it
+/// says of codes it left out are not compared (a larger budget that builds the same
+/// data is equal).
+impl PartialEq for SparseOctant {
+    fn eq(&self, other: &Self) -> bool {
+        self.tree == other.tree
+            && self.log_cell == other.log_cell
+            && self.node_shift == other.node_shift
+            && self.cut_dims == other.cut_dims
+            && self.coded_first == other.coded_first
+            && self.coded_count == other.coded_count
+            && self.coded_shift == other.coded_shift
+            && self.cut == other.cut
+            && self.codes == other.codes
+            && self.blocks_words == other.blocks_words
+            && self.codes_at == other.codes_at
+    }
 }
 
 /// Words before the cut's first cell.
@@ -171,11 +199,10 @@ pub enum CodesAt {
     MoreBindings,
 }
 
-/// Where the codes of `coded` nodes go beside the tree and the cut's `cells` (two
-/// words each) within `budget` bytes a binding, if anywhere.
-fn place_codes(tree: &SparseTree, cells: usize, coded: usize, budget: usize) -> Option<CodesAt> {
-    let first = tree.words().len() + CUT_HEADER_WORDS + 2 * cells;
-    let codes = CHILDREN * coded;
+/// Where `codes` words of codes go beside the tree and the cut's `cells` (two words
+/// each) within `budget` bytes a binding, if anywhere.
+fn place_codes(tree: &SparseTree, cells: usize, codes: usize, budget: usize) -> Option<CodesAt> {
+    let first = tree_and_cut_words(tree, cells);
     if 4 * (first.next_multiple_of(4) + codes) <= budget {
         Some(CodesAt::WalkData)
     } else if 4 * first <= budget
@@ -185,6 +212,40 @@ fn place_codes(tree: &SparseTree, cells: usize, coded: usize, budget: usize) -> 
     } else {
         None
     }
+}
+
+/// The words of the tree and a cut of `cells` cells with its header.
+fn tree_and_cut_words(tree: &SparseTree, cells: usize) -> usize {
+    tree.words().len() + CUT_HEADER_WORDS + 2 * cells
+}
+
+/// `codes` (64 words a node, in node order) as the kernel reads them: each node's
+/// block index (padded to a vec4 boundary), then each distinct block once, in the order
+/// they first occur. Along a wall most leaves see the same neighbourhood and have the
+/// same words: on the seed scene 9,698 distinct blocks of 338,896 at 1024^3 and 9,302
+/// of 1,363,216 at 2048^3 (82.7 MiB of codes become 2.4 MiB of blocks and 1.3 MiB of
+/// indices, 332.8 MiB 2.3 and 5.2 MiB), so a frame reads from far fewer bytes: 1024^3
+/// 1.16x as fast on lavapipe, 2048^3 1.31x (docs/sparse-traversal.md, "Distinct blocks").
+fn dedup_blocks(codes: &[u32]) -> (Vec<u32>, usize) {
+    let nodes = codes.len() / CHILDREN;
+    let blocks_words = nodes.next_multiple_of(4);
+    let mut index: FxHashMap<&[u32], u32> = FxHashMap::default();
+    let mut distinct: Vec<&[u32]> = Vec::new();
+    let mut out = Vec::with_capacity(blocks_words);
+    for block in codes.chunks_exact(CHILDREN) {
+        let next = distinct.len() as u32;
+        let b = *index.entry(block).or_insert_with(|| {
+            distinct.push(block);
+            next
+        });
+        out.push(b);
+    }
+    out.resize(blocks_words, 0);
+    out.reserve(CHILDREN * distinct.len());
+    for block in distinct {
+        out.extend_from_slice(block);
+    }
+    (out, blocks_words)
 }
 
 impl SparseOctant {
@@ -207,18 +268,13 @@ impl SparseOctant {
         let b = tree.log_branch();
         let log_cell = log_cell_side(tree.dims(), b, tree.levels());
         let node_log = tree.cut_node_log(log_cell);
-        if log_cell < node_log && Self::place_codes_below(&tree, node_log, budget).is_some() {
-            return Self::with_cell_side_within(tree, node_log, budget);
+        if log_cell < node_log {
+            let coarse = Self::with_cell_side_within(tree.clone(), node_log, budget);
+            if coarse.has_codes() {
+                return coarse;
+            }
         }
         Self::with_cell_side_within(tree, log_cell, budget)
-    }
-
-    /// Where the codes below cells of `2^log_cell` go within `budget` bytes a binding.
-    fn place_codes_below(tree: &SparseTree, log_cell: u32, budget: usize) -> Option<CodesAt> {
-        let side = 1u64 << log_cell;
-        let cells = ((tree.dims().as_u64vec3() + (side - 1)) / side).element_product() as usize;
-        let coded = tree.nodes_up_to(tree.cut_node_log(log_cell)).1.len();
-        place_codes(tree, cells, coded, budget)
     }
 
     /// With cells of `2^log_cell` voxels (1 up to the root's cube) whatever the grid: the
@@ -236,14 +292,25 @@ impl SparseOctant {
         if nodes.is_empty() || cut.tree.log_branch() != GPU_LOG_BRANCH {
             return Self { budget, ..cut };
         }
-        match place_codes(&cut.tree, cells, nodes.len(), budget) {
+        // Where the tree and the cut leave no room in their binding, the codes fit
+        // nowhere (place_codes), however few their distinct blocks: not built.
+        if 4 * tree_and_cut_words(&cut.tree, cells) > budget {
+            return Self {
+                budget,
+                uncoded: nodes.len(),
+                ..cut
+            };
+        }
+        let coded = cut.clone().with_codes(first, &nodes);
+        match place_codes(&coded.tree, cells, coded.codes.len(), budget) {
             Some(at) => Self {
                 budget,
-                ..cut.with_codes(first, &nodes, at)
+                ..coded.placed(at)
             },
             None => Self {
                 budget,
                 uncoded: nodes.len(),
+                uncoded_bytes: 4 * coded.codes.len(),
                 ..cut
             },
         }
@@ -285,19 +352,25 @@ impl SparseOctant {
             coded_shift: 0,
             cut: words,
             codes: Vec::new(),
+            blocks_words: 0,
             codes_at: CodesAt::WalkData,
             budget: MAX_WALK_BYTES,
             uncoded: 0,
+            uncoded_bytes: 0,
         }
     }
 
-    /// The cut with the codes of the children of `nodes` after it (the nodes from the
-    /// cut's level down, [`SparseTree::nodes_up_to`]: the first's index, then each one's
-    /// first voxel and log2 side), built a level at a time from the top, so that a
-    /// level's sweep finds the cubes of the levels above it.
-    fn with_codes(mut self, first: u32, nodes: &[(IVec3, u32)], at: CodesAt) -> Self {
-        self.codes = vec![0; CHILDREN * nodes.len()];
-        self.codes_at = at;
+    /// The cut with the codes of the children of `nodes` (the nodes from the cut's
+    /// level down, [`SparseTree::nodes_up_to`]: the first's index, then each one's first
+    /// voxel and log2 side), built a level at a time from the top, so that a level's
+    /// sweep finds the cubes of the levels above it; then each distinct block once
+    /// ([`dedup_blocks`]). Not yet placed ([`Self::placed`]).
+    fn with_codes(mut self, first: u32, nodes: &[(IVec3, u32)]) -> Self {
+        // While they are built every node has a block of its own.
+        self.blocks_words = nodes.len().next_multiple_of(4);
+        self.codes = (0..self.blocks_words as u32).collect();
+        self.codes
+            .resize(self.blocks_words + CHILDREN * nodes.len(), 0);
         self.coded_first = first;
         self.coded_count = nodes.len() as u32;
         let b = self.tree.log_branch();
@@ -308,11 +381,28 @@ impl SparseOctant {
         for &log_side in sides.iter().rev() {
             let words = level_words(&self, first, nodes, log_side);
             for (k, w) in words {
-                self.codes[CHILDREN * k..CHILDREN * (k + 1)].copy_from_slice(&w);
+                let at = self.blocks_words + CHILDREN * k;
+                self.codes[at..at + CHILDREN].copy_from_slice(&w);
             }
             self.coded_shift = log_side - b;
         }
         self.coded_shift = 0;
+        (self.codes, self.blocks_words) = dedup_blocks(&self.codes[self.blocks_words..]);
+        // A node's cell holds the node's block index in its first word (0 without
+        // codes): where a descent takes one level it ends at that node, and the kernel
+        // reads no index (traversal_sparse_octant.wgsl; the bunny at 512, whose curved
+        // surface leaves nearly every block distinct, 4 % slower with the read).
+        for cell in self.cut[CUT_HEADER_WORDS..].chunks_exact_mut(2) {
+            if cell[1] != 0 {
+                cell[0] = self.codes[(cell[1] - 1 - first) as usize];
+            }
+        }
+        self
+    }
+
+    /// The codes held `at` (where [`place_codes`] puts them), in the cut's header.
+    fn placed(mut self, at: CodesAt) -> Self {
+        self.codes_at = at;
         let after_cut = match at {
             CodesAt::WalkData => {
                 self.cut.resize(self.cut.len().next_multiple_of(4), 0);
@@ -320,7 +410,12 @@ impl SparseOctant {
             }
             CodesAt::MoreBindings => 0,
         };
-        self.cut[4..8].copy_from_slice(&[first, self.coded_count, after_cut, 0]);
+        self.cut[4..8].copy_from_slice(&[
+            self.coded_first,
+            self.coded_count,
+            after_cut,
+            self.blocks_words as u32,
+        ]);
         self
     }
 
@@ -334,7 +429,8 @@ impl SparseOctant {
         self.codes_at
     }
 
-    /// The codes: 64 words a node with codes.
+    /// The codes as the kernel reads them: each coded node's block index, then the
+    /// distinct blocks, 64 words each.
     pub fn codes(&self) -> &[u32] {
         &self.codes
     }
@@ -595,8 +691,9 @@ impl Regions for SparseOctant {
             // The uniform child's own cube, in children of its node.
             let b = self.tree.log_branch() as i32;
             let p = (v >> shift as i32) & ((1 << b) - 1);
-            let at = CHILDREN * k as usize + (p.x + (p.y << b) + (p.z << (2 * b))) as usize;
-            let word = self.codes[at];
+            let block = self.codes[k as usize] as usize;
+            let child = (p.x + (p.y << b) + (p.z << (2 * b))) as usize;
+            let word = self.codes[self.blocks_words + CHILDREN * block + child];
             let (lo, hi) = corner_cube(v >> shift as i32, word, octant(step));
             return Region {
                 material: word as u8,
@@ -643,8 +740,9 @@ impl Regions for SparseOctant {
         let tree = size(self.tree.words().len() + self.cut.len());
         Some(if self.has_codes() {
             let codes = format!(
-                "the children's codes of {} nodes ({})",
+                "the children's codes of {} nodes in {} distinct blocks ({})",
                 self.coded_count,
+                (self.codes.len() - self.blocks_words) / CHILDREN,
                 size(self.codes.len())
             );
             match self.codes_at {
@@ -662,14 +760,21 @@ impl Regions for SparseOctant {
             }
         } else if self.tree.log_branch() != GPU_LOG_BRANCH {
             format!("{cells}; no codes (theirs are the 64-tree's children)")
-        } else if self.uncoded > 0 {
+        } else if self.uncoded_bytes > 0 {
             format!(
                 "{cells}; no codes, so more steps a ray: the children's codes of its {} nodes \
                  ({}) do not fit beside the tree and the cut ({tree}) within \
                  {budget} a binding and {} more (render.walk_budget_mib)",
                 self.uncoded,
-                size(CHILDREN * self.uncoded),
+                crate::info::bytes_text(self.uncoded_bytes as u64),
                 super::WALK_MORE_BINDINGS
+            )
+        } else if self.uncoded > 0 {
+            format!(
+                "{cells}; no codes, so more steps a ray: the tree and the cut ({tree}) leave \
+                 no room within {budget} a binding for the children's codes of its {} nodes \
+                 (render.walk_budget_mib)",
+                self.uncoded
             )
         } else {
             format!("{cells}, no node below them ({tree})")
