@@ -789,3 +789,45 @@ fn octant_cells_take_fewer_steps_than_the_tree() {
         );
     }
 }
+
+/// Where the cut's own cells are finer than its nodes' (cells of 8, nodes of 16) the
+/// build first takes the nodes' cells with the codes; codes that fit nowhere there fit
+/// nowhere with the finer cut either (the same nodes below it, so the same codes, beside
+/// more cells), so that walk holds the finer cut without codes, built once, and says
+/// what did not fit. A grid of 2048 x 2048 x 36 (more than 2 M cells of 4) with a box of
+/// voxel noise, whose blocks of codes are all distinct, within the bytes of its tree and
+/// coarser cut a binding: the codes take more than three such bindings.
+#[test]
+fn codes_that_fit_nowhere_leave_the_finer_cut_without_them() {
+    use voxlab::technique::sparse_octant::SparseOctant;
+    let dims = UVec3::new(2048, 2048, 36);
+    let mut grid = Grid::new(dims, 1.0, DVec3::ZERO).unwrap();
+    let mut rng = StdRng::seed_from_u64(11);
+    for z in 0..36 {
+        for y in 0..512 {
+            for x in 0..512 {
+                grid.set(IVec3::new(x, y, z), rng.random_range(0..4u8));
+            }
+        }
+    }
+    let tree = grid.tree(2);
+    let fine = SparseOctant::without_codes(tree.clone(), 3);
+    let budget = SparseOctant::without_codes(tree.clone(), 4).device_bytes();
+    let walk = SparseOctant::build_within(tree.clone(), budget);
+    assert!(!walk.has_codes());
+    assert_eq!(walk.log_cell(), 3);
+    assert!(walk == fine);
+    let said = walk.summary().unwrap();
+    assert!(
+        said.contains("cells of 8") && said.contains("do not fit beside the tree"),
+        "{said}"
+    );
+    // Within room enough, the nodes' cells of 16 with the codes.
+    let roomy = SparseOctant::build_within(tree, usize::MAX);
+    assert!(roomy.has_codes() && roomy.log_cell() == 4);
+    assert!(
+        roomy.codes().len() * 4 > 3 * budget,
+        "{} bytes",
+        4 * roomy.codes().len()
+    );
+}

@@ -273,6 +273,16 @@ impl SparseOctant {
             if coarse.has_codes() {
                 return coarse;
             }
+            if coarse.uncoded_bytes > 0 {
+                // Built and placed nowhere: the finer cut has the same nodes below it, so
+                // the same codes, beside more cells; not built a second time.
+                return Self {
+                    budget,
+                    uncoded: coarse.uncoded,
+                    uncoded_bytes: coarse.uncoded_bytes,
+                    ..Self::without_codes(tree, log_cell)
+                };
+            }
         }
         Self::with_cell_side_within(tree, log_cell, budget)
     }
