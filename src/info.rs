@@ -10,6 +10,7 @@ use anyhow::{Context, Result, bail};
 use glam::DVec3;
 
 use crate::experiment::Experiment;
+use crate::scene::{Grid, Material, load_mesh, load_vox};
 
 /// A size in bytes as people read it: B, KiB or MiB, one decimal.
 pub fn bytes_text(b: u64) -> String {
@@ -21,7 +22,6 @@ pub fn bytes_text(b: u64) -> String {
         format!("{b} B")
     }
 }
-use crate::scene::{Grid, Material, load_mesh, load_vox};
 
 /// The description of `path`, chosen by its extension: `.vox`, `.toml` (an experiment),
 /// `.obj`, `.gltf`, `.glb`.
