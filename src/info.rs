@@ -12,17 +12,6 @@ use glam::DVec3;
 use crate::experiment::Experiment;
 use crate::scene::{Grid, Material, load_mesh, load_vox};
 
-/// A size in bytes as people read it: B, KiB or MiB, one decimal.
-pub fn bytes_text(b: u64) -> String {
-    if b >= 1 << 20 {
-        format!("{:.1} MiB", b as f64 / (1u64 << 20) as f64)
-    } else if b >= 1 << 10 {
-        format!("{:.1} KiB", b as f64 / 1024.0)
-    } else {
-        format!("{b} B")
-    }
-}
-
 /// The description of `path`, chosen by its extension: `.vox`, `.toml` (an experiment),
 /// `.obj`, `.gltf`, `.glb`.
 pub fn describe(path: &Path) -> Result<String> {

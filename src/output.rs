@@ -16,6 +16,17 @@ use image::{ImageFormat, RgbImage};
 
 use crate::frame::Frame;
 
+/// A size in bytes as printed output gives it (a walk's data, a stress case's grid): B, KiB or MiB, one decimal.
+pub fn bytes_text(b: u64) -> String {
+    if b >= 1 << 20 {
+        format!("{:.1} MiB", b as f64 / (1u64 << 20) as f64)
+    } else if b >= 1 << 10 {
+        format!("{:.1} KiB", b as f64 / 1024.0)
+    } else {
+        format!("{b} B")
+    }
+}
+
 /// The file formats a frame can be written as, chosen by the path's extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OutputFormat {

@@ -984,7 +984,7 @@ fn cells(r: &StressRow, markdown: bool) -> Vec<String> {
         format!("{}x{}", r.image.0, r.image.1),
         format!("{}x{}x{}", r.grid.x, r.grid.y, r.grid.z),
         if markdown {
-            crate::info::bytes_text(r.grid_bytes)
+            crate::output::bytes_text(r.grid_bytes)
         } else {
             r.grid_bytes.to_string()
         },

@@ -744,8 +744,8 @@ impl Regions for SparseOctant {
     }
 
     fn summary(&self) -> Option<String> {
-        let size = |words: usize| crate::info::bytes_text(4 * words as u64);
-        let budget = crate::info::bytes_text(self.budget as u64);
+        let size = |words: usize| crate::output::bytes_text(4 * words as u64);
+        let budget = crate::output::bytes_text(self.budget as u64);
         let cells = format!("cells of {} voxels a side", 1u64 << self.log_cell);
         let tree = size(self.tree.words().len() + self.cut.len());
         Some(if self.has_codes() {
@@ -776,7 +776,7 @@ impl Regions for SparseOctant {
                  ({}) do not fit beside the tree and the cut ({tree}) within \
                  {budget} a binding and {} more (render.walk_budget_mib)",
                 self.uncoded,
-                crate::info::bytes_text(self.uncoded_bytes as u64),
+                crate::output::bytes_text(self.uncoded_bytes as u64),
                 super::WALK_MORE_BINDINGS
             )
         } else if self.uncoded > 0 {
