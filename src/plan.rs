@@ -310,14 +310,19 @@ pub fn check_sparse_grid(
     Ok(())
 }
 
+/// Whether some light sends out anything (`color * intensity` not 0): a scene whose
+/// lights are all dark lights nothing, and casts no shadow ray
+/// (`crate::technique::shading::point_contribution` skips them where `lit` is 0).
+pub(crate) fn some_light_emits(scene: &Scene) -> bool {
+    scene.lights.iter().any(|l| !l.is_dark())
+}
+
 /// Whether some material the grid holds is diffuse (`kd > 0`): the lighting terms' plan
 /// rules.
 pub(crate) fn diffuse_in_grid(scene: &Scene) -> bool {
     shading_materials(scene).iter().any(|(_, m)| m.kd > 0.0)
 }
 
-/// Materials a ray can shade with: every non-void index the grid holds. Void never
-/// shades (a ray passing into void is shaded by the medium it leaves).
 /// The materials a hit can be shaded with: every non-void material in the grid (a hit
 /// on void is shaded by its medium, never void itself).
 pub(crate) fn shading_materials(scene: &Scene) -> Vec<(usize, &Material)> {
@@ -450,6 +455,11 @@ impl Plan {
         let lit = mats.iter().any(|(_, m)| m.is_lit());
         let shadows = if scene.lights.is_empty() {
             reasons.push("shadows and local lighting: the scene has no lights".to_string());
+            false
+        } else if !some_light_emits(scene) {
+            reasons.push(
+                "shadows and local lighting: every light has intensity 0 or color 0".to_string(),
+            );
             false
         } else if !lit {
             reasons.push(
@@ -1103,6 +1113,35 @@ mod tests {
         assert!(p.reflection && !p.refraction && p.shadows, "{p}");
         s.lights.retain(|l| !matches!(l, Light::Point(_)));
         assert!(!Plan::new(&s, &RenderSettings::default()).shadows);
+    }
+
+    /// Dark lights (intensity 0 or color 0, of every kind) light nothing: with only
+    /// those, no shading code; one light that emits brings it back.
+    #[test]
+    fn dark_lights_leave_the_shading_out() {
+        let mut s = seed_scene(16).unwrap();
+        let lights = s.lights.clone();
+        for (i, l) in s.lights.iter_mut().enumerate() {
+            match l {
+                Light::Point(p) if i % 2 == 0 => p.intensity = 0.0,
+                Light::Point(p) => p.color = glam::DVec3::ZERO,
+                Light::Area(a) => a.intensity = 0.0,
+            }
+        }
+        s.lights.push(Light::Area(crate::scene::AreaLight {
+            shape: crate::scene::AreaShape::Sphere { radius: 1.0 },
+            emission: Default::default(),
+            position: glam::DVec3::ZERO,
+            normal: glam::DVec3::Y,
+            rotation: 0.0,
+            color: glam::DVec3::ZERO,
+            intensity: 5.0,
+        }));
+        let p = Plan::new(&s, &RenderSettings::default());
+        assert!(!p.shadows && p.reflection && p.refraction, "{p}");
+        assert!(p.reasons.iter().any(|r| r.contains("intensity 0")), "{p}");
+        s.lights.push(lights[0].clone());
+        assert!(Plan::new(&s, &RenderSettings::default()).shadows);
     }
 
     #[test]

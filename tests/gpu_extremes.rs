@@ -194,6 +194,17 @@ fn leaving_code_out_never_changes_the_image() {
     assert!(!Plan::new(&scene, &s).reflection);
     full_matches_plan(&mut gpu, "kr 0, ior 1", &scene, &s);
 
+    // Lights that send out nothing (intensity 0, color 0): no shading code.
+    let mut scene = seed_scene(16).unwrap();
+    for l in &mut scene.lights {
+        match l {
+            Light::Point(p) => p.intensity = 0.0,
+            Light::Area(a) => a.color = DVec3::ZERO,
+        }
+    }
+    assert!(!Plan::new(&scene, &s).shadows);
+    full_matches_plan(&mut gpu, "dark lights", &scene, &s);
+
     // Unlit materials only.
     let mut scene = seed_scene(16).unwrap();
     for m in &mut scene.materials {

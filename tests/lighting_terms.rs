@@ -190,3 +190,40 @@ fn gpu_agrees_with_cpu_over_the_space() {
         }
     }
 }
+
+/// Lights that send out nothing (intensity 0, color 0) inject nothing: each term that
+/// reads the radiance pyramid is left out with a reason, and the kernel planned for the
+/// same scene lit (the term, its pyramid and the shading code composed in, the dark
+/// lights injected) renders the same image.
+#[test]
+fn dark_lights_leave_the_injected_terms_out() {
+    let mut gpu = tracer();
+    for t in LIGHTING_TERMS.iter().filter(|t| t.radiance_pyramid) {
+        let st = settings(&[t], 24);
+        let lit = seed_scene(16).unwrap();
+        let mut dark = lit.clone();
+        for (i, l) in dark.lights.iter_mut().enumerate() {
+            match l {
+                voxlab::scene::Light::Point(p) if i % 2 == 0 => p.intensity = 0.0,
+                voxlab::scene::Light::Point(p) => p.color = glam::DVec3::ZERO,
+                voxlab::scene::Light::Area(a) => a.intensity = 0.0,
+            }
+        }
+        let planned = Plan::new(&dark, &st);
+        assert!(planned.terms.is_empty() && !planned.shadows, "{planned}");
+        assert!(
+            planned.to_string().contains("every light dark"),
+            "{planned}"
+        );
+        let full = Plan::new(&lit, &st);
+        assert_eq!(full.terms, vec![*t], "{full}");
+        let a = gpu.render_plan(&dark, &st, planned).unwrap().frame;
+        let b = gpu.render_plan(&dark, &st, full).unwrap().frame;
+        let max = common::linear(&a, &b, 0.0).max_abs;
+        assert!(
+            max <= 1e-6,
+            "{}: leaving it out changed the image by {max}",
+            t.name
+        );
+    }
+}

@@ -130,6 +130,11 @@ impl Light {
     pub fn radiance_towards(&self, x: DVec3, p: DVec3) -> DVec3 {
         self.color() * self.intensity() * self.emitted_towards(x, p)
     }
+    /// A light that sends out nothing: intensity 0 or color 0 (both non-negative, as
+    /// parsed), whatever its shape and emission.
+    pub fn is_dark(&self) -> bool {
+        self.intensity() == 0.0 || self.color() == DVec3::ZERO
+    }
     /// An area light with a non-zero extent (one that needs sampling).
     pub fn is_area(&self) -> bool {
         matches!(self, Light::Area(a) if !a.is_degenerate())

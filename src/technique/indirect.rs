@@ -22,8 +22,8 @@ pub(crate) const TERM: LightingTerm = LightingTerm {
     plan: |scene, _| {
         if !crate::plan::diffuse_in_grid(scene) {
             Err("no diffuse material in the grid".to_string())
-        } else if scene.lights.is_empty() {
-            Err("no light to inject".to_string())
+        } else if !crate::plan::some_light_emits(scene) {
+            Err("no light to inject (none, or every light dark)".to_string())
         } else {
             Ok(())
         }
