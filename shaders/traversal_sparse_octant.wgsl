@@ -90,8 +90,8 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
         at = u >> vec3<u32>(found.shift);
         let p = at & vec3<u32>(3u);
         // The node's block of its children's words, shared by the nodes with the same
-        // words (crate::technique::sparse_octant::dedup_blocks): a descent of one level
-        // ends at the cell's node, whose index the cell holds.
+        // words (crate::technique::sparse_octant::SparseOctant::with_codes): a descent
+        // of one level ends at the cell's node, whose index the cell holds.
 #if TREE_LEVELS == 1
         let block = word.x;
 #else

@@ -113,7 +113,12 @@ fn radius(word: u32, o: usize) -> u8 {
 /// The word of a cell of material `m`: its material and the codes of its eight radii
 /// (`radii[o][i]`, octant `o`, cell `i`), as [`OctantField`] keeps it.
 pub(crate) fn word(m: u8, radii: &[Vec<u8>], i: usize) -> u32 {
-    (0..8).fold(u32::from(m), |w, o| w | code(radii[o][i]) << (8 + 3 * o))
+    (0..8).fold(u32::from(m), |w, o| w | code_bits(radii[o][i], o))
+}
+
+/// Radius `r` toward octant `o` as its code's bits in a word.
+pub(crate) fn code_bits(r: u8, o: usize) -> u32 {
+    code(r) << (8 + 3 * o)
 }
 
 /// The cube of cell `c` whose word is `word` toward octant `o`, in cells (unclipped):

@@ -20,7 +20,7 @@
 //! the tree or a level above holds, whose cube bounds its radius from below, so every
 //! cube is uniform (a lower bound of the dense field's) and the walk leaves it where the
 //! dense DDA does. They cost a word a child, 256 bytes a block of a node's children,
-//! each distinct block held once and a node's block index a word (`dedup_blocks`: along
+//! each distinct block held once and a node's block index a word (`SparseOctant::with_codes`: along
 //! a wall most nodes share their block), and are kept only while they fit the walk's
 //! budget (a binding's bytes, [`MAX_WALK_BYTES`] by default): after the cut where the
 //! whole fits one binding, else the tree and the cut within one and the codes within
@@ -47,7 +47,7 @@ use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use super::TraversalModel;
-use super::octant::{corner_cube, octant, octant_radii, word};
+use super::octant::{code_bits, corner_cube, octant, octant_radii, word};
 use crate::sparse::{Cut, GPU_LOG_BRANCH, Region, Regions, SparseTree};
 
 /// The most cells the cut has: 2 M, 16 MiB.
@@ -150,7 +150,7 @@ pub struct SparseOctant {
     cut: Vec<u32>,
     /// The codes as the kernel reads them: for each node with codes its block's index
     /// (`blocks_words` words, the nodes' count to a vec4 boundary), then the distinct
-    /// blocks of its children's words, 64 words each ([`dedup_blocks`]).
+    /// blocks of its children's words, 64 words each ([`Self::with_codes`]).
     codes: Vec<u32>,
     blocks_words: usize,
     codes_at: CodesAt,
@@ -217,35 +217,6 @@ fn place_codes(tree: &SparseTree, cells: usize, codes: usize, budget: usize) -> 
 /// The words of the tree and a cut of `cells` cells with its header.
 fn tree_and_cut_words(tree: &SparseTree, cells: usize) -> usize {
     tree.words().len() + CUT_HEADER_WORDS + 2 * cells
-}
-
-/// `codes` (64 words a node, in node order) as the kernel reads them: each node's
-/// block index (padded to a vec4 boundary), then each distinct block once, in the order
-/// they first occur. Along a wall most leaves see the same neighbourhood and have the
-/// same words: on the seed scene 9,698 distinct blocks of 338,896 at 1024^3 and 9,302
-/// of 1,363,216 at 2048^3 (82.7 MiB of codes become 2.4 MiB of blocks and 1.3 MiB of
-/// indices, 332.8 MiB 2.3 and 5.2 MiB), so a frame reads from far fewer bytes: 1024^3
-/// 1.16x as fast on lavapipe, 2048^3 1.31x (docs/sparse-traversal.md, "Distinct blocks").
-fn dedup_blocks(codes: &[u32]) -> (Vec<u32>, usize) {
-    let nodes = codes.len() / CHILDREN;
-    let blocks_words = nodes.next_multiple_of(4);
-    let mut index: FxHashMap<&[u32], u32> = FxHashMap::default();
-    let mut distinct: Vec<&[u32]> = Vec::new();
-    let mut out = Vec::with_capacity(blocks_words);
-    for block in codes.chunks_exact(CHILDREN) {
-        let next = distinct.len() as u32;
-        let b = *index.entry(block).or_insert_with(|| {
-            distinct.push(block);
-            next
-        });
-        out.push(b);
-    }
-    out.resize(blocks_words, 0);
-    out.reserve(CHILDREN * distinct.len());
-    for block in distinct {
-        out.extend_from_slice(block);
-    }
-    (out, blocks_words)
 }
 
 impl SparseOctant {
@@ -373,14 +344,19 @@ impl SparseOctant {
     /// The cut with the codes of the children of `nodes` (the nodes from the cut's
     /// level down, [`SparseTree::nodes_up_to`]: the first's index, then each one's first
     /// voxel and log2 side), built a level at a time from the top, so that a level's
-    /// sweep finds the cubes of the levels above it; then each distinct block once
-    /// ([`dedup_blocks`]). Not yet placed ([`Self::placed`]).
+    /// sweep finds the cubes of the levels above it, and held as the kernel reads them
+    /// from the first level on: each node's block index, then each distinct block once,
+    /// in the order they first occur (the breadth-first node order). Along a wall most
+    /// leaves see the same neighbourhood and have the same words: on the seed scene
+    /// 9,698 distinct blocks of 338,896 at 1024^3 and 9,302 of 1,363,216 at 2048^3
+    /// (82.7 MiB of codes become 2.4 MiB of blocks and 1.3 MiB of indices, 332.8 MiB 2.3
+    /// and 5.2 MiB), so a frame reads from far fewer bytes: 1024^3 1.16x as fast on
+    /// lavapipe, 2048^3 1.31x (docs/sparse-traversal.md, "Distinct blocks"). Only a
+    /// level's words are held whole while it is built. Not yet placed
+    /// ([`Self::placed`]).
     fn with_codes(mut self, first: u32, nodes: &[(IVec3, u32)]) -> Self {
-        // While they are built every node has a block of its own.
         self.blocks_words = nodes.len().next_multiple_of(4);
-        self.codes = (0..self.blocks_words as u32).collect();
-        self.codes
-            .resize(self.blocks_words + CHILDREN * nodes.len(), 0);
+        self.codes = vec![0; self.blocks_words];
         self.coded_first = first;
         self.coded_count = nodes.len() as u32;
         let b = self.tree.log_branch();
@@ -388,16 +364,23 @@ impl SparseOctant {
         sides.sort_unstable();
         sides.dedup();
         self.coded_shift = u32::MAX;
+        let mut distinct: FxHashMap<Box<[u32]>, u32> = FxHashMap::default();
         for &log_side in sides.iter().rev() {
-            let words = level_words(&self, first, nodes, log_side);
-            for (k, w) in words {
-                let at = self.blocks_words + CHILDREN * k;
-                self.codes[at..at + CHILDREN].copy_from_slice(&w);
+            let (members, words) = level_words(&self, first, nodes, log_side);
+            for (k, block) in members.into_iter().zip(words.chunks_exact(CHILDREN)) {
+                self.codes[k] = match distinct.get(block) {
+                    Some(&i) => i,
+                    None => {
+                        let i = distinct.len() as u32;
+                        distinct.insert(block.into(), i);
+                        self.codes.extend_from_slice(block);
+                        i
+                    }
+                };
             }
             self.coded_shift = log_side - b;
         }
         self.coded_shift = 0;
-        (self.codes, self.blocks_words) = dedup_blocks(&self.codes[self.blocks_words..]);
         // A node's cell holds the node's block index in its first word (0 without
         // codes): where a descent takes one level it ends at that node, and the kernel
         // reads no index (traversal_sparse_octant.wgsl; the bunny at 512, whose curved
@@ -451,35 +434,46 @@ impl SparseOctant {
     }
 }
 
-/// The children's octant words of the nodes of side `2^log_side` among `nodes` (each
-/// with its ordinal among them), by the recurrence of [`octant_radii`] over those
-/// children, for each octant swept from its far corner ([`Level::radii`]). A child that
-/// is a node matches nothing and has the word 0.
+/// The children's octant words of the nodes of side `2^log_side` among `nodes`: each
+/// such node's ordinal among them, and 64 words a node in that order (a child that is a
+/// node matches nothing and has the word 0), by the recurrence of [`octant_radii`] over
+/// those children, for each octant swept from its far corner ([`Level::radii`]). The
+/// sweeps run as many at a time as rayon has threads, each holding a byte a child, and
+/// fold their codes into the words as they end: not a byte a child for all eight
+/// octants at once (2048^3's leaves: 87 M children).
 fn level_words(
     walk: &SparseOctant,
     first: u32,
     nodes: &[(IVec3, u32)],
     log_side: u32,
-) -> Vec<(usize, Vec<u32>)> {
+) -> (Vec<usize>, Vec<u32>) {
     let level = Level::new(walk, first, nodes, log_side);
-    let radii: Vec<Vec<u8>> = (0..8)
-        .into_par_iter()
-        .map(|o| level.radii(walk, o))
-        .collect();
-    level
-        .members
+    let mut words: Vec<u32> = level
+        .children
         .par_iter()
-        .enumerate()
-        .map(|(j, &(k, _))| {
-            let words = (0..CHILDREN)
-                .map(|i| match level.children[j][i] {
-                    Some(m) => word(m, &radii, j * CHILDREN + i),
-                    None => 0,
-                })
-                .collect();
-            (k, words)
-        })
-        .collect()
+        .flat_map_iter(|c| c.iter().map(|m| m.map_or(0, u32::from)))
+        .collect();
+    let octants: Vec<usize> = (0..8).collect();
+    for batch in octants.chunks(rayon::current_num_threads().clamp(1, 8)) {
+        let radii: Vec<(usize, Vec<u8>)> = batch
+            .par_iter()
+            .map(|&o| (o, level.radii(walk, o)))
+            .collect();
+        words
+            .par_chunks_mut(CHILDREN)
+            .zip(&level.children)
+            .enumerate()
+            .for_each(|(j, (block, children))| {
+                for (i, w) in block.iter_mut().enumerate() {
+                    if children[i].is_some() {
+                        for (o, r) in &radii {
+                            *w |= code_bits(r[j * CHILDREN + i], *o);
+                        }
+                    }
+                }
+            });
+    }
+    (level.members.iter().map(|&(k, _)| k).collect(), words)
 }
 
 /// The nodes of one level below the cut, as the sweep of their children reads them.
