@@ -3,14 +3,14 @@
 // region is the walk's octant's cube of such cells (as traversal_octant.wgsl's cube of
 // voxels); in a cell the tree holds as a node, the uniform child the tree's descent from
 // that node finds (shaders/tree.wgsl), and where the walk has codes, the child's octant
-// cube of its node's children. A walk with codes and one without are two kernels
-// (WALK_VARIANT, crate::sparse::Regions::kernel_variant), each without the other's
-// reads. The f64 reference: crate::technique::sparse_octant::SparseOctant.
+// cube of its node's children. A walk without codes, one with them and one with them
+// whose cells hold their nodes' heads are three kernels (WALK_VARIANT 0, 1, 2:
+// crate::sparse::Regions::kernel_variant), each without the others' reads. The f64 reference: crate::technique::sparse_octant::SparseOctant.
 #define_import_path voxlab::regions
 
 #import voxlab::types::Region
 #import voxlab::bindings::{params, walk_data, walk_more_word}
-#import voxlab::tree::{NODE_VEC4S, region_below}
+#import voxlab::tree::{Descent, NODE_VEC4S, descend_from, region_below}
 
 // Regions are cubes of any size: dda_skip leaves them whole.
 const REGIONS_ARE_VOXELS: bool = false;
@@ -35,14 +35,15 @@ struct RegionCursor {
 fn region_cursor(step: vec3<i32>) -> RegionCursor {
     let down = select(vec3<i32>(0), vec3<i32>(1), step < vec3<i32>(0));
     let o = u32(down.x) | (u32(down.y) << 1u) | (u32(down.z) << 2u);
-    // After the tree: its header vec4 and five vec4s a node (voxlab::tree).
+    // After the tree: its header vec4 and five vec4s a node (voxlab::tree), or a header
+    // of no nodes where this kernel reads none of it (SparseOctant::reads_tree).
     let at = 1u + walk_data[0].z * NODE_VEC4S;
     let cut = walk_data[at];
     let coded = walk_data[at + 1u];
     return RegionCursor(8u + 3u * o, down, at + 2u, cut.x, cut.yzw, coded.x, at + coded.z, coded.w);
 }
 
-#if WALK_VARIANT == 1
+#if WALK_VARIANT >= 1
 // Word i of the codes: after the cut where the walk's data fits one binding, else in
 // the walk's further bindings (crate::technique::sparse_octant::CodesAt).
 fn code_word(c: ptr<function, RegionCursor>, i: u32) -> u32 {
@@ -70,12 +71,40 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
     let u = vec3<u32>(v);
     let cell = u >> vec3<u32>((*c).log_cell);
     let d = (*c).cut_dims;
-    // Two words a cell: a vec4 holds two cells.
     let i = cell.x + d.x * (cell.y + d.y * cell.z);
-    let pair = walk_data[(*c).cells + (i >> 1u)];
-    let word = select(pair.xy, pair.zw, (i & 1u) == 1u);
     // The node of the tree's level at or above the cell (src/sparse.rs, cut_node_log).
     let node_log = ((*c).log_cell + 1u) & ~1u;
+#if WALK_VARIANT == 2
+    // KERNEL_WITH_HEADS: the cells' nodes are nodes of 16 with codes. A vec4 a cell: a
+    // uniform cell's word and 0s, or its node's head (the mask and first child the
+    // descent's first level reads) and one more than its block index, so a step reads
+    // the cell and no tree; below the node of 16 a leaf's children are voxels, whose
+    // words are its codes. The descent ends at the cell's node (its block from the
+    // cell) or at a leaf (its block from the codes' indices).
+    let head = walk_data[(*c).cells + i];
+    var at = cell;
+    var code = head.x;
+    var log = (*c).log_cell;
+    if head.w != 0u {
+        var dn: Descent;
+        dn.node = 0u;
+        dn.shift = node_log - 2u;
+        dn.found = false;
+        descend_from(head, u, &dn);
+        var block = head.w - 1u;
+        if !dn.found {
+            block = code_word(c, dn.node - (*c).coded_first);
+        }
+        at = u >> vec3<u32>(dn.shift);
+        let p = at & vec3<u32>(3u);
+        code = code_word(c, (*c).blocks + 64u * block + p.x + 4u * p.y + 16u * p.z);
+        log = dn.shift;
+    }
+    return corner_region(c, vec3<i32>(at), code, log);
+#else
+    // Two words a cell: a vec4 holds two cells.
+    let pair = walk_data[(*c).cells + (i >> 1u)];
+    let word = select(pair.xy, pair.zw, (i & 1u) == 1u);
 #if WALK_VARIANT == 1
     // With codes (KERNEL_WITH_CODES): every node below the cut has them (the tree's last
     // nodes), and a child's word holds its material. In a node's cell, the uniform
@@ -107,5 +136,6 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
         return region_below(v, word.y - 1u, node_log - 2u, true).region;
     }
     return corner_region(c, vec3<i32>(cell), word.x, (*c).log_cell);
+#endif
 #endif
 }

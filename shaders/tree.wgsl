@@ -32,10 +32,14 @@ fn child_index(v: vec3<u32>, shift: u32) -> u32 {
 // not work (shaders/counters.wgsl). It reads the node's mask alone: the material is
 // read once, for the child the descent ends at.
 fn descend(v: vec3<u32>, d: ptr<function, Descent>) {
-    let i = child_index(v, (*d).shift);
-    let base = 1u + (*d).node * NODE_VEC4S;
     // Mask and first child in one load.
-    let head = walk_data[base];
+    descend_from(walk_data[1u + (*d).node * NODE_VEC4S], v, d);
+}
+
+// The same from the node's head (mask and first child) read already: the sparse octant
+// walk's cell holds its node's (traversal_sparse_octant.wgsl).
+fn descend_from(head: vec4<u32>, v: vec3<u32>, d: ptr<function, Descent>) {
+    let i = child_index(v, (*d).shift);
     let word = select(head.x, head.y, i >= 32u);
     let bit = 1u << (i & 31u);
     if (word & bit) == 0u {

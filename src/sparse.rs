@@ -657,6 +657,14 @@ impl SparseTree {
         (first as u32, found.into_iter().map(|(_, n)| n).collect())
     }
 
+    /// The head of node `node`: its mask words and its first child's index, what a
+    /// descent reads of a node whose children's materials it does not need.
+    pub fn node_head(&self, node: u32) -> &[u32] {
+        let (mask_at, first_at, _) = self.offsets();
+        let base = HEADER_WORDS + node as usize * self.node_words();
+        &self.words[base + mask_at..=base + first_at]
+    }
+
     /// The children of node `node` (x fastest): the material of a uniform one, `None`
     /// for a node.
     pub fn node_children(&self, node: u32) -> Vec<Option<u8>> {

@@ -641,6 +641,12 @@ fn cubes_of_sixteen_make_room_for_the_codes_at_1024() {
     let walk = SparseOctant::build(scene.grid.tree(2));
     assert_eq!(walk.log_cell(), 4);
     assert!(walk.has_codes());
+    // The cells of nodes of 16 hold their heads, a vec4 a cell, and the tree stays on
+    // the host: the kernel with heads reads nothing else of it.
+    assert_eq!(walk.kernel_variant(), 2);
+    assert_eq!(walk.device_words()[0], [0; 4]);
+    let cells = (1024usize / 16).pow(3);
+    assert_eq!(walk.device_words()[1].len(), 8 + 4 * cells);
     // All of it in one of lavapipe's bindings: the codes follow the cut.
     assert_eq!(walk.codes_at(), CodesAt::WalkData);
     assert!(
@@ -673,9 +679,9 @@ fn cubes_of_sixteen_make_room_for_the_codes_at_1024() {
 
 /// The codes are held where the walk's data fits the budget it is built within, in
 /// bytes a binding (the device's binding on the GPU): after the cut where all of it fits
-/// one binding; one byte short of that, with the tree and the cut in one and the codes
-/// in `WALK_MORE_BINDINGS` more (the same codes; on the seed scene the tree and the cut
-/// decide there: the codes take under 3.2 times their bytes, 2.2 times at 64^3); one
+/// one binding; one byte short of that, with the cut in one and the codes in
+/// `WALK_MORE_BINDINGS` more (the same codes; on the seed scene the cut decides there:
+/// the codes take under 3.2 times its bytes); one
 /// byte short of that, the walk holds the cut alone and walks to the same regions.
 /// `build` is the CPU reference's budget.
 #[test]
@@ -703,8 +709,12 @@ fn the_codes_are_held_within_the_budget_they_are_built_for() {
     let without = SparseOctant::build_within(tree.clone(), need - 1);
     assert!(!without.has_codes());
     assert!(without.device_more_words().is_empty());
-    // The same tree and cut: only the codes go.
-    assert_eq!(first(&without), first(&split));
+    // The same cells (a node's holds its block index only with codes). With codes the
+    // kernel reads no tree at 64^3 (its descents take one level): a header of no nodes
+    // stands for it. Without them it walks the tree.
+    assert_eq!(split.device_words()[0], [0; 4]);
+    assert!(split.device_words()[1].len() == without.device_words()[1].len());
+    assert!(without.device_words()[0] == tree.words());
     assert!(SparseOctant::build(tree.clone()) == SparseOctant::build_within(tree, MAX_WALK_BYTES));
     assert_eq!(MAX_WALK_BYTES, voxlab::technique::HOST_WALK_BYTES);
     // Without codes, the same regions for every voxel and octant.
@@ -819,7 +829,7 @@ fn codes_that_fit_nowhere_leave_the_finer_cut_without_them() {
     assert!(walk == fine);
     let said = walk.summary().unwrap();
     assert!(
-        said.contains("cells of 8") && said.contains("do not fit beside the tree"),
+        said.contains("cells of 8") && said.contains("do not fit beside the cut"),
         "{said}"
     );
     // Within room enough, the nodes' cells of 16 with the codes.

@@ -346,6 +346,24 @@ mod tests {
         }
     }
 
+    /// The sparse octant walk's kernels (without codes, with them, with the cells'
+    /// heads) with its codes in `walk_data` or in one to three further bindings.
+    #[test]
+    fn sparse_octant_kernels_compose() {
+        let mut plan = Plan::all_variants(9).pop().unwrap();
+        plan.traversal = crate::technique::traversal("sparse_octant").unwrap();
+        for levels in 1..=3 {
+            for variant in 0..=2 {
+                for more in 0..=crate::technique::WALK_MORE_BINDINGS as u32 {
+                    plan.tree_levels = levels;
+                    plan.walk_variant = variant;
+                    plan.walk_more_bindings = more;
+                    compose_to_spirv(&plan);
+                }
+            }
+        }
+    }
+
     #[test]
     fn left_out_code_is_absent() {
         // Without REFLECTION, REFRACTION and SHADOWS the module has no transmittance walk.

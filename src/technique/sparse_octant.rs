@@ -27,18 +27,24 @@
 //! [`super::WALK_MORE_BINDINGS`] more ([`CodesAt`]).
 //!
 //! Layout of its words (`walk_data`, shaders/traversal_sparse_octant.wgsl): the tree's
-//! words ([`crate::sparse`]: a header vec4 and five vec4s a node), then, at vec4 `h = 1 +
-//! 5 * node count`, two vec4s (log2 of the cell side, the cut's dims; the index of the
+//! words ([`crate::sparse`]: a header vec4 and five vec4s a node), or where the kernel
+//! reads none of the tree (with codes and descents of at most two levels,
+//! `SparseOctant::reads_tree`) a header of no nodes in its place; then, at vec4
+//! `h = 1 + 5 * node count`, two vec4s (log2 of the cell side, the cut's dims; the index of the
 //! first node with codes, the number of such nodes, the vec4 of its codes counted from
 //! `h` where they follow the cut, the word of the first block in its codes) and from
-//! `h + 2` two words a cell (x fastest): the
-//! octant field's word (material and eight codes, [`super::octant::OctantField`]) and 0
-//! for a uniform cell, or the node's block index (0 without codes) and the node's index
-//! plus one for a cell the tree holds as a node; then the codes: each node's block index in node order (to a vec4 boundary),
-//! then the distinct blocks, 64 words each (a node's children, x fastest; 0 for a child
-//! that is a node): from a vec4 boundary after the cut, or as the
-//! walk's further words (`walk_more_word`, [`Regions::device_more_words`]). The tree is
-//! not copied: its words, the cut's and the codes are uploaded as parts of one buffer.
+//! `h + 2` the cells (x fastest). Two words a cell: the octant field's word (material
+//! and eight codes, [`super::octant::OctantField`]) and 0 for a uniform cell, or the
+//! node's block index (0 without codes) and the node's index plus one for a cell the
+//! tree holds as a node. Where the cells' nodes are nodes of 16 and have codes
+//! (`KERNEL_WITH_HEADS`), a vec4 a cell instead: a uniform cell's word and three 0s,
+//! or its node's head (mask words and first child, as the tree holds them) and one
+//! more than its block index. Then the codes: each node's block index in node order (to
+//! a vec4 boundary), then the distinct blocks, 64 words each (a node's children, x
+//! fastest; 0 for a child that is a node): from a vec4 boundary after the cut, or as
+//! the walk's further words (`walk_more_word`, [`Regions::device_more_words`]). The tree
+//! is not copied: its words, the cut's and the codes are uploaded as parts of one
+//! buffer.
 
 use std::sync::Arc;
 
@@ -71,6 +77,19 @@ const CHILDREN: usize = 64;
 /// the frame at 256^3, 7 % at 1024^3: docs/sparse-traversal.md, "One kernel for codes,
 /// one without").
 const KERNEL_WITH_CODES: u32 = 1;
+
+/// The kernel of a walk with codes whose cells' nodes are nodes of 16 (descents of two
+/// levels: 1024^3 and 2048^3), each node's cell holding the node's head (`WALK_VARIANT
+/// == 2`): a step reads the cell's vec4 where the other kernel reads the cell and then
+/// the node's head from the tree, and the tree is not uploaded. The seed scene's walk
+/// data at 1024^3 takes 7.7 MiB instead of 31.6 and its frame 0.87x the time, at
+/// 2048^3 39.5 MiB instead of 127.9 and 0.87x (docs/sparse-traversal.md, "The cells'
+/// heads").
+const KERNEL_WITH_HEADS: u32 = 2;
+
+/// What stands for the tree where the kernel reads none of it ([`SparseOctant::reads_tree`]):
+/// a tree header of no nodes, so the cut starts at vec4 1 (`region_cursor`).
+const NO_TREE: [u32; 4] = [0; 4];
 
 /// Log2 of the side of the cut's cells for a tree of these dims and branching: the
 /// smallest side (4, 8, 16 ... voxels) whose cells number at most [`MAX_CELLS`]: the
@@ -154,6 +173,10 @@ pub struct SparseOctant {
     codes: Vec<u32>,
     blocks_words: usize,
     codes_at: CodesAt,
+    /// The cut as [`KERNEL_WITH_HEADS`] reads it, its header and a vec4 a cell (a
+    /// uniform cell's word and three 0s; a node's cell its node's head and one more than
+    /// its block index); empty for the other kernels, which read `cut`.
+    heads: Vec<u32>,
     /// The bytes a binding the data was built within, and the nodes below the cut whose
     /// codes did not fit them (0 where they did, or where there are none) with the bytes
     /// those would have taken (0 where the tree and the cut left no room to build them):
@@ -199,10 +222,10 @@ pub enum CodesAt {
     MoreBindings,
 }
 
-/// Where `codes` words of codes go beside the tree and the cut's `cells` (two words
-/// each) within `budget` bytes a binding, if anywhere.
-fn place_codes(tree: &SparseTree, cells: usize, codes: usize, budget: usize) -> Option<CodesAt> {
-    let first = tree_and_cut_words(tree, cells);
+/// Where `codes` words of codes go beside the `first` words of the walk's data before
+/// them ([`SparseOctant::words_before_codes`]) within `budget` bytes a binding, if
+/// anywhere.
+fn place_codes(first: usize, codes: usize, budget: usize) -> Option<CodesAt> {
     if 4 * (first.next_multiple_of(4) + codes) <= budget {
         Some(CodesAt::WalkData)
     } else if 4 * first <= budget
@@ -212,11 +235,6 @@ fn place_codes(tree: &SparseTree, cells: usize, codes: usize, budget: usize) -> 
     } else {
         None
     }
-}
-
-/// The words of the tree and a cut of `cells` cells with its header.
-fn tree_and_cut_words(tree: &SparseTree, cells: usize) -> usize {
-    tree.words().len() + CUT_HEADER_WORDS + 2 * cells
 }
 
 impl SparseOctant {
@@ -267,23 +285,23 @@ impl SparseOctant {
 
     fn with_cell_side_within(tree: Arc<SparseTree>, log_cell: u32, budget: usize) -> Self {
         let cut = Self::without_codes(tree, log_cell);
-        let (first, nodes) = cut.tree.nodes_up_to(cut.node_shift + cut.tree.log_branch());
-        let cells = cut.cut_dims.as_u64vec3().element_product() as usize;
+        let (first_node, nodes) = cut.tree.nodes_up_to(cut.node_shift + cut.tree.log_branch());
         // The codes' layout is the 64-tree's (64 children a node, shaders/tree.wgsl).
         if nodes.is_empty() || cut.tree.log_branch() != GPU_LOG_BRANCH {
             return Self { budget, ..cut };
         }
-        // Where the tree and the cut leave no room in their binding, the codes fit
+        // Where what goes before the codes leaves no room in its binding, the codes fit
         // nowhere (place_codes), however few their distinct blocks: not built.
-        if 4 * tree_and_cut_words(&cut.tree, cells) > budget {
+        let before = cut.words_before_codes();
+        if 4 * before > budget {
             return Self {
                 budget,
                 uncoded: nodes.len(),
                 ..cut
             };
         }
-        let coded = cut.clone().with_codes(first, &nodes);
-        match place_codes(&coded.tree, cells, coded.codes.len(), budget) {
+        let coded = cut.clone().with_codes(first_node, &nodes);
+        match place_codes(before, coded.codes.len(), budget) {
             Some(at) => Self {
                 budget,
                 ..coded.placed(at)
@@ -335,6 +353,7 @@ impl SparseOctant {
             codes: Vec::new(),
             blocks_words: 0,
             codes_at: CodesAt::WalkData,
+            heads: Vec::new(),
             budget: MAX_WALK_BYTES,
             uncoded: 0,
             uncoded_bytes: 0,
@@ -409,7 +428,71 @@ impl SparseOctant {
             after_cut,
             self.blocks_words as u32,
         ]);
+        if self.cells_hold_heads() {
+            let cells = self.cut_dims.as_u64vec3().element_product() as usize;
+            let mut heads = Vec::with_capacity(CUT_HEADER_WORDS + 4 * cells);
+            heads.extend_from_slice(&self.cut[..CUT_HEADER_WORDS]);
+            for cell in self.cut[CUT_HEADER_WORDS..][..2 * cells].chunks_exact(2) {
+                if cell[1] == 0 {
+                    heads.extend_from_slice(&[cell[0], 0, 0, 0]);
+                } else {
+                    heads.extend_from_slice(self.tree.node_head(cell[1] - 1));
+                    heads.push(cell[0] + 1);
+                }
+            }
+            if at == CodesAt::WalkData {
+                heads[6] = (heads.len() / 4) as u32;
+            }
+            self.heads = heads;
+        }
         self
+    }
+
+    /// Whether the kernel reads the tree: not with codes where a descent takes at most
+    /// two levels, since a leaf's children are voxels and the descent's one read of a
+    /// node of 16 is the head its cell holds (shaders/tree.wgsl reads materials only
+    /// without codes). Then the tree stays on the host: [`NO_TREE`] stands for it.
+    fn reads_tree(&self) -> bool {
+        !(self.has_codes() && self.node_shift <= self.tree.log_branch())
+    }
+
+    /// Whether the cells hold their nodes' heads ([`KERNEL_WITH_HEADS`]): with codes,
+    /// where the cells' nodes are nodes of 16.
+    fn cells_hold_heads(&self) -> bool {
+        self.has_codes() && self.node_shift == self.tree.log_branch()
+    }
+
+    /// The words of the walk's data before its codes, were the codes in: the tree (or
+    /// [`NO_TREE`]) and the cut, at two words a cell or four with the heads. Where the
+    /// codes go depends on it ([`place_codes`]).
+    fn words_before_codes(&self) -> usize {
+        let cells = self.cut_dims.as_u64vec3().element_product() as usize;
+        let (tree, cell) = if self.node_shift == self.tree.log_branch() {
+            (NO_TREE.len(), 4)
+        } else if self.node_shift < self.tree.log_branch() {
+            (NO_TREE.len(), 2)
+        } else {
+            (self.tree.words().len(), 2)
+        };
+        tree + CUT_HEADER_WORDS + cell * cells
+    }
+
+    /// The tree as uploaded: the tree, or [`NO_TREE`] where the kernel reads none of it.
+    fn device_tree(&self) -> &[u32] {
+        if self.reads_tree() {
+            self.tree.words()
+        } else {
+            &NO_TREE
+        }
+    }
+
+    /// The cut as uploaded: with its nodes' heads where the cells hold them.
+    fn device_cut(&self) -> &[u32] {
+        if self.heads.is_empty() {
+            &self.cut
+        } else {
+            &self.heads
+        }
     }
 
     /// Whether the nodes below the cut carry their children's codes.
@@ -717,8 +800,8 @@ impl Regions for SparseOctant {
 
     fn device_words(&self) -> Vec<&[u32]> {
         match self.codes_at {
-            CodesAt::WalkData => vec![self.tree.words(), &self.cut, &self.codes],
-            CodesAt::MoreBindings => vec![self.tree.words(), &self.cut],
+            CodesAt::WalkData => vec![self.device_tree(), self.device_cut(), &self.codes],
+            CodesAt::MoreBindings => vec![self.device_tree(), self.device_cut()],
         }
     }
 
@@ -730,7 +813,9 @@ impl Regions for SparseOctant {
     }
 
     fn kernel_variant(&self) -> u32 {
-        if self.has_codes() {
+        if self.cells_hold_heads() {
+            KERNEL_WITH_HEADS
+        } else if self.has_codes() {
             KERNEL_WITH_CODES
         } else {
             0
@@ -742,6 +827,28 @@ impl Regions for SparseOctant {
         let budget = crate::output::bytes_text(self.budget as u64);
         let cells = format!("cells of {} voxels a side", 1u64 << self.log_cell);
         let tree = size(self.tree.words().len() + self.cut.len());
+        // What the codes follow, or would have followed.
+        let before = match (
+            self.node_shift.cmp(&self.tree.log_branch()),
+            self.has_codes(),
+        ) {
+            (std::cmp::Ordering::Greater, _) => format!("the tree and the cut ({tree})"),
+            (std::cmp::Ordering::Equal, true) => format!(
+                "the cut, whose cells hold their nodes' heads ({}; the tree stays on the host)",
+                size(self.device_tree().len() + self.device_cut().len())
+            ),
+            (_, true) => format!(
+                "the cut ({}; the tree stays on the host)",
+                size(self.device_tree().len() + self.device_cut().len())
+            ),
+            (std::cmp::Ordering::Equal, false) => format!(
+                "the cut with its nodes' heads ({})",
+                size(self.words_before_codes())
+            ),
+            (std::cmp::Ordering::Less, false) => {
+                format!("the cut ({})", size(self.words_before_codes()))
+            }
+        };
         Some(if self.has_codes() {
             let codes = format!(
                 "the children's codes of {} nodes in {} distinct blocks ({})",
@@ -750,13 +857,11 @@ impl Regions for SparseOctant {
                 size(self.codes.len())
             );
             match self.codes_at {
-                CodesAt::WalkData => format!(
-                    "{cells}; {codes} after the tree and the cut ({tree}), \
-                     within {budget} a binding"
-                ),
+                CodesAt::WalkData => {
+                    format!("{cells}; {codes} after {before}, within {budget} a binding")
+                }
                 CodesAt::MoreBindings => format!(
-                    "{cells}; the tree and the cut ({tree}) in one binding, {codes} in \
-                     {} more of {budget}",
+                    "{cells}; {before} in one binding, {codes} in {} more of {budget}",
                     self.codes
                         .len()
                         .div_ceil(super::walk_part_words(self.budget))
@@ -767,16 +872,16 @@ impl Regions for SparseOctant {
         } else if self.uncoded_bytes > 0 {
             format!(
                 "{cells}; no codes, so more steps a ray: the children's codes of its {} nodes \
-                 ({}) do not fit beside the tree and the cut ({tree}) within \
-                 {budget} a binding and {} more (render.walk_budget_mib)",
+                 ({}) do not fit beside {before} within {budget} a binding and {} more \
+                 (render.walk_budget_mib)",
                 self.uncoded,
                 crate::output::bytes_text(self.uncoded_bytes as u64),
                 super::WALK_MORE_BINDINGS
             )
         } else if self.uncoded > 0 {
             format!(
-                "{cells}; no codes, so more steps a ray: the tree and the cut ({tree}) leave \
-                 no room within {budget} a binding for the children's codes of its {} nodes \
+                "{cells}; no codes, so more steps a ray: {before} leaves no room within \
+                 {budget} a binding for the children's codes of its {} nodes \
                  (render.walk_budget_mib)",
                 self.uncoded
             )
