@@ -448,18 +448,29 @@ impl SparseOctant {
         self
     }
 
-    /// Whether the kernel reads the tree: not with codes where a descent takes at most
-    /// two levels, since a leaf's children are voxels and the descent's one read of a
-    /// node of 16 is the head its cell holds (shaders/tree.wgsl reads materials only
-    /// without codes). Then the tree stays on the host: [`NO_TREE`] stands for it.
-    fn reads_tree(&self) -> bool {
-        !(self.has_codes() && self.node_shift <= self.tree.log_branch())
+    /// Whether, with codes, a step would read none of the tree: where a descent takes at
+    /// most two levels, since a leaf's children are voxels and the descent's one read of
+    /// a node of 16 is the head its cell holds ([`Self::heads_with_codes`]);
+    /// shaders/tree.wgsl reads materials only without codes.
+    fn tree_free_with_codes(&self) -> bool {
+        self.node_shift <= self.tree.log_branch()
     }
 
-    /// Whether the cells hold their nodes' heads ([`KERNEL_WITH_HEADS`]): with codes,
-    /// where the cells' nodes are nodes of 16.
+    /// Whether, with codes, the cells would hold their nodes' heads
+    /// ([`KERNEL_WITH_HEADS`]): where the cells' nodes are nodes of 16.
+    fn heads_with_codes(&self) -> bool {
+        self.node_shift == self.tree.log_branch()
+    }
+
+    /// Whether the kernel reads the tree: not with codes where a descent takes at most
+    /// two levels. Then the tree stays on the host: [`NO_TREE`] stands for it.
+    fn reads_tree(&self) -> bool {
+        !(self.has_codes() && self.tree_free_with_codes())
+    }
+
+    /// Whether the cells hold their nodes' heads.
     fn cells_hold_heads(&self) -> bool {
-        self.has_codes() && self.node_shift == self.tree.log_branch()
+        self.has_codes() && self.heads_with_codes()
     }
 
     /// The words of the walk's data before its codes, were the codes in: the tree (or
@@ -467,13 +478,12 @@ impl SparseOctant {
     /// codes go depends on it ([`place_codes`]).
     fn words_before_codes(&self) -> usize {
         let cells = self.cut_dims.as_u64vec3().element_product() as usize;
-        let (tree, cell) = if self.node_shift == self.tree.log_branch() {
-            (NO_TREE.len(), 4)
-        } else if self.node_shift < self.tree.log_branch() {
-            (NO_TREE.len(), 2)
+        let tree = if self.tree_free_with_codes() {
+            NO_TREE.len()
         } else {
-            (self.tree.words().len(), 2)
+            self.tree.words().len()
         };
+        let cell = if self.heads_with_codes() { 4 } else { 2 };
         tree + CUT_HEADER_WORDS + cell * cells
     }
 
@@ -828,25 +838,21 @@ impl Regions for SparseOctant {
         let cells = format!("cells of {} voxels a side", 1u64 << self.log_cell);
         let tree = size(self.tree.words().len() + self.cut.len());
         // What the codes follow, or would have followed.
-        let before = match (
-            self.node_shift.cmp(&self.tree.log_branch()),
-            self.has_codes(),
-        ) {
-            (std::cmp::Ordering::Greater, _) => format!("the tree and the cut ({tree})"),
-            (std::cmp::Ordering::Equal, true) => format!(
-                "the cut, whose cells hold their nodes' heads ({}; the tree stays on the host)",
-                size(self.device_tree().len() + self.device_cut().len())
-            ),
-            (_, true) => format!(
-                "the cut ({}; the tree stays on the host)",
-                size(self.device_tree().len() + self.device_cut().len())
-            ),
-            (std::cmp::Ordering::Equal, false) => format!(
-                "the cut with its nodes' heads ({})",
-                size(self.words_before_codes())
-            ),
-            (std::cmp::Ordering::Less, false) => {
-                format!("the cut ({})", size(self.words_before_codes()))
+        let before = {
+            let cut = if self.heads_with_codes() {
+                "the cut, whose cells hold their nodes' heads"
+            } else {
+                "the cut"
+            };
+            let host = if self.has_codes() {
+                "; the tree stays on the host"
+            } else {
+                ""
+            };
+            if self.tree_free_with_codes() {
+                format!("{cut} ({}{host})", size(self.words_before_codes()))
+            } else {
+                format!("the tree and the cut ({tree})")
             }
         };
         Some(if self.has_codes() {
