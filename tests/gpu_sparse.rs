@@ -780,3 +780,72 @@ fn generated_scenes_walk_their_codes_wherever_held() {
         "scenes without codes, with codes over 1, 2, 3 further bindings: {seen:?}"
     );
 }
+
+/// The kernel whose cells hold their nodes' heads (cells of 16 below nodes of 16:
+/// descents of two levels, the tree left on the host) on generated scenes: grids of
+/// 960 to 1024 by 900 to 1024 by 160 to 200 voxels (past `MAX_CELLS` cells of 4),
+/// random boxes and a box of voxel noise of 24 to 64 a side (leaves with codes of their
+/// own, and nodes of 16 whose descents end at either level); images of 12 to 28 by 10
+/// to 24 pixels, depth limits 0 to 4. The GPU with the codes after the cut and in a
+/// further binding (the smallest whole-MiB budget that puts them there) renders the
+/// same image and steps, and the CPU reference's, which walks the tree.
+#[test]
+fn generated_scenes_walk_the_cells_heads() {
+    use voxlab::technique::sparse_octant::{CodesAt, SparseOctant, log_cell_side};
+    let mut rng = StdRng::seed_from_u64(16);
+    let mut gpu = tracer();
+    for case in 0..3 {
+        let dims = UVec3::new(
+            rng.random_range(960..=1024),
+            rng.random_range(900..=1024),
+            rng.random_range(160..=200),
+        );
+        assert_eq!(
+            log_cell_side(dims, 2, voxlab::sparse::levels_for(dims, 2)),
+            3
+        );
+        let noise = rng.random_range(24..=64);
+        let density = rng.random_range(0.1..0.6);
+        let (w, h, depth) = (
+            rng.random_range(12..=28),
+            rng.random_range(10..=24),
+            rng.random_range(0..=4),
+        );
+        let budget = |mib: u32| RenderSettings {
+            width: w,
+            height: h,
+            max_reflection_depth: depth,
+            max_refraction_depth: depth,
+            ..within_budget(mib)
+        };
+        let scene = noisy_scene(&mut rng, dims, noise, density);
+        let name = format!(
+            "case {case}: {dims} noise {noise} density {density:.2}, {w}x{h} depth {depth}"
+        );
+        let tree = scene.grid.tree(2);
+        let apart = (1..=16u32)
+            .find(|&mib| {
+                let walk = SparseOctant::build_within(tree.clone(), (mib as usize) << 20);
+                walk.has_codes() && walk.codes_at() == CodesAt::MoreBindings
+            })
+            .unwrap_or_else(|| panic!("{name}: no budget puts the codes in further bindings"));
+        let own = gpu.render_counted(&scene, &budget(0)).unwrap();
+        let plan = gpu.last_plan().unwrap();
+        assert_eq!(
+            (plan.walk_variant, plan.tree_levels),
+            (2, 2),
+            "{name}: {plan}"
+        );
+        assert_eq!(gpu.walk_data_bindings(), 1, "{name}");
+        let c = voxlab::cpu::render(&scene, &budget(0));
+        assert_walked_alike(&name, &own, &c, 0.02);
+        let g = gpu.render_counted(&scene, &budget(apart)).unwrap();
+        let at = format!("{name}, {apart} MiB a binding");
+        assert_eq!(gpu.last_plan().unwrap().walk_variant, 2, "{at}");
+        assert!(gpu.walk_data_bindings() > 1, "{at}");
+        assert!(g.frame.pixels == own.frame.pixels, "{at}: another image");
+        assert_eq!(g.stats.voxel_steps, own.stats.voxel_steps, "{at}");
+        let c = voxlab::cpu::render(&scene, &budget(apart));
+        assert_walked_alike(&at, &g, &c, 0.02);
+    }
+}
