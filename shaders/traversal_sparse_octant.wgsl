@@ -5,7 +5,8 @@
 // that node finds (shaders/tree.wgsl), and where the walk has codes, the child's octant
 // cube of its node's children. A walk without codes, one with them and one with them
 // whose cells hold their nodes' heads are three kernels (WALK_VARIANT 0, 1, 2:
-// crate::sparse::Regions::kernel_variant), each without the others' reads. The f64 reference: crate::technique::sparse_octant::SparseOctant.
+// crate::sparse::Regions::kernel_variant), each without the others' reads. The f64
+// reference: crate::technique::sparse_octant::SparseOctant.
 #define_import_path voxlab::regions
 
 #import voxlab::types::Region

@@ -689,8 +689,9 @@ fn noisy_scene(rng: &mut StdRng, dims: UVec3, noise: u32, density: f64) -> Scene
 
 /// The sparse octant walk's codes wherever its budget puts them, on generated scenes
 /// (grids of 112 to 176 a side, non-cubic, a box of noise whose leaves hold a few MiB of
-/// codes; images of 12 to 36 by 10 to 30 pixels, depth limits 0 to 4): for each scene the smallest whole-MiB budget that leaves them out (the
-/// kernel without codes) and that puts them in one, two and three further bindings,
+/// codes; images of 12 to 36 by 10 to 30 pixels, depth limits 0 to 4): for each scene
+/// the smallest whole-MiB budget that leaves them out (the kernel without codes) and
+/// that puts them in one, two and three further bindings,
 /// found by building the walk's data as the tracers do. At each, the GPU holds that many
 /// bindings and renders the image of its own budget (lavapipe: every code after the
 /// cut, one binding), with its steps where it has the codes, and the CPU reference's

@@ -30,9 +30,10 @@
 //! words ([`crate::sparse`]: a header vec4 and five vec4s a node), or where the kernel
 //! reads none of the tree (with codes and descents of at most two levels,
 //! `SparseOctant::reads_tree`) a header of no nodes in its place; then, at vec4
-//! `h = 1 + 5 * node count`, two vec4s (log2 of the cell side, the cut's dims; the index of the
-//! first node with codes, the number of such nodes, the vec4 of its codes counted from
-//! `h` where they follow the cut, the word of the first block in its codes) and from
+//! `h = 1 + 5 * node count`, two vec4s (log2 of the cell side, the cut's dims; the
+//! index of the first node with codes, the number of such nodes, the vec4 of its codes
+//! counted from `h` where they follow the cut, the word of the first block in its
+//! codes) and from
 //! `h + 2` the cells (x fastest). Two words a cell: the octant field's word (material
 //! and eight codes, [`super::octant::OctantField`]) and 0 for a uniform cell, or the
 //! node's block index (0 without codes) and the node's index plus one for a cell the
