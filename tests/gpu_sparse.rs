@@ -663,6 +663,45 @@ fn codes_in_a_further_binding_walk_as_codes_after_the_cut() {
     assert_eq!(apart.walk_data, cpu.walk_data);
 }
 
+/// A generated case's own image and depth limits (0 to 4): each case its own ray trees.
+#[derive(Clone, Copy)]
+struct CaseImage {
+    w: u32,
+    h: u32,
+    depth: u32,
+}
+
+impl CaseImage {
+    fn random(
+        rng: &mut StdRng,
+        widths: std::ops::RangeInclusive<u32>,
+        heights: std::ops::RangeInclusive<u32>,
+    ) -> Self {
+        Self {
+            w: rng.random_range(widths),
+            h: rng.random_range(heights),
+            depth: rng.random_range(0..=4),
+        }
+    }
+
+    /// Its settings for the sparse octant walk within `mib` MiB a binding.
+    fn within(&self, mib: u32) -> RenderSettings {
+        RenderSettings {
+            width: self.w,
+            height: self.h,
+            max_reflection_depth: self.depth,
+            max_refraction_depth: self.depth,
+            ..within_budget(mib)
+        }
+    }
+}
+
+impl std::fmt::Display for CaseImage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}x{} depth {}", self.w, self.h, self.depth)
+    }
+}
+
 /// A scene of `random_scene` with a box of voxel noise in it (each voxel one of the seed's
 /// materials at random, solid ones at `density`): nearly every 4-voxel cube of the box is
 /// a leaf of the tree with its own codes, so the box's side sets how many MiB of codes
@@ -713,19 +752,8 @@ fn generated_scenes_walk_their_codes_wherever_held() {
         );
         let noise = rng.random_range(80..=116);
         let density = rng.random_range(0.1..0.6);
-        // The image and the depth limits vary too: each case its own ray trees.
-        let (w, h, depth) = (
-            rng.random_range(12..=36),
-            rng.random_range(10..=30),
-            rng.random_range(0..=4),
-        );
-        let budget = |mib: u32| RenderSettings {
-            width: w,
-            height: h,
-            max_reflection_depth: depth,
-            max_refraction_depth: depth,
-            ..within_budget(mib)
-        };
+        let image = CaseImage::random(&mut rng, 12..=36, 10..=30);
+        let budget = |mib: u32| image.within(mib);
         let scene = noisy_scene(&mut rng, dims, noise, density);
         let tree = scene.grid.tree(2);
         // The smallest budget for each place.
@@ -745,9 +773,7 @@ fn generated_scenes_walk_their_codes_wherever_held() {
                 }
             }
         }
-        let name = format!(
-            "case {case}: {dims} noise {noise} density {density:.2}, {w}x{h} depth {depth}"
-        );
+        let name = format!("case {case}: {dims} noise {noise} density {density:.2}, {image}");
         eprintln!("{name}: budgets without codes, for 1, 2, 3 further bindings {budgets:?}");
         let own = gpu.render_counted(&scene, &budget(0)).unwrap();
         assert_eq!(gpu.walk_data_bindings(), 1, "{name}");
@@ -807,22 +833,10 @@ fn generated_scenes_walk_the_cells_heads() {
         );
         let noise = rng.random_range(24..=64);
         let density = rng.random_range(0.1..0.6);
-        let (w, h, depth) = (
-            rng.random_range(12..=28),
-            rng.random_range(10..=24),
-            rng.random_range(0..=4),
-        );
-        let budget = |mib: u32| RenderSettings {
-            width: w,
-            height: h,
-            max_reflection_depth: depth,
-            max_refraction_depth: depth,
-            ..within_budget(mib)
-        };
+        let image = CaseImage::random(&mut rng, 12..=28, 10..=24);
+        let budget = |mib: u32| image.within(mib);
         let scene = noisy_scene(&mut rng, dims, noise, density);
-        let name = format!(
-            "case {case}: {dims} noise {noise} density {density:.2}, {w}x{h} depth {depth}"
-        );
+        let name = format!("case {case}: {dims} noise {noise} density {density:.2}, {image}");
         let tree = scene.grid.tree(2);
         let apart = (1..=16u32)
             .find(|&mib| {
