@@ -1041,7 +1041,7 @@ mod tests {
         // Depth 0/0 needs one stack entry anyway: no stack note.
         assert_eq!(p.reasons.len(), 4, "{p}");
         // RAY_STACK_SIZE, DDA_UNROLL, WALK_MORE_BINDINGS and WALK_VARIANT, always defined, and the walk's id where
-        // `"auto"` takes a walk other than the default (the octant walk from side 16).
+        // `"auto"` takes a walk other than the default (the box walk from side 12).
         let names: Vec<String> = p.shader_defs().into_keys().collect();
         for n in &names {
             assert!(

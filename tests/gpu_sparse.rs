@@ -9,7 +9,9 @@
 
 mod common;
 
-use common::{DENSE_WALK, OCTANT_WALK, PROXIMITY_WALK, SPARSE_OCTANT_WALK, SPARSE_WALK};
+use common::{
+    BOXES_WALK, DENSE_WALK, OCTANT_WALK, PROXIMITY_WALK, SPARSE_OCTANT_WALK, SPARSE_WALK,
+};
 use common::{assert_agree, assert_matches_golden, experiment, linear, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
@@ -252,13 +254,19 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
     let octant = gpu.last_memory().unwrap();
     assert_eq!(octant.grid, 0, "{octant:?}");
     assert_eq!(octant.walk_data, 4 * 64 * 64 * 64, "{octant:?}");
-    // Auto: dense below OCTANT_FROM_SIDE, the octant walk from it on, the sparse octant walk from
-    // SPARSE_FROM_SIDE on; the plan says why.
-    use voxlab::technique::{octant::OCTANT_FROM_SIDE, sparse::SPARSE_FROM_SIDE};
+    // The box walk: four words a voxel.
+    gpu.render(&scene, &settings(16, 16, 1, BOXES_WALK))
+        .unwrap();
+    let boxes = gpu.last_memory().unwrap();
+    assert_eq!(boxes.grid, 0, "{boxes:?}");
+    assert_eq!(boxes.walk_data, 16 * 64 * 64 * 64, "{boxes:?}");
+    // Auto: dense below BOXES_FROM_SIDE, the box walk from it on, the sparse octant walk
+    // from SPARSE_FROM_SIDE on; the plan says why.
+    use voxlab::technique::{boxes::BOXES_FROM_SIDE, sparse::SPARSE_FROM_SIDE};
     for (n, want) in [
-        (OCTANT_FROM_SIDE - 1, DENSE_WALK),
-        (OCTANT_FROM_SIDE, OCTANT_WALK),
-        (SPARSE_FROM_SIDE - 1, OCTANT_WALK),
+        (BOXES_FROM_SIDE - 1, DENSE_WALK),
+        (BOXES_FROM_SIDE, BOXES_WALK),
+        (SPARSE_FROM_SIDE - 1, BOXES_WALK),
         (SPARSE_FROM_SIDE, SPARSE_OCTANT_WALK),
     ] {
         let scene = seed_scene_dims(UVec3::new(n, 3, 2)).unwrap();
@@ -269,9 +277,10 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
 }
 
 /// Under `"auto"` a walk whose data the device cannot bind gives way to the last walk
-/// that claims the grid and whose data it binds: past the octant field's four bytes a
-/// voxel the proximity field's two, past those the dense grid's one (the tree claims
-/// only from its side), and past all of them the tree.
+/// that claims the grid and whose data it binds: past the box field's sixteen bytes a
+/// voxel the octant field's four, past those the proximity field's two, past those the
+/// dense grid's one (the tree claims only from its side), and past all of them the
+/// tree.
 #[test]
 fn auto_takes_the_walk_the_device_binds() {
     use voxlab::technique::TraversalModel;
@@ -285,6 +294,8 @@ fn auto_takes_the_walk_the_device_binds() {
     let dims = UVec3::splat(64);
     let voxels = 64 * 64 * 64;
     for (limit, want) in [
+        (16 * voxels, BOXES_WALK),
+        (16 * voxels - 1, OCTANT_WALK),
         (4 * voxels, OCTANT_WALK),
         (4 * voxels - 1, PROXIMITY_WALK),
         (2 * voxels - 1, DENSE_WALK),
@@ -296,7 +307,7 @@ fn auto_takes_the_walk_the_device_binds() {
     // The tracer itself, with its device's limit: a seed grid of sides below the
     // tree's whose octant field it cannot bind renders on the proximity walk and says
     // why. A device that binds more than such a grid's octant field keeps the octant
-    // walk for the largest of them.
+    // walk for the largest of them, or the box walk where it binds its field too.
     let mut gpu = tracer();
     let max = gpu.max_voxel_buffer_bytes();
     let side = SPARSE_FROM_SIDE_LESS_ONE;
@@ -314,7 +325,9 @@ fn auto_takes_the_walk_the_device_binds() {
     } else {
         eprintln!("the device binds {max} bytes: every grid below the tree's side fits");
         let (walk, why) = choose(UVec3::splat(side), max);
-        assert_eq!(walk, OCTANT_WALK, "{why}");
+        let boxes = 16 * u64::from(side).pow(3) <= max;
+        let want = if boxes { BOXES_WALK } else { OCTANT_WALK };
+        assert_eq!(walk, want, "{why}");
     }
     // From the tree's side on, the sparse octant walk whatever the device binds: never
     // the proximity field or the dense DDA that "auto" fell back to on lavapipe from

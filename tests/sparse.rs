@@ -483,11 +483,11 @@ fn every_traversal_is_a_registered_slot() {
         assert!(plan.to_string().contains(t.label), "{plan}");
         assert_eq!(plan.tree_levels > 0, t.walks_tree, "{plan}");
     }
-    // Below every walk's claim (the octant walk's side is the smallest), auto takes the
+    // Below every walk's claim (the box walk's side is the smallest), auto takes the
     // default walk; tests/gpu_sparse.rs follows the claims up the sides.
-    use voxlab::technique::octant::OCTANT_FROM_SIDE;
+    use voxlab::technique::{boxes::BOXES_FROM_SIDE, octant::OCTANT_FROM_SIDE};
     let side = 8;
-    assert!(side < OCTANT_FROM_SIDE);
+    assert!(side < BOXES_FROM_SIDE && BOXES_FROM_SIDE <= OCTANT_FROM_SIDE);
     let auto = Plan::new(&seed_scene(side).unwrap(), &RenderSettings::default());
     assert_eq!(auto.traversal, voxlab::technique::default_traversal());
     assert!(auto.traversal_reason.starts_with("auto: "), "{auto}");

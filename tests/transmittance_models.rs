@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{DENSE_WALK, OCTANT_WALK, PROXIMITY_WALK, SMOOTH_SURFACE, SPARSE_WALK};
+use common::{BOXES_WALK, DENSE_WALK, OCTANT_WALK, PROXIMITY_WALK, SMOOTH_SURFACE, SPARSE_WALK};
 use common::{assert_agree, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
@@ -207,6 +207,7 @@ fn every_model_gpu_equals_cpu() {
             (9, 32, 32, 0, DENSE_WALK),
             (18, 36, 28, 3, PROXIMITY_WALK),
             (22, 30, 26, 3, OCTANT_WALK),
+            (21, 28, 30, 2, BOXES_WALK),
         ]
         .into_iter()
         .enumerate()

@@ -47,6 +47,7 @@ pub mod ambient_occlusion;
 pub mod area;
 pub mod atrous;
 pub mod beer_lambert;
+pub mod boxes;
 pub mod cone;
 pub mod cones;
 pub mod dense;
@@ -103,6 +104,7 @@ pub const TRAVERSALS: &[&TraversalModel] = &[
     &dense::TRAVERSAL,
     &proximity::TRAVERSAL,
     &octant::TRAVERSAL,
+    &boxes::TRAVERSAL,
     &sparse::TRAVERSAL,
     &sparse_octant::TRAVERSAL,
 ];

@@ -245,6 +245,8 @@ pub const PROXIMITY_WALK: voxlab::render::Traversal =
     voxlab::render::Traversal::Walk(&voxlab::technique::proximity::TRAVERSAL);
 pub const OCTANT_WALK: voxlab::render::Traversal =
     voxlab::render::Traversal::Walk(&voxlab::technique::octant::TRAVERSAL);
+pub const BOXES_WALK: voxlab::render::Traversal =
+    voxlab::render::Traversal::Walk(&voxlab::technique::boxes::TRAVERSAL);
 pub const SPARSE_OCTANT_WALK: voxlab::render::Traversal =
     voxlab::render::Traversal::Walk(&voxlab::technique::sparse_octant::TRAVERSAL);
 pub const VOXELS_SURFACE: voxlab::render::Surface =

@@ -1,0 +1,296 @@
+//! The box traversal: the octant walk ([`super::octant`]) with a reach per axis. Beside
+//! each voxel's material, for each of the eight octants a ray can head into, a box of
+//! the voxel's material with the voxel as its corner that reaches into that octant as
+//! far along each axis as the build finds room. A cube toward the ray's octant is only
+//! as large as the nearest surface on any axis, so a ray grazing a wall crosses it in
+//! cubes no larger than its height above the wall; a box thin across the wall and long
+//! along it takes such a ray to the wall, or past it, in a step or two.
+//!
+//! The boxes come from the corner cubes (`octant_radii`) by three extensions, one axis
+//! after another. The box of reach `e` along axis `a` and the cube's `c` across it is
+//! the union of the cubes of side `c + 1` at `v + j s e_a`, `j = 0 ..= e - c` (`s` the
+//! octant's sign on `a`), so it holds `v`'s material when those voxels have it and
+//! their cubes are at least `c`: the first `j` where one does not ends it (a "next
+//! smaller element", one stack per line). The second axis extends the union of such
+//! boxes, which holds where both keys (cube, first reach) stay at least `v`'s, and the
+//! third where all three do: each extension is a linear pass over the lines of its
+//! axis, and each box holds only `v`'s material and its corner cube (every reach starts
+//! from the cube's). The order is z, x, y: on the seed scene and the bunny the other
+//! orders, and the largest box of all three orders, take the CPU walk within 1 % of the
+//! same steps, and a search of each voxel's largest boxes by summed-volume tables
+//! (largest cube, then each axis stretched as far as it goes, the largest of three
+//! orders) within 2 % (docs/sparse-traversal.md, "Boxes").
+//!
+//! Four bits a reach ([`REACHES`]), twelve an octant: the words are four planes of a
+//! word a voxel, plane `p` holding octants `2p` and `2p + 1` beside the voxel's
+//! material, so a step reads one word, and the rays of an octant read one plane of four
+//! bytes a voxel as the octant walk does.
+
+use std::sync::Arc;
+
+use glam::{IVec3, UVec3};
+use rayon::prelude::*;
+
+use super::TraversalModel;
+use super::octant::{octant, octant_radii};
+use crate::scene::Grid;
+use crate::sparse::{Region, Regions};
+
+/// The reaches a box's four-bit codes stand for along an axis: each box's reach is the
+/// largest entry not above what the build found, so a box only shrinks. Entry `k` is
+/// `k` below 2, else `(2 + k % 2) << (k / 2 - 1)` (shaders/traversal_boxes.wgsl).
+pub const REACHES: [u8; 16] = [0, 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192];
+
+/// The grid side from which `render.traversal = "auto"` walks the box field (up to the
+/// tree walks' [`super::sparse::SPARSE_FROM_SIDE`], whose claims, registered after it,
+/// win from there). On lavapipe, 512x512, one round of `voxlab bench --sizes 8,12,16,64
+/// --size 512 --gpu-runs 3 --no-cpu --traversal dense,octant,boxes` (both rule sets,
+/// the second with `--rules seed`): at 8^3 the dense walk's time within the noise
+/// (231.2 against 227.1 ms; the seed's rules 54.7 against 56.5), at 12^3 0.85x the
+/// dense walk's (374.9 against 442.6; 66.8 against 76.4) and 0.78x the octant walk's,
+/// at 16^3 0.77x and 0.84x the octant walk's, at 64^3 0.65x and 0.80x
+/// (docs/sparse-traversal.md, "Boxes"). Where the device cannot bind its sixteen bytes
+/// a voxel (lavapipe: 128 MiB, 8.4 M voxels, 203^3) `"auto"` takes the next walk that
+/// claims the grid and fits, the octant field (`crate::plan::auto_traversal_within`).
+pub const BOXES_FROM_SIDE: u32 = 12;
+
+pub const TRAVERSAL: TraversalModel = TraversalModel {
+    name: "boxes",
+    summary: "the DDA over the dense grid with each voxel's box of its own material with \
+              the voxel as its corner toward each of the 8 ray octants, a reach per axis, \
+              skipping the ray's octant's box whole (the octant walk's cubes stretched \
+              along the axes they leave room on)",
+    label: "octant boxes",
+    plan: |scene, _| super::dense_grid_only(scene, "the dense grid with 8 boxes beside each voxel"),
+    auto: Some(|scene| super::claim_dense_from_side(scene, BOXES_FROM_SIDE)),
+    wgsl: (
+        "shaders/traversal_boxes.wgsl",
+        include_str!("../../shaders/traversal_boxes.wgsl"),
+    ),
+    walks_tree: false,
+    descent_levels: None,
+    data: Some(|grid, _| Arc::new(BoxField::build(grid))),
+    // Four planes of a word a voxel.
+    device_bytes: Some(|dims| super::per_voxel_bytes(dims, 16)),
+};
+
+/// Every voxel's material and its eight boxes' codes: four planes of a word a voxel
+/// (x fastest), plane `p` holding the voxel's material in bits 0..8, octant `2p`'s box
+/// in bits 8..20 and octant `2p + 1`'s in bits 20..32; a box's code holds the four-bit
+/// codes of its reaches along x, y and z, lowest first. Octant `o` has bit `a` set where
+/// it heads down axis `a` ([`octant`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BoxField {
+    dims: UVec3,
+    words: Vec<u32>,
+}
+
+/// The four-bit code of each reach 0..=255: the largest entry of [`REACHES`] not above
+/// it.
+static CODES: [u8; 256] = {
+    let mut codes = [0u8; 256];
+    let mut r = 0;
+    while r < 256 {
+        let mut k = 0;
+        while k + 1 < REACHES.len() && REACHES[k + 1] as usize <= r {
+            k += 1;
+        }
+        codes[r] = k as u8;
+        r += 1;
+    }
+    codes
+};
+
+/// The reaches a box's twelve-bit code stands for.
+fn reaches(code: u32) -> IVec3 {
+    IVec3::from_array([0, 4, 8].map(|s| i32::from(REACHES[(code >> s & 15) as usize])))
+}
+
+impl BoxField {
+    /// The field of `grid` (a grid held only as its tree is made dense first; the plan
+    /// keeps this traversal from such grids).
+    pub fn build(grid: &Grid) -> Self {
+        let dense = grid
+            .to_dense()
+            .expect("the box traversal's plan rule keeps it to dense grids");
+        let dims = grid.dims();
+        let voxels = dense.data();
+        let codes: Vec<Vec<u16>> = (0..8)
+            .into_par_iter()
+            .map(|o| octant_boxes(voxels, dims, o))
+            .collect();
+        let n = voxels.len();
+        let mut words = vec![0u32; 4 * n];
+        words
+            .par_chunks_mut(n.max(1))
+            .enumerate()
+            .for_each(|(p, plane)| {
+                for (i, w) in plane.iter_mut().enumerate() {
+                    *w = u32::from(voxels[i])
+                        | u32::from(codes[2 * p][i]) << 8
+                        | u32::from(codes[2 * p + 1][i]) << 20;
+                }
+            });
+        Self { dims, words }
+    }
+
+    /// The reaches of voxel `v`'s box toward octant `o`, as the walk reads them.
+    pub fn reach(&self, v: IVec3, o: usize) -> IVec3 {
+        let n = self.dims.element_product() as usize;
+        let d = self.dims.as_usizevec3();
+        let i = v.x as usize + d.x * (v.y as usize + d.y * v.z as usize);
+        reaches(self.words[(o >> 1) * n + i] >> (8 + 12 * (o & 1)))
+    }
+}
+
+impl Regions for BoxField {
+    fn region(&self, v: IVec3, step: IVec3) -> Region {
+        let o = octant(step);
+        let n = self.dims.element_product() as usize;
+        let d = self.dims.as_usizevec3();
+        let i = v.x as usize + d.x * (v.y as usize + d.y * v.z as usize);
+        let word = self.words[(o >> 1) * n + i];
+        let (lo, hi) = corner_box(v, reaches(word >> (8 + 12 * (o & 1))), o);
+        Region {
+            material: word as u8,
+            lo: lo.max(IVec3::ZERO),
+            hi: hi.min(self.dims.as_ivec3()),
+        }
+    }
+
+    fn device_words(&self) -> Vec<&[u32]> {
+        vec![&self.words]
+    }
+}
+
+/// The box of reaches `r` with voxel `v` as its corner toward octant `o` (unclipped):
+/// its first voxel and one past its last.
+fn corner_box(v: IVec3, r: IVec3, o: usize) -> (IVec3, IVec3) {
+    let down = IVec3::new((o & 1) as i32, (o >> 1 & 1) as i32, (o >> 2 & 1) as i32);
+    (v - r * down, v + IVec3::ONE + r * (IVec3::ONE - down))
+}
+
+/// Each voxel's box toward octant `o` as its twelve-bit code: the corner cube stretched
+/// along z, then x, then y (see the module documentation), each reach rounded down to
+/// [`REACHES`].
+pub fn octant_boxes(voxels: &[u8], dims: UVec3, o: usize) -> Vec<u16> {
+    let cube = octant_radii(voxels, dims, o);
+    let [x, y, z] = [0, 1, 2];
+    let along_z = extend(voxels, dims, o, z, &[&cube], &cube);
+    let along_x = extend(voxels, dims, o, x, &[&cube, &along_z], &cube);
+    let along_y = extend(voxels, dims, o, y, &[&cube, &along_z, &along_x], &cube);
+    along_x
+        .iter()
+        .zip(&along_y)
+        .zip(&along_z)
+        .map(|((&x, &y), &z)| {
+            u16::from(CODES[x as usize])
+                | u16::from(CODES[y as usize]) << 4
+                | u16::from(CODES[z as usize]) << 8
+        })
+        .collect()
+}
+
+/// Each voxel's reach along `axis` toward octant `o` of the union of the boxes, at
+/// `v + j s e_axis`, that hold `v`'s box of the given `keys` (reaches along the other
+/// axes, and the cube's `cube` across): the union holds `v`'s material while each voxel
+/// on the way has `v`'s material and every key at least `v`'s, so the first `j >= 1`
+/// where one does not ends it (a "next smaller element" per key, one stack per key and
+/// line). A line that never ends reaches past the grid: 255, as far as a byte goes.
+/// The lines are swept a sheet at a time (the lines of one row of x along y or z, side
+/// by side, so that a step along the axis reads contiguous voxels).
+fn extend(
+    voxels: &[u8],
+    dims: UVec3,
+    o: usize,
+    axis: usize,
+    keys: &[&[u8]],
+    cube: &[u8],
+) -> Vec<u8> {
+    let d = dims.as_usizevec3();
+    // Per axis: the sheets (their first voxels), the lines side by side in a sheet, and
+    // the stride along the axis.
+    let (sheets, lanes, stride): (Vec<usize>, usize, usize) = match axis {
+        0 => ((0..d.y * d.z).map(|r| r * d.x).collect(), 1, 1),
+        1 => ((0..d.z).map(|z| z * d.x * d.y).collect(), d.x, d.x),
+        _ => ((0..d.y).map(|y| y * d.x).collect(), d.x, d.x * d.y),
+    };
+    let n = d[axis];
+    let down = o >> axis & 1 == 1;
+    let stacks = || {
+        (
+            vec![0u32; keys.len() * lanes * n],
+            vec![0u8; keys.len() * lanes * n],
+        )
+    };
+    let swept: Vec<Vec<u8>> = sheets
+        .par_iter()
+        .map_init(stacks, |(stack_at, stack_key), &base| {
+            // Each line's stack per key (positions, keys), at most the line long, the
+            // lines' entries of one depth side by side: [key][depth][line].
+            let mut depth = vec![0usize; keys.len() * lanes];
+            // Per line: the nearest position toward the octant of another material
+            // than the voxel's, and how far the union goes before its first end.
+            let mut differs_at = vec![u32::MAX; lanes];
+            let mut ends = vec![u32::MAX; lanes];
+            let mut out = vec![0u8; n * lanes];
+            // From the octant's far end, so what lies toward the octant is done first.
+            let position = |k: usize| if down { k } else { n - 1 - k };
+            for k in 0..n {
+                let t = position(k);
+                let row = &voxels[base + t * stride..][..lanes];
+                if k > 0 {
+                    let before = position(k - 1);
+                    let previous = &voxels[base + before * stride..][..lanes];
+                    for ((at, m), p) in differs_at.iter_mut().zip(row).zip(previous) {
+                        if m != p {
+                            *at = before as u32;
+                        }
+                    }
+                }
+                for (e, &at) in ends.iter_mut().zip(&differs_at) {
+                    *e = if at == u32::MAX {
+                        u32::MAX
+                    } else {
+                        at.abs_diff(t as u32)
+                    };
+                }
+                for (key_index, key) in keys.iter().enumerate() {
+                    let mine = &key[base + t * stride..][..lanes];
+                    let at = &mut stack_at[key_index * n * lanes..][..n * lanes];
+                    let kept = &mut stack_key[key_index * n * lanes..][..n * lanes];
+                    let depth = &mut depth[key_index * lanes..][..lanes];
+                    for lane in 0..lanes {
+                        let mut h = depth[lane];
+                        while h > 0 && kept[(h - 1) * lanes + lane] >= mine[lane] {
+                            h -= 1;
+                        }
+                        if h > 0 {
+                            let j = at[(h - 1) * lanes + lane].abs_diff(t as u32);
+                            ends[lane] = ends[lane].min(j);
+                        }
+                        at[h * lanes + lane] = t as u32;
+                        kept[h * lanes + lane] = mine[lane];
+                        depth[lane] = h + 1;
+                    }
+                }
+                let cubes = &cube[base + t * stride..][..lanes];
+                for ((o, &e), &c) in out[t * lanes..][..lanes].iter_mut().zip(&ends).zip(cubes) {
+                    *o = if e == u32::MAX {
+                        255
+                    } else {
+                        (u32::from(c) + e - 1).min(255) as u8
+                    };
+                }
+            }
+            out
+        })
+        .collect();
+    let mut reach = vec![0u8; voxels.len()];
+    for (base, sheet) in sheets.into_iter().zip(swept) {
+        for (t, row) in sheet.chunks(lanes).enumerate() {
+            reach[base + t * stride..][..lanes].copy_from_slice(row);
+        }
+    }
+    reach
+}
