@@ -306,6 +306,41 @@ fn boxes_hold_their_material_and_the_octant_cube() {
     }
 }
 
+/// Lines past the byte cap (255) and the largest reach (192) along each axis: every
+/// box stops short of the one other voxel, and a reach past 192 is rounded to it.
+#[test]
+fn boxes_past_the_cap_hold_their_material() {
+    for axis in 0..3 {
+        let mut d = [2, 3, 2];
+        d[axis] = 300;
+        let dims = UVec3::from_array(d);
+        let mut g = Grid::new(dims, 1.0, glam::DVec3::ZERO).unwrap();
+        let mut far = IVec3::ZERO;
+        far[axis] = 280;
+        g.set(far, 4);
+        let field = BoxField::build(&g);
+        for v in all_voxels(dims) {
+            for o in 0..8 {
+                let b = field.region(v, step_of(o));
+                let inside = (b.lo.cmple(far) & far.cmplt(b.hi)).all();
+                assert_eq!(
+                    inside,
+                    v == far,
+                    "axis {axis}, voxel {v}, octant {o}: {b:?}"
+                );
+            }
+        }
+        // From the grid's first voxel toward the far voxel the box stops before it
+        // (reach 279, rounded to 192); from the last voxel back toward it, 18 (16).
+        let toward = field.reach(IVec3::ZERO, 0);
+        assert_eq!(toward[axis], 192, "{toward}");
+        let mut end = IVec3::ZERO;
+        end[axis] = 299;
+        let back = field.reach(end, 1 << axis);
+        assert_eq!(back[axis], 16, "{back}");
+    }
+}
+
 #[test]
 fn a_box_stretches_along_a_floor() {
     // A floor (z = 0) under void in a 64^3 grid, and a pillar at x, y in 40..44. From
