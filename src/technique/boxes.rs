@@ -197,8 +197,8 @@ pub fn octant_boxes(voxels: &[u8], dims: UVec3, o: usize) -> Vec<u16> {
 /// on the way has `v`'s material and every key at least `v`'s, so the first `j >= 1`
 /// where one does not ends it (a "next smaller element" per key, one stack per key and
 /// line). A line that never ends reaches past the grid: 255, as far as a byte goes.
-/// The lines are swept a sheet at a time (the lines of one row of x along y or z, side
-/// by side, so that a step along the axis reads contiguous voxels).
+/// Lines along y and z are swept a row of x at a time, side by side, so that a step
+/// along the axis reads contiguous voxels.
 fn extend(
     voxels: &[u8],
     dims: UVec3,
@@ -208,89 +208,158 @@ fn extend(
     cube: &[u8],
 ) -> Vec<u8> {
     let d = dims.as_usizevec3();
-    // Per axis: the sheets (their first voxels), the lines side by side in a sheet, and
-    // the stride along the axis.
-    let (sheets, lanes, stride): (Vec<usize>, usize, usize) = match axis {
-        0 => ((0..d.y * d.z).map(|r| r * d.x).collect(), 1, 1),
-        1 => ((0..d.z).map(|z| z * d.x * d.y).collect(), d.x, d.x),
-        _ => ((0..d.y).map(|y| y * d.x).collect(), d.x, d.x * d.y),
+    let line = Line {
+        voxels,
+        keys,
+        cube,
+        n: d[axis],
+        down: o >> axis & 1 == 1,
     };
-    let n = d[axis];
-    let down = o >> axis & 1 == 1;
-    let stacks = || {
-        (
-            vec![0u32; keys.len() * lanes * n],
-            vec![0u8; keys.len() * lanes * n],
-        )
-    };
-    let swept: Vec<Vec<u8>> = sheets
-        .par_iter()
-        .map_init(stacks, |(stack_at, stack_key), &base| {
-            // Each line's stack per key (positions, keys), at most the line long, the
-            // lines' entries of one depth side by side: [key][depth][line].
-            let mut depth = vec![0usize; keys.len() * lanes];
-            // Per line: the nearest position toward the octant of another material
-            // than the voxel's, and how far the union goes before its first end.
-            let mut differs_at = vec![u32::MAX; lanes];
-            let mut ends = vec![u32::MAX; lanes];
-            let mut out = vec![0u8; n * lanes];
-            // From the octant's far end, so what lies toward the octant is done first.
-            let position = |k: usize| if down { k } else { n - 1 - k };
-            for k in 0..n {
-                let t = position(k);
-                let row = &voxels[base + t * stride..][..lanes];
-                if k > 0 {
-                    let before = position(k - 1);
-                    let previous = &voxels[base + before * stride..][..lanes];
-                    for ((at, m), p) in differs_at.iter_mut().zip(row).zip(previous) {
-                        if m != p {
-                            *at = before as u32;
-                        }
+    let mut reach = vec![0u8; voxels.len()];
+    let slab = d.x * d.y;
+    match axis {
+        // A slab's rows side by side (a row's voxels contiguous, the rows' voxels of
+        // one x a row apart), laid [x][y], then put in place.
+        0 => reach.par_chunks_mut(slab).enumerate().for_each_init(
+            || (Stacks::new(keys.len(), d.y, d.x), vec![0u8; slab]),
+            |(stacks, swept), (z, out)| {
+                line.sweep(z * slab, (d.y, d.x), 1, stacks, swept);
+                for (x, column) in swept.chunks(d.y).enumerate() {
+                    for (y, &r) in column.iter().enumerate() {
+                        out[y * d.x + x] = r;
                     }
                 }
-                for (e, &at) in ends.iter_mut().zip(&differs_at) {
-                    *e = if at == u32::MAX {
-                        u32::MAX
-                    } else {
-                        at.abs_diff(t as u32)
-                    };
-                }
-                for (key_index, key) in keys.iter().enumerate() {
-                    let mine = &key[base + t * stride..][..lanes];
-                    let at = &mut stack_at[key_index * n * lanes..][..n * lanes];
-                    let kept = &mut stack_key[key_index * n * lanes..][..n * lanes];
-                    let depth = &mut depth[key_index * lanes..][..lanes];
-                    for lane in 0..lanes {
-                        let mut h = depth[lane];
-                        while h > 0 && kept[(h - 1) * lanes + lane] >= mine[lane] {
-                            h -= 1;
-                        }
-                        if h > 0 {
-                            let j = at[(h - 1) * lanes + lane].abs_diff(t as u32);
-                            ends[lane] = ends[lane].min(j);
-                        }
-                        at[h * lanes + lane] = t as u32;
-                        kept[h * lanes + lane] = mine[lane];
-                        depth[lane] = h + 1;
-                    }
-                }
-                let cubes = &cube[base + t * stride..][..lanes];
-                for ((o, &e), &c) in out[t * lanes..][..lanes].iter_mut().zip(&ends).zip(cubes) {
-                    *o = if e == u32::MAX {
-                        255
-                    } else {
-                        (u32::from(c) + e - 1).min(255) as u8
-                    };
+            },
+        ),
+        // A slab's columns side by side: its reaches laid [y][x], as the grid's.
+        1 => reach.par_chunks_mut(slab).enumerate().for_each_init(
+            || Stacks::new(keys.len(), d.x, d.y),
+            |stacks, (z, out)| line.sweep(z * slab, (d.x, 1), d.x, stacks, out),
+        ),
+        // A row of x's lines along z side by side, laid [z][x], then put in place.
+        _ => {
+            let sheets: Vec<Vec<u8>> = (0..d.y)
+                .into_par_iter()
+                .map_init(
+                    || Stacks::new(keys.len(), d.x, d.z),
+                    |stacks, y| {
+                        let mut out = vec![0u8; d.x * d.z];
+                        line.sweep(y * d.x, (d.x, 1), slab, stacks, &mut out);
+                        out
+                    },
+                )
+                .collect();
+            for (y, sheet) in sheets.iter().enumerate() {
+                for (z, row) in sheet.chunks(d.x).enumerate() {
+                    reach[z * slab + y * d.x..][..d.x].copy_from_slice(row);
                 }
             }
-            out
-        })
-        .collect();
-    let mut reach = vec![0u8; voxels.len()];
-    for (base, sheet) in sheets.into_iter().zip(swept) {
-        for (t, row) in sheet.chunks(lanes).enumerate() {
-            reach[base + t * stride..][..lanes].copy_from_slice(row);
         }
     }
     reach
+}
+
+/// What [`extend`] sweeps: the grid, the keys, the corner cubes, the lines' length and
+/// whether the octant heads down the axis.
+struct Line<'a> {
+    voxels: &'a [u8],
+    keys: &'a [&'a [u8]],
+    cube: &'a [u8],
+    n: usize,
+    down: bool,
+}
+
+/// The stacks of `lanes` lines of `n` voxels for each key (positions and keys, the
+/// lines' entries of one depth side by side: `[key][depth][line]`), kept between
+/// sweeps so that a thread allocates them once.
+struct Stacks {
+    at: Vec<u32>,
+    kept: Vec<u8>,
+    depth: Vec<usize>,
+    differs_at: Vec<u32>,
+    ends: Vec<u32>,
+}
+
+impl Stacks {
+    fn new(keys: usize, lanes: usize, n: usize) -> Self {
+        Self {
+            at: vec![0; keys * lanes * n],
+            kept: vec![0; keys * lanes * n],
+            depth: vec![0; keys * lanes],
+            differs_at: vec![0; lanes],
+            ends: vec![0; lanes],
+        }
+    }
+}
+
+impl Line<'_> {
+    /// The reaches of `lanes` lines side by side from voxel `base` (a line's voxels
+    /// `stride` apart, the lines' first voxels `lane_stride` apart) into `out`, laid
+    /// `[position][line]`.
+    fn sweep(
+        &self,
+        base: usize,
+        (lanes, lane_stride): (usize, usize),
+        stride: usize,
+        s: &mut Stacks,
+        out: &mut [u8],
+    ) {
+        let n = self.n;
+        s.depth.fill(0);
+        // Per line: the nearest position toward the octant of another material than
+        // the voxel's, and how far the union goes before its first end.
+        s.differs_at.fill(u32::MAX);
+        // From the octant's far end, so what lies toward the octant is done first.
+        let position = |k: usize| if self.down { k } else { n - 1 - k };
+        let at_lane = |t: usize, lane: usize| base + t * stride + lane * lane_stride;
+        for k in 0..n {
+            let t = position(k);
+            if k > 0 {
+                let before = position(k - 1);
+                for (lane, at) in s.differs_at.iter_mut().enumerate() {
+                    if self.voxels[at_lane(t, lane)] != self.voxels[at_lane(before, lane)] {
+                        *at = before as u32;
+                    }
+                }
+            }
+            for (e, &at) in s.ends.iter_mut().zip(&s.differs_at) {
+                *e = if at == u32::MAX {
+                    u32::MAX
+                } else {
+                    at.abs_diff(t as u32)
+                };
+            }
+            for (key_index, key) in self.keys.iter().enumerate() {
+                let at = &mut s.at[key_index * n * lanes..][..n * lanes];
+                let kept = &mut s.kept[key_index * n * lanes..][..n * lanes];
+                let depth = &mut s.depth[key_index * lanes..][..lanes];
+                for lane in 0..lanes {
+                    let mine = key[at_lane(t, lane)];
+                    let mut h = depth[lane];
+                    while h > 0 && kept[(h - 1) * lanes + lane] >= mine {
+                        h -= 1;
+                    }
+                    if h > 0 {
+                        let j = at[(h - 1) * lanes + lane].abs_diff(t as u32);
+                        s.ends[lane] = s.ends[lane].min(j);
+                    }
+                    at[h * lanes + lane] = t as u32;
+                    kept[h * lanes + lane] = mine;
+                    depth[lane] = h + 1;
+                }
+            }
+            for (lane, (o, &e)) in out[t * lanes..][..lanes]
+                .iter_mut()
+                .zip(&s.ends)
+                .enumerate()
+            {
+                let c = self.cube[at_lane(t, lane)];
+                *o = if e == u32::MAX {
+                    255
+                } else {
+                    (u32::from(c) + e - 1).min(255) as u8
+                };
+            }
+        }
+    }
 }
