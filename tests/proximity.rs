@@ -166,11 +166,7 @@ fn radii_past_the_cap_are_exact_along_every_axis() {
 /// `o`, clipped to the grid, less one; [`MAX_RADIUS`] once the cube reaches the grid's
 /// far side on every axis or passes the cap.
 fn corner_radius(g: &Grid, v: IVec3, o: usize) -> u8 {
-    let s = IVec3::new(
-        1 - 2 * (o & 1) as i32,
-        1 - 2 * (o >> 1 & 1) as i32,
-        1 - 2 * (o >> 2 & 1) as i32,
-    );
+    let s = step_of(o);
     let dims = g.dims().as_ivec3();
     let m = g.get(v);
     for k in 1..=i32::from(MAX_RADIUS) {

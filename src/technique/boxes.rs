@@ -32,7 +32,7 @@ use glam::{IVec3, UVec3};
 use rayon::prelude::*;
 
 use super::TraversalModel;
-use super::octant::{octant, octant_radii};
+use super::octant::{corner_box, octant, octant_radii};
 use crate::scene::Grid;
 use crate::sparse::{Region, Regions};
 
@@ -136,23 +136,24 @@ impl BoxField {
 
     /// The reaches of voxel `v`'s box toward octant `o`, as the walk reads them.
     pub fn reach(&self, v: IVec3, o: usize) -> IVec3 {
-        let n = self.dims.element_product() as usize;
+        reaches(self.word(v, o) >> (8 + 12 * (o & 1)))
+    }
+
+    /// The word of voxel `v` in octant `o`'s plane: its material and the codes of
+    /// octant `o`'s box and its plane's other octant's.
+    fn word(&self, v: IVec3, o: usize) -> u32 {
         let d = self.dims.as_usizevec3();
         let i = v.x as usize + d.x * (v.y as usize + d.y * v.z as usize);
-        reaches(self.words[(o >> 1) * n + i] >> (8 + 12 * (o & 1)))
+        self.words[(o >> 1) * d.element_product() + i]
     }
 }
 
 impl Regions for BoxField {
     fn region(&self, v: IVec3, step: IVec3) -> Region {
         let o = octant(step);
-        let n = self.dims.element_product() as usize;
-        let d = self.dims.as_usizevec3();
-        let i = v.x as usize + d.x * (v.y as usize + d.y * v.z as usize);
-        let word = self.words[(o >> 1) * n + i];
-        let (lo, hi) = corner_box(v, reaches(word >> (8 + 12 * (o & 1))), o);
+        let (lo, hi) = corner_box(v, self.reach(v, o), o);
         Region {
-            material: word as u8,
+            material: self.word(v, o) as u8,
             lo: lo.max(IVec3::ZERO),
             hi: hi.min(self.dims.as_ivec3()),
         }
@@ -161,13 +162,6 @@ impl Regions for BoxField {
     fn device_words(&self) -> Vec<&[u32]> {
         vec![&self.words]
     }
-}
-
-/// The box of reaches `r` with voxel `v` as its corner toward octant `o` (unclipped):
-/// its first voxel and one past its last.
-fn corner_box(v: IVec3, r: IVec3, o: usize) -> (IVec3, IVec3) {
-    let down = IVec3::new((o & 1) as i32, (o >> 1 & 1) as i32, (o >> 2 & 1) as i32);
-    (v - r * down, v + IVec3::ONE + r * (IVec3::ONE - down))
 }
 
 /// Each voxel's box toward octant `o` as its twelve-bit code: the corner cube stretched

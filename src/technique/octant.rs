@@ -124,7 +124,12 @@ pub(crate) fn code_bits(r: u8, o: usize) -> u32 {
 /// The cube of cell `c` whose word is `word` toward octant `o`, in cells (unclipped):
 /// its first cell and one past its last.
 pub(crate) fn corner_cube(c: IVec3, word: u32, o: usize) -> (IVec3, IVec3) {
-    let reach = IVec3::splat(i32::from(radius(word, o)));
+    corner_box(c, IVec3::splat(i32::from(radius(word, o))), o)
+}
+
+/// The box of reaches `reach` (per axis) with cell `c` as its corner toward octant `o`
+/// (unclipped): its first cell and one past its last.
+pub(crate) fn corner_box(c: IVec3, reach: IVec3, o: usize) -> (IVec3, IVec3) {
     let down = IVec3::new((o & 1) as i32, (o >> 1 & 1) as i32, (o >> 2 & 1) as i32);
     (
         c - reach * down,
