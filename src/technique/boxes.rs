@@ -191,8 +191,8 @@ pub fn octant_boxes(voxels: &[u8], dims: UVec3, o: usize) -> Vec<u16> {
 /// on the way has `v`'s material and every key at least `v`'s, so the first `j >= 1`
 /// where one does not ends it (a "next smaller element" per key, one stack per key and
 /// line). A line that never ends reaches past the grid: 255, as far as a byte goes.
-/// Lines along y and z are swept a row of x at a time, side by side, so that a step
-/// along the axis reads contiguous voxels.
+/// The lines of a slab (or, along z, of a row of x) are swept side by side, so that a
+/// thread's stacks are allocated once and a step along y or z reads contiguous voxels.
 fn extend(
     voxels: &[u8],
     dims: UVec3,
