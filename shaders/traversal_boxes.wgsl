@@ -8,6 +8,7 @@
 
 #import voxlab::types::Region
 #import voxlab::bindings::{params, walk_data}
+#import voxlab::box_codes::box_reach
 
 // Regions are boxes of any size: dda_skip leaves them whole.
 const REGIONS_ARE_VOXELS: bool = false;
@@ -28,17 +29,12 @@ fn region_cursor(step: vec3<i32>) -> RegionCursor {
     return RegionCursor((o >> 1u) * voxels, 8u + 12u * (o & 1u), down);
 }
 
-// The box of voxel v (inside the grid) toward the walk's octant, clipped to the grid:
-// four bits a reach, x lowest; code k stands for reach k below 2, else
-// (2 + k % 2) << (k / 2 - 1) (crate::technique::boxes::REACHES).
+// The box of voxel v (inside the grid) toward the walk's octant, clipped to the grid.
 fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
     let u = vec3<u32>(v);
     let i = (*c).plane + u.x + params.dims.x * (u.y + params.dims.y * u.z);
     let word = walk_data[i >> 2u][i & 3u];
-    let code = word >> (*c).shift;
-    let k = (vec3<u32>(code) >> vec3<u32>(0u, 4u, 8u)) & vec3<u32>(15u);
-    let scaled = (2u + (k & vec3<u32>(1u))) << (max(k >> vec3<u32>(1u), vec3<u32>(1u)) - 1u);
-    let reach = vec3<i32>(select(k, scaled, k >= vec3<u32>(2u)));
+    let reach = box_reach(word >> (*c).shift);
     let lo = v - reach * (*c).down;
     let hi = v + 1 + reach * (1 - (*c).down);
     return Region(word & 255u, max(lo, vec3<i32>(0)), min(hi, vec3<i32>(params.dims)));

@@ -53,6 +53,10 @@ const MODULES: &[(&str, &str)] = &[
         include_str!("../../shaders/triangles.wgsl"),
     ),
     (
+        "shaders/box_codes.wgsl",
+        include_str!("../../shaders/box_codes.wgsl"),
+    ),
+    (
         "shaders/traversal.wgsl",
         include_str!("../../shaders/traversal.wgsl"),
     ),

@@ -101,8 +101,8 @@ static CODES: [u8; 256] = {
     codes
 };
 
-/// The reaches a box's twelve-bit code stands for.
-fn reaches(code: u32) -> IVec3 {
+/// The reaches a box's twelve-bit code stands for (the lowest twelve bits of `code`).
+pub(crate) fn reaches(code: u32) -> IVec3 {
     IVec3::from_array([0, 4, 8].map(|s| i32::from(REACHES[(code >> s & 15) as usize])))
 }
 
@@ -167,7 +167,7 @@ impl Regions for BoxField {
 /// Each voxel's box toward octant `o` as its twelve-bit code: the corner cube stretched
 /// along z, then x, then y (see the module documentation), each reach rounded down to
 /// [`REACHES`].
-pub fn octant_boxes(voxels: &[u8], dims: UVec3, o: usize) -> Vec<u16> {
+pub fn octant_boxes<T: Copy + PartialEq + Sync>(voxels: &[T], dims: UVec3, o: usize) -> Vec<u16> {
     let cube = octant_radii(voxels, dims, o);
     let [x, y, z] = [0, 1, 2];
     let along_z = extend(voxels, dims, o, z, &[&cube], &cube);
@@ -193,8 +193,8 @@ pub fn octant_boxes(voxels: &[u8], dims: UVec3, o: usize) -> Vec<u16> {
 /// line). A line that never ends reaches past the grid: 255, as far as a byte goes.
 /// The lines of a slab (or, along z, of a row of x) are swept side by side, so that a
 /// thread's stacks are allocated once and a step along y or z reads contiguous voxels.
-fn extend(
-    voxels: &[u8],
+fn extend<T: Copy + PartialEq + Sync>(
+    voxels: &[T],
     dims: UVec3,
     o: usize,
     axis: usize,
@@ -255,8 +255,8 @@ fn extend(
 
 /// What [`extend`] sweeps: the grid, the keys, the corner cubes, the lines' length and
 /// whether the octant heads down the axis.
-struct Line<'a> {
-    voxels: &'a [u8],
+struct Line<'a, T> {
+    voxels: &'a [T],
     keys: &'a [&'a [u8]],
     cube: &'a [u8],
     n: usize,
@@ -286,7 +286,7 @@ impl Stacks {
     }
 }
 
-impl Line<'_> {
+impl<T: Copy + PartialEq> Line<'_, T> {
     /// The reaches of `lanes` lines side by side from voxel `base` (a line's voxels
     /// `stride` apart, the lines' first voxels `lane_stride` apart) into `out`, laid
     /// `[position][line]`.
