@@ -1,6 +1,6 @@
-// The sparse octant traversal (src/technique/sparse_octant.rs): the octant field over the
+// The sparse octant traversal (src/technique/sparse_octant.rs): the box field over the
 // 64-tree's cubes of 2^log_cell voxels. In a cell the tree holds as one material the
-// region is the walk's octant's cube of such cells (as traversal_octant.wgsl's cube of
+// region is the walk's octant's box of such cells (as traversal_boxes.wgsl's box of
 // voxels); in a cell the tree holds as a node, the uniform child the tree's descent from
 // that node finds (shaders/tree.wgsl), and where the walk has codes, the child's octant
 // cube of its node's children. A walk without codes, one with them and one with them
@@ -11,18 +11,22 @@
 
 #import voxlab::types::Region
 #import voxlab::bindings::{params, walk_data, walk_more_word}
+#import voxlab::box_codes::box_reach
 #import voxlab::tree::{Descent, NODE_VEC4S, descend_from, region_below}
 
 // Regions are cubes of any size: dda_skip leaves them whole.
 const REGIONS_ARE_VOXELS: bool = false;
 
-// Read once a walk: the walk's octant (where its code sits in a cell's word, the axes it
-// heads down), the cut (its first cell's vec4, log2 of a cell's side, its dims) and the
+// Read once a walk: the walk's octant (where its cube's code sits in a child's word,
+// which word of a uniform cell holds its box's code and where, the axes it heads down),
+// the cut (its first cell's vec4, log2 of a cell's side, its dims) and the
 // codes below it (the first node with its children's codes, their first vec4 where
 // they follow the cut, and where their distinct blocks of 64 words start after the
 // nodes' block indices).
 struct RegionCursor {
-    shift: u32,
+    cube_shift: u32,
+    plane: u32,
+    box_shift: u32,
     down: vec3<i32>,
     cells: u32,
     log_cell: u32,
@@ -41,7 +45,7 @@ fn region_cursor(step: vec3<i32>) -> RegionCursor {
     let at = 1u + walk_data[0].z * NODE_VEC4S;
     let cut = walk_data[at];
     let coded = walk_data[at + 1u];
-    return RegionCursor(8u + 3u * o, down, at + 2u, cut.x, cut.yzw, coded.x, at + coded.z, coded.w);
+    return RegionCursor(8u + 3u * o, o >> 1u, 12u * (o & 1u), down, at + 2u, cut.x, cut.yzw, coded.x, at + coded.z, coded.w);
 }
 
 #if WALK_VARIANT >= 1
@@ -57,14 +61,31 @@ fn code_word(c: ptr<function, RegionCursor>, i: u32) -> u32 {
 }
 #endif
 
-// The cube toward the walk's octant of `cell` (of 2^log voxels a side) whose octant word
-// is `word` (crate::technique::octant::corner_cube), in voxels, clipped to the grid.
-fn corner_region(c: ptr<function, RegionCursor>, cell: vec3<i32>, word: u32, log: u32) -> Region {
-    let k = (word >> (*c).shift) & 7u;
-    let reach = vec3<i32>(i32((1u << k) >> 1u));
+// A cell's fourth word has this bit where the cell is uniform (a node's cell holds an
+// index there; crate::technique::sparse_octant::UNIFORM_CELL).
+const UNIFORM_CELL: u32 = 0x80000000u;
+
+// The box of material `material` toward the walk's octant with `cell` (of 2^log voxels
+// a side) as its corner, reaching `reach` cells along each axis
+// (crate::technique::octant::corner_box), in voxels, clipped to the grid.
+fn corner_region(c: ptr<function, RegionCursor>, cell: vec3<i32>, material: u32, reach: vec3<i32>, log: u32) -> Region {
     let lo = (cell - reach * (*c).down) << vec3<u32>(log);
     let hi = (cell + 1 + reach * (1 - (*c).down)) << vec3<u32>(log);
-    return Region(word & 255u, max(lo, vec3<i32>(0)), min(hi, vec3<i32>(params.dims)));
+    return Region(material, max(lo, vec3<i32>(0)), min(hi, vec3<i32>(params.dims)));
+}
+
+// The reach of the cube toward the walk's octant of a child whose octant word is `word`
+// (crate::technique::octant::corner_cube).
+fn cube_reach(c: ptr<function, RegionCursor>, word: u32) -> vec3<i32> {
+    let k = (word >> (*c).cube_shift) & 7u;
+    return vec3<i32>(i32((1u << k) >> 1u));
+}
+
+// The reaches of a uniform cell's box toward the walk's octant: four words a cell, word
+// p holding octants 2p and 2p + 1 (twelve bits each), the first word the material in
+// its top byte.
+fn cell_reach(c: ptr<function, RegionCursor>, cell: vec4<u32>) -> vec3<i32> {
+    return box_reach(cell[(*c).plane] >> (*c).box_shift);
 }
 
 // The uniform region holding voxel v (inside the grid), for the walk's octant.
@@ -75,18 +96,22 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
     let i = cell.x + d.x * (cell.y + d.y * cell.z);
     // The node of the tree's level at or above the cell (src/sparse.rs, cut_node_log).
     let node_log = ((*c).log_cell + 1u) & ~1u;
-#if WALK_VARIANT == 2
-    // KERNEL_WITH_HEADS: the cells' nodes are nodes of 16 with codes. A vec4 a cell: a
-    // uniform cell's word and 0s, or its node's head (the mask and first child the
-    // descent's first level reads) and one more than its block index, so a step reads
-    // the cell and no tree; below the node of 16 a leaf's children are voxels, whose
-    // words are its codes. The descent ends at the cell's node (its block from the
-    // cell) or at a leaf (its block from the codes' indices).
+    // A vec4 a cell: a uniform cell's material and box codes (cell_reach), or a node's
+    // cell.
     let head = walk_data[(*c).cells + i];
     var at = cell;
-    var code = head.x;
+    var material = head.x >> 24u;
+    var reach = cell_reach(c, head);
     var log = (*c).log_cell;
-    if head.w != 0u {
+#if WALK_VARIANT == 2
+    // KERNEL_WITH_HEADS: the cells' nodes are nodes of 16 with codes. A node's cell holds
+    // its node's head (the mask and first child the descent's first level reads) and one
+    // more than its block index, so a step reads the cell and no tree; below the node of
+    // 16 a leaf's children are voxels, whose words are its codes. The descent ends at the
+    // cell's node (its block from the cell) or at a leaf (its block from the codes'
+    // indices). One region for both sides, so the driver, which runs both sides of the
+    // branch, builds one.
+    if (head.w & UNIFORM_CELL) == 0u {
         var dn: Descent;
         dn.node = 0u;
         dn.shift = node_log - 2u;
@@ -98,45 +123,45 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
         }
         at = u >> vec3<u32>(dn.shift);
         let p = at & vec3<u32>(3u);
-        code = code_word(c, (*c).blocks + 64u * block + p.x + 4u * p.y + 16u * p.z);
+        let code = code_word(c, (*c).blocks + 64u * block + p.x + 4u * p.y + 16u * p.z);
+        material = code & 255u;
+        reach = cube_reach(c, code);
         log = dn.shift;
     }
-    return corner_region(c, vec3<i32>(at), code, log);
+    return corner_region(c, vec3<i32>(at), material, reach, log);
 #else
-    // Two words a cell: a vec4 holds two cells.
-    let pair = walk_data[(*c).cells + (i >> 1u)];
-    let word = select(pair.xy, pair.zw, (i & 1u) == 1u);
+    // A node's cell: its block index (0 without codes) and one more than its node's
+    // index.
 #if WALK_VARIANT == 1
     // With codes (KERNEL_WITH_CODES): every node below the cut has them (the tree's last
     // nodes), and a child's word holds its material. In a node's cell, the uniform
-    // child's own cube in children of the node the descent ends at; else the cell's cube
-    // of cells. One cube for both, so the driver, which runs both sides of the branch,
+    // child's own cube in children of the node the descent ends at; else the cell's box
+    // of cells. One region for both, so the driver, which runs both sides of the branch,
     // builds one.
-    var at = cell;
-    var code = word.x;
-    var log = (*c).log_cell;
-    if word.y != 0u {
-        let found = region_below(v, word.y - 1u, node_log - 2u, false);
+    if (head.w & UNIFORM_CELL) == 0u {
+        let found = region_below(v, head.y - 1u, node_log - 2u, false);
         at = u >> vec3<u32>(found.shift);
         let p = at & vec3<u32>(3u);
         // The node's block of its children's words, shared by the nodes with the same
         // words (crate::technique::sparse_octant::SparseOctant::with_codes): a descent
         // of one level ends at the cell's node, whose index the cell holds.
 #if TREE_LEVELS == 1
-        let block = word.x;
+        let block = head.x;
 #else
         let block = code_word(c, found.node - (*c).coded_first);
 #endif
-        code = code_word(c, (*c).blocks + 64u * block + p.x + 4u * p.y + 16u * p.z);
+        let code = code_word(c, (*c).blocks + 64u * block + p.x + 4u * p.y + 16u * p.z);
+        material = code & 255u;
+        reach = cube_reach(c, code);
         log = found.shift;
     }
-    return corner_region(c, vec3<i32>(at), code, log);
+    return corner_region(c, vec3<i32>(at), material, reach, log);
 #else
     // Without codes: the uniform child itself, its material read from the tree.
-    if word.y != 0u {
-        return region_below(v, word.y - 1u, node_log - 2u, true).region;
+    if (head.w & UNIFORM_CELL) == 0u {
+        return region_below(v, head.y - 1u, node_log - 2u, true).region;
     }
-    return corner_region(c, vec3<i32>(cell), word.x, (*c).log_cell);
+    return corner_region(c, vec3<i32>(at), material, reach, log);
 #endif
 #endif
 }

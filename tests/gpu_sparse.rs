@@ -224,7 +224,7 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
     );
     // The sparse octant walk: in the tree's place a header of no nodes (with codes
     // whose descents take one level the kernel reads none of the tree), the cut's two
-    // header vec4s, two words for each of its cells (of 4 voxels a side at 64^3), a
+    // header vec4s, a vec4 for each of its cells (of 4 voxels a side at 64^3), a
     // block index for each leaf (the nodes below the cut there; to a vec4 boundary) and
     // a word for each voxel of each distinct block of the leaves' words.
     gpu.render(&scene, &settings(16, 16, 1, SPARSE_OCTANT_WALK))
@@ -239,7 +239,7 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
     assert!(blocks > 0 && blocks / 64 < coded, "{} blocks", blocks / 64);
     assert_eq!(
         cut.walk_data,
-        16 + 32 + 8 * 16 * 16 * 16 + 4 * coded.next_multiple_of(4) + 4 * blocks,
+        16 + 32 + 16 * 16 * 16 * 16 + 4 * coded.next_multiple_of(4) + 4 * blocks,
         "{cut:?}"
     );
     // The proximity walk: two bytes a voxel of its own, no voxel buffer.
@@ -389,7 +389,7 @@ fn the_seed_scene_at_2048_renders_through_its_tree() {
     println!("seed 2048^3 on the device: {memory:?}");
     assert_eq!(memory.grid, 0);
     // A small part of the 8 GiB dense grid: the cut, whose cells hold their nodes'
-    // heads (32 MiB), and the codes, whose distinct blocks (2.3 MiB) and the nodes' block
+    // heads (32 MiB), and the codes, whose distinct blocks (1.5 MiB) and the nodes' block
     // indices (5.2 MiB) follow it in one of lavapipe's bindings; the tree (104 MiB) stays
     // on the host.
     assert!(
@@ -648,9 +648,9 @@ fn the_walk_budget_setting_changes_the_steps_alike_and_never_the_image() {
 
 /// A walk's data past one binding where its descents take two levels: the seed scene
 /// at 1024^3 within 7 MiB a binding holds its cut, whose cells hold their nodes' heads
-/// (4.0 MiB), in `walk_data` and its codes (3.7 MiB: the nodes' block indices and the
+/// (4.0 MiB), in `walk_data` and its codes (3.0 MiB: the nodes' block indices and the
 /// distinct blocks) in a further binding (`walk_more_word`, shaders/bindings.wgsl); all
-/// of it (7.7 MiB) would not fit one. The GPU walks them to the image and the steps of
+/// of it (7.02 MiB) would not fit one. The GPU walks them to the image and the steps of
 /// the same data in the device's own budget (on lavapipe all of it in one binding, the
 /// codes after the cut), and to the CPU reference's image and steps at 7 MiB. Two and three further
 /// bindings, which the seed scene's few distinct blocks never need, are walked by

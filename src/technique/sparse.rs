@@ -4,8 +4,8 @@
 //! "Sparse traversal"; the structure and why a 64-tree: docs/sparse-traversal.md).
 //!
 //! It walks every grid, on demand (`render.traversal = "sparse"`): under `"auto"` the
-//! sparse octant walk ([`super::sparse_octant`], the same tree with an octant field over
-//! its cubes) takes the grids this walk would, in fewer steps.
+//! sparse octant walk ([`super::sparse_octant`], the same tree with a box field over its
+//! cubes) takes the grids this walk would, in fewer steps.
 
 use super::TraversalModel;
 

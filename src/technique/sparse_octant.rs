@@ -1,9 +1,14 @@
 //! The sparse octant traversal: the sparse 64-tree ([`super::sparse`]) cut at cubes of
-//! [`log_cell_side`] voxels, with the octant field ([`super::octant`]) over the cut. A cube
+//! [`log_cell_side`] voxels, with the box field ([`super::boxes`]) over the cut. A cube
 //! the tree holds as one material is a cell of the field: a ray in that material reads
-//! its octant's cube of such cells and skips it whole, however many tree nodes it
-//! crosses; a cube that holds a node is walked through the tree below it, from that
-//! node. The tree walk's cost grows with the grid's side (a ray leaving a surface
+//! its octant's box of such cells (the cell its corner, a reach per axis) and skips it
+//! whole, however many tree nodes it crosses; a cube that holds a node is walked
+//! through the tree below it, from that node. Boxes rather than the octant field's
+//! cubes: a ray grazing a wall crosses cubes no larger than its height above the wall,
+//! and a box long along the wall takes it there in a step or two (the seed scene under
+//! its rules, 128x128 on the CPU reference: 6.73 steps a ray with cubes at 256^3, 4.33
+//! with boxes; 9.74 and 7.30 at 1024^3, 11.13 and 7.96 at 2048^3; the bunny at 512
+//! 12.08 and 9.92; docs/sparse-traversal.md, "Boxes over the cut"). The tree walk's cost grows with the grid's side (a ray leaving a surface
 //! climbs level by level out of ever larger cubes, and descends again into its hit); this
 //! walk climbs at most the levels of one cell.
 //!
@@ -34,13 +39,14 @@
 //! index of the first node with codes, the number of such nodes, the vec4 of its codes
 //! counted from `h` where they follow the cut, the word of the first block in its
 //! codes) and from
-//! `h + 2` the cells (x fastest). Two words a cell: the octant field's word (material
-//! and eight codes, [`super::octant::OctantField`]) and 0 for a uniform cell, or the
-//! node's block index (0 without codes) and the node's index plus one for a cell the
-//! tree holds as a node. Where the cells' nodes are nodes of 16 and have codes
-//! (`KERNEL_WITH_HEADS`), a vec4 a cell instead: a uniform cell's word and three 0s,
-//! or its node's head (mask words and first child, as the tree holds them) and one
-//! more than its block index. Then the codes: each node's block index in node order (to
+//! `h + 2` the cells (x fastest), a vec4 a cell. A uniform cell holds its eight boxes'
+//! twelve-bit codes ([`super::boxes::REACHES`]), word `p` octants `2p` and `2p + 1`
+//! (the second from bit 12), its material in the first word's top byte and
+//! `UNIFORM_CELL` in the fourth's top bit; a cell the tree holds as a node holds the
+//! node's block index (0 without codes), the node's index plus one and two 0s, or,
+//! where the cells' nodes are nodes of 16 and have codes (`KERNEL_WITH_HEADS`), its
+//! node's head (mask words and first child, as the tree holds them) and one more than
+//! its block index. Then the codes: each node's block index in node order (to
 //! a vec4 boundary), then the distinct blocks, 64 words each (a node's children, x
 //! fastest; 0 for a child that is a node): from a vec4 boundary after the cut, or as
 //! the walk's further words (`walk_more_word`, [`Regions::device_more_words`]). The tree
@@ -54,10 +60,11 @@ use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use super::TraversalModel;
-use super::octant::{code_bits, corner_cube, octant, octant_radii, word};
+use super::boxes::{octant_boxes, reaches};
+use super::octant::{code_bits, corner_box, corner_cube, octant};
 use crate::sparse::{Cut, GPU_LOG_BRANCH, Region, Regions, SparseTree};
 
-/// The most cells the cut has: 2 M, 16 MiB.
+/// The most cells the cut has: 2 M, 32 MiB.
 pub const MAX_CELLS: u64 = 1 << 21;
 
 /// The most bytes a binding of the walk's data takes in [`SparseOctant::build`]: the
@@ -66,6 +73,10 @@ pub const MAX_CELLS: u64 = 1 << 21;
 /// ([`SparseOctant::build_within`]). A tree whose codes do not fit is walked without
 /// them.
 pub const MAX_WALK_BYTES: usize = super::HOST_WALK_BYTES;
+
+/// The flag of a uniform cell in its fourth word: a node's cell has a node's index or a
+/// block index there, both far below it.
+const UNIFORM_CELL: u32 = 1 << 31;
 
 /// Children of a node of the 64-tree, each with a word of codes.
 const CHILDREN: usize = 64;
@@ -94,7 +105,7 @@ const NO_TREE: [u32; 4] = [0; 4];
 
 /// Log2 of the side of the cut's cells for a tree of these dims and branching: the
 /// smallest side (4, 8, 16 ... voxels) whose cells number at most [`MAX_CELLS`]: the
-/// smaller the cells, the nearer to a surface the octant cubes reach, and the fewer
+/// smaller the cells, the nearer to a surface the boxes reach, and the fewer
 /// steps a walk takes through the tree below a cell. A side between the tree's levels
 /// (8 for the 64-tree) descends from the node of the level above.
 pub fn log_cell_side(dims: UVec3, log_branch: u32, levels: u32) -> u32 {
@@ -112,10 +123,11 @@ pub fn log_cell_side(dims: UVec3, log_branch: u32, levels: u32) -> u32 {
 pub const TRAVERSAL: TraversalModel = TraversalModel {
     name: "sparse_octant",
     summary: "the sparse 64-tree cut at its smallest cubes (4, 8 or 16 voxels a side) \
-              that number at most 2 M, with the octant field over the cut and over the \
-              children of each node below it (down to the voxels of the leaves): a uniform \
-              cube's or child's octant cube of its like is skipped whole",
-    label: "sparse 64-tree + octant cells",
+              that number at most 2 M, with the box field over the cut and the octant \
+              field over the children of each node below it (down to the voxels of the \
+              leaves): a uniform cell's box of its like toward the ray's octant, or a \
+              child's cube, is skipped whole",
+    label: "sparse 64-tree + box cells",
     plan: |_, _| Ok(()),
     // Where the plain tree walk claimed grids: on lavapipe (`voxlab bench --sizes
     // 256,512,1024,2048 --size 256 --no-cpu --gpu-runs 5 --rules seed --traversal
@@ -150,7 +162,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
     device_bytes: None,
 };
 
-/// The tree and the octant field over its cut and below it (see the module
+/// The tree, the box field over its cut and the octant field below it (see the module
 /// documentation).
 #[derive(Clone, Debug)]
 pub struct SparseOctant {
@@ -327,19 +339,29 @@ impl SparseOctant {
                 Cut::Node(_) => None,
             })
             .collect();
-        let radii: Vec<Vec<u8>> = (0..8)
+        let boxes: Vec<Vec<u16>> = (0..8)
             .into_par_iter()
-            .map(|o| octant_radii(&cells, cut_dims, o))
+            .map(|o| octant_boxes(&cells, cut_dims, o))
             .collect();
         debug_assert_eq!(tree.words().len() % 4, 0, "the tree ends on a vec4");
-        let mut words = Vec::with_capacity(CUT_HEADER_WORDS + 2 * cut.len());
+        let mut words = Vec::with_capacity(CUT_HEADER_WORDS + 4 * cut.len());
         words.extend_from_slice(&[log_cell, cut_dims.x, cut_dims.y, cut_dims.z]);
         // The second header vec4 is the codes', filled in by with_codes.
         words.extend_from_slice(&[0; 4]);
         for (i, c) in cut.iter().enumerate() {
             match c {
-                Cut::Uniform(m) => words.extend_from_slice(&[word(*m, &radii, i), 0]),
-                Cut::Node(n) => words.extend_from_slice(&[0, n + 1]),
+                Cut::Uniform(m) => {
+                    let plane = |p: usize| {
+                        u32::from(boxes[2 * p][i]) | u32::from(boxes[2 * p + 1][i]) << 12
+                    };
+                    words.extend_from_slice(&[
+                        plane(0) | u32::from(*m) << 24,
+                        plane(1),
+                        plane(2),
+                        plane(3) | UNIFORM_CELL,
+                    ]);
+                }
+                Cut::Node(n) => words.extend_from_slice(&[0, n + 1, 0, 0]),
             }
         }
         Self {
@@ -371,8 +393,9 @@ impl SparseOctant {
     /// 9,698 distinct blocks of 338,896 at 1024^3 and 9,302 of 1,363,216 at 2048^3
     /// (82.7 MiB of codes become 2.4 MiB of blocks and 1.3 MiB of indices, 332.8 MiB 2.3
     /// and 5.2 MiB), so a frame reads from far fewer bytes: 1024^3 1.16x as fast on
-    /// lavapipe, 2048^3 1.31x (docs/sparse-traversal.md, "Distinct blocks"). Only a
-    /// level's words are held whole while it is built. Not yet placed
+    /// lavapipe, 2048^3 1.31x (docs/sparse-traversal.md, "Distinct blocks"); since the
+    /// cut's cells hold boxes, whose reach the cubes next to them count, 7,087 and 6,346
+    /// blocks. Only a level's words are held whole while it is built. Not yet placed
     /// ([`Self::placed`]).
     fn with_codes(mut self, first: u32, nodes: &[(IVec3, u32)]) -> Self {
         self.blocks_words = nodes.len().next_multiple_of(4);
@@ -405,8 +428,8 @@ impl SparseOctant {
         // codes): where a descent takes one level it ends at that node, and the kernel
         // reads no index (traversal_sparse_octant.wgsl; the bunny at 512, whose curved
         // surface leaves nearly every block distinct, 4 % slower with the read).
-        for cell in self.cut[CUT_HEADER_WORDS..].chunks_exact_mut(2) {
-            if cell[1] != 0 {
+        for cell in self.cut[CUT_HEADER_WORDS..].chunks_exact_mut(4) {
+            if cell[3] & UNIFORM_CELL == 0 {
                 cell[0] = self.codes[(cell[1] - 1 - first) as usize];
             }
         }
@@ -433,9 +456,9 @@ impl SparseOctant {
             let cells = self.cut_dims.as_u64vec3().element_product() as usize;
             let mut heads = Vec::with_capacity(CUT_HEADER_WORDS + 4 * cells);
             heads.extend_from_slice(&self.cut[..CUT_HEADER_WORDS]);
-            for cell in self.cut[CUT_HEADER_WORDS..][..2 * cells].chunks_exact(2) {
-                if cell[1] == 0 {
-                    heads.extend_from_slice(&[cell[0], 0, 0, 0]);
+            for cell in self.cut[CUT_HEADER_WORDS..][..4 * cells].chunks_exact(4) {
+                if cell[3] & UNIFORM_CELL != 0 {
+                    heads.extend_from_slice(cell);
                 } else {
                     heads.extend_from_slice(self.tree.node_head(cell[1] - 1));
                     heads.push(cell[0] + 1);
@@ -484,8 +507,7 @@ impl SparseOctant {
         } else {
             self.tree.words().len()
         };
-        let cell = if self.heads_with_codes() { 4 } else { 2 };
-        tree + CUT_HEADER_WORDS + cell * cells
+        tree + CUT_HEADER_WORDS + 4 * cells
     }
 
     /// The tree as uploaded: the tree, or [`NO_TREE`] where the kernel reads none of it.
@@ -778,9 +800,10 @@ impl Regions for SparseOctant {
         let c = v >> self.log_cell as i32;
         let d = self.cut_dims;
         let i = CUT_HEADER_WORDS
-            + 2 * (c.x as usize + d.x as usize * (c.y as usize + d.y as usize * c.z as usize));
-        let node = self.cut[i + 1];
-        if node != 0 {
+            + 4 * (c.x as usize + d.x as usize * (c.y as usize + d.y as usize * c.z as usize));
+        let cell = &self.cut[i..i + 4];
+        if cell[3] & UNIFORM_CELL == 0 {
+            let node = cell[1];
             let (region, found, shift) = self.tree.descend(v, node - 1, self.node_shift);
             let k = found.wrapping_sub(self.coded_first);
             if k >= self.coded_count || shift < self.coded_shift {
@@ -799,11 +822,11 @@ impl Regions for SparseOctant {
                 hi: (hi << shift as i32).min(self.tree.dims().as_ivec3()),
             };
         }
-        let word = self.cut[i];
-        let (lo, hi) = corner_cube(c, word, octant(step));
+        let o = octant(step);
+        let (lo, hi) = corner_box(c, reaches(cell[o >> 1] >> (12 * (o & 1))), o);
         let shift = self.log_cell as i32;
         Region {
-            material: word as u8,
+            material: (cell[0] >> 24) as u8,
             lo: (lo << shift).max(IVec3::ZERO),
             hi: (hi << shift).min(self.tree.dims().as_ivec3()),
         }
