@@ -2,8 +2,8 @@
 // 64-tree's cubes of 2^log_cell voxels. In a cell the tree holds as one material the
 // region is the walk's octant's box of such cells (as traversal_boxes.wgsl's box of
 // voxels); in a cell the tree holds as a node, the uniform child the tree's descent from
-// that node finds (shaders/tree.wgsl), and where the walk has codes, the child's octant
-// cube of its node's children. A walk without codes, one with them and one with them
+// that node finds (shaders/tree.wgsl), and where the walk has codes, the child's box
+// of its node's children toward the walk's octant. A walk without codes, one with them and one with them
 // whose cells hold their nodes' heads are three kernels (WALK_VARIANT 0, 1, 2:
 // crate::sparse::Regions::kernel_variant), each without the others' reads. The f64
 // reference: crate::technique::sparse_octant::SparseOctant.
@@ -14,19 +14,18 @@
 #import voxlab::box_codes::box_reach
 #import voxlab::tree::{Descent, NODE_VEC4S, descend_from, region_below}
 
-// Regions are cubes of any size: dda_skip leaves them whole.
+// Regions are boxes of any size: dda_skip leaves them whole.
 const REGIONS_ARE_VOXELS: bool = false;
 
-// Read once a walk: the walk's octant (where its cube's code sits in a child's word,
-// which word of a uniform cell holds its box's code and where, the axes it heads down),
-// the cut (its first cell's vec4, log2 of a cell's side, its dims) and the
-// codes below it (the first node with its children's codes, their first vec4 where
-// they follow the cut, and where their distinct blocks of 64 words start after the
-// nodes' block indices).
+// Read once a walk: the walk's octant (which word of a uniform cell and which plane of a
+// node's block hold its box's code, where in the word, the axes it heads down), the cut
+// (its first cell's vec4, log2 of a cell's side, its dims) and the codes below it (the
+// first node with its children's codes, their first vec4 where they follow the cut, and
+// where their distinct blocks of 256 words start after the nodes' block indices).
 struct RegionCursor {
-    cube_shift: u32,
     plane: u32,
     box_shift: u32,
+    child_shift: u32,
     down: vec3<i32>,
     cells: u32,
     log_cell: u32,
@@ -45,7 +44,7 @@ fn region_cursor(step: vec3<i32>) -> RegionCursor {
     let at = 1u + walk_data[0].z * NODE_VEC4S;
     let cut = walk_data[at];
     let coded = walk_data[at + 1u];
-    return RegionCursor(8u + 3u * o, o >> 1u, 12u * (o & 1u), down, at + 2u, cut.x, cut.yzw, coded.x, at + coded.z, coded.w);
+    return RegionCursor(o >> 1u, 12u * (o & 1u), 8u + 12u * (o & 1u), down, at + 2u, cut.x, cut.yzw, coded.x, at + coded.z, coded.w);
 }
 
 #if WALK_VARIANT >= 1
@@ -74,12 +73,14 @@ fn corner_region(c: ptr<function, RegionCursor>, cell: vec3<i32>, material: u32,
     return Region(material, max(lo, vec3<i32>(0)), min(hi, vec3<i32>(params.dims)));
 }
 
-// The reach of the cube toward the walk's octant of a child whose octant word is `word`
-// (crate::technique::octant::corner_cube).
-fn cube_reach(c: ptr<function, RegionCursor>, word: u32) -> vec3<i32> {
-    let k = (word >> (*c).cube_shift) & 7u;
-    return vec3<i32>(i32((1u << k) >> 1u));
+#if WALK_VARIANT >= 1
+// The word of child p of a node whose block of codes is `block`: four planes of 64
+// words, plane q the children's materials and the box codes of octants 2q and 2q + 1
+// (crate::technique::sparse_octant::PLANES), so a step reads its octant's plane.
+fn child_word(c: ptr<function, RegionCursor>, block: u32, p: vec3<u32>) -> u32 {
+    return code_word(c, (*c).blocks + 256u * block + 64u * (*c).plane + p.x + 4u * p.y + 16u * p.z);
 }
+#endif
 
 // The reaches of a uniform cell's box toward the walk's octant: four words a cell, word
 // p holding octants 2p and 2p + 1 (twelve bits each), the first word the material in
@@ -123,9 +124,9 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
         }
         at = u >> vec3<u32>(dn.shift);
         let p = at & vec3<u32>(3u);
-        let code = code_word(c, (*c).blocks + 64u * block + p.x + 4u * p.y + 16u * p.z);
+        let code = child_word(c, block, p);
         material = code & 255u;
-        reach = cube_reach(c, code);
+        reach = box_reach(code >> (*c).child_shift);
         log = dn.shift;
     }
     return corner_region(c, vec3<i32>(at), material, reach, log);
@@ -135,7 +136,7 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
 #if WALK_VARIANT == 1
     // With codes (KERNEL_WITH_CODES): every node below the cut has them (the tree's last
     // nodes), and a child's word holds its material. In a node's cell, the uniform
-    // child's own cube in children of the node the descent ends at; else the cell's box
+    // child's own box in children of the node the descent ends at; else the cell's box
     // of cells. One region for both, so the driver, which runs both sides of the branch,
     // builds one.
     if (head.w & UNIFORM_CELL) == 0u {
@@ -150,9 +151,9 @@ fn region_at(c: ptr<function, RegionCursor>, v: vec3<i32>) -> Region {
 #else
         let block = code_word(c, found.node - (*c).coded_first);
 #endif
-        let code = code_word(c, (*c).blocks + 64u * block + p.x + 4u * p.y + 16u * p.z);
+        let code = child_word(c, block, p);
         material = code & 255u;
-        reach = cube_reach(c, code);
+        reach = box_reach(code >> (*c).child_shift);
         log = found.shift;
     }
     return corner_region(c, vec3<i32>(at), material, reach, log);

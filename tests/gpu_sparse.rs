@@ -226,7 +226,7 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
     // whose descents take one level the kernel reads none of the tree), the cut's two
     // header vec4s, a vec4 for each of its cells (of 4 voxels a side at 64^3), a
     // block index for each leaf (the nodes below the cut there; to a vec4 boundary) and
-    // a word for each voxel of each distinct block of the leaves' words.
+    // four words (planes) for each voxel of each distinct block of the leaves' words.
     gpu.render(&scene, &settings(16, 16, 1, SPARSE_OCTANT_WALK))
         .unwrap();
     let cut = gpu.last_memory().unwrap();
@@ -235,8 +235,12 @@ fn the_sparse_plan_holds_the_tree_not_the_grid_texture() {
     assert!(coded > 0);
     let walk = voxlab::technique::sparse_octant::SparseOctant::build(scene.grid.tree(2));
     let blocks = walk.codes().len() as u64 - coded.next_multiple_of(4);
-    assert_eq!(blocks % 64, 0);
-    assert!(blocks > 0 && blocks / 64 < coded, "{} blocks", blocks / 64);
+    assert_eq!(blocks % 256, 0);
+    assert!(
+        blocks > 0 && blocks / 256 < coded,
+        "{} blocks",
+        blocks / 256
+    );
     assert_eq!(
         cut.walk_data,
         16 + 32 + 16 * 16 * 16 * 16 + 4 * coded.next_multiple_of(4) + 4 * blocks,
@@ -389,11 +393,11 @@ fn the_seed_scene_at_2048_renders_through_its_tree() {
     println!("seed 2048^3 on the device: {memory:?}");
     assert_eq!(memory.grid, 0);
     // A small part of the 8 GiB dense grid: the cut, whose cells hold their nodes'
-    // heads (32 MiB), and the codes, whose distinct blocks (1.5 MiB) and the nodes' block
+    // heads (32 MiB), and the codes, whose distinct blocks (26.2 MiB) and the nodes' block
     // indices (5.2 MiB) follow it in one of lavapipe's bindings; the tree (104 MiB) stays
     // on the host.
     assert!(
-        memory.walk_data > 32 << 20 && memory.walk_data <= 48 << 20,
+        memory.walk_data > 32 << 20 && memory.walk_data <= 72 << 20,
         "{} bytes",
         memory.walk_data
     );
@@ -647,12 +651,12 @@ fn the_walk_budget_setting_changes_the_steps_alike_and_never_the_image() {
 }
 
 /// A walk's data past one binding where its descents take two levels: the seed scene
-/// at 1024^3 within 7 MiB a binding holds its cut, whose cells hold their nodes' heads
-/// (4.0 MiB), in `walk_data` and its codes (3.0 MiB: the nodes' block indices and the
+/// at 1024^3 within 27 MiB a binding holds its cut, whose cells hold their nodes' heads
+/// (4.0 MiB), in `walk_data` and its codes (24.5 MiB: the nodes' block indices and the
 /// distinct blocks) in a further binding (`walk_more_word`, shaders/bindings.wgsl); all
-/// of it (7.02 MiB) would not fit one. The GPU walks them to the image and the steps of
+/// of it (28.5 MiB) would not fit one. The GPU walks them to the image and the steps of
 /// the same data in the device's own budget (on lavapipe all of it in one binding, the
-/// codes after the cut), and to the CPU reference's image and steps at 7 MiB. Two and three further
+/// codes after the cut), and to the CPU reference's image and steps at 27 MiB. Two and three further
 /// bindings, which the seed scene's few distinct blocks never need, are walked by
 /// `generated_scenes_walk_their_codes_wherever_held`.
 #[test]
@@ -661,7 +665,7 @@ fn codes_in_a_further_binding_walk_as_codes_after_the_cut() {
     let mut gpu = tracer();
     let own = gpu.render_counted(&scene, &within_budget(0)).unwrap();
     assert_eq!(gpu.walk_data_bindings(), 1);
-    let apart = gpu.render_counted(&scene, &within_budget(7)).unwrap();
+    let apart = gpu.render_counted(&scene, &within_budget(27)).unwrap();
     assert_eq!(gpu.walk_data_bindings(), 2);
     assert!(
         apart.frame.pixels == own.frame.pixels,
@@ -669,9 +673,9 @@ fn codes_in_a_further_binding_walk_as_codes_after_the_cut() {
     );
     assert_eq!(apart.stats.voxel_steps, own.stats.voxel_steps);
     let text = apart.walk_data.clone().unwrap();
-    assert!(text.contains(") in 1 more of 7.0 MiB"), "{text}");
+    assert!(text.contains(") in 1 more of 27.0 MiB"), "{text}");
     assert!(text.contains("hold their nodes' heads"), "{text}");
-    let cpu = voxlab::cpu::render(&scene, &within_budget(7));
+    let cpu = voxlab::cpu::render(&scene, &within_budget(27));
     assert_walked_alike("codes in a further binding", &apart, &cpu, 0.005);
     assert_eq!(apart.walk_data, cpu.walk_data);
 }

@@ -101,6 +101,14 @@ static CODES: [u8; 256] = {
     codes
 };
 
+/// The twelve-bit code of a box of these reaches (each 0 to 255), each rounded down to
+/// [`REACHES`].
+pub(crate) fn box_code(reach: IVec3) -> u16 {
+    (0..3).fold(0, |code, a| {
+        code | u16::from(CODES[reach[a] as usize]) << (4 * a)
+    })
+}
+
 /// The reaches a box's twelve-bit code stands for (the lowest twelve bits of `code`).
 pub(crate) fn reaches(code: u32) -> IVec3 {
     IVec3::from_array([0, 4, 8].map(|s| i32::from(REACHES[(code >> s & 15) as usize])))
@@ -177,11 +185,7 @@ pub fn octant_boxes<T: Copy + PartialEq + Sync>(voxels: &[T], dims: UVec3, o: us
         .iter()
         .zip(&along_y)
         .zip(&along_z)
-        .map(|((&x, &y), &z)| {
-            u16::from(CODES[x as usize])
-                | u16::from(CODES[y as usize]) << 4
-                | u16::from(CODES[z as usize]) << 8
-        })
+        .map(|((&x, &y), &z)| box_code(IVec3::new(x.into(), y.into(), z.into())))
         .collect()
 }
 
@@ -253,6 +257,32 @@ fn extend<T: Copy + PartialEq + Sync>(
     reach
 }
 
+/// The reaches of [`extend`] along `lanes` lines of `n` cells laid side by side
+/// (`cells[t * lanes + lane]`, `t` the position along the lines, increasing along the
+/// axis; the keys and the corner cubes alike) into `out`, laid so: for the lines of a
+/// sparse walk's level, whose nodes are not one grid (`crate::technique::sparse_octant`).
+/// A line that never ends reaches 255: the caller ends a line where its cells do by a
+/// cell that matches none of them.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn sweep_lanes<T: Copy + PartialEq>(
+    cells: &[T],
+    keys: &[&[u8]],
+    cube: &[u8],
+    (lanes, n): (usize, usize),
+    down: bool,
+    stacks: &mut Stacks,
+    out: &mut [u8],
+) {
+    let line = Line {
+        voxels: cells,
+        keys,
+        cube,
+        n,
+        down,
+    };
+    line.sweep(0, (lanes, 1), lanes, stacks, out);
+}
+
 /// What [`extend`] sweeps: the grid, the keys, the corner cubes, the lines' length and
 /// whether the octant heads down the axis.
 struct Line<'a, T> {
@@ -265,8 +295,8 @@ struct Line<'a, T> {
 
 /// The stacks of `lanes` lines of `n` voxels for each key (positions and keys, the
 /// lines' entries of one depth side by side: `[key][depth][line]`), kept between
-/// sweeps so that a thread allocates them once.
-struct Stacks {
+/// sweeps so that a thread allocates them once; they serve any shorter lines too.
+pub(crate) struct Stacks {
     at: Vec<u32>,
     kept: Vec<u8>,
     depth: Vec<usize>,
@@ -275,7 +305,7 @@ struct Stacks {
 }
 
 impl Stacks {
-    fn new(keys: usize, lanes: usize, n: usize) -> Self {
+    pub(crate) fn new(keys: usize, lanes: usize, n: usize) -> Self {
         Self {
             at: vec![0; keys * lanes * n],
             kept: vec![0; keys * lanes * n],

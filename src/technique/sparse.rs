@@ -5,7 +5,7 @@
 //!
 //! It walks every grid, on demand (`render.traversal = "sparse"`): under `"auto"` the
 //! sparse octant walk ([`super::sparse_octant`], the same tree with a box field over its
-//! cubes) takes the grids this walk would, in fewer steps.
+//! cubes and their children) takes the grids this walk would, in fewer steps.
 
 use super::TraversalModel;
 

@@ -5,28 +5,29 @@
 //! whole, however many tree nodes it crosses; a cube that holds a node is walked
 //! through the tree below it, from that node. Boxes rather than the octant field's
 //! cubes: a ray grazing a wall crosses cubes no larger than its height above the wall,
-//! and a box long along the wall takes it there in a step or two (the seed scene under
-//! its rules, 128x128 on the CPU reference: 6.73 steps a ray with cubes at 256^3, 4.33
-//! with boxes; 9.74 and 7.30 at 1024^3, 11.13 and 7.96 at 2048^3; the bunny at 512
-//! 12.08 and 9.92; docs/sparse-traversal.md, "Boxes over the cut"). The tree walk's cost grows with the grid's side (a ray leaving a surface
-//! climbs level by level out of ever larger cubes, and descends again into its hit); this
-//! walk climbs at most the levels of one cell.
+//! and a box long along the wall takes it there in a step or two (docs/sparse-traversal.md,
+//! "Boxes over the cut"). The tree walk's cost grows with the grid's side (a ray leaving
+//! a surface climbs level by level out of ever larger cubes, and descends again into its
+//! hit); this walk climbs at most the levels of one cell.
 //!
-//! Below a node's cell, the tree's nodes carry the octant field of their children: each
-//! node of the cut's node level and below (the leaves among them, whose children are the
-//! voxels next to surfaces) has, for each of its 64 children that is uniform, the octant
-//! word of [`super::octant::OctantField`] over its node's children: the child's largest
-//! cube of children of its material toward each octant. A ray that runs along a surface
-//! (a shadow ray to a light beside a wall) then skips along it instead of stepping voxel
-//! by voxel through the leaves, and one in a uniform child of a node skips that child's
-//! cube of such children. The codes are the recurrence of
-//! [`super::octant::octant_radii`] swept over a level's nodes alone (`level_words`),
+//! Below a node's cell, the tree's nodes carry boxes of their children: each node of
+//! the cut's node level and below (the leaves among them, whose children are the voxels
+//! next to surfaces) has, for each of its 64 children that is uniform, the box codes of
+//! [`super::boxes::BoxField`] over its node's children: the child's box of children of
+//! its material toward each octant. A ray that runs along a surface (a shadow ray to a
+//! light beside a wall) then skips along it instead of stepping voxel by voxel through
+//! the leaves, and one in a uniform child of a node skips that child's box of such
+//! children. The boxes start from cubes, the recurrence of
+//! [`super::octant::octant_radii`] swept over a level's nodes alone (`Level::radii`),
 //! the levels from the top: a neighbour outside them lies in a uniform region the cut,
-//! the tree or a level above holds, whose cube bounds its radius from below, so every
+//! the tree or a level above holds, whose extent bounds its radius from below, so every
 //! cube is uniform (a lower bound of the dense field's) and the walk leaves it where the
-//! dense DDA does. They cost a word a child, 256 bytes a block of a node's children,
-//! each distinct block held once and a node's block index a word (`SparseOctant::with_codes`: along
-//! a wall most nodes share their block), and are kept only while they fit the walk's
+//! dense DDA does. The box field's extensions then stretch them along the runs of the
+//! level's nodes next to each other (`Level::extend`), at most [`REACH_LIMIT`] children
+//! where a box reaches past its cube. They cost four words a child (four planes, as the
+//! box field's), a KiB a block of a node's children, each distinct block held once and
+//! a node's block index a word (`SparseOctant::with_codes`: along a wall many nodes
+//! share their block), and are kept only while they fit the walk's
 //! budget (a binding's bytes, [`MAX_WALK_BYTES`] by default): after the cut where the
 //! whole fits one binding, else the tree and the cut within one and the codes within
 //! [`super::WALK_MORE_BINDINGS`] more ([`CodesAt`]).
@@ -47,8 +48,9 @@
 //! where the cells' nodes are nodes of 16 and have codes (`KERNEL_WITH_HEADS`), its
 //! node's head (mask words and first child, as the tree holds them) and one more than
 //! its block index. Then the codes: each node's block index in node order (to
-//! a vec4 boundary), then the distinct blocks, 64 words each (a node's children, x
-//! fastest; 0 for a child that is a node): from a vec4 boundary after the cut, or as
+//! a vec4 boundary), then the distinct blocks, 256 words each (four planes of a node's
+//! children, x fastest, plane `p` each child's material and its boxes toward octants
+//! `2p` and `2p + 1` from bits 8 and 20; 0 for a child that is a node): from a vec4 boundary after the cut, or as
 //! the walk's further words (`walk_more_word`, [`Regions::device_more_words`]). The tree
 //! is not copied: its words, the cut's and the codes are uploaded as parts of one
 //! buffer.
@@ -60,8 +62,8 @@ use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use super::TraversalModel;
-use super::boxes::{octant_boxes, reaches};
-use super::octant::{code_bits, corner_box, corner_cube, octant};
+use super::boxes::{box_code, octant_boxes, reaches, sweep_lanes};
+use super::octant::{corner_box, octant};
 use crate::sparse::{Cut, GPU_LOG_BRANCH, Region, Regions, SparseTree};
 
 /// The most cells the cut has: 2 M, 32 MiB.
@@ -78,8 +80,24 @@ pub const MAX_WALK_BYTES: usize = super::HOST_WALK_BYTES;
 /// block index there, both far below it.
 const UNIFORM_CELL: u32 = 1 << 31;
 
-/// Children of a node of the 64-tree, each with a word of codes.
+/// Children of a node of the 64-tree.
 const CHILDREN: usize = 64;
+
+/// Planes of a node's block of codes: plane `p` holds, for each child, its material
+/// and the box codes of octants `2p` and `2p + 1` (the box field's word,
+/// [`super::boxes::BoxField`]), so a step reads one word of its octant's plane.
+const PLANES: usize = 4;
+
+/// Words of a node's block of codes.
+const BLOCK_WORDS: usize = PLANES * CHILDREN;
+
+/// How far, in children, a child's box below the cut reaches along an axis where it
+/// reaches past its cube. A box reaching to a run's end differs with the distance to
+/// that end, and a wall's leaves would each have a block of their own: on the seed
+/// scene at 1024^3 83,020 distinct blocks (82.4 MiB) with no limit, 23,794 (24.5 MiB)
+/// with this one, and 3.08 and 3.25 steps a ray (128x128, CPU; 7.30 with cubes below
+/// the cut). A limit of 16 past the cube instead: 52,299 blocks.
+pub const REACH_LIMIT: u8 = 16;
 
 /// The kernel of a walk with codes (`WALK_VARIANT == 1` in
 /// shaders/traversal_sparse_octant.wgsl; 0 without them): every node a cell's descent
@@ -123,11 +141,11 @@ pub fn log_cell_side(dims: UVec3, log_branch: u32, levels: u32) -> u32 {
 pub const TRAVERSAL: TraversalModel = TraversalModel {
     name: "sparse_octant",
     summary: "the sparse 64-tree cut at its smallest cubes (4, 8 or 16 voxels a side) \
-              that number at most 2 M, with the box field over the cut and the octant \
-              field over the children of each node below it (down to the voxels of the \
-              leaves): a uniform cell's box of its like toward the ray's octant, or a \
-              child's cube, is skipped whole",
-    label: "sparse 64-tree + box cells",
+              that number at most 2 M, with the box field over the cut and over the \
+              children of each node below it (down to the voxels of the leaves): a \
+              uniform cell's or child's box of its like toward the ray's octant, a reach \
+              per axis, is skipped whole",
+    label: "sparse 64-tree + boxes",
     plan: |_, _| Ok(()),
     // Where the plain tree walk claimed grids: on lavapipe (`voxlab bench --sizes
     // 256,512,1024,2048 --size 256 --no-cpu --gpu-runs 5 --rules seed --traversal
@@ -182,7 +200,7 @@ pub struct SparseOctant {
     cut: Vec<u32>,
     /// The codes as the kernel reads them: for each node with codes its block's index
     /// (`blocks_words` words, the nodes' count to a vec4 boundary), then the distinct
-    /// blocks of its children's words, 64 words each ([`Self::with_codes`]).
+    /// blocks of its children's words, 256 words each ([`Self::with_codes`]).
     codes: Vec<u32>,
     blocks_words: usize,
     codes_at: CodesAt,
@@ -386,16 +404,17 @@ impl SparseOctant {
     /// The cut with the codes of the children of `nodes` (the nodes from the cut's
     /// level down, [`SparseTree::nodes_up_to`]: the first's index, then each one's first
     /// voxel and log2 side), built a level at a time from the top, so that a level's
-    /// sweep finds the cubes of the levels above it, and held as the kernel reads them
+    /// sweep finds the regions of the levels above it, and held as the kernel reads them
     /// from the first level on: each node's block index, then each distinct block once,
     /// in the order they first occur (the breadth-first node order). Along a wall most
     /// leaves see the same neighbourhood and have the same words: on the seed scene
     /// 9,698 distinct blocks of 338,896 at 1024^3 and 9,302 of 1,363,216 at 2048^3
     /// (82.7 MiB of codes become 2.4 MiB of blocks and 1.3 MiB of indices, 332.8 MiB 2.3
     /// and 5.2 MiB), so a frame reads from far fewer bytes: 1024^3 1.16x as fast on
-    /// lavapipe, 2048^3 1.31x (docs/sparse-traversal.md, "Distinct blocks"); since the
-    /// cut's cells hold boxes, whose reach the cubes next to them count, 7,087 and 6,346
-    /// blocks. Only a level's words are held whole while it is built. Not yet placed
+    /// lavapipe, 2048^3 1.31x (docs/sparse-traversal.md, "Distinct blocks"). With boxes
+    /// (a KiB a block, their reaches differing along a wall) 23,794 blocks at 1024^3 and
+    /// 26,803 at 2048^3 ([`REACH_LIMIT`]). Only a level's words are held whole while it
+    /// is built. Not yet placed
     /// ([`Self::placed`]).
     fn with_codes(mut self, first: u32, nodes: &[(IVec3, u32)]) -> Self {
         self.blocks_words = nodes.len().next_multiple_of(4);
@@ -410,7 +429,7 @@ impl SparseOctant {
         let mut distinct: FxHashMap<Box<[u32]>, u32> = FxHashMap::default();
         for &log_side in sides.iter().rev() {
             let (members, words) = level_words(&self, first, nodes, log_side);
-            for (k, block) in members.into_iter().zip(words.chunks_exact(CHILDREN)) {
+            for (k, block) in members.into_iter().zip(words.chunks_exact(BLOCK_WORDS)) {
                 self.codes[k] = match distinct.get(block) {
                     Some(&i) => i,
                     None => {
@@ -539,7 +558,7 @@ impl SparseOctant {
     }
 
     /// The codes as the kernel reads them: each coded node's block index, then the
-    /// distinct blocks, 64 words each.
+    /// distinct blocks, 256 words each.
     pub fn codes(&self) -> &[u32] {
         &self.codes
     }
@@ -550,13 +569,14 @@ impl SparseOctant {
     }
 }
 
-/// The children's octant words of the nodes of side `2^log_side` among `nodes`: each
-/// such node's ordinal among them, and 64 words a node in that order (a child that is a
-/// node matches nothing and has the word 0), by the recurrence of [`octant_radii`] over
-/// those children, for each octant swept from its far corner ([`Level::radii`]). The
-/// sweeps run as many at a time as rayon has threads, each holding a byte a child, and
-/// fold their codes into the words as they end: not a byte a child for all eight
-/// octants at once (2048^3's leaves: 87 M children).
+/// The children's box words of the nodes of side `2^log_side` among `nodes`: each such
+/// node's ordinal among them, and [`BLOCK_WORDS`] a node in that order (four planes; a
+/// child that is a node matches nothing and has the word 0), each child's cube by the
+/// recurrence of [`super::octant::octant_radii`] over those children, for each octant
+/// swept from its far corner ([`Level::radii`]), stretched to its box
+/// ([`Level::boxes`]). The octants run as many at a time as rayon has threads, each
+/// holding a few bytes a child, and fold their codes into the words as they end: not
+/// all eight octants' at once (2048^3's leaves: 87 M children).
 fn level_words(
     walk: &SparseOctant,
     first: u32,
@@ -567,29 +587,87 @@ fn level_words(
     let mut words: Vec<u32> = level
         .children
         .par_iter()
-        .flat_map_iter(|c| c.iter().map(|m| m.map_or(0, u32::from)))
+        .flat_map_iter(|c| {
+            let plane: Vec<u32> = c.iter().map(|m| m.map_or(0, u32::from)).collect();
+            plane.repeat(PLANES)
+        })
         .collect();
     let octants: Vec<usize> = (0..8).collect();
     for batch in octants.chunks(rayon::current_num_threads().clamp(1, 8)) {
-        let radii: Vec<(usize, Vec<u8>)> = batch
+        let boxes: Vec<(usize, Vec<u16>)> = batch
             .par_iter()
-            .map(|&o| (o, level.radii(walk, o)))
+            .map(|&o| (o, level.boxes(o, &level.radii(walk, o))))
             .collect();
         words
-            .par_chunks_mut(CHILDREN)
+            .par_chunks_mut(BLOCK_WORDS)
             .zip(&level.children)
             .enumerate()
             .for_each(|(j, (block, children))| {
-                for (i, w) in block.iter_mut().enumerate() {
-                    if children[i].is_some() {
-                        for (o, r) in &radii {
-                            *w |= code_bits(r[j * CHILDREN + i], *o);
+                for (i, child) in children.iter().enumerate() {
+                    if child.is_some() {
+                        for (o, b) in &boxes {
+                            let code = u32::from(b[j * CHILDREN + i]) << (8 + 12 * (o & 1));
+                            block[CHILDREN * (o >> 1) + i] |= code;
                         }
                     }
                 }
             });
     }
     (level.members.iter().map(|&(k, _)| k).collect(), words)
+}
+
+/// The lines of a level's children along one axis: the level's nodes in runs of
+/// neighbours along it (`order`, ordered across the axis and then along it; `runs` its
+/// ranges), each swept as 16 lines of children side by side, their children laid
+/// `[position][line]` (`children`: the child index of each of a node's 4 positions
+/// along the axis times 16 lines).
+struct Lines {
+    order: Vec<u32>,
+    runs: Vec<std::ops::Range<usize>>,
+    /// Positions of the longest run's lines, one more for where they end.
+    longest: usize,
+    children: Vec<usize>,
+}
+
+impl Lines {
+    fn new(level: &Level, axis: usize) -> Self {
+        let b = level.log_branch;
+        let branch = 1usize << b;
+        let (u, w) = ((axis + 1) % 3, (axis + 2) % 3);
+        let node = |j: u32| level.members[j as usize].1 >> b;
+        let mut order: Vec<u32> = (0..level.members.len() as u32).collect();
+        order.par_sort_unstable_by_key(|&j| {
+            let n = node(j);
+            (n[u], n[w], n[axis])
+        });
+        let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+        for (i, &j) in order.iter().enumerate() {
+            let joins = i > 0 && {
+                let (a, n) = (node(order[i - 1]), node(j));
+                a[u] == n[u] && a[w] == n[w] && a[axis] + 1 == n[axis]
+            };
+            match runs.last_mut() {
+                Some(run) if joins => run.end = i + 1,
+                _ => runs.push(i..i + 1),
+            }
+        }
+        let longest = runs.iter().map(|r| r.len()).max().unwrap_or(0) * branch + 1;
+        let children = (0..branch * branch * branch)
+            .map(|x| {
+                let mut c = IVec3::ZERO;
+                c[axis] = (x / (branch * branch)) as i32;
+                c[u] = (x % branch) as i32;
+                c[w] = (x / branch % branch) as i32;
+                level.child(c)
+            })
+            .collect();
+        Self {
+            order,
+            runs,
+            longest,
+            children,
+        }
+    }
 }
 
 /// The nodes of one level below the cut, as the sweep of their children reads them.
@@ -606,6 +684,8 @@ struct Level {
     /// The grid in voxels and in units (a unit past it does not count).
     dims: IVec3,
     unit_dims: IVec3,
+    /// The lines along x, y and z ([`Self::extend`]).
+    lines: Vec<Lines>,
 }
 
 impl Level {
@@ -627,7 +707,7 @@ impl Level {
             .enumerate()
             .map(|(j, &(_, lo))| (lo >> log_branch, j as u32))
             .collect();
-        Self {
+        let mut level = Self {
             members,
             children,
             index,
@@ -635,7 +715,10 @@ impl Level {
             log_unit,
             dims,
             unit_dims: (dims + ((1 << log_unit) - 1)) >> log_unit,
-        }
+            lines: Vec::new(),
+        };
+        level.lines = (0..3).map(|a| Lines::new(&level, a)).collect();
+        level
     }
 
     fn child(&self, p: IVec3) -> usize {
@@ -756,6 +839,97 @@ impl Level {
         radii
     }
 
+    /// Every child's box toward octant `o` as its twelve-bit code, from its cube
+    /// (`cube`, [`Self::radii`]): stretched along z, then x, then y as the box field's
+    /// are ([`super::boxes`]), along the lines of the level's nodes.
+    fn boxes(&self, o: usize, cube: &[u8]) -> Vec<u16> {
+        let along_z = self.extend(o, 2, &[cube], cube);
+        let along_x = self.extend(o, 0, &[cube, &along_z], cube);
+        let along_y = self.extend(o, 1, &[cube, &along_z, &along_x], cube);
+        along_x
+            .iter()
+            .zip(&along_y)
+            .zip(&along_z)
+            .map(|((&x, &y), &z)| box_code(IVec3::new(x.into(), y.into(), z.into())))
+            .collect()
+    }
+
+    /// Each child's reach along `axis` toward octant `o` of the union of the boxes of
+    /// the given `keys` on its way ([`super::boxes`]' extension), over the lines of the
+    /// level's nodes ([`Lines`]), at most [`REACH_LIMIT`] where that is past its cube. Past a run
+    /// of nodes lies a region the level does not hold, where the lines end (a cell that
+    /// matches nothing, so the boxes stay inside the run's nodes, as their cubes need
+    /// not), or the grid's face.
+    fn extend(&self, o: usize, axis: usize, keys: &[&[u8]], cube: &[u8]) -> Vec<u8> {
+        let lines = &self.lines[axis];
+        let branch = 1usize << self.log_branch;
+        let lanes = branch * branch;
+        let down = o >> axis & 1 == 1;
+        let swept: Vec<Vec<u8>> = lines
+            .runs
+            .par_iter()
+            .map_init(
+                || super::boxes::Stacks::new(keys.len(), lanes, lines.longest),
+                |stacks, run| {
+                    let nodes = &lines.order[run.clone()];
+                    let k = nodes.len();
+                    let first = self.members[nodes[0] as usize].1[axis];
+                    let last = self.members[nodes[k - 1] as usize].1[axis];
+                    // The end of the lines toward the octant: a region past the run, or
+                    // the grid's face (where a line reaches on, as in the box field).
+                    let ends = if down {
+                        first > 0
+                    } else {
+                        last + (branch as i32) < self.unit_dims[axis]
+                    };
+                    let n = branch * k + usize::from(ends);
+                    let skip = usize::from(ends && down) * lanes;
+                    let mut cells = vec![None; n * lanes];
+                    let mut key_cells = vec![0u8; keys.len() * n * lanes];
+                    let mut cube_cells = vec![0u8; n * lanes];
+                    for (m, &j) in nodes.iter().enumerate() {
+                        let j = j as usize;
+                        let at = skip + m * CHILDREN;
+                        for (x, &c) in lines.children.iter().enumerate() {
+                            cells[at + x] = self.children[j][c];
+                            cube_cells[at + x] = cube[j * CHILDREN + c];
+                            for (e, key) in keys.iter().enumerate() {
+                                key_cells[e * n * lanes + at + x] = key[j * CHILDREN + c];
+                            }
+                        }
+                    }
+                    let key_refs: Vec<&[u8]> = key_cells.chunks(n * lanes).collect();
+                    let mut out = vec![0u8; n * lanes];
+                    sweep_lanes(
+                        &cells,
+                        &key_refs,
+                        &cube_cells,
+                        (lanes, n),
+                        down,
+                        stacks,
+                        &mut out,
+                    );
+                    let mut reach = vec![0u8; k * CHILDREN];
+                    for m in 0..k {
+                        let at = skip + m * CHILDREN;
+                        for (x, &c) in lines.children.iter().enumerate() {
+                            let r = out[at + x];
+                            reach[m * CHILDREN + c] = r.min(cube_cells[at + x].max(REACH_LIMIT));
+                        }
+                    }
+                    reach
+                },
+            )
+            .collect();
+        let mut reach = vec![0u8; CHILDREN * self.members.len()];
+        for (run, swept) in lines.runs.iter().zip(&swept) {
+            for (&j, block) in lines.order[run.clone()].iter().zip(swept.chunks(CHILDREN)) {
+                reach[j as usize * CHILDREN..][..CHILDREN].copy_from_slice(block);
+            }
+        }
+        reach
+    }
+
     /// What unit `u`, a neighbour outside the level's nodes, allows a cube of material
     /// `m` toward the octant of `s`: 0 unless it holds `m`, else one more than how far
     /// its uniform region reaches from it. `region` is the one at its node's first unit,
@@ -814,8 +988,10 @@ impl Regions for SparseOctant {
             let p = (v >> shift as i32) & ((1 << b) - 1);
             let block = self.codes[k as usize] as usize;
             let child = (p.x + (p.y << b) + (p.z << (2 * b))) as usize;
-            let word = self.codes[self.blocks_words + CHILDREN * block + child];
-            let (lo, hi) = corner_cube(v >> shift as i32, word, octant(step));
+            let o = octant(step);
+            let word =
+                self.codes[self.blocks_words + BLOCK_WORDS * block + CHILDREN * (o >> 1) + child];
+            let (lo, hi) = corner_box(v >> shift as i32, reaches(word >> (8 + 12 * (o & 1))), o);
             return Region {
                 material: word as u8,
                 lo: (lo << shift as i32).max(IVec3::ZERO),
@@ -883,7 +1059,7 @@ impl Regions for SparseOctant {
             let codes = format!(
                 "the children's codes of {} nodes in {} distinct blocks ({})",
                 self.coded_count,
-                (self.codes.len() - self.blocks_words) / CHILDREN,
+                (self.codes.len() - self.blocks_words) / BLOCK_WORDS,
                 size(self.codes.len())
             );
             match self.codes_at {
