@@ -177,10 +177,21 @@ impl Regions for BoxField {
 /// [`REACHES`].
 pub fn octant_boxes<T: Copy + PartialEq + Sync>(voxels: &[T], dims: UVec3, o: usize) -> Vec<u16> {
     let cube = octant_radii(voxels, dims, o);
+    stretch(&cube, |axis, keys| {
+        extend(voxels, dims, o, axis, keys, &cube)
+    })
+}
+
+/// The boxes of the corner cubes `cube` as twelve-bit codes: each cube stretched along
+/// z, then x, then y (the order the module documentation gives) by `extend(axis, keys)`,
+/// the reaches along `axis` of the union of the boxes of the given keys (the cube, and
+/// the reaches along the axes stretched before): the box field's [`extend`] over a
+/// grid, or the sparse octant walk's over a level's nodes.
+pub(crate) fn stretch(cube: &[u8], extend: impl Fn(usize, &[&[u8]]) -> Vec<u8>) -> Vec<u16> {
     let [x, y, z] = [0, 1, 2];
-    let along_z = extend(voxels, dims, o, z, &[&cube], &cube);
-    let along_x = extend(voxels, dims, o, x, &[&cube, &along_z], &cube);
-    let along_y = extend(voxels, dims, o, y, &[&cube, &along_z, &along_x], &cube);
+    let along_z = extend(z, &[cube]);
+    let along_x = extend(x, &[cube, &along_z]);
+    let along_y = extend(y, &[cube, &along_z, &along_x]);
     along_x
         .iter()
         .zip(&along_y)

@@ -62,7 +62,7 @@ use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use super::TraversalModel;
-use super::boxes::{box_code, octant_boxes, reaches, sweep_lanes};
+use super::boxes::{octant_boxes, reaches, stretch, sweep_lanes};
 use super::octant::{corner_box, octant};
 use crate::sparse::{Cut, GPU_LOG_BRANCH, Region, Regions, SparseTree};
 
@@ -843,15 +843,7 @@ impl Level {
     /// (`cube`, [`Self::radii`]): stretched along z, then x, then y as the box field's
     /// are ([`super::boxes`]), along the lines of the level's nodes.
     fn boxes(&self, o: usize, cube: &[u8]) -> Vec<u16> {
-        let along_z = self.extend(o, 2, &[cube], cube);
-        let along_x = self.extend(o, 0, &[cube, &along_z], cube);
-        let along_y = self.extend(o, 1, &[cube, &along_z, &along_x], cube);
-        along_x
-            .iter()
-            .zip(&along_y)
-            .zip(&along_z)
-            .map(|((&x, &y), &z)| box_code(IVec3::new(x.into(), y.into(), z.into())))
-            .collect()
+        stretch(cube, |axis, keys| self.extend(o, axis, keys, cube))
     }
 
     /// Each child's reach along `axis` toward octant `o` of the union of the boxes of
