@@ -3,6 +3,13 @@
 // sparse octant walk's uniform cells (traversal_sparse_octant.wgsl).
 #define_import_path voxlab::box_codes
 
+// Where octant o's box code sits in its plane's word (plane o / 2, above the material's
+// byte; crate::technique::boxes::plane_bits): the box field's voxels and the sparse
+// octant walk's children below its cut.
+fn plane_shift(o: u32) -> u32 {
+    return 8u + 12u * (o & 1u);
+}
+
 // The reaches along x, y and z of the box whose code is the lowest twelve bits of
 // `code`: four bits a reach, x lowest; code k stands for reach k below 2, else
 // (2 + k % 2) << (k / 2 - 1).

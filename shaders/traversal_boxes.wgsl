@@ -8,7 +8,7 @@
 
 #import voxlab::types::Region
 #import voxlab::bindings::{params, walk_data}
-#import voxlab::box_codes::box_reach
+#import voxlab::box_codes::{box_reach, plane_shift}
 
 // Regions are boxes of any size: dda_skip leaves them whole.
 const REGIONS_ARE_VOXELS: bool = false;
@@ -26,7 +26,7 @@ fn region_cursor(step: vec3<i32>) -> RegionCursor {
     let down = select(vec3<i32>(0), vec3<i32>(1), step < vec3<i32>(0));
     let o = u32(down.x) | (u32(down.y) << 1u) | (u32(down.z) << 2u);
     let voxels = params.dims.x * params.dims.y * params.dims.z;
-    return RegionCursor((o >> 1u) * voxels, 8u + 12u * (o & 1u), down);
+    return RegionCursor((o >> 1u) * voxels, plane_shift(o), down);
 }
 
 // The box of voxel v (inside the grid) toward the walk's octant, clipped to the grid.

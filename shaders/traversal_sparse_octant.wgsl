@@ -11,7 +11,7 @@
 
 #import voxlab::types::Region
 #import voxlab::bindings::{params, walk_data, walk_more_word}
-#import voxlab::box_codes::box_reach
+#import voxlab::box_codes::{box_reach, plane_shift}
 #import voxlab::tree::{Descent, NODE_VEC4S, descend_from, region_below}
 
 // Regions are boxes of any size: dda_skip leaves them whole.
@@ -44,7 +44,7 @@ fn region_cursor(step: vec3<i32>) -> RegionCursor {
     let at = 1u + walk_data[0].z * NODE_VEC4S;
     let cut = walk_data[at];
     let coded = walk_data[at + 1u];
-    return RegionCursor(o >> 1u, 12u * (o & 1u), 8u + 12u * (o & 1u), down, at + 2u, cut.x, cut.yzw, coded.x, at + coded.z, coded.w);
+    return RegionCursor(o >> 1u, 12u * (o & 1u), plane_shift(o), down, at + 2u, cut.x, cut.yzw, coded.x, at + coded.z, coded.w);
 }
 
 #if WALK_VARIANT >= 1

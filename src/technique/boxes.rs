@@ -101,6 +101,18 @@ static CODES: [u8; 256] = {
     codes
 };
 
+/// Octant `o`'s box code `code` placed in its plane's word (plane `o / 2`): from bit 8
+/// for an even octant, from bit 20 for an odd one, above the material's byte. The box
+/// field's voxels and the sparse octant walk's children below its cut are such words.
+pub(crate) fn plane_bits(code: u16, o: usize) -> u32 {
+    u32::from(code) << (8 + 12 * (o & 1))
+}
+
+/// The reaches of octant `o`'s box in its plane's word ([`plane_bits`]).
+pub(crate) fn word_reach(word: u32, o: usize) -> IVec3 {
+    reaches(word >> (8 + 12 * (o & 1)))
+}
+
 /// The twelve-bit code of a box of these reaches (each 0 to 255), each rounded down to
 /// [`REACHES`].
 pub(crate) fn box_code(reach: IVec3) -> u16 {
@@ -135,8 +147,8 @@ impl BoxField {
             .for_each(|(p, plane)| {
                 for (i, w) in plane.iter_mut().enumerate() {
                     *w = u32::from(voxels[i])
-                        | u32::from(codes[2 * p][i]) << 8
-                        | u32::from(codes[2 * p + 1][i]) << 20;
+                        | plane_bits(codes[2 * p][i], 2 * p)
+                        | plane_bits(codes[2 * p + 1][i], 2 * p + 1);
                 }
             });
         Self { dims, words }
@@ -144,7 +156,7 @@ impl BoxField {
 
     /// The reaches of voxel `v`'s box toward octant `o`, as the walk reads them.
     pub fn reach(&self, v: IVec3, o: usize) -> IVec3 {
-        reaches(self.word(v, o) >> (8 + 12 * (o & 1)))
+        word_reach(self.word(v, o), o)
     }
 
     /// The word of voxel `v` in octant `o`'s plane: its material and the codes of

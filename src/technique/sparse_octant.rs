@@ -50,8 +50,8 @@
 //! its block index. Then the codes: each node's block index in node order (to
 //! a vec4 boundary), then the distinct blocks, 256 words each (four planes of a node's
 //! children, x fastest, plane `p` each child's material and its boxes toward octants
-//! `2p` and `2p + 1` from bits 8 and 20; 0 for a child that is a node): from a vec4 boundary after the cut, or as
-//! the walk's further words (`walk_more_word`, [`Regions::device_more_words`]). The tree
+//! `2p` and `2p + 1` from bits 8 and 20; 0 for a child that is a node): from a vec4
+//! boundary after the cut, or as the walk's further words (`walk_more_word`, [`Regions::device_more_words`]). The tree
 //! is not copied: its words, the cut's and the codes are uploaded as parts of one
 //! buffer.
 
@@ -62,7 +62,7 @@ use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use super::TraversalModel;
-use super::boxes::{octant_boxes, reaches, stretch, sweep_lanes};
+use super::boxes::{octant_boxes, plane_bits, reaches, stretch, sweep_lanes, word_reach};
 use super::octant::{corner_box, octant};
 use crate::sparse::{Cut, GPU_LOG_BRANCH, Region, Regions, SparseTree};
 
@@ -180,7 +180,7 @@ pub const TRAVERSAL: TraversalModel = TraversalModel {
     device_bytes: None,
 };
 
-/// The tree, the box field over its cut and the octant field below it (see the module
+/// The tree and the box field over its cut and below it (see the module
 /// documentation).
 #[derive(Clone, Debug)]
 pub struct SparseOctant {
@@ -414,8 +414,7 @@ impl SparseOctant {
     /// lavapipe, 2048^3 1.31x (docs/sparse-traversal.md, "Distinct blocks"). With boxes
     /// (a KiB a block, their reaches differing along a wall) 23,794 blocks at 1024^3 and
     /// 26,803 at 2048^3 ([`REACH_LIMIT`]). Only a level's words are held whole while it
-    /// is built. Not yet placed
-    /// ([`Self::placed`]).
+    /// is built. Not yet placed ([`Self::placed`]).
     fn with_codes(mut self, first: u32, nodes: &[(IVec3, u32)]) -> Self {
         self.blocks_words = nodes.len().next_multiple_of(4);
         self.codes = vec![0; self.blocks_words];
@@ -606,8 +605,7 @@ fn level_words(
                 for (i, child) in children.iter().enumerate() {
                     if child.is_some() {
                         for (o, b) in &boxes {
-                            let code = u32::from(b[j * CHILDREN + i]) << (8 + 12 * (o & 1));
-                            block[CHILDREN * (o >> 1) + i] |= code;
+                            block[CHILDREN * (o >> 1) + i] |= plane_bits(b[j * CHILDREN + i], *o);
                         }
                     }
                 }
@@ -848,10 +846,10 @@ impl Level {
 
     /// Each child's reach along `axis` toward octant `o` of the union of the boxes of
     /// the given `keys` on its way ([`super::boxes`]' extension), over the lines of the
-    /// level's nodes ([`Lines`]), at most [`REACH_LIMIT`] where that is past its cube. Past a run
-    /// of nodes lies a region the level does not hold, where the lines end (a cell that
-    /// matches nothing, so the boxes stay inside the run's nodes, as their cubes need
-    /// not), or the grid's face.
+    /// level's nodes ([`Lines`]), at most [`REACH_LIMIT`] where that is past its cube.
+    /// Past a run of nodes lies a region the level does not hold, where the lines end (a
+    /// cell that matches nothing, so the boxes stay inside the run's nodes, as their
+    /// cubes need not), or the grid's face.
     fn extend(&self, o: usize, axis: usize, keys: &[&[u8]], cube: &[u8]) -> Vec<u8> {
         let lines = &self.lines[axis];
         let branch = 1usize << self.log_branch;
@@ -983,7 +981,7 @@ impl Regions for SparseOctant {
             let o = octant(step);
             let word =
                 self.codes[self.blocks_words + BLOCK_WORDS * block + CHILDREN * (o >> 1) + child];
-            let (lo, hi) = corner_box(v >> shift as i32, reaches(word >> (8 + 12 * (o & 1))), o);
+            let (lo, hi) = corner_box(v >> shift as i32, word_reach(word, o), o);
             return Region {
                 material: word as u8,
                 lo: (lo << shift as i32).max(IVec3::ZERO),
