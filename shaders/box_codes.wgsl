@@ -1,6 +1,7 @@
 // The reaches of a box's twelve-bit code (crate::technique::boxes::REACHES), read by the
 // walks whose regions are boxes: the box field's voxels (traversal_boxes.wgsl) and the
-// sparse octant walk's uniform cells (traversal_sparse_octant.wgsl).
+// sparse octant walk's uniform cells and the children below them
+// (traversal_sparse_octant.wgsl).
 #define_import_path voxlab::box_codes
 
 // Where octant o's box code sits in its plane's word (plane o / 2, above the material's

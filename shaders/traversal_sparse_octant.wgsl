@@ -2,10 +2,10 @@
 // 64-tree's cubes of 2^log_cell voxels. In a cell the tree holds as one material the
 // region is the walk's octant's box of such cells (as traversal_boxes.wgsl's box of
 // voxels); in a cell the tree holds as a node, the uniform child the tree's descent from
-// that node finds (shaders/tree.wgsl), and where the walk has codes, the child's box
-// of its node's children toward the walk's octant. A walk without codes, one with them and one with them
-// whose cells hold their nodes' heads are three kernels (WALK_VARIANT 0, 1, 2:
-// crate::sparse::Regions::kernel_variant), each without the others' reads. The f64
+// that node finds (shaders/tree.wgsl), and where the walk has codes, the child's box of
+// its node's children toward the walk's octant. A walk without codes, one with them and
+// one with them whose cells hold their nodes' heads are three kernels (WALK_VARIANT 0,
+// 1, 2: crate::sparse::Regions::kernel_variant), each without the others' reads. The f64
 // reference: crate::technique::sparse_octant::SparseOctant.
 #define_import_path voxlab::regions
 
