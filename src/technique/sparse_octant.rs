@@ -585,7 +585,7 @@ fn level_words(
     let level = Level::new(walk, first, nodes, log_side);
     let mut words: Vec<u32> = level
         .children
-        .par_iter()
+        .par_chunks(CHILDREN)
         .flat_map_iter(|c| {
             let plane: Vec<u32> = c.iter().map(|m| m.map_or(0, u32::from)).collect();
             plane.repeat(PLANES)
@@ -599,7 +599,7 @@ fn level_words(
             .collect();
         words
             .par_chunks_mut(BLOCK_WORDS)
-            .zip(&level.children)
+            .zip(level.children.par_chunks(CHILDREN))
             .enumerate()
             .for_each(|(j, (block, children))| {
                 for (i, child) in children.iter().enumerate() {
@@ -668,12 +668,37 @@ impl Lines {
     }
 }
 
+/// What [`Level::extend`] gathers a run's lines into, kept by a thread between runs:
+/// the children, keys and cubes laid `[position][line]`, the reaches swept, and the
+/// sweep's stacks, each for the longest run.
+struct RunScratch {
+    stacks: super::boxes::Stacks,
+    cells: Vec<Option<u8>>,
+    key_cells: Vec<u8>,
+    cube_cells: Vec<u8>,
+    out: Vec<u8>,
+}
+
+impl RunScratch {
+    fn new(keys: usize, lanes: usize, longest: usize) -> Self {
+        Self {
+            stacks: super::boxes::Stacks::new(keys, lanes, longest),
+            cells: vec![None; lanes * longest],
+            key_cells: vec![0; keys * lanes * longest],
+            cube_cells: vec![0; lanes * longest],
+            out: vec![0; lanes * longest],
+        }
+    }
+}
+
 /// The nodes of one level below the cut, as the sweep of their children reads them.
 struct Level {
     /// Each node's ordinal among the coded nodes and its first child, in units.
     members: Vec<(usize, IVec3)>,
-    /// Each node's children (x fastest): a uniform child's material, `None` for a node.
-    children: Vec<Vec<Option<u8>>>,
+    /// Each node's children (x fastest), 64 a node in `members`' order: a uniform
+    /// child's material, `None` for a node. One array, as the radii and boxes are: a
+    /// sweep reads the children of a node's neighbours.
+    children: Vec<Option<u8>>,
     /// A node's place in `members` by its position in nodes of its side.
     index: FxHashMap<IVec3, u32>,
     log_branch: i32,
@@ -698,7 +723,7 @@ impl Level {
             .collect();
         let children = members
             .par_iter()
-            .map(|&(k, _)| tree.node_children(first + k as u32))
+            .flat_map_iter(|&(k, _)| tree.node_children(first + k as u32))
             .collect();
         let index = members
             .iter()
@@ -725,15 +750,19 @@ impl Level {
     }
 
     /// Every child's radius toward octant `o` (the level's nodes' children, 64 a node in
-    /// `members`' order), swept from the octant's far corner: nodes by their position
-    /// against the octant, z first, then their children so, each after its seven
-    /// neighbours toward the octant. A neighbour in another node of the level has its
-    /// radius already; one outside them lies in the uniform region `walk` finds for it
-    /// (the cut's cube toward the octant, the tree's child, or a level above's cube),
-    /// whose extent toward the octant bounds its radius from below; one outside the grid
-    /// does not count (as in the dense field: the walk ends there by its own test).
+    /// `members`' order), swept from the octant's far corner: nodes in an order that
+    /// takes each after its neighbours toward the octant, then their children so, each
+    /// after its seven neighbours toward the octant. A neighbour in another node of the
+    /// level has its radius already; one outside them lies in the uniform region `walk`
+    /// finds for it (the cut's cube toward the octant, the tree's child, or a level
+    /// above's cube), whose extent toward the octant bounds its radius from below; one
+    /// outside the grid does not count (as in the dense field: the walk ends there by
+    /// its own test). A node's children are swept in a cube of 5 a side ([`Pad`]): its
+    /// 64 and the layer of its neighbours toward the octant, gathered first, so the
+    /// sweep of a child reads seven fixed offsets.
     fn radii(&self, walk: &SparseOctant, o: usize) -> Vec<u8> {
         let branch = 1i32 << self.log_branch;
+        debug_assert_eq!(branch, PAD - 1, "the pad holds a node of 4 a side");
         let down = |a: usize| o >> a & 1 == 1;
         let s = IVec3::new(
             if down(0) { -1 } else { 1 },
@@ -742,40 +771,35 @@ impl Level {
         );
         let offset =
             |e: usize| s * IVec3::new((e & 1) as i32, (e >> 1 & 1) as i32, (e >> 2) as i32);
+        // Any order that takes a node after its neighbours toward the octant will do:
+        // the Morton order of the nodes' positions counted from the octant's far
+        // corner. The members are in the tree's breadth-first order, a Morton order
+        // too, so the sweep reads the children and radii of nodes near in memory.
+        let nodes = (self.unit_dims + (branch - 1)) >> self.log_branch;
         let mut order: Vec<u32> = (0..self.members.len() as u32).collect();
         order.sort_unstable_by_key(|&j| {
-            let k = -(self.members[j as usize].1 * s);
-            (k.z, k.y, k.x)
+            let p = self.members[j as usize].1 >> self.log_branch;
+            let k = IVec3::select(s.cmplt(IVec3::ZERO), p, nodes - 1 - p);
+            morton(k.as_uvec3())
         });
-        let along = |a: usize| -> Vec<i32> {
-            if down(a) {
-                (0..branch).collect()
-            } else {
-                (0..branch).rev().collect()
-            }
-        };
-        let sweep: Vec<IVec3> = along(2)
-            .into_iter()
-            .flat_map(|z| {
-                along(1)
-                    .into_iter()
-                    .flat_map(move |y| along(0).into_iter().map(move |x| IVec3::new(x, y, z)))
+        // The pad's cells in flipped coordinates `f` (the octant's way is +f on every
+        // axis; 4 is the neighbours' layer): each one's unit from the node's first, the
+        // neighbour node it lies in (bit a: f[a] = 4) and its child index there.
+        let cells: Vec<(IVec3, usize, usize)> = (0..PAD * PAD * PAD)
+            .map(|i| {
+                let f = IVec3::new(i % PAD, i / PAD % PAD, i / (PAD * PAD));
+                let p = IVec3::select(s.cmpgt(IVec3::ZERO), f, (branch - 1) - f);
+                let e = (0..3).fold(0, |k, a| k | usize::from(f[a] == branch) << a);
+                (p, e, self.child(p.rem_euclid(IVec3::splat(branch))))
             })
             .collect();
-        // For each child in the sweep, its seven neighbours toward the octant: the node
-        // each lies in (bit a: past this node's side on axis a) and its child index there.
-        let neighbours: Vec<[(u8, u8); 7]> = sweep
-            .iter()
-            .map(|&p| {
-                std::array::from_fn(|i| {
-                    let q = p + offset(i + 1);
-                    let out =
-                        (0..3).fold(0, |k, a| k | u8::from(!(0..branch).contains(&q[a])) << a);
-                    (out, self.child(q.rem_euclid(IVec3::splat(branch))) as u8)
-                })
-            })
+        let interior: Vec<usize> = (0..PAD * PAD * PAD)
+            .rev()
+            .filter(|&i| cells[i as usize].1 == 0)
+            .map(|i| i as usize)
             .collect();
         let mut radii = vec![0u8; CHILDREN * self.members.len()];
+        let mut pad = Pad::default();
         for &j in &order {
             let lo = self.members[j as usize].1;
             // The node of the level toward the octant along the axes of `e`, or the
@@ -793,45 +817,38 @@ impl Level {
                     None => Err(walk.region(n << self.log_unit, s)),
                 })
             });
-            // Whether every neighbour of the node's children lies inside the grid.
-            let inside = (lo + branch * s.min(IVec3::ZERO)).cmpge(IVec3::ZERO).all()
-                && (lo + branch + branch * s.max(IVec3::ZERO))
-                    .cmple(self.unit_dims)
-                    .all();
-            let mine = &self.children[j as usize];
-            for (p, near) in sweep.iter().zip(&neighbours) {
-                let Some(m) = mine[self.child(*p)] else {
-                    continue;
+            for (i, &(p, e, inner)) in cells.iter().enumerate() {
+                (pad.material[i], pad.radius[i]) = match &blocks[e] {
+                    None => (PAD_OUT, 0),
+                    Some(Ok(n)) => {
+                        let k = *n as usize * CHILDREN + inner;
+                        (self.children[k].map_or(PAD_NODE, u16::from), radii[k])
+                    }
+                    Some(Err(region)) => {
+                        let u = lo + p;
+                        if u.cmplt(IVec3::ZERO).any() || u.cmpge(self.unit_dims).any() {
+                            (PAD_OUT, 0)
+                        } else {
+                            self.held(walk, u, region, s)
+                        }
+                    }
                 };
-                if (lo + *p).cmpge(self.unit_dims).any() {
+            }
+            for &i in &interior {
+                let m = pad.material[i];
+                if m == PAD_NODE || (lo + cells[i].0).cmpge(self.unit_dims).any() {
+                    pad.radius[i] = 0;
                     continue;
                 }
                 let mut r = u8::MAX;
-                for (e, &(out, inner)) in near.iter().enumerate() {
-                    let inner = inner as usize;
-                    let allowed = match &blocks[out as usize] {
-                        None => continue,
-                        Some(Ok(n)) => {
-                            let n = *n as usize;
-                            if self.children[n][inner] == Some(m) {
-                                radii[n * CHILDREN + inner].saturating_add(1)
-                            } else {
-                                0
-                            }
-                        }
-                        Some(Err(region)) => {
-                            let u = lo + *p + offset(e + 1);
-                            if !inside
-                                && (u.cmplt(IVec3::ZERO).any() || u.cmpge(self.unit_dims).any())
-                            {
-                                continue;
-                            }
-                            self.allowed(walk, u, region, m, s)
-                        }
-                    };
-                    r = r.min(allowed);
+                for d in PAD_NEIGHBOURS {
+                    let (n, rn) = (pad.material[i + d], pad.radius[i + d]);
+                    if n != PAD_OUT {
+                        r = r.min(if n == m { rn.saturating_add(1) } else { 0 });
+                    }
                 }
-                radii[j as usize * CHILDREN + self.child(*p)] = r;
+                pad.radius[i] = r;
+                radii[j as usize * CHILDREN + cells[i].2] = r;
             }
         }
         radii
@@ -859,8 +876,8 @@ impl Level {
             .runs
             .par_iter()
             .map_init(
-                || super::boxes::Stacks::new(keys.len(), lanes, lines.longest),
-                |stacks, run| {
+                || RunScratch::new(keys.len(), lanes, lines.longest),
+                |scratch, run| {
                     let nodes = &lines.order[run.clone()];
                     let k = nodes.len();
                     let first = self.members[nodes[0] as usize].1[axis];
@@ -874,37 +891,55 @@ impl Level {
                     };
                     let n = branch * k + usize::from(ends);
                     let skip = usize::from(ends && down) * lanes;
-                    let mut cells = vec![None; n * lanes];
-                    let mut key_cells = vec![0u8; keys.len() * n * lanes];
-                    let mut cube_cells = vec![0u8; n * lanes];
+                    let RunScratch {
+                        stacks,
+                        cells,
+                        key_cells,
+                        cube_cells,
+                        out,
+                    } = scratch;
+                    let cells = &mut cells[..n * lanes];
+                    let cube_cells = &mut cube_cells[..n * lanes];
+                    // The sentinel that ends the lines, where they do (before or after
+                    // the run's cells).
+                    if ends {
+                        let at = if down { 0 } else { (n - 1) * lanes };
+                        cells[at..at + lanes].fill(None);
+                        cube_cells[at..at + lanes].fill(0);
+                        for e in 0..keys.len() {
+                            key_cells[e * n * lanes + at..][..lanes].fill(0);
+                        }
+                    }
                     for (m, &j) in nodes.iter().enumerate() {
-                        let j = j as usize;
                         let at = skip + m * CHILDREN;
+                        let from = j as usize * CHILDREN;
+                        let (mine, cube) = (
+                            &self.children[from..][..CHILDREN],
+                            &cube[from..][..CHILDREN],
+                        );
                         for (x, &c) in lines.children.iter().enumerate() {
-                            cells[at + x] = self.children[j][c];
-                            cube_cells[at + x] = cube[j * CHILDREN + c];
-                            for (e, key) in keys.iter().enumerate() {
-                                key_cells[e * n * lanes + at + x] = key[j * CHILDREN + c];
+                            cells[at + x] = mine[c];
+                            cube_cells[at + x] = cube[c];
+                        }
+                        for (e, key) in keys.iter().enumerate() {
+                            let key = &key[from..][..CHILDREN];
+                            let into = &mut key_cells[e * n * lanes + at..][..CHILDREN];
+                            for (x, &c) in lines.children.iter().enumerate() {
+                                into[x] = key[c];
                             }
                         }
                     }
-                    let key_refs: Vec<&[u8]> = key_cells.chunks(n * lanes).collect();
-                    let mut out = vec![0u8; n * lanes];
-                    sweep_lanes(
-                        &cells,
-                        &key_refs,
-                        &cube_cells,
-                        (lanes, n),
-                        down,
-                        stacks,
-                        &mut out,
-                    );
+                    let key_refs: Vec<&[u8]> = key_cells[..keys.len() * n * lanes]
+                        .chunks(n * lanes)
+                        .collect();
+                    let out = &mut out[..n * lanes];
+                    sweep_lanes(cells, &key_refs, cube_cells, (lanes, n), down, stacks, out);
                     let mut reach = vec![0u8; k * CHILDREN];
-                    for m in 0..k {
+                    for (m, reach) in reach.chunks_exact_mut(CHILDREN).enumerate() {
                         let at = skip + m * CHILDREN;
                         for (x, &c) in lines.children.iter().enumerate() {
                             let r = out[at + x];
-                            reach[m * CHILDREN + c] = r.min(cube_cells[at + x].max(REACH_LIMIT));
+                            reach[c] = r.min(cube_cells[at + x].max(REACH_LIMIT));
                         }
                     }
                     reach
@@ -920,24 +955,66 @@ impl Level {
         reach
     }
 
-    /// What unit `u`, a neighbour outside the level's nodes, allows a cube of material
-    /// `m` toward the octant of `s`: 0 unless it holds `m`, else one more than how far
-    /// its uniform region reaches from it. `region` is the one at its node's first unit,
-    /// which holds the whole node where the cut's cells are as large; else the region is
-    /// asked at the unit.
-    fn allowed(&self, walk: &SparseOctant, u: IVec3, region: &Region, m: u8, s: IVec3) -> u8 {
+    /// The material of unit `u`, a neighbour outside the level's nodes, and how far
+    /// its uniform region reaches from it toward the octant of `s` (a cube of material
+    /// `m` next to it allows one more where `m` is that material). `region` is the one
+    /// at its node's first unit, which holds the whole node where the cut's cells are as
+    /// large; else the region is asked at the unit.
+    fn held(&self, walk: &SparseOctant, u: IVec3, region: &Region, s: IVec3) -> (u16, u8) {
         let (lo, hi) = (u << self.log_unit, (u + 1) << self.log_unit);
         let region = if lo.cmpge(region.lo).all() && hi.min(self.dims).cmple(region.hi).all() {
             *region
         } else {
             walk.region(lo, s)
         };
-        if region.material == m {
-            reach(u, &region, s, self.log_unit, self.dims).saturating_add(1)
-        } else {
-            0
+        (
+            u16::from(region.material),
+            reach(u, &region, s, self.log_unit, self.dims),
+        )
+    }
+}
+
+/// The side of [`Level::radii`]'s cube of a node's children and the layer of its
+/// neighbours toward the octant.
+const PAD: i32 = 5;
+
+/// A pad cell's material where it lies past the grid (it does not count) or is a node
+/// (it matches no material).
+const PAD_OUT: u16 = u16::MAX;
+const PAD_NODE: u16 = 256;
+
+/// The seven neighbours toward the octant of a pad cell (x fastest, flipped so the
+/// octant's way is + on every axis).
+const PAD_NEIGHBOURS: [usize; 7] = [1, 5, 6, 25, 26, 30, 31];
+
+/// A node's children and its neighbours toward the octant in [`Level::radii`]'s
+/// sweep: materials (or [`PAD_OUT`], [`PAD_NODE`]) and radii.
+struct Pad {
+    material: [u16; 125],
+    radius: [u8; 125],
+}
+
+impl Default for Pad {
+    fn default() -> Self {
+        Self {
+            material: [PAD_OUT; 125],
+            radius: [0; 125],
         }
     }
+}
+
+/// The Morton code of `p` (its coordinates' bits interleaved, x lowest; 21 bits each):
+/// a point's code is below that of any point at least as large on every axis.
+fn morton(p: UVec3) -> u64 {
+    let spread = |v: u32| {
+        let mut x = u64::from(v) & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f_0000_0000_ffff;
+        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+        (x | x << 2) & 0x1249_2492_4924_9249
+    };
+    spread(p.x) | spread(p.y) << 1 | spread(p.z) << 2
 }
 
 /// How far unit `u`'s cube (units of `2^log_unit` voxels) toward the octant of `s`
