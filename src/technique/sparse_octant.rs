@@ -23,8 +23,9 @@
 //! the tree or a level above holds, whose extent bounds its radius from below, so every
 //! cube is uniform (a lower bound of the dense field's) and the walk leaves it where the
 //! dense DDA does. The box field's extensions then stretch them along the runs of the
-//! level's nodes next to each other (`Level::extend`), at most [`REACH_LIMIT`] children
-//! where a box reaches past its cube. They cost four words a child (four planes, as the
+//! level's nodes next to each other (`Level::extend`) and on into the uniform region
+//! past a run's end while the box fits in it, at most [`REACH_LIMIT`] children where a
+//! box reaches past its cube. They cost four words a child (four planes, as the
 //! box field's), a KiB a block of a node's children, each distinct block held once and
 //! a node's block index a word (`SparseOctant::with_codes`: along a wall many nodes
 //! share their block), and are kept only while they fit the walk's
@@ -96,7 +97,9 @@ const BLOCK_WORDS: usize = PLANES * CHILDREN;
 /// that end, and a wall's leaves would each have a block of their own: on the seed
 /// scene at 1024^3 83,020 distinct blocks (82.4 MiB) with no limit, 23,794 (24.5 MiB)
 /// with this one, and 3.08 and 3.25 steps a ray (128x128, CPU; 7.30 with cubes below
-/// the cut). A limit of 16 past the cube instead: 52,299 blocks.
+/// the cut). A limit of 16 past the cube instead: 52,299 blocks. With the stretch on
+/// past a run's end (`Level::reach_past_run`) 87,328 and 22,435 blocks, 3.06 and
+/// 3.25 steps.
 pub const REACH_LIMIT: u8 = 16;
 
 /// The kernel of a walk with codes (`WALK_VARIANT == 1` in
@@ -412,8 +415,8 @@ impl SparseOctant {
     /// (82.7 MiB of codes become 2.4 MiB of blocks and 1.3 MiB of indices, 332.8 MiB 2.3
     /// and 5.2 MiB), so a frame reads from far fewer bytes: 1024^3 1.16x as fast on
     /// lavapipe, 2048^3 1.31x (docs/sparse-traversal.md, "Distinct blocks"). With boxes
-    /// (a KiB a block, their reaches differing along a wall) 23,794 blocks at 1024^3 and
-    /// 26,803 at 2048^3 ([`REACH_LIMIT`]). Only a level's words are held whole while it
+    /// (a KiB a block, their reaches differing along a wall) 22,435 blocks at 1024^3 and
+    /// 24,507 at 2048^3 ([`REACH_LIMIT`]). Only a level's words are held whole while it
     /// is built. Not yet placed ([`Self::placed`]).
     fn with_codes(mut self, first: u32, nodes: &[(IVec3, u32)]) -> Self {
         self.blocks_words = nodes.len().next_multiple_of(4);
@@ -595,7 +598,7 @@ fn level_words(
     for batch in octants.chunks(rayon::current_num_threads().clamp(1, 8)) {
         let boxes: Vec<(usize, Vec<u16>)> = batch
             .par_iter()
-            .map(|&o| (o, level.boxes(o, &level.radii(walk, o))))
+            .map(|&o| (o, level.boxes(walk, o, &level.radii(walk, o))))
             .collect();
         words
             .par_chunks_mut(BLOCK_WORDS)
@@ -689,6 +692,16 @@ impl RunScratch {
             out: vec![0; lanes * longest],
         }
     }
+}
+
+/// A run's lines as [`Level::extend`] swept them: the children, the keys and the cubes
+/// laid `[position][line]`, `n` positions of `lanes` lines.
+struct Swept<'a> {
+    cells: &'a [Option<u8>],
+    keys: &'a [&'a [u8]],
+    cube: &'a [u8],
+    lanes: usize,
+    n: usize,
 }
 
 /// The nodes of one level below the cut, as the sweep of their children reads them.
@@ -857,17 +870,24 @@ impl Level {
     /// Every child's box toward octant `o` as its twelve-bit code, from its cube
     /// (`cube`, [`Self::radii`]): stretched along z, then x, then y as the box field's
     /// are ([`super::boxes`]), along the lines of the level's nodes.
-    fn boxes(&self, o: usize, cube: &[u8]) -> Vec<u16> {
-        stretch(cube, |axis, keys| self.extend(o, axis, keys, cube))
+    fn boxes(&self, walk: &SparseOctant, o: usize, cube: &[u8]) -> Vec<u16> {
+        stretch(cube, |axis, keys| self.extend(walk, o, axis, keys, cube))
     }
 
     /// Each child's reach along `axis` toward octant `o` of the union of the boxes of
     /// the given `keys` on its way ([`super::boxes`]' extension), over the lines of the
     /// level's nodes ([`Lines`]), at most [`REACH_LIMIT`] where that is past its cube.
     /// Past a run of nodes lies a region the level does not hold, where the lines end (a
-    /// cell that matches nothing, so the boxes stay inside the run's nodes, as their
-    /// cubes need not), or the grid's face.
-    fn extend(&self, o: usize, axis: usize, keys: &[&[u8]], cube: &[u8]) -> Vec<u8> {
+    /// cell that matches nothing), or the grid's face. A stretch that ends at such a
+    /// region goes on into it while the box fits there ([`Self::reach_past_run`]).
+    fn extend(
+        &self,
+        walk: &SparseOctant,
+        o: usize,
+        axis: usize,
+        keys: &[&[u8]],
+        cube: &[u8],
+    ) -> Vec<u8> {
         let lines = &self.lines[axis];
         let branch = 1usize << self.log_branch;
         let lanes = branch * branch;
@@ -934,6 +954,17 @@ impl Level {
                         .collect();
                     let out = &mut out[..n * lanes];
                     sweep_lanes(cells, &key_refs, cube_cells, (lanes, n), down, stacks, out);
+                    if ends {
+                        let end = self.members[nodes[if down { 0 } else { k - 1 }] as usize].1;
+                        let lines = Swept {
+                            cells,
+                            keys: &key_refs,
+                            cube: cube_cells,
+                            lanes,
+                            n,
+                        };
+                        self.reach_past_run(walk, o, axis, end, &lines, out);
+                    }
                     let mut reach = vec![0u8; k * CHILDREN];
                     for (m, reach) in reach.chunks_exact_mut(CHILDREN).enumerate() {
                         let at = skip + m * CHILDREN;
@@ -953,6 +984,93 @@ impl Level {
             }
         }
         reach
+    }
+
+    /// Where the lines of a run end at a region past it (the level holds no node
+    /// there, so the region is uniform), the reaches of the children whose stretch ended
+    /// there (`out`, from [`sweep_lanes`]) go on into the region while the box moved
+    /// along the axis stays inside it: the region holds the child's material and has
+    /// room for the box's reaches across the axis (the keys of the axes stretched
+    /// before, the cube on the others), and the box's far side along the axis, its cube
+    /// past the translation, stays inside. `end` is the first unit of the run's node at
+    /// its end toward the octant.
+    fn reach_past_run(
+        &self,
+        walk: &SparseOctant,
+        o: usize,
+        axis: usize,
+        end: IVec3,
+        lines: &Swept,
+        out: &mut [u8],
+    ) {
+        let s = IVec3::from(std::array::from_fn(
+            |a| if o >> a & 1 == 1 { -1 } else { 1 },
+        ));
+        let branch = 1i32 << self.log_branch;
+        let down = s[axis] < 0;
+        let sentinel = if down { 0 } else { lines.n - 1 };
+        // Whether the stretch of the child at position t, index i, ended at the run's
+        // end; where none did, the region is not asked for.
+        let ended = |out: &[u8], t: usize, i: usize| {
+            t != sentinel
+                && lines.cells[i].is_some()
+                && out[i] != u8::MAX
+                && i32::from(out[i]) == i32::from(lines.cube[i]) + t.abs_diff(sentinel) as i32 - 1
+        };
+        if !(0..lines.n * lines.lanes).any(|i| ended(out, i / lines.lanes, i)) {
+            return;
+        }
+        // The first unit past the run on each line, and the region there (the one at
+        // the first line's holds the others' where the region is at least a node's
+        // side, as past a run it is).
+        let mut past = end;
+        past[axis] += if down { -1 } else { branch };
+        let mut region = None;
+        // The key across the axis on each other axis: z stretched first, then x, then
+        // y ([`stretch`]'s order).
+        let across = |b: usize, i: usize| -> u8 {
+            match (b, axis) {
+                (2, 0) | (2, 1) => lines.keys[1][i],
+                (0, 1) => lines.keys[2][i],
+                _ => lines.cube[i],
+            }
+        };
+        for lane in 0..lines.lanes {
+            let c = self.lines[axis].children[lane];
+            let b = self.log_branch;
+            let p = IVec3::new(c as i32, (c >> b) as i32, (c >> (2 * b)) as i32) & (branch - 1);
+            let mut u = end + p;
+            u[axis] = past[axis];
+            if u.cmpge(self.unit_dims).any() {
+                continue;
+            }
+            let (lo, hi) = (
+                u << self.log_unit,
+                ((u + 1) << self.log_unit).min(self.dims),
+            );
+            let held = |r: &Region| lo.cmpge(r.lo).all() && hi.cmple(r.hi).all();
+            let r = match region {
+                Some(r) if held(&r) => r,
+                _ => {
+                    let r = walk.region(lo, s);
+                    region = Some(r);
+                    r
+                }
+            };
+            let room = rooms(u, &r, s, self.log_unit, self.dims);
+            let along = room[axis] + 1;
+            for t in 0..lines.n {
+                let i = t * lines.lanes + lane;
+                if !ended(out, t, i) || lines.cells[i] != Some(r.material) {
+                    continue;
+                }
+                let cube = i32::from(lines.cube[i]);
+                let to_end = t.abs_diff(sentinel) as i32 - 1;
+                if (0..3).all(|b| b == axis || room[b] >= i32::from(across(b, i))) {
+                    out[i] = (cube + to_end + (along - cube).max(0)).min(255) as u8;
+                }
+            }
+        }
     }
 
     /// The material of unit `u`, a neighbour outside the level's nodes, and how far
@@ -1021,19 +1139,21 @@ fn morton(p: UVec3) -> u64 {
 /// reaches inside `region`, which holds it: its radius in units, at most 255; a side of
 /// the region on the grid's face does not bound it (past the grid nothing counts).
 fn reach(u: IVec3, region: &Region, s: IVec3, log_unit: i32, dims: IVec3) -> u8 {
+    rooms(u, region, s, log_unit, dims).min_element().max(0) as u8
+}
+
+/// How many units past unit `u` toward the octant of `s` `region` (which holds `u`)
+/// goes on along each axis, 255 where its side is the grid's face or it goes further.
+fn rooms(u: IVec3, region: &Region, s: IVec3, log_unit: i32, dims: IVec3) -> IVec3 {
     let unit = 1i32 << log_unit;
-    let mut r = i32::from(u8::MAX);
-    for a in 0..3 {
+    IVec3::from(std::array::from_fn(|a| {
         let room = if s[a] > 0 {
             (region.hi[a] < dims[a]).then(|| (region.hi[a] >> log_unit) - 1 - u[a])
         } else {
             (region.lo[a] > 0).then(|| u[a] - ((region.lo[a] + unit - 1) >> log_unit))
         };
-        if let Some(room) = room {
-            r = r.min(room);
-        }
-    }
-    r.max(0) as u8
+        room.map_or(i32::from(u8::MAX), |r| r.min(i32::from(u8::MAX)))
+    }))
 }
 
 impl Regions for SparseOctant {
