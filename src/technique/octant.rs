@@ -75,6 +75,14 @@ pub fn octant(step: IVec3) -> usize {
     (0..3).map(|a| usize::from(step[a] < 0) << a).sum()
 }
 
+/// The signs of octant `o`'s axes: -1 where it heads down the axis, else 1 (the step
+/// of a walk that reads it, [`octant`]'s inverse).
+pub(crate) fn octant_signs(o: usize) -> IVec3 {
+    IVec3::from(std::array::from_fn(
+        |a| if o >> a & 1 == 1 { -1 } else { 1 },
+    ))
+}
+
 impl OctantField {
     pub fn build(grid: &Grid) -> Self {
         let dense = grid

@@ -64,7 +64,7 @@ use rustc_hash::FxHashMap;
 
 use super::TraversalModel;
 use super::boxes::{octant_boxes, plane_bits, reaches, stretch, sweep_lanes, word_reach};
-use super::octant::{corner_box, octant};
+use super::octant::{corner_box, octant, octant_signs};
 use crate::sparse::{Cut, GPU_LOG_BRANCH, Region, Regions, SparseTree};
 
 /// The most cells the cut has: 2 M, 32 MiB.
@@ -776,12 +776,7 @@ impl Level {
     fn radii(&self, walk: &SparseOctant, o: usize) -> Vec<u8> {
         let branch = 1i32 << self.log_branch;
         debug_assert_eq!(branch, PAD - 1, "the pad holds a node of 4 a side");
-        let down = |a: usize| o >> a & 1 == 1;
-        let s = IVec3::new(
-            if down(0) { -1 } else { 1 },
-            if down(1) { -1 } else { 1 },
-            if down(2) { -1 } else { 1 },
-        );
+        let s = octant_signs(o);
         let offset =
             |e: usize| s * IVec3::new((e & 1) as i32, (e >> 1 & 1) as i32, (e >> 2) as i32);
         // Any order that takes a node after its neighbours toward the octant will do:
@@ -1003,9 +998,7 @@ impl Level {
         lines: &Swept,
         out: &mut [u8],
     ) {
-        let s = IVec3::from(std::array::from_fn(
-            |a| if o >> a & 1 == 1 { -1 } else { 1 },
-        ));
+        let s = octant_signs(o);
         let branch = 1i32 << self.log_branch;
         let down = s[axis] < 0;
         let sentinel = if down { 0 } else { lines.n - 1 };
