@@ -101,16 +101,22 @@ static CODES: [u8; 256] = {
     codes
 };
 
-/// Octant `o`'s box code `code` placed in its plane's word (plane `o / 2`): from bit 8
-/// for an even octant, from bit 20 for an odd one, above the material's byte. The box
-/// field's voxels and the sparse octant walk's children below its cut are such words.
-pub(crate) fn plane_bits(code: u16, o: usize) -> u32 {
-    u32::from(code) << (8 + 12 * (o & 1))
+/// Where octant `o`'s box code sits in its plane's word (plane `o / 2`): from bit 8 for
+/// an even octant, from bit 20 for an odd one, above the material's byte (WGSL
+/// `box_codes::plane_shift`). The box field's voxels and the sparse octant walk's
+/// children below its cut are such words.
+fn plane_shift(o: usize) -> u32 {
+    8 + 12 * (o as u32 & 1)
 }
 
-/// The reaches of octant `o`'s box in its plane's word ([`plane_bits`]).
+/// Octant `o`'s box code `code` placed in its plane's word ([`plane_shift`]).
+pub(crate) fn plane_bits(code: u16, o: usize) -> u32 {
+    u32::from(code) << plane_shift(o)
+}
+
+/// The reaches of octant `o`'s box in its plane's word ([`plane_shift`]).
 pub(crate) fn word_reach(word: u32, o: usize) -> IVec3 {
-    reaches(word >> (8 + 12 * (o & 1)))
+    reaches(word >> plane_shift(o))
 }
 
 /// The twelve-bit code of a box of these reaches (each 0 to 255), each rounded down to

@@ -801,10 +801,9 @@ impl Level {
                 (p, e, self.child(p.rem_euclid(IVec3::splat(branch))))
             })
             .collect();
-        let interior: Vec<usize> = (0..PAD * PAD * PAD)
+        let interior: Vec<usize> = (0..cells.len())
             .rev()
-            .filter(|&i| cells[i as usize].1 == 0)
-            .map(|i| i as usize)
+            .filter(|&i| cells[i].1 == 0)
             .collect();
         let mut radii = vec![0u8; CHILDREN * self.members.len()];
         let mut pad = Pad::default();
