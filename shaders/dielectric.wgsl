@@ -21,11 +21,16 @@ fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
 
 // The (reflection, refraction) weights of a hit on material s (kt > 0) whose ray meets
 // the interface at cos_i with eta = n_i / n_t; tir: Snell's law has no refracted ray.
+// Only where some material splits by Fresnel (FRESNEL, crate::plan::Plan::fresnel) is
+// its branch composed in: the software driver runs both sides of a branch for every
+// lane, so the equations would cost every hit of a scene with none.
 fn split_weights(s: Material, cos_i: f32, eta: f32, tir: bool) -> vec2<f32> {
+#ifdef FRESNEL
     if s.dielectric == DIELECTRIC_FRESNEL {
         let f = fresnel_dielectric(cos_i, eta);
         return vec2<f32>(s.kr * f, s.kt * (1.0 - f));
     }
+#endif
     if tir {
         // The refracted share goes to the reflection; under the seed's rules it is
         // lost (GLSL's refract gives the zero vector).

@@ -6,8 +6,13 @@
 #import voxlab::types::{Light, EMISSION_LAMBERTIAN}
 
 // The share of a light's radiance that its point x sends toward p: 1, or a Lambertian
-// emitter's cosine (0 at x itself). As crate::scene::Light::emitted_towards.
+// emitter's cosine (0 at x itself). As crate::scene::Light::emitted_towards. The
+// cosine is composed in only where some light is Lambertian (LAMBERTIAN_LIGHTS,
+// crate::plan::Plan::lambertian_lights; the radiance injection always has it): the
+// software driver runs both sides of a branch for every lane, so it would cost every
+// light term of a scene with none.
 fn emitted_share(light: Light, x: vec3<f32>, p: vec3<f32>) -> f32 {
+#ifdef LAMBERTIAN_LIGHTS
     if light.emission != EMISSION_LAMBERTIAN {
         return 1.0;
     }
@@ -17,6 +22,9 @@ fn emitted_share(light: Light, x: vec3<f32>, p: vec3<f32>) -> f32 {
         return 0.0;
     }
     return max(dot(normalize(light.axis_n), w) / len, 0.0);
+#else
+    return 1.0;
+#endif
 }
 
 // The radiance of a point emitter at x standing for `light` (or for its share of it),

@@ -827,6 +827,8 @@ pub(crate) fn full_plan(
         "SHADOWS",
         "EMISSION",
         "ACCUMULATE",
+        "FRESNEL",
+        "LAMBERTIAN_LIGHTS",
     ] {
         full.set_flag(f, true);
     }

@@ -50,6 +50,16 @@ pub struct Plan {
     /// Emission (`EMISSION`): some material in the grid emits. Adding zero changes
     /// nothing, so it is left out when none does.
     pub emission: bool,
+    /// The Fresnel split (`FRESNEL`, shaders/dielectric.wgsl): some transmitting
+    /// material splits its hits by Fresnel's equations, and secondary rays are in. Every
+    /// other split is the material's fixed kr and kt, and the software driver runs the
+    /// equations for every lane of every hit whether or not they are asked for
+    /// (docs/benchmarks.md, "Code a scene does not need").
+    pub fresnel: bool,
+    /// Lambertian emitters (`LAMBERTIAN_LIGHTS`, shaders/emission.wgsl): some light sends
+    /// out the emitter's cosine, and the scene is shaded. Without one every light's
+    /// share is 1, and the cosine is left out of every light term.
+    pub lambertian_lights: bool,
     /// The shadow model composed in (`voxlab::shadow_model`, printed by its label): the
     /// one `features.shadow_model` names when shadow rays are in and its plan rule keeps
     /// it, else the default (hard shadows at the light centres).
@@ -365,7 +375,8 @@ pub struct KernelFlag {
     pub name: &'static str,
     /// In [`Plan::FLAGS`]: the tests compose every combination of these
     /// ([`Plan::all_variants`]). The others select a small, separately tested piece
-    /// (the pixel filter's jitter, the seed's rules, the ray cutoff).
+    /// (the pixel filter's jitter, the seed's rules, the ray cutoff, the Fresnel split,
+    /// Lambertian emitters).
     pub enumerated: bool,
     get: fn(&Plan) -> bool,
     set: fn(&mut Plan, bool),
@@ -385,7 +396,7 @@ macro_rules! kernel_flag {
 }
 
 /// Every kernel flag, in the order plans print them.
-pub const KERNEL_FLAGS: [KernelFlag; 9] = [
+pub const KERNEL_FLAGS: [KernelFlag; 11] = [
     kernel_flag!("REFLECTION", reflection, true),
     kernel_flag!("REFRACTION", refraction, true),
     kernel_flag!("SHADOWS", shadows, true),
@@ -395,6 +406,8 @@ pub const KERNEL_FLAGS: [KernelFlag; 9] = [
     kernel_flag!("PIXEL_FILTER", pixel_filter, false),
     kernel_flag!("SEED_RULES", seed_rules, false),
     kernel_flag!("RAY_CUTOFF", ray_cutoff, false),
+    kernel_flag!("FRESNEL", fresnel, false),
+    kernel_flag!("LAMBERTIAN_LIGHTS", lambertian_lights, false),
 ];
 
 impl Plan {
@@ -475,6 +488,12 @@ impl Plan {
         if !emission {
             reasons.push("emission: no material in the grid emits".to_string());
         }
+
+        let fresnel = (reflection || refraction)
+            && mats
+                .iter()
+                .any(|(_, m)| m.kt > 0.0 && m.dielectric == Dielectric::Fresnel);
+        let lambertian_lights = shadows && scene.lights.iter().any(|l| l.is_lambertian());
 
         let default_model = crate::technique::default_shadow_model();
         let asked_model = settings.features.shadow_model;
@@ -626,6 +645,8 @@ impl Plan {
             refraction,
             shadows,
             emission,
+            fresnel,
+            lambertian_lights,
             shadow_model,
             transmittance,
             reconstruction,
@@ -845,6 +866,8 @@ impl Plan {
                     refraction: false,
                     shadows: false,
                     emission: false,
+                    fresnel: false,
+                    lambertian_lights: false,
                     shadow_model: crate::technique::default_shadow_model(),
                     transmittance,
                     reconstruction: crate::technique::default_reconstruction(),

@@ -11,7 +11,9 @@ use glam::DVec3;
 use voxlab::RenderSettings;
 use voxlab::gpu::GpuTracer;
 use voxlab::plan::Plan;
-use voxlab::scene::{Light, PointLight, Scene, seed_scene};
+use voxlab::scene::{
+    AreaLight, AreaShape, Dielectric, Emission, Light, PointLight, Scene, seed_scene,
+};
 
 fn agree(gpu: &mut GpuTracer, name: &str, scene: &Scene, settings: &RenderSettings) {
     agree_within(gpu, name, scene, settings, 0.005);
@@ -145,7 +147,14 @@ fn depth_limits_zero_and_deep() {
 fn full_matches_plan(gpu: &mut GpuTracer, name: &str, scene: &Scene, s: &RenderSettings) {
     let plan = Plan::new(scene, s);
     let mut full = plan.clone();
-    for f in ["REFLECTION", "REFRACTION", "SHADOWS", "EMISSION"] {
+    for f in [
+        "REFLECTION",
+        "REFRACTION",
+        "SHADOWS",
+        "EMISSION",
+        "FRESNEL",
+        "LAMBERTIAN_LIGHTS",
+    ] {
         full.set_flag(f, true);
     }
     full.ray_stack_size = s.ray_stack_size();
@@ -212,6 +221,81 @@ fn leaving_code_out_never_changes_the_image() {
         m.ks = 0.0;
     }
     full_matches_plan(&mut gpu, "unlit", &scene, &s);
+}
+
+/// The Fresnel split and the emitter's cosine are composed in where a scene has them
+/// and only there: the seed scene's plan leaves both out (and `full_matches_plan` shows
+/// that costs no pixel), one Fresnel glass or one Lambertian light puts each in, and
+/// the kernel without it then draws another image (so the def is what composes them).
+#[test]
+fn the_fresnel_split_and_the_emitters_cosine_are_composed_where_needed() {
+    let mut gpu = tracer();
+    let s = settings(48);
+    let seed = seed_scene(16).unwrap();
+    let plan = Plan::new(&seed, &s);
+    assert!(!plan.fresnel && !plan.lambertian_lights, "{plan}");
+
+    // Each case: the scene, the flag it needs, and whether the plan keeps the flag when
+    // the secondary rays (FRESNEL) or the shading (LAMBERTIAN_LIGHTS) are out.
+    let mut fresnel = seed.clone();
+    for m in fresnel.materials.iter_mut().filter(|m| m.kt > 0.0) {
+        m.dielectric = Dielectric::Fresnel;
+    }
+    let mut lambertian = seed.clone();
+    let at = lambertian.lights[0].position();
+    lambertian.lights[0] = Light::Area(AreaLight {
+        emission: Emission::Lambertian,
+        shape: AreaShape::Disk { radius: 0.0 },
+        position: at,
+        normal: DVec3::new(0.3, -1.0, 0.2),
+        rotation: 0.0,
+        color: DVec3::ONE,
+        intensity: 40.0,
+    });
+    let no_secondary = RenderSettings {
+        max_reflection_depth: 0,
+        max_refraction_depth: 0,
+        ..s.clone()
+    };
+    let mut dark = lambertian.clone();
+    dark.lights.retain(|l| l.is_lambertian());
+    dark.lights[0] = match dark.lights[0].clone() {
+        Light::Area(a) => Light::Area(AreaLight {
+            intensity: 0.0,
+            ..a
+        }),
+        l => l,
+    };
+    for (name, scene, flag, without) in [
+        (
+            "Fresnel glass",
+            &fresnel,
+            "FRESNEL",
+            (&fresnel, &no_secondary),
+        ),
+        (
+            "Lambertian light",
+            &lambertian,
+            "LAMBERTIAN_LIGHTS",
+            (&dark, &s),
+        ),
+    ] {
+        let plan = Plan::new(scene, &s);
+        assert!(plan.flag(flag), "{name}: {plan}");
+        assert!(plan.to_string().contains(flag), "{name}: {plan}");
+        let off = Plan::new(without.0, without.1);
+        assert!(!off.flag(flag), "{name}, nothing to use it: {off}");
+        let mut left_out = plan.clone();
+        left_out.set_flag(flag, false);
+        let a = gpu.render_plan(scene, &s, plan).unwrap().frame;
+        let b = gpu.render_plan(scene, &s, left_out).unwrap().frame;
+        let max = linear(&a, &b, 0.0).max_abs;
+        assert!(
+            max > 1e-3,
+            "{name}: the kernel without {flag} drew the same image (max {max:e})"
+        );
+        agree(&mut gpu, name, scene, &s);
+    }
 }
 
 #[test]

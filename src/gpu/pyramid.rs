@@ -147,7 +147,11 @@ impl BuildPipelines {
                 super::compose::EMISSION_MODULE,
             ],
             INJECT,
-            HashMap::new(),
+            // Made once for every scene: the emitter's cosine is always composed in.
+            HashMap::from([(
+                "LAMBERTIAN_LIGHTS".to_string(),
+                naga_oil::compose::ShaderDefValue::Bool(true),
+            )]),
         )
         .map_err(|e| anyhow!("composing {}: {e}", INJECT.0))?;
         super::validate(&inject).map_err(|e| anyhow!("validating {}: {e}", INJECT.0))?;

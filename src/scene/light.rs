@@ -113,7 +113,7 @@ impl Light {
     /// cosine `max(n . (p - x) / |p - x|, 0)` (0 at `x` itself).
     pub fn emitted_towards(&self, x: DVec3, p: DVec3) -> f64 {
         match self {
-            Light::Area(a) if a.emission == Emission::Lambertian => {
+            Light::Area(a) if self.is_lambertian() => {
                 let w = p - x;
                 let len = w.length();
                 if len > 0.0 {
@@ -134,6 +134,11 @@ impl Light {
     /// parsed), whatever its shape and emission.
     pub fn is_dark(&self) -> bool {
         self.intensity() == 0.0 || self.color() == DVec3::ZERO
+    }
+    /// A light whose points send out the emitter's cosine (`emitted_towards` is not 1
+    /// everywhere): an area light of Lambertian emission, whatever its size.
+    pub fn is_lambertian(&self) -> bool {
+        matches!(self, Light::Area(a) if a.emission == Emission::Lambertian)
     }
     /// An area light with a non-zero extent (one that needs sampling).
     pub fn is_area(&self) -> bool {
