@@ -47,6 +47,17 @@ struct StackEntry {
     throughput: vec3<f32>,
 }
 
+// Up to 9 entries (depth limits up to 8/8) the stack is a shift register: its top is
+// entry 0, and a push moves every entry down one and a pop up one, all at constant
+// indices. An entry read or written at the per-lane index sp is instead a loop over
+// the SIMD vector's lanes with a branch a lane on a software driver (the profile in
+// docs/sparse-traversal.md, "What each change to the kernel bought"), run at every pass
+// of the ray-tree loop whether or not a lane pushes or pops. On lavapipe the shift
+// took 0.84x to 0.92x the seed scene's frame (16^3 under both rules, 64^3 under
+// voxlab's; stacks of 4 and 5) and was not slower at 9 (docs/benchmarks.md, "The ray
+// stack"). Deeper stacks keep the index: a shift's
+// moves grow with the size, and lavapipe's loop limit cuts deeper trees, so no larger
+// size was measured.
 var<private> stack: array<StackEntry, #{RAY_STACK_SIZE}>;
 var<private> sp: u32;
 // The ray a hit spawned last (its reflection), traced next without going through the
@@ -118,7 +129,36 @@ fn push(r: RayEntry) {
     // only keeps a wrong size from writing out of bounds.
     if sp < #{RAY_STACK_SIZE}u {
         let packed = r.depth_reflection | (r.depth_refraction << 8u) | (r.medium << 16u);
-        stack[sp] = StackEntry(r.origin, packed, r.dir, r.throughput);
+        let entry = StackEntry(r.origin, packed, r.dir, r.throughput);
+#if RAY_STACK_SIZE <= 9
+#if RAY_STACK_SIZE > 8
+        stack[8] = stack[7];
+#endif
+#if RAY_STACK_SIZE > 7
+        stack[7] = stack[6];
+#endif
+#if RAY_STACK_SIZE > 6
+        stack[6] = stack[5];
+#endif
+#if RAY_STACK_SIZE > 5
+        stack[5] = stack[4];
+#endif
+#if RAY_STACK_SIZE > 4
+        stack[4] = stack[3];
+#endif
+#if RAY_STACK_SIZE > 3
+        stack[3] = stack[2];
+#endif
+#if RAY_STACK_SIZE > 2
+        stack[2] = stack[1];
+#endif
+#if RAY_STACK_SIZE > 1
+        stack[1] = stack[0];
+#endif
+        stack[0] = entry;
+#else
+        stack[sp] = entry;
+#endif
         sp += 1u;
         count_secondary();
     }
@@ -299,7 +339,35 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
                 has_next = false;
             } else if sp > 0u {
                 sp -= 1u;
+#if RAY_STACK_SIZE <= 9
+                let e = stack[0];
+#if RAY_STACK_SIZE > 1
+                stack[0] = stack[1];
+#endif
+#if RAY_STACK_SIZE > 2
+                stack[1] = stack[2];
+#endif
+#if RAY_STACK_SIZE > 3
+                stack[2] = stack[3];
+#endif
+#if RAY_STACK_SIZE > 4
+                stack[3] = stack[4];
+#endif
+#if RAY_STACK_SIZE > 5
+                stack[4] = stack[5];
+#endif
+#if RAY_STACK_SIZE > 6
+                stack[5] = stack[6];
+#endif
+#if RAY_STACK_SIZE > 7
+                stack[6] = stack[7];
+#endif
+#if RAY_STACK_SIZE > 8
+                stack[7] = stack[8];
+#endif
+#else
                 let e = stack[sp];
+#endif
                 r.origin = e.origin;
                 r.dir = e.dir;
                 r.throughput = e.throughput;

@@ -133,7 +133,9 @@ fn total_internal_reflection_and_ior_one() {
 fn depth_limits_zero_and_deep() {
     let scene = seed_scene(16).unwrap();
     let mut gpu = tracer();
-    for (a, b) in [(0, 0), (0, 3), (3, 0), (7, 7)] {
+    // 7/7 and 8/8: stacks of 8 and 9, the shift register's largest (shaders/trace.wgsl);
+    // 9/9: a stack of 10, indexed.
+    for (a, b) in [(0, 0), (0, 3), (3, 0), (7, 7), (8, 8), (9, 9)] {
         let s = RenderSettings {
             max_reflection_depth: a,
             max_refraction_depth: b,
