@@ -61,11 +61,11 @@ struct StackEntry {
 var<private> stack: array<StackEntry, #{RAY_STACK_SIZE}>;
 var<private> sp: u32;
 // The ray a hit spawned last (its reflection), traced next without going through the
-// stack: the order is the stack's, as if pushed and popped at once. A stack entry is
-// written and read at a per-lane index, which a software driver pays for on every SIMD
-// lane (seed_rules at 512x512 on lavapipe, medians of five alternated runs: 16^3 98.5
-// to 95.0 ms per frame, 64^3 233 to 230; packing the entry, StackEntry, then 95.3 to
-// 93.4 and 233 to 230).
+// stack: the order is the stack's, as if pushed and popped at once. Measured when an
+// entry was always written and read at the per-lane index, which a software driver
+// pays for on every SIMD lane (seed_rules at 512x512 on lavapipe, medians of five
+// alternated runs: 16^3 98.5 to 95.0 ms per frame, 64^3 233 to 230; packing the entry,
+// StackEntry, then 95.3 to 93.4 and 233 to 230).
 var<private> next_ray: RayEntry;
 var<private> has_next: bool;
 
