@@ -812,35 +812,6 @@ impl PlanRow {
     }
 }
 
-/// The full kernel for `scene`: `plan` with every image-neutral flag on and the cone
-/// bindings in. The shadow model and the lighting terms stay the plan's: they are
-/// choices, not code the plan leaves out.
-pub(crate) fn full_plan(
-    scene: &Scene,
-    settings: &RenderSettings,
-    plan: &crate::plan::Plan,
-) -> crate::plan::Plan {
-    let mut full = plan.clone();
-    for f in [
-        "REFLECTION",
-        "REFRACTION",
-        "SHADOWS",
-        "EMISSION",
-        "ACCUMULATE",
-        "FRESNEL",
-        "LAMBERTIAN_LIGHTS",
-    ] {
-        full.set_flag(f, true);
-    }
-    full.ray_stack_size = settings.ray_stack_size();
-    full.pyramid = Some(crate::technique::cones::pyramid::PyramidLayout::new(
-        scene.grid.dims(),
-        settings.cones.levels,
-    ));
-    full.reasons.clear();
-    full
-}
-
 fn median_ms(
     gpu: &mut GpuTracer,
     scene: &Scene,
@@ -884,7 +855,7 @@ pub fn bench_plans(
     let mut rows = Vec::new();
     for (name, scene) in scenes {
         let reduced = crate::plan::Plan::new(scene, settings);
-        let full = full_plan(scene, settings, &reduced);
+        let full = reduced.with_all_code(scene, settings);
         let (reduced_ms, a, reduced_bytes) = median_ms(gpu, scene, settings, &reduced, runs)?;
         let (full_ms, b, full_bytes) = median_ms(gpu, scene, settings, &full, runs)?;
         let max_diff = a

@@ -378,17 +378,23 @@ pub struct KernelFlag {
     /// (the pixel filter's jitter, the seed's rules, the ray cutoff, the Fresnel split,
     /// Lambertian emitters).
     pub enumerated: bool,
+    /// The plan turns it off where the scene and settings need none of its code, and
+    /// turning it on again changes no image, only the cost: [`Plan::with_all_code`] sets
+    /// every such flag (the bench's full kernel, and the tests that the plan leaving
+    /// code out never changes an image). The others pick a model or what is recorded.
+    pub only_code: bool,
     get: fn(&Plan) -> bool,
     set: fn(&mut Plan, bool),
 }
 
-/// A row of [`KERNEL_FLAGS`]: the def's name, whether the tests enumerate it, and the
-/// `Plan` field that holds it.
+/// A row of [`KERNEL_FLAGS`]: the def's name, the `Plan` field that holds it, whether
+/// the tests enumerate it, and whether it only leaves code out.
 macro_rules! kernel_flag {
-    ($name:literal, $field:ident, $enumerated:expr) => {
+    ($name:literal, $field:ident, enumerated: $enumerated:expr, only_code: $only_code:expr) => {
         KernelFlag {
             name: $name,
             enumerated: $enumerated,
+            only_code: $only_code,
             get: |p| p.$field,
             set: |p, on| p.$field = on,
         }
@@ -397,17 +403,19 @@ macro_rules! kernel_flag {
 
 /// Every kernel flag, in the order plans print them.
 pub const KERNEL_FLAGS: [KernelFlag; 11] = [
-    kernel_flag!("REFLECTION", reflection, true),
-    kernel_flag!("REFRACTION", refraction, true),
-    kernel_flag!("SHADOWS", shadows, true),
-    kernel_flag!("EMISSION", emission, true),
-    kernel_flag!("ACCUMULATE", accumulate, true),
-    kernel_flag!("COUNT_RAYS", count_rays, true),
-    kernel_flag!("PIXEL_FILTER", pixel_filter, false),
-    kernel_flag!("SEED_RULES", seed_rules, false),
-    kernel_flag!("RAY_CUTOFF", ray_cutoff, false),
-    kernel_flag!("FRESNEL", fresnel, false),
-    kernel_flag!("LAMBERTIAN_LIGHTS", lambertian_lights, false),
+    kernel_flag!("REFLECTION", reflection, enumerated: true, only_code: true),
+    kernel_flag!("REFRACTION", refraction, enumerated: true, only_code: true),
+    kernel_flag!("SHADOWS", shadows, enumerated: true, only_code: true),
+    kernel_flag!("EMISSION", emission, enumerated: true, only_code: true),
+    kernel_flag!("ACCUMULATE", accumulate, enumerated: true, only_code: true),
+    // Changes no image either, but records what the timed frames must not.
+    kernel_flag!("COUNT_RAYS", count_rays, enumerated: true, only_code: false),
+    kernel_flag!("PIXEL_FILTER", pixel_filter, enumerated: false, only_code: false),
+    kernel_flag!("SEED_RULES", seed_rules, enumerated: false, only_code: false),
+    // Off at a cutoff of 0, which cuts nothing: the settings' choice of the exact tree.
+    kernel_flag!("RAY_CUTOFF", ray_cutoff, enumerated: false, only_code: false),
+    kernel_flag!("FRESNEL", fresnel, enumerated: false, only_code: true),
+    kernel_flag!("LAMBERTIAN_LIGHTS", lambertian_lights, enumerated: false, only_code: true),
 ];
 
 impl Plan {
@@ -840,6 +848,22 @@ impl Plan {
             .iter()
             .find(|f| f.name == name)
             .is_some_and(|f| (f.get)(self))
+    }
+
+    /// The kernel with none of the code the plan leaves out: every
+    /// [`KernelFlag::only_code`] flag on, the settings' own stack size, and the cone
+    /// pyramids built. The shadow model, the lighting terms and the rules stay the plan's:
+    /// they are choices, not code left out. Rendered with `scene` and `settings` it gives
+    /// the plan's image (tests/gpu_extremes.rs), at the cost `voxlab bench --plan` prints.
+    pub fn with_all_code(&self, scene: &Scene, settings: &RenderSettings) -> Plan {
+        let mut full = self.clone();
+        for f in KERNEL_FLAGS.iter().filter(|f| f.only_code) {
+            (f.set)(&mut full, true);
+        }
+        full.ray_stack_size = settings.ray_stack_size();
+        full.pyramid = Some(PyramidLayout::new(scene.grid.dims(), settings.cones.levels));
+        full.reasons.clear();
+        full
     }
 
     /// Sets a flag of [`KERNEL_FLAGS`] by name (for tests that enumerate variants).

@@ -329,8 +329,8 @@ fn progress_goes_to_stderr_as_lines_when_asked() {
     }
 }
 
-/// `voxlab bench --plan`: each scene's reduced kernel against the full one (every
-/// image-neutral flag on), which must render the same image.
+/// `voxlab bench --plan`: each scene's reduced kernel against the full one
+/// (`Plan::with_all_code`), which must render the same image.
 #[test]
 fn bench_plan_compares_the_reduced_kernel_with_the_full_one() {
     let dir = scratch("bench-plan");

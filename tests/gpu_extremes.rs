@@ -145,21 +145,11 @@ fn depth_limits_zero_and_deep() {
     }
 }
 
-/// The full kernel (every flag, the settings' own stack) against the planned variant.
+/// The full kernel (`Plan::with_all_code`: every flag that only leaves code out, the
+/// settings' own stack, the pyramids) against the planned variant.
 fn full_matches_plan(gpu: &mut GpuTracer, name: &str, scene: &Scene, s: &RenderSettings) {
     let plan = Plan::new(scene, s);
-    let mut full = plan.clone();
-    for f in [
-        "REFLECTION",
-        "REFRACTION",
-        "SHADOWS",
-        "EMISSION",
-        "FRESNEL",
-        "LAMBERTIAN_LIGHTS",
-    ] {
-        full.set_flag(f, true);
-    }
-    full.ray_stack_size = s.ray_stack_size();
+    let full = plan.with_all_code(scene, s);
     let a = gpu.render_plan(scene, s, plan.clone()).unwrap().frame;
     let b = gpu.render_plan(scene, s, full).unwrap().frame;
     let max = linear(&a, &b, 0.0).max_abs;
