@@ -329,6 +329,7 @@ impl GpuTracer {
                 Duration::ZERO
             };
 
+        self.warm_up(&plan, &bind_group, cone_group.as_ref(), reduce.as_ref());
         // Finish the uploads first so the timed submission holds the trace alone.
         self.queue.submit([]);
         self.wait()?;
@@ -572,6 +573,69 @@ impl GpuTracer {
         })
     }
 
+    /// The first dispatch of a kernel made for this render, and of the accumulation
+    /// kernel, untimed. Mesa's software driver compiles a kernel for the bound state
+    /// at its first dispatch, not when the pipeline is made, and where Mesa's shader
+    /// cache does not hold it yet that takes longer than a frame: the first 64x64
+    /// frame of `experiments/seed_rules.toml` timed 231 ms against 7 ms for the next,
+    /// inside the timestamps (docs/benchmarks.md, "A kernel's first dispatch"). One
+    /// workgroup of the trace runs with the render's own bindings, whose pixels the
+    /// timed dispatch writes again, and the ray counters it adds to are cleared after
+    /// it; the accumulation kernel runs with no pixels, so it adds nothing.
+    fn warm_up(
+        &mut self,
+        plan: &Plan,
+        trace: &wgpu::BindGroup,
+        cones: Option<&wgpu::BindGroup>,
+        reduce: Option<&wgpu::BindGroup>,
+    ) {
+        let trace_cold = self.cold_kernels.remove(&plan.shader_defs());
+        let reduce_cold = reduce.is_some() && std::mem::take(&mut self.cold_reduce);
+        if !trace_cold && !reduce_cold {
+            return;
+        }
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("voxlab warm-up"),
+            });
+        if trace_cold {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("voxlab trace warm-up"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipelines[&plan.shader_defs()]);
+            pass.set_bind_group(0, trace, &[]);
+            if let Some(g) = cones {
+                pass.set_bind_group(1, g, &[]);
+            }
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+        if let (true, Some(group), Some((_, pipeline, params))) =
+            (reduce_cold, reduce, &self.reduce)
+        {
+            let none = ReduceParams {
+                pixels: 0,
+                row: 0,
+                frame_begin: 0,
+                frame_count: 0,
+            };
+            self.queue
+                .write_buffer(params, 0, bytemuck::bytes_of(&none));
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("voxlab accumulate warm-up"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+        self.queue.submit([encoder.finish()]);
+        // Applied after the warm-up's submission and before the render's.
+        self.queue
+            .write_buffer(&self.counters, 0, &[0u8; COUNTER_BYTES as usize]);
+    }
+
     /// The accumulation kernel's dispatch grid for `pixels`: 64-wide workgroups along x
     /// up to the per-dimension limit, then rows of them along y.
     pub(super) fn reduce_grid(pixels: u64) -> (u32, u32) {
@@ -632,6 +696,7 @@ impl GpuTracer {
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             );
             self.reduce = Some((layout, pipeline, params));
+            self.cold_reduce = true;
         }
         let (layout, _, params) = self.reduce.as_ref().expect("made above");
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -11,7 +11,7 @@ mod upload;
 pub use compose::{ENTRY_POINT, ShaderError, compose_shader, validate};
 
 use std::borrow::Cow;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::ops::Range;
 use std::time::{Duration, Instant};
 
@@ -273,6 +273,10 @@ pub struct GpuTracer {
     cone_layout: wgpu::BindGroupLayout,
     cone_pipeline_layout: wgpu::PipelineLayout,
     pipelines: HashMap<ShaderDefs, wgpu::ComputePipeline>,
+    /// Kernels made and not yet dispatched, and whether the accumulation kernel is one:
+    /// their first dispatch is an untimed warm-up (`dispatch.rs`, `warm_up`).
+    cold_kernels: HashSet<ShaderDefs>,
+    cold_reduce: bool,
     params: wgpu::Buffer,
     counters: wgpu::Buffer,
     counters_readback: wgpu::Buffer,
@@ -660,6 +664,8 @@ impl GpuTracer {
             cone_layout,
             cone_pipeline_layout,
             pipelines: HashMap::new(),
+            cold_kernels: HashSet::new(),
+            cold_reduce: false,
             params,
             counters,
             counters_readback,
@@ -967,6 +973,7 @@ impl GpuTracer {
                     cache: None,
                 });
             self.pipelines.insert(key.clone(), pipeline);
+            self.cold_kernels.insert(key.clone());
         }
         Ok(&self.pipelines[&key])
     }
