@@ -442,7 +442,6 @@ impl GpuTracer {
         // A reconstruction filters on the device what the trace summed; only the image
         // it composes comes back.
         let filtered = if plan.layer_slices() > 1 {
-            let filter_start = Instant::now();
             let f = self.reconstruct(
                 plan.reconstruction,
                 settings,
@@ -451,8 +450,7 @@ impl GpuTracer {
                 compensation.as_ref(),
                 frames.end,
             )?;
-            self.wait()?;
-            self.last_filter_time = filter_start.elapsed();
+            self.last_filter_time = f.time;
             Some(f)
         } else {
             self.last_filter_time = Duration::ZERO;
@@ -575,8 +573,9 @@ impl GpuTracer {
 
     /// The first dispatch of a kernel made for this render, and of the accumulation
     /// kernel, untimed. Mesa's software driver compiles a kernel for the bound state
-    /// at its first dispatch, not when the pipeline is made, and where Mesa's shader
-    /// cache does not hold it yet that takes longer than a frame: the first 64x64
+    /// (the values of the uniforms its branches read included) at its first
+    /// dispatch, not when the pipeline is made, and where Mesa's shader cache does
+    /// not hold it yet that takes longer than a frame: the first 64x64
     /// frame of `experiments/seed_rules.toml` timed 231 ms against 7 ms for the next,
     /// inside the timestamps (docs/benchmarks.md, "A kernel's first dispatch"). One
     /// workgroup of the trace runs with the render's own bindings, whose pixels the

@@ -6,6 +6,7 @@
 
 use std::borrow::Cow;
 use std::collections::HashMap;
+use std::time::{Duration, Instant};
 
 use anyhow::{Result, anyhow};
 use bytemuck::{Pod, Zeroable};
@@ -75,6 +76,11 @@ pub(super) struct FilterPipelines {
     prepare: wgpu::ComputePipeline,
     iterate: wgpu::ComputePipeline,
     compose: wgpu::ComputePipeline,
+    /// The parameters the passes last ran with. The driver compiles a kernel at its
+    /// first dispatch for the values of its uniforms (lavapipe inlines those its
+    /// branches read; docs/benchmarks.md, "A kernel's first dispatch"), so passes
+    /// with other parameters first run untimed on one tile.
+    warmed: Option<FilterParams>,
 }
 
 /// The passes' buffers for an image of `pixels` pixels, kept while renders have that
@@ -100,6 +106,9 @@ pub(super) struct Filtered {
     pub image: wgpu::Buffer,
     /// Bytes of the buffers the passes used.
     pub bytes: u64,
+    /// The passes' wall time, from their first submission until the device is done
+    /// with the last (a first use's untimed warm-up left out).
+    pub time: Duration,
 }
 
 impl GpuTracer {
@@ -200,6 +209,7 @@ impl GpuTracer {
                 iterate: pipeline("iterate"),
                 compose: pipeline("compose"),
                 layout,
+                warmed: None,
             };
             self.filters.insert(r.name, pipelines);
         }
@@ -300,56 +310,39 @@ impl GpuTracer {
         }
         let pipelines = &self.filters[r.name];
         // Bind group k reads colour k and writes the other.
-        let groups: Vec<wgpu::BindGroup> = (0..2)
-            .map(|k| {
-                self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("voxlab reconstruction"),
-                    layout: &pipelines.layout,
-                    entries: &[
-                        buffer_entry(0, &params),
-                        buffer_entry(1, planes),
-                        buffer_entry(2, compensation),
-                        buffer_entry(3, &guide),
-                        buffer_entry(4, &colors[k]),
-                        buffer_entry(5, &colors[1 - k]),
-                        buffer_entry(6, &aux),
-                        buffer_entry(7, &history_in),
-                        buffer_entry(8, &history_out),
-                    ],
-                })
+        let groups: [wgpu::BindGroup; 2] = [0, 1].map(|k| {
+            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("voxlab reconstruction"),
+                layout: &pipelines.layout,
+                entries: &[
+                    buffer_entry(0, &params),
+                    buffer_entry(1, planes),
+                    buffer_entry(2, compensation),
+                    buffer_entry(3, &guide),
+                    buffer_entry(4, &colors[k]),
+                    buffer_entry(5, &colors[1 - k]),
+                    buffer_entry(6, &aux),
+                    buffer_entry(7, &history_in),
+                    buffer_entry(8, &history_out),
+                ],
             })
-            .collect();
-        let groups_xy = (w.div_ceil(8), h.div_ceil(8));
-        // One submission per pass: the parameters (the pass's index) are written
-        // before each, and a queue's writes and submissions keep their order.
-        let run = |pipeline: &wgpu::ComputePipeline, reads: usize, p: &FilterParams| {
-            self.queue.write_buffer(&params, 0, bytemuck::bytes_of(p));
-            let mut encoder = self
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("voxlab reconstruction"),
-                });
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("voxlab reconstruction"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &groups[reads], &[]);
-                pass.dispatch_workgroups(groups_xy.0, groups_xy.1, 1);
-            }
-            self.queue.submit([encoder.finish()]);
-        };
-        // inputs writes colour 0; prepare reads it; each pass reads what the last wrote.
-        run(&pipelines.inputs, 1, &p);
-        run(&pipelines.prepare, 0, &p);
-        let mut reads = 1;
-        for k in 0..passes {
-            p.pass_index = k;
-            run(&pipelines.iterate, reads, &p);
-            reads = 1 - reads;
+        });
+        let cold = pipelines
+            .warmed
+            .is_none_or(|w| bytemuck::bytes_of(&w) != bytemuck::bytes_of(&p));
+        if cold {
+            // The warm-up runs the passes with the filter's own parameters and
+            // bindings on the first tile only: the timed passes below write every
+            // pixel again from the same inputs (no pass reads what it or a later pass
+            // writes).
+            self.filter_passes(pipelines, &groups, &params, p, passes, (1, 1));
+            self.wait()?;
         }
-        run(&pipelines.compose, reads, &p);
+        let start = Instant::now();
+        let groups_xy = (w.div_ceil(8), h.div_ceil(8));
+        let reads = self.filter_passes(pipelines, &groups, &params, p, passes, groups_xy);
+        self.wait()?;
+        let time = start.elapsed();
         let validation = pollster::block_on(validation_scope.pop());
         let oom = pollster::block_on(oom_scope.pop());
         if let Some(e) = oom.or(validation) {
@@ -357,6 +350,9 @@ impl GpuTracer {
             self.filter_buffers = None;
             self.history = None;
             return Err(anyhow!("reconstruction {}: {e}", r.name));
+        }
+        if let Some(f) = self.filters.get_mut(r.name) {
+            f.warmed = Some(p);
         }
         if r.temporal
             && let Some(h) = &mut self.history
@@ -376,6 +372,51 @@ impl GpuTracer {
                 } else {
                     0
                 },
+            time,
         })
+    }
+
+    /// Submits the filter's passes over `groups_xy` workgroups, one submission a pass
+    /// (the parameters, the pass's index among them, are written before each, and a
+    /// queue's writes and submissions keep their order), and gives the bind group the
+    /// last pass read. Bind group k reads colour k and writes the other: `inputs`
+    /// writes colour 0, `prepare` reads it, and each pass reads what the last wrote.
+    fn filter_passes(
+        &self,
+        pipelines: &FilterPipelines,
+        groups: &[wgpu::BindGroup; 2],
+        params: &wgpu::Buffer,
+        mut p: FilterParams,
+        passes: u32,
+        groups_xy: (u32, u32),
+    ) -> usize {
+        let run = |pipeline: &wgpu::ComputePipeline, reads: usize, p: &FilterParams| {
+            self.queue.write_buffer(params, 0, bytemuck::bytes_of(p));
+            let mut encoder = self
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("voxlab reconstruction"),
+                });
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("voxlab reconstruction"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &groups[reads], &[]);
+                pass.dispatch_workgroups(groups_xy.0, groups_xy.1, 1);
+            }
+            self.queue.submit([encoder.finish()]);
+        };
+        run(&pipelines.inputs, 1, &p);
+        run(&pipelines.prepare, 0, &p);
+        let mut reads = 1;
+        for k in 0..passes {
+            p.pass_index = k;
+            run(&pipelines.iterate, reads, &p);
+            reads = 1 - reads;
+        }
+        run(&pipelines.compose, reads, &p);
+        reads
     }
 }
