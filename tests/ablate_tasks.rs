@@ -298,3 +298,37 @@ fn resume_renders_only_the_missing_points_and_writes_the_same_csv() {
     let (fresh, _) = ablate_cli(&path, &dir.join("d"), &cache, &[]);
     assert_eq!(rendered_seeds(&fresh), points, "{fresh}");
 }
+
+#[test]
+fn resume_takes_a_point_by_what_it_renders_not_by_its_place() {
+    let dir = scratch("resume-by-key");
+    // The hard min-kt point renders what the baseline does: one key, one file.
+    let path = dir.join("tiny.toml");
+    std::fs::write(
+        &path,
+        TINY.replace("transmittance = []", "transmittance = [\"min-kt\"]"),
+    )
+    .unwrap();
+    let cache = dir.join("cache");
+    let (first, csv) = ablate_cli(&path, &dir.join("a"), &cache, &[]);
+    let points = (csv.lines().count() - 1) / 2;
+    assert_eq!(rendered_seeds(&first), 2 * points, "{first}");
+    let files = std::fs::read_dir(cache.join("points")).unwrap().count();
+    assert_eq!(files, points - 1, "the baseline and min-kt share a key");
+    let (again, _) = ablate_cli(&path, &dir.join("b"), &cache, &["--resume"]);
+    assert_eq!(rendered_seeds(&again), 0, "{again}");
+    assert!(
+        again.contains(&format!("{points} of the points resumed")),
+        "{again}"
+    );
+    // A shorter list moves the points after it: they are still done.
+    std::fs::write(
+        &path,
+        TINY.replace("spp = [1, 4]", "spp = [4]")
+            .replace("transmittance = []", "transmittance = [\"min-kt\"]"),
+    )
+    .unwrap();
+    let (shorter, _) = ablate_cli(&path, &dir.join("c"), &cache, &["--resume"]);
+    assert_eq!(rendered_seeds(&shorter), 0, "{shorter}");
+    assert!(!shorter.contains("is not point"), "{shorter}");
+}

@@ -684,10 +684,13 @@ impl Driver {
                 let Ok(bytes) = std::fs::read(&path) else {
                     continue;
                 };
-                // A damaged or foreign file is rendered again, and said so.
+                // A damaged or foreign file is rendered again, and said so. The key
+                // names what a point renders, not where the schedule puts it: points
+                // of equal settings (the baseline and the hard min-kt point) share a
+                // file, and a point whose place moved (a list shortened) is still done.
                 match TaskOutput::decode(&bytes) {
-                    Ok(TaskOutput::Point(p)) if p.key == *key && p.index == i => {
-                        renders[i] = Some(p);
+                    Ok(TaskOutput::Point(p)) if p.key == *key => {
+                        renders[i] = Some(PointRenders { index: i, ..p });
                         resumed += 1;
                     }
                     Ok(_) => eprintln!(
