@@ -588,7 +588,8 @@ impl GpuTracer {
         cones: Option<&wgpu::BindGroup>,
         reduce: Option<&wgpu::BindGroup>,
     ) {
-        let trace_cold = self.cold_kernels.remove(&plan.shader_defs());
+        let key = plan.shader_defs();
+        let trace_cold = self.cold_kernels.remove(&key);
         let reduce_cold = reduce.is_some() && std::mem::take(&mut self.cold_reduce);
         if !trace_cold && !reduce_cold {
             return;
@@ -603,7 +604,7 @@ impl GpuTracer {
                 label: Some("voxlab trace warm-up"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&self.pipelines[&plan.shader_defs()]);
+            pass.set_pipeline(&self.pipelines[&key]);
             pass.set_bind_group(0, trace, &[]);
             if let Some(g) = cones {
                 pass.set_bind_group(1, g, &[]);
