@@ -1,6 +1,7 @@
 //! The log-log plot of error against time: RMSE and FLIP panels, one curve per model,
 //! each point the mean over its seeds with its 95 % interval on both axes (one seed: the
-//! spread of its timed runs in time), the Pareto front of each panel, the reference's
+//! spread of its timed runs in time; an interval through zero open below, an arrowhead at
+//! the axis' edge), the Pareto front of each panel, the reference's
 //! own noise (each metric's floor, which no point can be shown to beat), and the legend
 //! in a band of its own below the panels, so it never covers data. Each technique keeps
 //! its colour across runs (Okabe and Ito's colour-blind-safe palette, by the registry's
@@ -222,23 +223,40 @@ fn place_labels(
     out
 }
 
+/// An interval on a log axis: its lower end, `None` where the interval reaches zero or
+/// below (a Student's t interval over few, spread seeds can), and its upper end. An open
+/// lower end is drawn to the axis' edge with an arrowhead and does not stretch the axis:
+/// a made-up positive end would claim a bound the data do not give.
+type Bar = (Option<f64>, f64);
+
+fn open_below(lo: f64, hi: f64) -> Bar {
+    ((lo > 0.0).then_some(lo), hi)
+}
+
+/// The time axis: the points and their bars' ends, an open end left out.
+fn x_axis(rows: &[Row]) -> std::ops::Range<f64> {
+    range(rows.iter().flat_map(|r| {
+        let (lo, hi) = x_bar(r);
+        [Some(r.ms_median), lo, Some(hi)].into_iter().flatten()
+    }))
+}
+
 /// A row's time interval: the 95 % interval over seeds, else the runs' spread.
-fn x_bar(r: &Row) -> (f64, f64) {
+fn x_bar(r: &Row) -> Bar {
     match r.interval {
-        Some(i) => (
-            (r.ms_median - i.ms).max(r.ms_median * 1e-3),
-            r.ms_median + i.ms,
-        ),
-        None => ms_spread(r),
+        Some(i) => open_below(r.ms_median - i.ms, r.ms_median + i.ms),
+        None => {
+            let (lo, hi) = ms_spread(r);
+            open_below(lo, hi)
+        }
     }
 }
 
-/// A row's error interval under `metric`, where it has one (its lower end kept above
-/// zero for the log axis).
-fn y_bar(r: &Row, metric: Metric, half: Half) -> Option<(f64, f64)> {
+/// A row's error interval under `metric`, where it has one.
+fn y_bar(r: &Row, metric: Metric, half: Half) -> Option<Bar> {
     let i = r.interval?;
     let (y, h) = (metric(r), half(&i));
-    Some(((y - h).max(y * 1e-3), y + h))
+    Some(open_below(y - h, y + h))
 }
 
 /// One function because plotters' chart contexts borrow the drawing area: the panels,
@@ -282,10 +300,7 @@ where
         .filter_map(|r| r.interval)
         .map(|i| i.seeds)
         .max();
-    let x_range = range(rows.iter().flat_map(|r| {
-        let (lo, hi) = x_bar(r);
-        [lo, hi]
-    }));
+    let x_range = x_axis(rows);
     let metrics: [(&str, Metric, Half, Option<f64>, &str); 2] = [
         (
             "RMSE (linear radiance)",
@@ -310,12 +325,19 @@ where
             "ms per image (median of trace + cone pyramid build; bars: the runs' range)".to_string()
         }
     };
+    let open_bars = rows.iter().any(|r| {
+        x_bar(r).0.is_none()
+            || metrics
+                .iter()
+                .any(|m| y_bar(r, m.1, m.2).is_some_and(|b| b.0.is_none()))
+    });
+
     for (panel, (name, metric, half, floor, floor_name)) in panels.iter().zip(metrics) {
         let y_range = range(
             rows.iter()
                 .flat_map(|r| {
-                    let (lo, hi) = y_bar(r, metric, half).unwrap_or((metric(r), metric(r)));
-                    [lo, hi]
+                    let (lo, hi) = y_bar(r, metric, half).unwrap_or((None, metric(r)));
+                    [Some(metric(r)), lo, Some(hi)].into_iter().flatten()
                 })
                 .chain(floor),
         );
@@ -395,30 +417,37 @@ where
                 .collect();
             for &i in idx {
                 let (x, y) = (rows[i].ms_median.max(1e-9), metric(&rows[i]).max(1e-12));
-                let (lo, hi) = x_bar(&rows[i]);
+                // (start, end, horizontal, whether the start is open).
                 let mut bars = Vec::new();
-                if hi > lo {
-                    bars.push(((lo, y), (hi, y), true));
+                let (lo, hi) = x_bar(&rows[i]);
+                if lo.is_none_or(|lo| hi > lo) {
+                    bars.push((
+                        (lo.unwrap_or(x_range.start), y),
+                        (hi, y),
+                        true,
+                        lo.is_none(),
+                    ));
                 }
                 if let Some((ylo, yhi)) = y_bar(&rows[i], metric, half)
-                    && yhi > ylo
+                    && ylo.is_none_or(|ylo| yhi > ylo)
                 {
-                    bars.push(((x, ylo), (x, yhi), false));
+                    let start = ylo.unwrap_or(y_range.start);
+                    bars.push(((x, start), (x, yhi), false, ylo.is_none()));
                 }
-                for (a, b, horizontal) in bars {
+                for (a, b, horizontal, open) in bars {
                     chart.draw_series(std::iter::once(PathElement::new(
                         vec![a, b],
                         c.stroke_width(1),
                     )))?;
-                    let tick = if horizontal {
-                        vec![(0, -4), (0, 4)]
+                    let (tick, arrow) = if horizontal {
+                        (vec![(0, -4), (0, 4)], vec![(6, -4), (0, 0), (6, 4)])
                     } else {
-                        vec![(-4, 0), (4, 0)]
+                        (vec![(-4, 0), (4, 0)], vec![(-4, -6), (0, 0), (4, -6)])
                     };
-                    for end in [a, b] {
+                    let start_mark = if open { arrow } else { tick.clone() };
+                    for (end, mark) in [(a, start_mark), (b, tick)] {
                         chart.draw_series(std::iter::once(
-                            EmptyElement::at(end)
-                                + PathElement::new(tick.clone(), c.stroke_width(1)),
+                            EmptyElement::at(end) + PathElement::new(mark, c.stroke_width(1)),
                         ))?;
                     }
                 }
@@ -550,6 +579,24 @@ where
         }
         legend_area.draw(&Text::new(label.clone(), (x + 30, y), (FONT, 13)))?;
     }
+    if open_bars {
+        let k = entries.len() as i32;
+        let (x, y) = (20 + (k % columns) * cell_w, 10 + (k / columns) * 20);
+        let grey = FRONT_COLOUR.to_rgba();
+        legend_area.draw(&PathElement::new(
+            vec![(x, y + 7), (x + 22, y + 7)],
+            grey.stroke_width(1),
+        ))?;
+        legend_area.draw(&PathElement::new(
+            vec![(x + 6, y + 3), (x, y + 7), (x + 6, y + 11)],
+            grey.stroke_width(1),
+        ))?;
+        legend_area.draw(&Text::new(
+            "arrowhead: the interval reaches 0 or below",
+            (x + 30, y),
+            (FONT, 13),
+        ))?;
+    }
     Ok(())
 }
 
@@ -570,6 +617,81 @@ fn dashed(x0: f64, x1: f64, y: f64) -> Vec<Vec<(f64, f64)>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A summary row of `ms` ± `half` milliseconds and RMSE 0.02 ± 0.001 over 3 seeds.
+    fn row(model: &str, ms: f64, half: f64) -> Row {
+        Row {
+            model: model.into(),
+            knob: "spp".into(),
+            value: "1".into(),
+            spp: 1,
+            light_samples: 1,
+            shadow_model: "area",
+            model_settings: vec![],
+            model_note: None,
+            transmittance: "min-kt",
+            reconstruction: "none",
+            backend: "gpu",
+            fallback: None,
+            timer: "device",
+            ms_median: ms,
+            ms_runs: vec![ms],
+            trace_ms_median: ms,
+            setup_ms_median: 0.0,
+            lights_as_points: false,
+            rmse: 0.02,
+            rmse_corrected: 0.02,
+            psnr: 34.0,
+            flip_mean: 0.03,
+            flip8_mean: 0.03,
+            flicker: None,
+            seed: 0,
+            seed_index: 0,
+            interval: Some(Interval {
+                seeds: 3,
+                ms: half,
+                rmse: 0.001,
+                rmse_corrected: 0.001,
+                flip: 0.001,
+                flicker: 0.0,
+            }),
+            own_reference: None,
+            plan: String::new(),
+            image: String::new(),
+            frame: crate::frame::Frame::new(1, 1),
+            external: None,
+            adapter: String::new(),
+        }
+    }
+
+    /// A time interval that reaches below zero (three spread seeds: 3.39 ± 3.46 ms) is
+    /// open below: it neither claims a positive bound nor stretches the axis three
+    /// decades to the left of every point (as a clamp to a thousandth of the mean did);
+    /// the plot still draws.
+    #[test]
+    fn an_interval_through_zero_is_open_and_keeps_the_axis_on_the_points() {
+        let rows = [row("a", 3.39, 3.46), row("b", 100.0, 5.0)];
+        assert_eq!(x_bar(&rows[0]), (None, 3.39 + 3.46));
+        assert_eq!(x_bar(&rows[1]), (Some(95.0), 105.0));
+        let axis = x_axis(&rows);
+        assert_eq!(
+            axis.start,
+            3.39 / 1.6,
+            "the axis starts at the leftmost point"
+        );
+        assert_eq!(axis.end, 105.0 * 1.6);
+        let mut wide = row("c", 50.0, 1.0);
+        wide.rmse = 0.01;
+        wide.interval.as_mut().unwrap().rmse = 0.02;
+        let y = y_bar(&wide, |r| r.rmse, |i| i.rmse).unwrap();
+        assert_eq!(y, (None, 0.03));
+        plot(
+            &[rows[0].clone(), rows[1].clone(), wide],
+            "open intervals",
+            None,
+        )
+        .expect("a plot with open intervals draws");
+    }
 
     /// Labels of a dense cluster of points find places that overlap nothing when there
     /// is room, and stay inside the area; in a cluster too dense for all of them, those
