@@ -131,6 +131,10 @@ pub struct AblateConfig {
     /// Every point is also measured against it, and the distance of voxlab's own
     /// reference to it is reported as that reference's bias.
     pub external: Option<ExternalSpec>,
+    /// The `--set` overrides the run was loaded with (`key=value`, in order; [`load_with`]):
+    /// not a key of the table, but written into every output's record, so that a
+    /// figure made with `--set render.orbit_deg=0.5` says so beside its source file.
+    pub overrides: Vec<String>,
 }
 
 /// An external reference as `[ablate]` names it.
@@ -198,6 +202,7 @@ impl Default for AblateConfig {
                 .collect(),
             sweeps: Vec::new(),
             external: None,
+            overrides: Vec::new(),
         }
     }
 }
@@ -564,7 +569,8 @@ pub fn load_with(
     let experiment = Experiment::load_with(path, overrides)?;
     let text = crate::experiment::read_text(path)?;
     let text = crate::experiment::apply_overrides(&text, overrides)?;
-    let config = AblateConfig::from_str(&text, path)?;
+    let mut config = AblateConfig::from_str(&text, path)?;
+    config.overrides = overrides.iter().map(|o| o.to_string()).collect();
     Ok((experiment, config, text))
 }
 
@@ -1889,6 +1895,7 @@ fn csv_sidecar(
         "experiment": e.name,
         "source": e.source_path.as_ref().map(|p| p.display().to_string()),
         "assets": assets,
+        "overrides": c.overrides,
         "width": e.settings.width,
         "height": e.settings.height,
         "seed": e.settings.seed,
@@ -2497,7 +2504,8 @@ fn write_outputs(
     write_text(&out.join("resolved.toml"), &resolved_toml(e, c, rows, r))?;
     record("resolved.toml");
     let mut run = format!(
-        "git revision: {rev}\nadapter: {adapter}\ncpu: {}\nmodel version: {MODEL_VERSION}\n\
+        "git revision: {rev}\noverrides: {}\nadapter: {adapter}\ncpu: {}\n\
+         model version: {MODEL_VERSION}\n\
          reference: {} spp, {}, {} ({}), noise rmse {:.3e}, {:.2} s to render\n\
          timer: GPU points: the trace's compute passes timed by timestamp queries where \
          the adapter has them, else wall time around a synchronised submit (see each \
@@ -2506,6 +2514,11 @@ fn write_outputs(
          of its coarsest level), outside the render's timed trace; CPU points: wall time of \
          cpu::render (pyramids included). Median of {} runs after {} warm-up renders.\n\n\
          plans:\n",
+        if c.overrides.is_empty() {
+            "none".to_string()
+        } else {
+            c.overrides.join(" ")
+        },
         crate::cpu::backend_summary(),
         r.spp,
         r.backend,

@@ -799,6 +799,10 @@ fn overrides_reach_the_ablate_table() {
         (4, vec![1, 2], 16)
     );
     assert!(text.contains("runs = 4"));
+    assert_eq!(
+        c.overrides,
+        ["ablate.runs=4", "ablate.spp=[1, 2]", "render.width=16"]
+    );
     let bad: Vec<voxlab::experiment::Override> = vec!["ablate.runs=0".parse().unwrap()];
     let err = ablate::load_with(&path, &bad).unwrap_err().to_string();
     assert!(

@@ -294,9 +294,27 @@ fn resume_renders_only_the_missing_points_and_writes_the_same_csv() {
     assert!(third.contains("truncated"), "{third}");
     let lines = |s: &str| s.lines().count();
     assert_eq!(lines(&csv3), lines(&csv));
-    // Without --resume every point renders again.
-    let (fresh, _) = ablate_cli(&path, &dir.join("d"), &cache, &[]);
+    // Without --resume every point renders again. The run's overrides (here one that
+    // restates the file's value) are in every output's record and in run.txt.
+    let d = dir.join("d");
+    let (fresh, _) = ablate_cli(&path, &d, &cache, &["--set", "ablate.warmup=0"]);
     assert_eq!(rendered_seeds(&fresh), points, "{fresh}");
+    for sidecar in ["table.md.json", "plot.png.json", "ablation.csv.json"] {
+        let record: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join(sidecar)).unwrap()).unwrap();
+        assert_eq!(
+            record["overrides"],
+            serde_json::json!(["ablate.warmup=0"]),
+            "{sidecar}"
+        );
+    }
+    let run_txt = std::fs::read_to_string(d.join("run.txt")).unwrap();
+    assert!(
+        run_txt.contains("overrides: ablate.warmup=0\n"),
+        "{run_txt}"
+    );
+    let first_run = std::fs::read_to_string(dir.join("a").join("run.txt")).unwrap();
+    assert!(first_run.contains("overrides: none\n"), "{first_run}");
 }
 
 #[test]
