@@ -26,7 +26,7 @@
 //! RMSE and PSNR on linear radiance and the FLIP mean (NVIDIA's implementation,
 //! `nv-flip`) on the displayed sRGB-encoded 8-bit image (`metrics::flip`). Everything is deterministic but the times.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -1352,8 +1352,8 @@ fn point_row(
 // ---------------------------------------------------------------------------------------
 // The run.
 
-/// The sweep's progress: a bar in estimated microseconds of work, each frame costed by
-/// a 1-spp calibration render of the reference and of a point before the sweep starts,
+/// The sweep's progress: a bar in estimated microseconds of work, each render costed by
+/// calibration renders of the reference and of each curve before the sweep starts,
 /// and an ETA from the cost still to do at the rate measured so far (the calibration's
 /// before anything is done), so a long reference render shows a sensible wait instead
 /// of none. Off a terminal, `--progress` prints it as lines.
@@ -1361,9 +1361,10 @@ struct Meter {
     bar: ProgressBar,
     lines: bool,
     start: Instant,
-    /// Estimated microseconds per frame of the reference and of a point.
-    reference_us: f64,
-    point_us: f64,
+    /// What a render of the reference costs, and of each curve's points (by the
+    /// curve's name), in microseconds (`calibrate`).
+    reference_us: RenderCost,
+    curve_us: HashMap<String, RenderCost>,
     /// Told the work done (in the bar's units), and asked whether to stop.
     watch: Option<std::sync::Arc<crate::progress::Watch>>,
 }
@@ -1376,8 +1377,11 @@ impl Meter {
             bar: ProgressBar::hidden(),
             lines: false,
             start: Instant::now(),
-            reference_us: 1.0,
-            point_us: 1.0,
+            reference_us: RenderCost {
+                fixed_us: 0.0,
+                sample_us: 1.0,
+            },
+            curve_us: HashMap::new(),
             watch: None,
         }
     }
@@ -1390,12 +1394,17 @@ impl Meter {
         Ok(())
     }
 
-    fn reference_cost(&self, frames: u32) -> u64 {
-        (f64::from(frames) * self.reference_us).ceil() as u64
+    fn reference_cost(&self, spp: u32) -> u64 {
+        self.reference_us.of(spp).ceil() as u64
     }
 
-    fn point_cost(&self, frames: u32) -> u64 {
-        (f64::from(frames) * self.point_us).ceil() as u64
+    /// One render of a point of curve `model` at `spp` samples.
+    fn point_cost(&self, model: &str, spp: u32) -> u64 {
+        let c = self.curve_us.get(model).copied().unwrap_or(RenderCost {
+            fixed_us: 0.0,
+            sample_us: 1.0,
+        });
+        c.of(spp).ceil() as u64
     }
 
     /// Time still to wait: the estimated work left at the rate measured so far.
@@ -1544,24 +1553,65 @@ fn refuse_to_overwrite_inputs(
     Ok(())
 }
 
-/// Microseconds per frame of the reference (on its backend, 1 spp) and of a point (the
-/// experiment's settings at 1 spp on the points' backend, its second render, after the
-/// first has built the pipelines): the scale of the progress bar and the first ETA.
-fn calibrate(e: &Experiment, c: &AblateConfig, tracers: &mut Tracers) -> Result<(f64, f64)> {
-    let one = |s: &RenderSettings| RenderSettings {
-        spp: 1,
-        ..s.clone()
+/// What one render of a curve's points costs, in microseconds: a part that does not
+/// depend on the samples (the filter's passes, a path's frames' fixed work, the
+/// readback) and one per sample.
+#[derive(Clone, Copy, Debug)]
+struct RenderCost {
+    fixed_us: f64,
+    sample_us: f64,
+}
+
+impl RenderCost {
+    fn of(self, spp: u32) -> f64 {
+        self.fixed_us + f64::from(spp.max(1)) * self.sample_us
+    }
+}
+
+/// The [`RenderCost`] of the reference (on its backend) and of each curve (its first
+/// point), from renders at 1 and 2 samples: the scale of the progress bar and the first
+/// ETA. Costing every point by the experiment's own
+/// settings times its samples overestimated a filtered sweep about ninefold (the
+/// filter's fixed cost counted once a sample, the costliest curve's for every curve).
+fn calibrate(
+    e: &Experiment,
+    c: &AblateConfig,
+    points: &[Point],
+    tracers: &mut Tracers,
+) -> Result<(RenderCost, HashMap<String, RenderCost>)> {
+    let with_spp = |s: &RenderSettings, spp: u32| RenderSettings { spp, ..s.clone() };
+    let mut timed = |backend: BackendChoice, scene: &Scene, s: &RenderSettings| -> Result<f64> {
+        let t = Instant::now();
+        tracers.render(backend, scene, s)?;
+        Ok(t.elapsed().as_secs_f64() * 1e6)
     };
-    let half = &reference_halves(e, c)[0];
-    let t = Instant::now();
-    tracers.render(c.reference_backend, &e.scene, &one(half))?;
-    let reference_us = t.elapsed().as_secs_f64() * 1e6;
-    let point = one(&e.settings);
-    tracers.render(c.backend, &e.scene, &point)?;
-    let t = Instant::now();
-    tracers.render(c.backend, &e.scene, &point)?;
-    let point_us = t.elapsed().as_secs_f64() * 1e6;
-    Ok((reference_us.max(1.0), point_us.max(1.0)))
+    // At 1 and 2 samples, each after an untimed render on a GPU: a render of more than
+    // one sample is another kernel (it accumulates), built at its first render.
+    let mut cost_of = |backend: BackendChoice, scene: &Scene, s: &RenderSettings| {
+        let (one, two) = (with_spp(s, 1), with_spp(s, 2));
+        if backend != BackendChoice::Cpu {
+            timed(backend, scene, &one)?;
+            timed(backend, scene, &two)?;
+        }
+        let t1 = timed(backend, scene, &one)?.max(1.0);
+        let t2 = timed(backend, scene, &two)?.max(1.0);
+        // A noisy machine can time the second render faster: a sample then costs at
+        // least a tenth of the first render.
+        let sample_us = (t2 - t1).max(0.1 * t1);
+        anyhow::Ok(RenderCost {
+            fixed_us: (t1 - sample_us).max(0.0),
+            sample_us,
+        })
+    };
+    let reference = cost_of(c.reference_backend, &e.scene, &reference_halves(e, c)[0])?;
+    let mut curves = HashMap::new();
+    for p in points {
+        if !curves.contains_key(&p.model) {
+            let cost = cost_of(c.backend, &tasks::point_scene(e, p), &p.settings)?;
+            curves.insert(p.model.clone(), cost);
+        }
+    }
+    Ok((reference, curves))
 }
 
 pub fn run(
@@ -1579,23 +1629,23 @@ pub fn run(
     let mut driver = tasks::Driver::checked(e, c, source, opts, &label, external)?;
     // One band per reference half: the whole image, as a single process renders it.
     let todo = driver.tasks(1);
-    let cost = |t: &tasks::Task, reference_us: f64, point_us: f64| -> f64 {
+    let (reference_us, curve_us) = calibrate(e, c, &driver.schedule.points, worker.tracers_mut())?;
+    let cost = |t: &tasks::Task| -> f64 {
         match t {
             tasks::Task::ReferenceTile {
                 reference, half, ..
-            } => f64::from(driver.schedule.references[*reference].halves[*half].spp) * reference_us,
+            } => reference_us.of(driver.schedule.references[*reference].halves[*half].spp),
             tasks::Task::Point { index } => {
-                let spp = driver.schedule.points[*index].settings.spp.max(1);
-                f64::from(spp * (c.warmup + c.seeds * c.runs)) * point_us
+                let p = &driver.schedule.points[*index];
+                f64::from(c.warmup + c.seeds * c.runs) * curve_us[&p.model].of(p.settings.spp)
             }
         }
     };
-    let (reference_us, point_us) = calibrate(e, c, worker.tracers_mut())?;
-    let estimate: f64 = todo.iter().map(|t| cost(t, reference_us, point_us)).sum();
+    let estimate: f64 = todo.iter().map(cost).sum();
     let reference_estimate: f64 = todo
         .iter()
         .filter(|t| matches!(t, tasks::Task::ReferenceTile { .. }))
-        .map(|t| cost(t, reference_us, point_us))
+        .map(cost)
         .sum();
     let minutes = |us: f64| {
         let s = (us / 1e6).round() as u64;
@@ -1605,8 +1655,8 @@ pub fn run(
     // The plan, before anything long starts.
     eprintln!(
         "ablate {}: {} points x {} seeds x {} runs (+{} warm-up) at {}x{} on {}; reference {} spp \
-         on {} (reused when cached){}; about {} in all ({} of it the reference), by a 1-spp \
-         calibration render of each",
+         on {} (reused when cached){}; about {} in all ({} of it the reference), by \
+         calibration renders of the reference and of each curve at 1 and 2 spp",
         e.name,
         points,
         c.seeds,
@@ -1643,7 +1693,7 @@ pub fn run(
         lines,
         start: Instant::now(),
         reference_us,
-        point_us,
+        curve_us,
         watch: opts.watch.clone(),
     };
     progress.bar.set_length(estimate.ceil().max(1.0) as u64);

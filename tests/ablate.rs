@@ -1006,8 +1006,8 @@ fn the_reference_noise_is_taken_out_of_the_rmse() {
     assert!(point.flip_mean > 0.8 * report.reference.flip_floor);
 }
 
-/// Before anything long starts, ablate prints its plan with an estimate from a 1-spp
-/// calibration render; with `--progress` off a terminal (a log), a line per step with
+/// Before anything long starts, ablate prints its plan with an estimate from
+/// calibration renders; with `--progress` off a terminal (a log), a line per step with
 /// the share done and an estimate of the time left that is never "0 s" while work
 /// remains.
 #[test]

@@ -120,7 +120,7 @@ impl Schedule {
 
 /// The scene `p` renders: its own or the experiment's, its area lights as points where
 /// the curve asks.
-fn point_scene(e: &Experiment, p: &Point) -> Scene {
+pub(super) fn point_scene(e: &Experiment, p: &Point) -> Scene {
     let own = p.scene.as_deref().unwrap_or(&e.scene);
     if p.lights_as_points {
         super::lights_as_points(own)
@@ -541,7 +541,7 @@ impl Worker {
                     times.push(r.time);
                     setups.push(setup);
                 }
-                progress.advance(progress.point_cost(s.spp.max(1)));
+                progress.advance(progress.point_cost(&point.model, s.spp));
                 progress.check()?;
                 last = Some(r);
             }
