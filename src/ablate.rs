@@ -1363,8 +1363,8 @@ struct Meter {
     start: Instant,
     /// What a render of the reference costs, and of each curve's points (by the
     /// curve's name), in microseconds (`calibrate`).
-    reference_us: RenderCost,
-    curve_us: HashMap<String, RenderCost>,
+    reference: RenderCost,
+    curves: HashMap<String, RenderCost>,
     /// Told the work done (in the bar's units), and asked whether to stop.
     watch: Option<std::sync::Arc<crate::progress::Watch>>,
 }
@@ -1377,11 +1377,8 @@ impl Meter {
             bar: ProgressBar::hidden(),
             lines: false,
             start: Instant::now(),
-            reference_us: RenderCost {
-                fixed_us: 0.0,
-                sample_us: 1.0,
-            },
-            curve_us: HashMap::new(),
+            reference: RenderCost::UNCALIBRATED,
+            curves: HashMap::new(),
             watch: None,
         }
     }
@@ -1395,16 +1392,13 @@ impl Meter {
     }
 
     fn reference_cost(&self, spp: u32) -> u64 {
-        self.reference_us.of(spp).ceil() as u64
+        self.reference.of(spp).ceil() as u64
     }
 
     /// One render of a point of curve `model` at `spp` samples.
     fn point_cost(&self, model: &str, spp: u32) -> u64 {
-        let c = self.curve_us.get(model).copied().unwrap_or(RenderCost {
-            fixed_us: 0.0,
-            sample_us: 1.0,
-        });
-        c.of(spp).ceil() as u64
+        let c = self.curves.get(model).copied();
+        c.unwrap_or(RenderCost::UNCALIBRATED).of(spp).ceil() as u64
     }
 
     /// Time still to wait: the estimated work left at the rate measured so far.
@@ -1563,6 +1557,12 @@ struct RenderCost {
 }
 
 impl RenderCost {
+    /// A sample a unit: the meter's scale where nothing was calibrated (a worker's).
+    const UNCALIBRATED: Self = Self {
+        fixed_us: 0.0,
+        sample_us: 1.0,
+    };
+
     fn of(self, spp: u32) -> f64 {
         self.fixed_us + f64::from(spp.max(1)) * self.sample_us
     }
@@ -1629,15 +1629,15 @@ pub fn run(
     let mut driver = tasks::Driver::checked(e, c, source, opts, &label, external)?;
     // One band per reference half: the whole image, as a single process renders it.
     let todo = driver.tasks(1);
-    let (reference_us, curve_us) = calibrate(e, c, &driver.schedule.points, worker.tracers_mut())?;
+    let (reference_cost, curves) = calibrate(e, c, &driver.schedule.points, worker.tracers_mut())?;
     let cost = |t: &tasks::Task| -> f64 {
         match t {
             tasks::Task::ReferenceTile {
                 reference, half, ..
-            } => reference_us.of(driver.schedule.references[*reference].halves[*half].spp),
+            } => reference_cost.of(driver.schedule.references[*reference].halves[*half].spp),
             tasks::Task::Point { index } => {
                 let p = &driver.schedule.points[*index];
-                f64::from(c.warmup + c.seeds * c.runs) * curve_us[&p.model].of(p.settings.spp)
+                f64::from(c.warmup + c.seeds * c.runs) * curves[&p.model].of(p.settings.spp)
             }
         }
     };
@@ -1692,8 +1692,8 @@ pub fn run(
         bar,
         lines,
         start: Instant::now(),
-        reference_us,
-        curve_us,
+        reference: reference_cost,
+        curves,
         watch: opts.watch.clone(),
     };
     progress.bar.set_length(estimate.ceil().max(1.0) as u64);
