@@ -1568,15 +1568,16 @@ impl RenderCost {
     }
 }
 
-/// The [`RenderCost`] of the reference (on its backend) and of each curve (its first
-/// point), from renders at 1 and 2 samples: the scale of the progress bar and the first
-/// ETA. Costing every point by the experiment's own
+/// The [`RenderCost`] of the reference (on its backend; when it is to be rendered) and
+/// of each curve of `points` (its first point), from renders at 1 and 2 samples: the
+/// scale of the progress bar and the first ETA. Costing every point by the experiment's own
 /// settings times its samples overestimated a filtered sweep about ninefold (the
 /// filter's fixed cost counted once a sample, the costliest curve's for every curve).
-fn calibrate(
+fn calibrate<'p>(
     e: &Experiment,
     c: &AblateConfig,
-    points: &[Point],
+    reference_to_render: bool,
+    points: impl IntoIterator<Item = &'p Point>,
     tracers: &mut Tracers,
 ) -> Result<(RenderCost, HashMap<String, RenderCost>)> {
     let with_spp = |s: &RenderSettings, spp: u32| RenderSettings { spp, ..s.clone() };
@@ -1603,7 +1604,11 @@ fn calibrate(
             sample_us,
         })
     };
-    let reference = cost_of(c.reference_backend, &e.scene, &reference_halves(e, c)[0])?;
+    let reference = if reference_to_render {
+        cost_of(c.reference_backend, &e.scene, &reference_halves(e, c)[0])?
+    } else {
+        RenderCost::UNCALIBRATED
+    };
     let mut curves = HashMap::new();
     for p in points {
         if !curves.contains_key(&p.model) {
@@ -1629,7 +1634,17 @@ pub fn run(
     let mut driver = tasks::Driver::checked(e, c, source, opts, &label, external)?;
     // One band per reference half: the whole image, as a single process renders it.
     let todo = driver.tasks(1);
-    let (reference_cost, curves) = calibrate(e, c, &driver.schedule.points, worker.tracers_mut())?;
+    // Only what is still to do is calibrated: a cached reference, or a curve whose points
+    // a resumed sweep has, costs nothing to render.
+    let reference_to_render = todo
+        .iter()
+        .any(|t| matches!(t, tasks::Task::ReferenceTile { .. }));
+    let to_render = todo.iter().filter_map(|t| match t {
+        tasks::Task::Point { index } => Some(&driver.schedule.points[*index]),
+        tasks::Task::ReferenceTile { .. } => None,
+    });
+    let (reference_cost, curves) =
+        calibrate(e, c, reference_to_render, to_render, worker.tracers_mut())?;
     let cost = |t: &tasks::Task| -> f64 {
         match t {
             tasks::Task::ReferenceTile {
