@@ -175,3 +175,44 @@ fn walks_in_turn_build_their_data_once() {
     assert_eq!(gpu.walk_data_builds(), 6, "another grid builds again");
     assert_eq!(frame, fresh(&at(&e, SPARSE_OCTANT_WALK)));
 }
+
+/// A walk's data is kept by the hash of the voxels it walks, which is of the bytes
+/// alone: a grid of the same bytes in another shape (a volume reshaped) has other data,
+/// and renders as a fresh tracer renders it after the first shape's render, on every
+/// walk (before the dims were in the key, the walks with data of their own drew the
+/// second shape through the first's data).
+#[test]
+fn the_same_voxels_in_another_shape_build_their_own_walk_data() {
+    let first = load("baseline.toml", 24);
+    let shapes = [
+        glam::UVec3::new(8, 16, 32),
+        glam::UVec3::new(32, 16, 8),
+        glam::UVec3::new(16, 32, 8),
+    ];
+    for walk in voxlab::render::Traversal::walks() {
+        let at = |e: &Experiment| Experiment {
+            settings: voxlab::RenderSettings {
+                traversal: walk,
+                ..e.settings.clone()
+            },
+            ..e.clone()
+        };
+        let mut gpu = tracer();
+        render(&mut gpu, &at(&first));
+        for dims in shapes {
+            let mut e = first.clone();
+            let g = &first.scene.grid;
+            let mut grid = voxlab::scene::Grid::new(dims, g.voxel_size(), g.origin()).unwrap();
+            grid.data_mut().copy_from_slice(g.data());
+            assert_eq!(grid.content_hash(), g.content_hash());
+            e.scene.grid = grid;
+            let builds = gpu.walk_data_builds();
+            let frame = render(&mut gpu, &at(&e));
+            let name = format!("{} walk, {dims} after {}", walk.name(), g.dims());
+            assert_eq!(frame, fresh(&at(&e)), "{name}: the first shape's data");
+            if at(&e).settings.traversal != DENSE_WALK {
+                assert_eq!(gpu.walk_data_builds(), builds + 1, "{name}");
+            }
+        }
+    }
+}

@@ -377,11 +377,15 @@ impl WalkBuffers {
     }
 }
 
-/// What a walk's data is built from: the traversal, the hash of the voxels it walks
-/// and the budget it is built within (`crate::technique::walk_budget`).
+/// What a walk's data is built from: the traversal, the grid's dims and the hash of
+/// the voxels it walks, and the budget it is built within
+/// (`crate::technique::walk_budget`). The hash is of the voxels alone, so the dims
+/// tell apart grids of one byte string in other shapes (a volume reshaped, or empty
+/// grids of as many voxels), whose data differ.
 #[derive(Clone, Copy)]
 struct WalkKey {
     traversal: &'static crate::technique::TraversalModel,
+    dims: glam::UVec3,
     hash: blake3::Hash,
     budget: usize,
 }
@@ -389,6 +393,7 @@ struct WalkKey {
 impl WalkKey {
     fn same(&self, other: &WalkKey) -> bool {
         std::ptr::eq(self.traversal, other.traversal)
+            && self.dims == other.dims
             && self.hash == other.hash
             && self.budget == other.budget
     }

@@ -148,6 +148,7 @@ impl GpuTracer {
             .expect("only a traversal with data of its own uploads it");
         let key = super::WalkKey {
             traversal,
+            dims: grid.dims(),
             hash,
             budget,
         };
