@@ -59,7 +59,9 @@ fn camera_rows(c: &crate::scene::CameraFrame) -> [[f32; 4]; 4] {
 /// buffers of three `vec4` per pixel, the latest frame's in `buffers[latest]`, which
 /// the next frame reads while it writes the other.
 pub(super) struct GpuHistory {
-    pixels: u64,
+    /// The image's width and height: a history of another shape is not read, however
+    /// many pixels it has (the CPU's `svgf::accumulate` drops it alike).
+    size: (u32, u32),
     buffers: [wgpu::Buffer; 2],
     latest: usize,
     /// The camera of the latest frame, `None` while the history is empty.
@@ -223,10 +225,11 @@ impl GpuTracer {
         }
     }
 
-    /// The history's buffers for `pixels` pixels (kept, or new and empty), made inside
-    /// the caller's error scopes.
-    fn history_buffers(&mut self, pixels: u64) -> &mut GpuHistory {
-        if self.history.as_ref().is_none_or(|h| h.pixels != pixels) {
+    /// The history's buffers for an image of `size` (kept, or new and empty), made
+    /// inside the caller's error scopes.
+    fn history_buffers(&mut self, size: (u32, u32)) -> &mut GpuHistory {
+        if self.history.as_ref().is_none_or(|h| h.size != size) {
+            let pixels = size.0 as u64 * size.1 as u64;
             let b = |label| {
                 buffer(
                     &self.device,
@@ -236,7 +239,7 @@ impl GpuTracer {
                 )
             };
             self.history = Some(GpuHistory {
-                pixels,
+                size,
                 buffers: [b("reconstruction history a"), b("reconstruction history b")],
                 latest: 0,
                 camera: None,
@@ -275,11 +278,11 @@ impl GpuTracer {
         // A temporal reconstruction reads the latest frame's history and writes the
         // other buffer; the others bind the unread placeholder.
         let (history_in, history_out, previous) = if r.temporal {
-            let h = self.history_buffers(pixels);
+            let kept = self.history_buffers((w, h));
             (
-                h.buffers[h.latest].clone(),
-                h.buffers[1 - h.latest].clone(),
-                h.camera,
+                kept.buffers[kept.latest].clone(),
+                kept.buffers[1 - kept.latest].clone(),
+                kept.camera,
             )
         } else {
             (no_compensation.clone(), no_history.clone(), None)
