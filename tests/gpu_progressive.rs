@@ -442,3 +442,42 @@ fn each_call_times_its_own_frames() {
         "14 frames {t_many:?}, 1 frame {t_one:?}"
     );
 }
+
+/// The triangles a mesh surface traces are an input of the accumulation like the
+/// voxels: the same grid with the mesh's normals turned (the voxels unchanged) does not
+/// continue it, and neither does the scene without its mesh (drawn as voxels).
+#[test]
+fn another_mesh_over_the_same_voxels_does_not_continue() {
+    let mut gpu = tracer();
+    let (area, mut settings) = area_scene(16);
+    let mut scene = common::mesh_scene(
+        common::icosphere(2)
+            .into_iter()
+            .map(|t| t.map(|p| p * 5.0 + glam::DVec3::splat(8.0)))
+            .collect(),
+        vec![],
+        area.materials[1].clone(),
+        16,
+    );
+    scene.lights = area.lights.clone();
+    settings.surface = common::MESH_SURFACE;
+    assert_eq!(
+        Plan::new(&scene, &settings).surface.name(),
+        "mesh",
+        "the scene traces its triangles"
+    );
+    gpu.render_frames(&scene, &settings, 0..3).unwrap();
+    let mut turned = scene.clone();
+    let mut mesh = (**turned.mesh.as_ref().expect("a mesh scene")).clone();
+    for n in &mut mesh.normals {
+        *n = glam::DVec3::new(n.y, n.z, n.x);
+    }
+    turned.mesh = Some(std::sync::Arc::new(mesh));
+    assert_eq!(turned.grid, scene.grid);
+    assert_refused(&mut gpu, &turned, &settings, 3..7, &["changed: mesh"]);
+    let mut bare = scene.clone();
+    bare.mesh = None;
+    assert_refused(&mut gpu, &bare, &settings, 3..7, &["changed:"]);
+    // The accumulation is intact: it continues.
+    gpu.render_frames(&scene, &settings, 3..7).unwrap();
+}

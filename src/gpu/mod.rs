@@ -229,6 +229,18 @@ impl AccumulationKey {
                 ("lights", hash(format!("{:?}", scene.lights))),
                 ("camera", hash(format!("{:?}", scene.camera))),
                 ("ambient colour", hash(format!("{:?}", scene.ambient))),
+                // The voxels are the grid generation's (`check_continuation`); the
+                // triangles a surface traces change no voxel.
+                ("mesh (the triangles a surface traces)", {
+                    let mut h = blake3::Hasher::new();
+                    match &scene.mesh {
+                        Some(m) => m.hash_into(&mut h),
+                        None => {
+                            h.update(b"none");
+                        }
+                    }
+                    h.finalize()
+                }),
             ],
         }
     }
