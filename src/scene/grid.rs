@@ -242,7 +242,9 @@ impl Grid {
         }
     }
 
-    /// A hash of the voxels (not of the placement): what device caches key uploads by.
+    /// A hash of the voxels as bytes: not of the placement, nor of the dims (the same
+    /// bytes in another shape hash alike), so the device caches keyed by it hold the
+    /// dims beside it.
     pub fn content_hash(&self) -> blake3::Hash {
         match &self.voxels {
             Voxels::Dense(d, hash) => *hash.0.get_or_init(|| blake3::hash(d)),
