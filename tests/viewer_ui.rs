@@ -1471,3 +1471,75 @@ fn the_experiment_file_is_reloaded_when_it_changes_on_disk() {
         "{status}"
     );
 }
+
+/// The files the experiment reads are watched too: a `.vox` saved again (from
+/// MagicaVoxel, say) reloads the scene, and so does the experiment naming another one,
+/// which is then the one watched.
+#[test]
+fn a_scene_file_saved_again_reloads_the_scene() {
+    let dir = temp_dir("reload-vox");
+    let materials = voxlab::scene::seed_scene(16).unwrap().materials;
+    let mut grid =
+        voxlab::scene::Grid::new(glam::UVec3::new(8, 6, 8), 1.0, glam::DVec3::ZERO).unwrap();
+    grid.set(glam::IVec3::new(1, 0, 1), 2);
+    voxlab::scene::write_vox(dir.join("model.vox"), &grid, &materials).unwrap();
+    let file = dir.join("live.toml");
+    std::fs::write(
+        &file,
+        format!(
+            "[scene]\nvox = \"model.vox\"\n\n[render]\nwidth = {W}\nheight = {H}\n\n\
+             [[lights]]\ntype = \"point\"\nposition = [4.0, 12.0, 4.0]\nintensity = 50.0\n"
+        ),
+    )
+    .unwrap();
+    let opts = ViewOptions {
+        experiment: Some(file.clone()),
+        ..Default::default()
+    };
+    let watch = voxlab::viewer::reload::Watch::new(opts.clone()).unwrap();
+    let watched: Vec<_> = watch.files().map(Path::to_path_buf).collect();
+    assert_eq!(watched.len(), 2, "{watched:?}");
+    assert!(watched[1].ends_with("model.vox"), "{watched:?}");
+    let state = voxlab::viewer::load_state(&opts).unwrap();
+    let mut rig = Rig::new(state, false);
+    rig.harness.state_mut().watch(opts);
+    rig.harness.run_steps(2);
+    let solid = |rig: &Rig| {
+        let g = &rig.state().base.scene.grid;
+        (g.dims(), g.data().iter().filter(|&&m| m != 0).count())
+    };
+    assert_eq!(solid(&rig), (glam::UVec3::new(8, 6, 8), 1));
+    let before = rig.state().generation;
+    // MagicaVoxel saves the model again, with two more voxels.
+    grid.set(glam::IVec3::new(2, 0, 1), 2);
+    grid.set(glam::IVec3::new(3, 0, 1), 2);
+    voxlab::scene::write_vox(dir.join("model.vox"), &grid, &materials).unwrap();
+    std::thread::sleep(voxlab::viewer::reload::INTERVAL + Duration::from_millis(50));
+    rig.harness.run_steps(2);
+    assert_eq!(solid(&rig), (glam::UVec3::new(8, 6, 8), 3));
+    let now = rig.state().generation;
+    assert!(
+        now[0] > before[0] && now[1] > before[1],
+        "{before:?} -> {now:?}"
+    );
+    let status = &rig.app().status;
+    assert!(
+        status.starts_with("reloaded ") && status.ends_with("model.vox changed)"),
+        "{status}"
+    );
+    // The experiment names another model: that one is watched from now on.
+    let mut other =
+        voxlab::scene::Grid::new(glam::UVec3::new(4, 4, 4), 1.0, glam::DVec3::ZERO).unwrap();
+    other.set(glam::IVec3::new(0, 0, 0), 1);
+    voxlab::scene::write_vox(dir.join("other.vox"), &other, &materials).unwrap();
+    let text = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(&file, text.replace("model.vox", "other.vox")).unwrap();
+    std::thread::sleep(voxlab::viewer::reload::INTERVAL + Duration::from_millis(50));
+    rig.harness.run_steps(2);
+    assert_eq!(solid(&rig), (glam::UVec3::new(4, 4, 4), 1));
+    other.set(glam::IVec3::new(1, 0, 0), 1);
+    voxlab::scene::write_vox(dir.join("other.vox"), &other, &materials).unwrap();
+    std::thread::sleep(voxlab::viewer::reload::INTERVAL + Duration::from_millis(50));
+    rig.harness.run_steps(2);
+    assert_eq!(solid(&rig), (glam::UVec3::new(4, 4, 4), 2));
+}

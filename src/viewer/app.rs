@@ -284,13 +284,14 @@ impl ViewerApp {
         }
     }
 
-    /// Reloads the experiment whenever its file changes on disk (`voxlab view` with a
-    /// file does this), rebuilding the state as `opts` built it at the start.
+    /// Reloads the experiment whenever its file or a file it reads changes on disk
+    /// (`voxlab view` with a file does this), rebuilding the state as `opts` built it at
+    /// the start.
     pub fn watch(&mut self, opts: super::ViewOptions) {
         self.watch = super::reload::Watch::new(opts);
     }
 
-    /// Checks the watched file; on a change, the new state replaces the old one (the
+    /// Checks the watched files; on a change, the new state replaces the old one (the
     /// divider stays, and the camera where the user moved it unless the file's camera
     /// changed); a file that no longer loads leaves everything as it was and says why.
     fn poll_reload(&mut self) {
@@ -298,7 +299,14 @@ impl ViewerApp {
             return;
         };
         let path = w.path().display().to_string();
-        match w.poll() {
+        let polled = w.poll();
+        // Where a file the experiment reads changed, the status names it.
+        let changed = w
+            .changed()
+            .filter(|c| *c != w.path())
+            .map(|c| format!(" ({} changed)", c.display()))
+            .unwrap_or_default();
+        match polled {
             None => {}
             Some(Err(e)) => {
                 self.status = format!("reload failed, still showing the last good state: {e:#}")
@@ -319,7 +327,7 @@ impl ViewerApp {
                 }
                 self.state = fresh;
                 self.changed(&Side::BOTH);
-                self.status = format!("reloaded {path}");
+                self.status = format!("reloaded {path}{changed}");
             }
         }
     }

@@ -7,7 +7,7 @@
 //!   `GpuTracer`, accumulating progressively;
 //! - `app`: the window;
 //! - `display`: how the images are shown (view modes, exposure, zoom, probe geometry);
-//! - `reload`: the experiment file watched and reloaded on change.
+//! - `reload`: the experiment file and the files it reads watched, reloaded on change.
 
 pub mod app;
 pub mod bench;
