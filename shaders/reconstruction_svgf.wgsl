@@ -72,6 +72,8 @@ fn reproject(x: i32, y: i32, position: vec3<f32>, normal: vec3<f32>, material: f
     var sc = vec3<f32>(0.0);
     var sm = vec2<f32>(0.0);
     var sn = 0.0;
+    // The lengths are mixed about the first read tap's (svgf's contract).
+    var n0 = -1.0;
     for (var k = 0; k < 4; k++) {
         let dx = k % 2;
         let dy = k / 2;
@@ -95,13 +97,16 @@ fn reproject(x: i32, y: i32, position: vec3<f32>, normal: vec3<f32>, material: f
         sw += weight;
         sc += weight * a.xyz;
         sm += weight * b.xy;
-        sn += weight * a.w;
+        if n0 < 0.0 {
+            n0 = a.w;
+        }
+        sn += weight * (a.w - n0);
     }
     if sw >= MIN_HISTORY_WEIGHT {
         out.found = true;
         out.visibility = sc / sw;
         out.moments = sm / sw;
-        out.length = sn / sw;
+        out.length = n0 + sn / sw;
     }
     return out;
 }

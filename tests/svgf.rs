@@ -465,3 +465,39 @@ fn render_says_the_image_is_the_path_end() {
     let atrous = run("atrous");
     assert!(atrous.contains("only the last is rendered"), "{atrous}");
 }
+
+/// Taps that hold one length mix to exactly that length, whatever their weights: the
+/// variance switches to the temporal estimate at `TEMPORAL_FRAMES` on the mixed
+/// length, and the GPU's f32 must see the integer the reference sees (summed plainly,
+/// taps of length 3 mixed to 2.9999999999999996 at some pixels). A G-buffer seen again
+/// from cameras turned a little, so the taps' bilinear weights are arbitrary; every
+/// pixel that finds history has exactly `n + 1`.
+#[test]
+fn taps_of_one_length_mix_to_that_length_exactly() {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+    let mut found = 0;
+    for n in [1.0, 3.0, 7.0, 100.0] {
+        let base = base_layers(&mut rng, 24, 16);
+        let mut visibility = Vec::new();
+        let first = layers_frame(&mut rng, &base, &mut visibility);
+        let mut h = svgf::accumulate(&first, None, &values(0.0));
+        for p in &mut h.pixels {
+            p.length = n;
+        }
+        for turn in [1e-3, 4e-3, 1.3e-2] {
+            let mut turned = layers_frame(&mut rng, &base, &mut visibility);
+            let c = &mut turned.camera;
+            let (s, co) = f64::sin_cos(turn);
+            let v = c.forward;
+            c.forward = DVec3::new(co * v.x + s * v.z, v.y, -s * v.x + co * v.z);
+            let r = c.right;
+            c.right = DVec3::new(co * r.x + s * r.z, r.y, -s * r.x + co * r.z);
+            let next = svgf::accumulate(&turned, Some(&h), &values(0.0));
+            for p in next.pixels.iter().filter(|p| p.length != 1.0) {
+                found += 1;
+                assert_eq!(p.length, n + 1.0, "history of length {n}, turned {turn}");
+            }
+        }
+    }
+    assert!(found > 500, "only {found} pixels found history");
+}
