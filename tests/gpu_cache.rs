@@ -216,3 +216,113 @@ fn the_same_voxels_in_another_shape_build_their_own_walk_data() {
         }
     }
 }
+
+/// Every input of the scene and settings, changed one at a time on a tracer that keeps
+/// its pyramids, against a fresh tracer's image: whatever the key leaves out must not
+/// change the image. A Lambertian rect light over the indirect and ambient-occlusion
+/// scene (the radiance pyramid reads the emitter's normal and emission: turning it drew
+/// the old light's pyramid before they were in the key), each light and material field,
+/// the settings the injection reads, a voxel.
+#[test]
+fn no_input_change_draws_a_stale_pyramid() {
+    use voxlab::scene::{AreaLight, AreaShape, Emission};
+    let mut e = load("indirect.toml", 16);
+    e.settings.features.set_term("ambient_occlusion", true);
+    let (c, p) = (e.scene.grid.centre(), e.scene.lights[0].position());
+    e.scene.lights[0] = Light::Area(AreaLight {
+        shape: AreaShape::Rect {
+            width: 3.0,
+            height: 2.0,
+        },
+        emission: Emission::Lambertian,
+        position: p,
+        normal: (c - p).normalize(),
+        rotation: 0.0,
+        color: DVec3::ONE,
+        intensity: 300.0,
+    });
+    type Change = (&'static str, fn(&mut Experiment));
+    let changes: &[Change] = &[
+        ("light turned", |e| {
+            if let Light::Area(a) = &mut e.scene.lights[0] {
+                a.normal = (a.normal + DVec3::new(0.7, 0.0, 0.0)).normalize();
+            }
+        }),
+        ("light isotropic", |e| {
+            if let Light::Area(a) = &mut e.scene.lights[0] {
+                a.emission = Emission::Isotropic;
+            }
+        }),
+        ("light Lambertian again", |e| {
+            if let Light::Area(a) = &mut e.scene.lights[0] {
+                a.emission = Emission::Lambertian;
+            }
+        }),
+        ("light rotated about its normal", |e| {
+            if let Light::Area(a) = &mut e.scene.lights[0] {
+                a.rotation += 0.6;
+            }
+        }),
+        ("light resized", |e| {
+            if let Light::Area(a) = &mut e.scene.lights[0] {
+                a.shape = AreaShape::Disk { radius: 2.5 };
+            }
+        }),
+        ("light moved", |e| {
+            if let Light::Area(a) = &mut e.scene.lights[0] {
+                a.position += DVec3::new(-1.0, 0.5, 2.0);
+            }
+        }),
+        ("light colour", |e| {
+            if let Light::Area(a) = &mut e.scene.lights[0] {
+                a.color = DVec3::new(1.0, 0.5, 0.25);
+            }
+        }),
+        ("light intensity", |e| {
+            if let Light::Area(a) = &mut e.scene.lights[0] {
+                a.intensity *= 2.0;
+            }
+        }),
+        ("a point light's intensity", |e| {
+            if let Some(Light::Point(p)) = e.scene.lights.get_mut(1) {
+                p.intensity *= 0.5;
+            }
+        }),
+        ("albedo", |e| e.scene.materials[1].albedo *= 0.5),
+        ("kd", |e| e.scene.materials[1].kd *= 0.5),
+        ("ks", |e| e.scene.materials[1].ks = 0.9),
+        ("shininess", |e| e.scene.materials[1].shininess *= 2.0),
+        ("kr", |e| e.scene.materials[1].kr = 0.3),
+        ("kt", |e| e.scene.materials[2].kt = 0.4),
+        ("ior", |e| e.scene.materials[2].ior = 1.9),
+        ("sigma", |e| {
+            e.scene.materials[2].sigma = Some(DVec3::new(0.5, 0.2, 0.1))
+        }),
+        ("ambient", |e| e.scene.ambient = DVec3::splat(0.05)),
+        ("falloff", |e| e.settings.falloff = !e.settings.falloff),
+        ("falloff distance", |e| {
+            e.settings.falloff_min_distance *= 3.0
+        }),
+        ("ray offset", |e| e.settings.ray_offset *= 4.0),
+        ("levels", |e| e.settings.cones.levels = 2),
+        ("aperture", |e| e.settings.cones.aperture_deg *= 0.5),
+        ("AO range", |e| e.settings.cones.ao_range *= 0.5),
+        ("indirect strength", |e| {
+            e.settings.cones.indirect_strength *= 2.0
+        }),
+        ("a voxel", |e| {
+            e.scene.grid.set(glam::IVec3::new(5, 3, 5), 1)
+        }),
+    ];
+    let mut gpu = tracer();
+    render(&mut gpu, &e);
+    for (name, change) in changes {
+        change(&mut e);
+        let kept = render(&mut gpu, &e);
+        assert_eq!(
+            kept,
+            fresh(&e),
+            "{name}: the kept pyramids drew another image"
+        );
+    }
+}

@@ -213,7 +213,10 @@ impl InjectInputs {
 
     /// The opacity reads only the alpha table; the radiance reads the rest too. Fields of
     /// the materials and lights that `shaders/inject.wgsl` does not read stay out, so
-    /// that changing them (ks, emission, an area light's shape) does not rebuild.
+    /// that changing them (ks, an area light's size or turn) does not rebuild. A light's
+    /// emission and normal are in: `emitted` (shaders/emission.wgsl) weighs a Lambertian
+    /// emitter's light by the cosine at its normal (left out, a turned Lambertian light
+    /// drew the old light's pyramid).
     fn key(
         &self,
         grid: u64,
@@ -232,6 +235,8 @@ impl InjectInputs {
             for l in lights {
                 h.update(bytemuck::cast_slice(&l.position));
                 h.update(bytemuck::cast_slice(&l.radiance));
+                h.update(bytemuck::bytes_of(&l.emission));
+                h.update(bytemuck::cast_slice(&l.axis_n));
             }
             h.update(bytemuck::bytes_of(&self.params));
         }
