@@ -1,6 +1,7 @@
-//! The GPU tracer keeps its cone pyramids between renders: a render whose pyramid
-//! inputs are unchanged reuses them, any change of those inputs rebuilds them, and a
-//! rebuilt pyramid gives bit for bit the image a fresh tracer gives (nothing stale).
+//! The GPU tracer keeps what it builds between renders (cone pyramids, walk data, a
+//! shadow model's field, surfaces): a render whose inputs are unchanged reuses them,
+//! any change of those inputs rebuilds them, and every render gives bit for bit the
+//! image a fresh tracer gives (nothing stale), over changes of every input.
 
 mod common;
 
@@ -217,32 +218,14 @@ fn the_same_voxels_in_another_shape_build_their_own_walk_data() {
     }
 }
 
-/// Every input of the scene and settings, changed one at a time on a tracer that keeps
-/// its pyramids, against a fresh tracer's image: whatever the key leaves out must not
-/// change the image. A Lambertian rect light over the indirect and ambient-occlusion
-/// scene (the radiance pyramid reads the emitter's normal and emission: turning it drew
-/// the old light's pyramid before they were in the key), each light and material field,
-/// the settings the injection reads, a voxel.
-#[test]
-fn no_input_change_draws_a_stale_pyramid() {
-    use voxlab::scene::{AreaLight, AreaShape, Emission};
-    let mut e = load("indirect.toml", 16);
-    e.settings.features.set_term("ambient_occlusion", true);
-    let (c, p) = (e.scene.grid.centre(), e.scene.lights[0].position());
-    e.scene.lights[0] = Light::Area(AreaLight {
-        shape: AreaShape::Rect {
-            width: 3.0,
-            height: 2.0,
-        },
-        emission: Emission::Lambertian,
-        position: p,
-        normal: (c - p).normalize(),
-        rotation: 0.0,
-        color: DVec3::ONE,
-        intensity: 300.0,
-    });
-    type Change = (&'static str, fn(&mut Experiment));
-    let changes: &[Change] = &[
+type Change = (&'static str, fn(&mut Experiment));
+
+/// Changes of every input of a scene whose first light is an area light and whose
+/// materials 1 and 2 exist, one at a time (each applies to the state the ones before
+/// it left).
+fn input_changes() -> Vec<Change> {
+    use voxlab::scene::{AreaShape, Emission};
+    vec![
         ("light turned", |e| {
             if let Light::Area(a) = &mut e.scene.lights[0] {
                 a.normal = (a.normal + DVec3::new(0.7, 0.0, 0.0)).normalize();
@@ -313,7 +296,12 @@ fn no_input_change_draws_a_stale_pyramid() {
         ("a voxel", |e| {
             e.scene.grid.set(glam::IVec3::new(5, 3, 5), 1)
         }),
-    ];
+    ]
+}
+
+/// Applies `changes` in turn to `e`, rendering each on one tracer that keeps what it
+/// built, and compares each image with a fresh tracer's.
+fn assert_nothing_stale(what: &str, mut e: Experiment, changes: &[Change]) {
     let mut gpu = tracer();
     render(&mut gpu, &e);
     for (name, change) in changes {
@@ -322,7 +310,65 @@ fn no_input_change_draws_a_stale_pyramid() {
         assert_eq!(
             kept,
             fresh(&e),
-            "{name}: the kept pyramids drew another image"
+            "{what}, {name}: what the tracer kept drew another image"
         );
     }
+}
+
+/// Every input of the scene and settings, changed one at a time on a tracer that keeps
+/// its pyramids, against a fresh tracer's image: whatever the key leaves out must not
+/// change the image. A Lambertian rect light over the indirect and ambient-occlusion
+/// scene (the radiance pyramid reads the emitter's normal and emission: turning it drew
+/// the old light's pyramid before they were in the key), each light and material field,
+/// the settings the injection reads, a voxel.
+#[test]
+fn no_input_change_draws_a_stale_pyramid() {
+    let mut e = load("indirect.toml", 16);
+    e.settings.features.set_term("ambient_occlusion", true);
+    lambertian_rect(&mut e);
+    assert_nothing_stale("indirect light and AO", e, &input_changes());
+}
+
+/// The same changes under the distance-field shadow model (its field kept while its
+/// inputs are the same), on the walks that keep data of their own, and on the smooth
+/// surface (its triangles kept).
+#[test]
+fn no_input_change_draws_a_stale_field_or_walk() {
+    let mut e = load("indirect.toml", 16);
+    e.settings.features.set_term("indirect", false);
+    lambertian_rect(&mut e);
+    let mut sdf = e.clone();
+    sdf.settings.features.shadow_model =
+        voxlab::technique::shadow_model("sdf").expect("the sdf shadow model");
+    let plan = voxlab::plan::Plan::new(&sdf.scene, &sdf.settings);
+    assert_eq!(plan.shadow_model.name, "sdf", "{plan}");
+    assert_nothing_stale("sdf shadows", sdf, &input_changes());
+    for walk in [OCTANT_WALK, PROXIMITY_WALK, SPARSE_OCTANT_WALK] {
+        let mut w = e.clone();
+        w.settings.traversal = walk;
+        assert_nothing_stale(walk.name(), w, &input_changes());
+    }
+    let mut smooth = e.clone();
+    smooth.settings.surface = common::SMOOTH_SURFACE;
+    let plan = voxlab::plan::Plan::new(&smooth.scene, &smooth.settings);
+    assert_eq!(plan.surface.name(), "smooth", "{plan}");
+    assert_nothing_stale("smooth surface", smooth, &input_changes());
+}
+
+/// The experiment's first light as a Lambertian rect light facing the grid's centre.
+fn lambertian_rect(e: &mut Experiment) {
+    use voxlab::scene::{AreaLight, AreaShape, Emission};
+    let (c, p) = (e.scene.grid.centre(), e.scene.lights[0].position());
+    e.scene.lights[0] = Light::Area(AreaLight {
+        shape: AreaShape::Rect {
+            width: 3.0,
+            height: 2.0,
+        },
+        emission: Emission::Lambertian,
+        position: p,
+        normal: (c - p).normalize(),
+        rotation: 0.0,
+        color: DVec3::ONE,
+        intensity: 300.0,
+    });
 }
