@@ -9,6 +9,8 @@ use common::{
     DENSE_WALK, OCTANT_WALK, PROXIMITY_WALK, SPARSE_OCTANT_WALK, SPARSE_WALK, experiment, tracer,
 };
 
+use std::path::Path;
+
 use glam::DVec3;
 use voxlab::Frame;
 use voxlab::experiment::Experiment;
@@ -371,4 +373,82 @@ fn lambertian_rect(e: &mut Experiment) {
         color: DVec3::ONE,
         intensity: 300.0,
     });
+}
+
+/// A render on a session that has rendered other things before gives bit for bit the
+/// image of a fresh session: generated sequences over the shipped experiments with
+/// image sizes of one pixel count in several shapes, every walk, surfaces, shadow
+/// models, reconstructions, samples and camera paths (what each render leaves behind
+/// on the device: pyramids, walk data, fields, surfaces, filter buffers, histories).
+#[test]
+fn a_render_does_not_depend_on_the_renders_before_it() {
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(2026);
+    let files = [
+        "baseline.toml",
+        "indirect.toml",
+        "area_lights.toml",
+        "deer_area_light.toml",
+        "reconstruction.toml",
+        "soft_coloured_shadows.toml",
+        "deer_smooth.toml",
+        "sdf.toml",
+        "ratio.toml",
+    ];
+    let shapes = [(24, 16), (16, 24), (32, 12), (12, 32), (20, 20)];
+    let walks = voxlab::render::Traversal::walks();
+    let mut session = voxlab::Session::new(voxlab::Backend::Gpu).expect("a GPU adapter");
+    let mut rendered = 0;
+    for case in 0..24 {
+        let file = files[rng.random_range(0..files.len())];
+        let (w, h) = shapes[rng.random_range(0..shapes.len())];
+        let mut sets = vec![
+            format!("render.width={w}"),
+            format!("render.height={h}"),
+            format!("render.spp={}", rng.random_range(1..=3)),
+            format!(
+                "render.traversal=\"{}\"",
+                walks[rng.random_range(0..walks.len())].name()
+            ),
+        ];
+        if rng.random_bool(0.3) {
+            sets.push(format!(
+                "features.reconstruction=\"{}\"",
+                ["atrous", "svgf"][rng.random_range(0..2)]
+            ));
+            sets.push(format!("render.path_frames={}", rng.random_range(1..=3)));
+            sets.push(format!(
+                "render.orbit_deg={}",
+                [0.0, 2.0][rng.random_range(0..2)]
+            ));
+        }
+        if rng.random_bool(0.3) {
+            sets.push(format!("camera.yaw_deg={}", rng.random_range(-60..=60)));
+        }
+        let overrides: Vec<voxlab::experiment::Override> =
+            sets.iter().map(|s| s.parse().unwrap()).collect();
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("experiments")
+            .join(file);
+        // A combination the file's scene cannot have (a reconstruction of a scene that
+        // samples nothing, say) is refused by the parser: another case.
+        let Ok(e) = Experiment::load_with(&path, &overrides) else {
+            continue;
+        };
+        let name = format!("case {case}: {file} {sets:?}");
+        let kept = session
+            .render(&e)
+            .unwrap_or_else(|err| panic!("{name}: {err}"));
+        let fresh = voxlab::Session::new(voxlab::Backend::Gpu)
+            .unwrap()
+            .render(&e)
+            .unwrap();
+        assert!(
+            kept.frame.pixels == fresh.frame.pixels,
+            "{name}: the image depends on the renders before it"
+        );
+        rendered += 1;
+    }
+    eprintln!("{rendered} of 24 cases rendered");
+    assert!(rendered >= 16, "only {rendered} cases rendered");
 }
