@@ -1543,3 +1543,80 @@ fn a_scene_file_saved_again_reloads_the_scene() {
     rig.harness.run_steps(2);
     assert_eq!(solid(&rig), (glam::UVec3::new(4, 4, 4), 2));
 }
+
+/// A reference is kept by its experiment's text, which names the scene's files but not
+/// what they hold: after a `.vox` is saved again and the scene reloads, asking for the
+/// error renders new references instead of comparing with the old model's.
+#[test]
+fn a_scene_file_saved_again_drops_the_old_references() {
+    let dir = temp_dir("reload-vox-reference");
+    let materials = voxlab::scene::seed_scene(16).unwrap().materials;
+    let mut grid =
+        voxlab::scene::Grid::new(glam::UVec3::new(8, 6, 8), 1.0, glam::DVec3::ZERO).unwrap();
+    grid.set(glam::IVec3::new(1, 0, 1), 2);
+    voxlab::scene::write_vox(dir.join("model.vox"), &grid, &materials).unwrap();
+    let file = dir.join("live.toml");
+    std::fs::write(
+        &file,
+        format!(
+            "[scene]\nvox = \"model.vox\"\n\n[render]\nwidth = {W}\nheight = {H}\n\n\
+             [[lights]]\ntype = \"rect\"\nposition = [4.0, 12.0, 4.0]\n\
+             normal = [0.0, -1.0, 0.0]\nsize = [2.0, 2.0]\nintensity = 50.0\n"
+        ),
+    )
+    .unwrap();
+    let opts = ViewOptions {
+        experiment: Some(file.clone()),
+        ..Default::default()
+    };
+    let state = voxlab::viewer::load_state(&opts).unwrap();
+    let mut rig = Rig::new(state, false);
+    rig.harness.state_mut().watch(opts);
+    rig.harness.run_steps(2);
+    rig.clear_jobs();
+    rig.harness.get_by_label("Error vs reference").click();
+    rig.harness.run_steps(2);
+    // The sides' references (one a side where their settings differ), one at a time.
+    let mut rendered = 0;
+    loop {
+        let jobs = rig.take_jobs(2);
+        let Some(job) = jobs.last() else { break };
+        rig.send(
+            Channel::Reference,
+            job.generation,
+            constant(W, H, 0.5),
+            256,
+            256,
+        );
+        rig.harness.run_steps(2);
+        rendered += 1;
+    }
+    assert!((1..=2).contains(&rendered), "{rendered} references");
+    rig.harness.get_by_label("Error vs reference").click();
+    rig.harness.run_steps(2);
+    assert!(rig.take_jobs(2).is_empty(), "the reference is known");
+    // The model is saved again: the experiment's text is the same, its scene is not.
+    grid.set(glam::IVec3::new(2, 0, 1), 2);
+    voxlab::scene::write_vox(dir.join("model.vox"), &grid, &materials).unwrap();
+    std::thread::sleep(voxlab::viewer::reload::INTERVAL + Duration::from_millis(50));
+    rig.harness.run_steps(2);
+    assert!(
+        rig.app().status.starts_with("reloaded "),
+        "{}",
+        rig.app().status
+    );
+    rig.clear_jobs();
+    rig.harness.get_by_label("Error vs reference").click();
+    rig.harness.run_steps(2);
+    let jobs = rig.take_jobs(2);
+    assert_eq!(jobs.len(), 1, "the old model's references were kept");
+    let solid = jobs[0]
+        .experiment
+        .scene
+        .grid
+        .data()
+        .iter()
+        .filter(|&&m| m != 0)
+        .count();
+    assert_eq!(solid, 2, "the reference job renders the new model");
+}

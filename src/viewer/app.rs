@@ -301,11 +301,11 @@ impl ViewerApp {
         let path = w.path().display().to_string();
         let polled = w.poll();
         // Where a file the experiment reads changed, the status names it.
-        let changed = w
-            .changed()
-            .filter(|c| *c != w.path())
+        let scene_file = w.changed().filter(|c| *c != w.path());
+        let changed = scene_file
             .map(|c| format!(" ({} changed)", c.display()))
             .unwrap_or_default();
+        let scene_file_changed = scene_file.is_some();
         match polled {
             None => {}
             Some(Err(e)) => {
@@ -326,6 +326,15 @@ impl ViewerApp {
                     fresh.generation[side.index()] += self.state.generation[side.index()];
                 }
                 self.state = fresh;
+                if scene_file_changed {
+                    // A reference is kept by its experiment's text, which names the
+                    // scene's files but not what they hold: every one kept, waiting or
+                    // rendering is of the old scene (a late report of the one rendering
+                    // is dropped: none is running now).
+                    self.references.done.clear();
+                    self.references.queue.clear();
+                    self.references.running = None;
+                }
                 self.changed(&Side::BOTH);
                 self.status = format!("reloaded {path}{changed}");
             }
