@@ -1423,15 +1423,7 @@ fn the_experiment_file_is_reloaded_when_it_changes_on_disk() {
     .replace("width = 512", &format!("width = {W}"))
     .replace("height = 512", &format!("height = {H}"));
     std::fs::write(&file, &text).unwrap();
-    let opts = ViewOptions {
-        experiment: Some(file.clone()),
-        ..Default::default()
-    };
-    let state = voxlab::viewer::load_state(&opts).unwrap();
-    let mut rig = Rig::new(state, false);
-    rig.harness.state_mut().watch(opts);
-    rig.harness.run_steps(2);
-    rig.clear_jobs();
+    let mut rig = watching(&file);
     let before = rig.state().generation;
     assert_eq!(intensity(&rig.state().base.scene.lights[0]), 384.0);
     // The file is edited: a light's intensity.
@@ -1475,9 +1467,29 @@ fn the_experiment_file_is_reloaded_when_it_changes_on_disk() {
 /// The files the experiment reads are watched too: a `.vox` saved again (from
 /// MagicaVoxel, say) reloads the scene, and so does the experiment naming another one,
 /// which is then the one watched.
-#[test]
-fn a_scene_file_saved_again_reloads_the_scene() {
-    let dir = temp_dir("reload-vox");
+/// A rig on the experiment `file`, watching it as `voxlab view` does, its first jobs
+/// taken.
+fn watching(file: &Path) -> Rig {
+    let opts = ViewOptions {
+        experiment: Some(file.to_path_buf()),
+        ..Default::default()
+    };
+    let state = voxlab::viewer::load_state(&opts).unwrap();
+    let mut rig = Rig::new(state, false);
+    rig.harness.state_mut().watch(opts);
+    rig.harness.run_steps(2);
+    rig.clear_jobs();
+    rig
+}
+
+/// `live.toml` in a fresh directory `name`, its scene `model.vox` (an 8x6x8 grid with
+/// one voxel of material 2, returned with the palette it was written with) under
+/// `light`, a `[[lights]]` table's lines.
+fn vox_experiment(
+    name: &str,
+    light: &str,
+) -> (PathBuf, voxlab::scene::Grid, Vec<voxlab::scene::Material>) {
+    let dir = temp_dir(name);
     let materials = voxlab::scene::seed_scene(16).unwrap().materials;
     let mut grid =
         voxlab::scene::Grid::new(glam::UVec3::new(8, 6, 8), 1.0, glam::DVec3::ZERO).unwrap();
@@ -1488,22 +1500,29 @@ fn a_scene_file_saved_again_reloads_the_scene() {
         &file,
         format!(
             "[scene]\nvox = \"model.vox\"\n\n[render]\nwidth = {W}\nheight = {H}\n\n\
-             [[lights]]\ntype = \"point\"\nposition = [4.0, 12.0, 4.0]\nintensity = 50.0\n"
+             [[lights]]\n{light}"
         ),
     )
     .unwrap();
+    (file, grid, materials)
+}
+
+#[test]
+fn a_scene_file_saved_again_reloads_the_scene() {
+    let (file, mut grid, materials) = vox_experiment(
+        "reload-vox",
+        "type = \"point\"\nposition = [4.0, 12.0, 4.0]\nintensity = 50.0\n",
+    );
+    let dir = file.parent().unwrap().to_path_buf();
     let opts = ViewOptions {
         experiment: Some(file.clone()),
         ..Default::default()
     };
-    let watch = voxlab::viewer::reload::Watch::new(opts.clone()).unwrap();
+    let watch = voxlab::viewer::reload::Watch::new(opts).unwrap();
     let watched: Vec<_> = watch.files().map(Path::to_path_buf).collect();
     assert_eq!(watched.len(), 2, "{watched:?}");
     assert!(watched[1].ends_with("model.vox"), "{watched:?}");
-    let state = voxlab::viewer::load_state(&opts).unwrap();
-    let mut rig = Rig::new(state, false);
-    rig.harness.state_mut().watch(opts);
-    rig.harness.run_steps(2);
+    let mut rig = watching(&file);
     let solid = |rig: &Rig| {
         let g = &rig.state().base.scene.grid;
         (g.dims(), g.data().iter().filter(|&&m| m != 0).count())
@@ -1549,31 +1568,13 @@ fn a_scene_file_saved_again_reloads_the_scene() {
 /// error renders new references instead of comparing with the old model's.
 #[test]
 fn a_scene_file_saved_again_drops_the_old_references() {
-    let dir = temp_dir("reload-vox-reference");
-    let materials = voxlab::scene::seed_scene(16).unwrap().materials;
-    let mut grid =
-        voxlab::scene::Grid::new(glam::UVec3::new(8, 6, 8), 1.0, glam::DVec3::ZERO).unwrap();
-    grid.set(glam::IVec3::new(1, 0, 1), 2);
-    voxlab::scene::write_vox(dir.join("model.vox"), &grid, &materials).unwrap();
-    let file = dir.join("live.toml");
-    std::fs::write(
-        &file,
-        format!(
-            "[scene]\nvox = \"model.vox\"\n\n[render]\nwidth = {W}\nheight = {H}\n\n\
-             [[lights]]\ntype = \"rect\"\nposition = [4.0, 12.0, 4.0]\n\
-             normal = [0.0, -1.0, 0.0]\nsize = [2.0, 2.0]\nintensity = 50.0\n"
-        ),
-    )
-    .unwrap();
-    let opts = ViewOptions {
-        experiment: Some(file.clone()),
-        ..Default::default()
-    };
-    let state = voxlab::viewer::load_state(&opts).unwrap();
-    let mut rig = Rig::new(state, false);
-    rig.harness.state_mut().watch(opts);
-    rig.harness.run_steps(2);
-    rig.clear_jobs();
+    let (file, mut grid, materials) = vox_experiment(
+        "reload-vox-reference",
+        "type = \"rect\"\nposition = [4.0, 12.0, 4.0]\nnormal = [0.0, -1.0, 0.0]\n\
+         size = [2.0, 2.0]\nintensity = 50.0\n",
+    );
+    let dir = file.parent().unwrap().to_path_buf();
+    let mut rig = watching(&file);
     rig.harness.get_by_label("Error vs reference").click();
     rig.harness.run_steps(2);
     // The sides' references (one a side where their settings differ), one at a time.
