@@ -474,7 +474,7 @@ fn another_mesh_over_the_same_voxels_does_not_continue() {
     }
     turned.mesh = Some(std::sync::Arc::new(mesh));
     assert_eq!(turned.grid, scene.grid);
-    assert_refused(&mut gpu, &turned, &settings, 3..7, &["changed: mesh"]);
+    assert_refused(&mut gpu, &turned, &settings, 3..7, &["changed: surface"]);
     let mut bare = scene.clone();
     bare.mesh = None;
     assert_refused(&mut gpu, &bare, &settings, 3..7, &["changed:"]);

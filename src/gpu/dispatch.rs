@@ -249,7 +249,10 @@ impl GpuTracer {
             plan.walk_data = walk.summary.clone();
         }
         self.pipeline(&plan)?;
-        let key = continuable.then(|| AccumulationKey::new(scene, settings, &plan));
+        let key = continuable.then(|| {
+            let surface = self.surfaces.as_ref().map(|u| u.key);
+            AccumulationKey::new(scene, settings, &plan, surface)
+        });
         if frames.start > 0 {
             // Only render_frames asks for a start above 0.
             let key = key

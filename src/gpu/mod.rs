@@ -206,7 +206,14 @@ struct AccumulationKey {
 }
 
 impl AccumulationKey {
-    fn new(scene: &Scene, settings: &RenderSettings, plan: &Plan) -> Self {
+    /// `surface`: the key of the triangle surface the render traces (`SurfaceUpload`'s,
+    /// which holds the surface's own inputs, a mesh's triangles say), `None` for voxels.
+    fn new(
+        scene: &Scene,
+        settings: &RenderSettings,
+        plan: &Plan,
+        surface: Option<blake3::Hash>,
+    ) -> Self {
         let grid = &scene.grid;
         let hash = |s: String| blake3::hash(s.as_bytes());
         Self {
@@ -230,17 +237,12 @@ impl AccumulationKey {
                 ("camera", hash(format!("{:?}", scene.camera))),
                 ("ambient colour", hash(format!("{:?}", scene.ambient))),
                 // The voxels are the grid generation's (`check_continuation`); the
-                // triangles a surface traces change no voxel.
-                ("mesh (the triangles a surface traces)", {
-                    let mut h = blake3::Hasher::new();
-                    match &scene.mesh {
-                        Some(m) => m.hash_into(&mut h),
-                        None => {
-                            h.update(b"none");
-                        }
-                    }
-                    h.finalize()
-                }),
+                // triangles a surface traces (a mesh's) change no voxel. The upload has
+                // hashed them already: its key, not a second hash of the mesh a frame.
+                (
+                    "surface (the triangles it traces)",
+                    surface.unwrap_or_else(|| hash("voxels".to_string())),
+                ),
             ],
         }
     }
