@@ -144,7 +144,7 @@ struct SideView {
     /// when `latest` is `None` it is of an earlier state: stale, shown dimmed.
     shown: Option<Arc<Frame>>,
     /// Which of the side's controls apply (light samples, frames), for the generation
-    /// they were worked out for: the plan scans the grid, so not once per window frame.
+    /// they were worked out for: a plan each generation, not each window frame.
     controls: Option<(u64, bool, bool)>,
     /// The latest image of the current generation and size.
     latest: Option<Update>,

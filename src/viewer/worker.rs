@@ -146,7 +146,7 @@ fn run(jobs: Receiver<Job>, send: impl Fn(Report)) {
             }
         }
         if let Some(job) = newest {
-            // Once per job: the plan scans the grid for the materials it uses.
+            // Once per job: how many frames the plan accumulates.
             let settings = crate::render::RenderSettings {
                 width: job.width,
                 height: job.height,
