@@ -82,6 +82,13 @@ pub struct BenchRow {
     /// What rays hit: the surface's name.
     pub surface: &'static str,
     pub median: Duration,
+    /// The median wall time of a whole call of a warm tracer, as a display loop makes
+    /// it: on the GPU the plan, the checks of what the device holds, the submit and the
+    /// image's readback around the device's time, over [`WALL_CALLS`] calls back to
+    /// back; on the CPU reference its prepared render, `median` itself. What the host adds per frame shows here and
+    /// not in `median` (a plan that recounted a 1024^3 grid's materials made each call
+    /// 310 ms for 5 ms of device time).
+    pub wall: Duration,
     pub stats: RayStats,
     /// Bytes the geometry occupies per voxel of the grid's box: the R8Uint texture's 1,
     /// or the sparse tree's bytes over the voxels.
@@ -121,6 +128,7 @@ impl BenchRow {
             "triangle_tests": s.triangle_tests,
             "build_ms": self.build.as_secs_f64() * 1e3,
             "ms_per_frame": self.ms(),
+            "wall_ms_per_call": self.wall.as_secs_f64() * 1e3,
             "mrays_per_s": self.mrays_per_s(),
             "msteps_per_s": self.msteps_per_s(),
             "rays": {
@@ -204,6 +212,9 @@ fn bench_gpu(
         .collect()
 }
 
+/// The back-to-back calls a GPU row's `wall` is the median of.
+const WALL_CALLS: usize = 3;
+
 /// One walk of [`bench_gpu`] while its frames are timed: its row and steps per
 /// iteration once prepared (or why it could not be), and its frames' times.
 struct Timing<'a> {
@@ -231,6 +242,14 @@ fn prepare_gpu_row(
     // where nothing else is set up (no cone feature in the benchmark's settings).
     let build = gpu.last_setup_time();
     gpu.render(scene, s)?;
+    // A display loop's calls: back to back on the same walk, warm (the timed frames
+    // alternate walks, and a switch uploads the other walk's data again).
+    let mut walls = Vec::new();
+    for _ in 0..WALL_CALLS {
+        let start = Instant::now();
+        gpu.render(scene, s)?;
+        walls.push(start.elapsed());
+    }
     let row = BenchRow {
         scene: scene_label(name, scene),
         grid: scene.grid.dims().x,
@@ -238,6 +257,7 @@ fn prepare_gpu_row(
         traversal: plan.name,
         surface: s.surface.name(),
         median: Duration::ZERO,
+        wall: median(walls),
         stats: counted.stats,
         bytes_per_voxel: (memory.grid + memory.walk_data) as f64 / scene.grid.voxel_count() as f64,
         build,
@@ -272,6 +292,7 @@ fn bench_cpu(name: &str, scene: &Scene, walks: &[RenderSettings], runs: usize) -
                 traversal: plan.traversal.name,
                 surface: s.surface.name(),
                 median: Duration::ZERO,
+                wall: Duration::ZERO,
                 stats: warm.stats,
                 bytes_per_voxel,
                 build,
@@ -288,9 +309,13 @@ fn bench_cpu(name: &str, scene: &Scene, walks: &[RenderSettings], runs: usize) -
     }
     timing
         .into_iter()
-        .map(|(_, _, _, row, times)| BenchRow {
-            median: median(times),
-            ..row
+        .map(|(_, _, _, row, times)| {
+            let median = median(times);
+            BenchRow {
+                median,
+                wall: median,
+                ..row
+            }
         })
         .collect()
 }
@@ -530,8 +555,8 @@ pub fn surface_table(rows: &[SurfaceRow]) -> String {
 pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> String {
     let mut out = format!(
         "{}x{}, depth {}/{} (experiments: their own render settings, one frame); GPU: {adapter}; CPU: {}; host: {}\n\n\
-         | scene | surface | backend | walk | median ms/frame | timer | steps/iteration | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | steps/ray | triangle tests/ray | bytes/voxel | build ms |\n\
-         |---:|---|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+         | scene | surface | backend | walk | median ms/frame | timer | wall ms/call | steps/iteration | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | steps/ray | triangle tests/ray | bytes/voxel | build ms |\n\
+         |---:|---|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         settings.width,
         settings.height,
         settings.max_reflection_depth,
@@ -541,13 +566,14 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     );
     for r in rows {
         out += &format!(
-            "| {} | {} | {} | {} | {:.1} | {} | {} | {:.2} | {:.1} | {} ({} + {} + {}) | {} | {:.2} | {} | {:.4} | {:.1} |\n",
+            "| {} | {} | {} | {} | {:.1} | {} | {:.1} | {} | {:.2} | {:.1} | {} ({} + {} + {}) | {} | {:.2} | {} | {:.4} | {:.1} |\n",
             r.scene,
             r.surface,
             r.backend,
             r.traversal,
             r.ms(),
             r.timer,
+            r.wall.as_secs_f64() * 1e3,
             r.dda_unroll.map_or("-".to_string(), |n| n.to_string()),
             r.mrays_per_s(),
             r.msteps_per_s(),
@@ -1009,6 +1035,7 @@ mod tests {
             traversal,
             surface: "voxels",
             median: Duration::from_millis(1),
+            wall: Duration::from_millis(1),
             stats: RayStats {
                 primary: 4,
                 secondary: 2,

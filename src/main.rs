@@ -45,7 +45,8 @@ enum Command {
     /// Voxelize a mesh (OBJ, glTF, GLB) and write it as a MagicaVoxel .vox file.
     Voxelize(VoxelizeArgs),
     /// Benchmark the baseline: the seed scene at several grid sizes, GPU and CPU in one
-    /// run (median ms per frame, counted rays and voxel steps per second, GPU/CPU ratio).
+    /// run (median ms per frame, wall ms per call of a warm tracer, counted rays and voxel
+    /// steps per second, GPU/CPU ratio).
     Bench(BenchArgs),
     /// Stress suite (`docs/stress.md`): stiff and extreme cases on the GPU and the CPU
     /// reference; prints the table and writes it as stress.md and stress.csv.

@@ -426,6 +426,11 @@ fn bench_json_prints_one_object_per_row() {
         assert_eq!(r["bench"], "seed");
         assert_eq!(r["image_side"], 16);
         assert!(r["ms_per_frame"].as_f64().unwrap() > 0.0, "{r}");
+        // A whole call of a warm tracer: the device's time and what the host adds.
+        assert!(r["wall_ms_per_call"].as_f64().unwrap() > 0.0, "{r}");
+        if r["backend"] == "cpu" {
+            assert_eq!(r["wall_ms_per_call"], r["ms_per_frame"], "{r}");
+        }
         assert!(r["adapter"].as_str().is_some_and(|a| !a.is_empty()), "{r}");
         // The processor the figures come from (a software adapter runs on it too).
         assert!(
