@@ -84,10 +84,10 @@ pub struct BenchRow {
     pub median: Duration,
     /// The median wall time of a whole call of a warm tracer, as a display loop makes
     /// it: on the GPU the plan, the checks of what the device holds, the submit and the
-    /// image's readback around the device's time, over [`WALL_CALLS`] calls back to
-    /// back; on the CPU reference its prepared render, `median` itself. What the host adds per frame shows here and
-    /// not in `median` (a plan that recounted a 1024^3 grid's materials made each call
-    /// 310 ms for 5 ms of device time).
+    /// image's readback around the device's time, over three calls back to back; on the
+    /// CPU reference its prepared render, `median` itself. What the host adds per frame
+    /// shows here and not in `median` (a plan that recounted a 1024^3 grid's materials
+    /// made each call 310 ms for 5 ms of device time).
     pub wall: Duration,
     pub stats: RayStats,
     /// Bytes the geometry occupies per voxel of the grid's box: the R8Uint texture's 1,
