@@ -276,7 +276,7 @@ impl GpuTracer {
         params.frame_begin = frames.start;
         params.frame_count = per_dispatch;
         params.walk_part_words = self.walk_data.as_ref().map_or(0, |(k, _)| {
-            crate::technique::walk_part_words(k.budget) as u32
+            crate::technique::walk_part_words(k.budget()) as u32
         });
         self.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));

@@ -357,13 +357,16 @@ pub struct GpuTracer {
     /// The planned traversal's own data of the voxels the walks read (which traversal,
     /// the voxels' hash, the budget; the buffers: the sparse tree, say), while renders
     /// walk it.
-    walk_data: Option<(WalkKey, WalkBuffers)>,
+    walk_data: Option<(crate::technique::WalkKey, WalkBuffers)>,
     /// The latest walks' data as built on the host (what each was built from, the
     /// data), at most [`WALK_BUILDS_KEPT`]: switching between walks of one grid (the
     /// benchmark's interleaved frames, the viewer's menu) uploads again but does not
     /// build again (the sparse octant walk's codes take seconds at 1024^3). Only the
     /// `walk_data` buffer is on the device.
-    walk_builds: Vec<(WalkKey, std::sync::Arc<dyn crate::sparse::Regions>)>,
+    walk_builds: Vec<(
+        crate::technique::WalkKey,
+        std::sync::Arc<dyn crate::sparse::Regions>,
+    )>,
     /// Builds of a walk's data since the tracer was made.
     walk_data_builds: u64,
     /// The triangle surfaces of the latest render that traced them: what they were made
@@ -375,7 +378,7 @@ pub struct GpuTracer {
 /// A walk's data on the device: `walk_data`, and its further words over up to
 /// [`crate::technique::WALK_MORE_BINDINGS`] buffers of
 /// `crate::technique::walk_part_words(budget)` words each (`walk_more_0` ... of
-/// shaders/bindings.wgsl; the budget is its [`WalkKey`]'s).
+/// shaders/bindings.wgsl; the budget is its [`crate::technique::WalkKey`]'s).
 struct WalkBuffers {
     main: wgpu::Buffer,
     more: Vec<wgpu::Buffer>,
@@ -388,28 +391,6 @@ struct WalkBuffers {
 impl WalkBuffers {
     fn bytes(&self) -> u64 {
         self.main.size() + self.more.iter().map(|b| b.size()).sum::<u64>()
-    }
-}
-
-/// What a walk's data is built from: the traversal, the grid's dims and the hash of
-/// the voxels it walks, and the budget it is built within
-/// (`crate::technique::walk_budget`). The hash is of the voxels alone, so the dims
-/// tell apart grids of one byte string in other shapes (a volume reshaped, or empty
-/// grids of as many voxels), whose data differ.
-#[derive(Clone, Copy)]
-struct WalkKey {
-    traversal: &'static crate::technique::TraversalModel,
-    dims: glam::UVec3,
-    hash: blake3::Hash,
-    budget: usize,
-}
-
-impl WalkKey {
-    fn same(&self, other: &WalkKey) -> bool {
-        std::ptr::eq(self.traversal, other.traversal)
-            && self.dims == other.dims
-            && self.hash == other.hash
-            && self.budget == other.budget
     }
 }
 

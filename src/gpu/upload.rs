@@ -146,12 +146,7 @@ impl GpuTracer {
         let build = traversal
             .data
             .expect("only a traversal with data of its own uploads it");
-        let key = super::WalkKey {
-            traversal,
-            dims: grid.dims(),
-            hash,
-            budget,
-        };
+        let key = crate::technique::WalkKey::hashed(traversal, grid, hash, budget);
         if let Some((k, b)) = &self.walk_data
             && k.same(&key)
         {

@@ -811,6 +811,59 @@ pub fn default_shadow_model() -> &'static ShadowModel {
 pub(crate) type WalkData =
     fn(&crate::scene::Grid, usize) -> std::sync::Arc<dyn crate::sparse::Regions>;
 
+/// What a walk's data is built from: the traversal, the grid's dims and the hash of
+/// the voxels it walks, and the budget it is built within ([`walk_budget`]). The hash
+/// is of the voxels alone, so the dims tell apart grids of one byte string in other
+/// shapes (a volume reshaped, or empty grids of as many voxels), whose data differ.
+/// Two builds of one key are the same data: the GPU tracer keeps its builds by it.
+#[derive(Clone, Copy)]
+pub struct WalkKey {
+    traversal: &'static TraversalModel,
+    dims: glam::UVec3,
+    hash: blake3::Hash,
+    budget: usize,
+}
+
+impl WalkKey {
+    /// The key of `traversal`'s data of `grid` within `budget` bytes a binding.
+    pub fn new(
+        traversal: &'static TraversalModel,
+        grid: &crate::scene::Grid,
+        budget: usize,
+    ) -> Self {
+        Self::hashed(traversal, grid, grid.content_hash(), budget)
+    }
+
+    /// [`Self::new`] with the grid's hash taken already (`hash` must be
+    /// `grid.content_hash()`).
+    pub(crate) fn hashed(
+        traversal: &'static TraversalModel,
+        grid: &crate::scene::Grid,
+        hash: blake3::Hash,
+        budget: usize,
+    ) -> Self {
+        Self {
+            traversal,
+            dims: grid.dims(),
+            hash,
+            budget,
+        }
+    }
+
+    /// The bytes a binding the data is built within.
+    pub fn budget(&self) -> usize {
+        self.budget
+    }
+
+    /// Whether builds of the two keys are the same data.
+    pub fn same(&self, other: &WalkKey) -> bool {
+        std::ptr::eq(self.traversal, other.traversal)
+            && self.dims == other.dims
+            && self.hash == other.hash
+            && self.budget == other.budget
+    }
+}
+
 /// The walk data budget of the CPU reference: lavapipe's largest binding (128 MiB, also
 /// wgpu's default limit), so that the reference walks what the software driver walks,
 /// step for step.
