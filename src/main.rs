@@ -644,14 +644,22 @@ fn check_against_cpu(e: &Experiment, frame: &Frame, side: u32, session: &Session
         let bounds = voxlab::ray_cutoff::Bounds::new(&e.scene, &e.settings, &plan);
         println!("check:      {bounds}");
     }
-    if session.gpu().is_none() {
+    let Some(gpu) = session.gpu() else {
         println!("check:      the image is the CPU reference's own; nothing to check");
         return Ok(());
-    }
+    };
     let (w, h) = (frame.width, frame.height);
     let (cw, ch) = (side.min(w), side.min(h));
     let (x0, y0) = ((w - cw) / 2, (h - ch) / 2);
-    let reference = voxlab::cpu::render_region(&e.scene, &e.settings, x0..x0 + cw, y0..y0 + ch);
+    // The walk's data the GPU tracer built for the render, where the reference's is the
+    // same build (the same budget), is walked rather than built again.
+    let reference = voxlab::cpu::render_region_reusing(
+        &e.scene,
+        &e.settings,
+        x0..x0 + cw,
+        y0..y0 + ch,
+        &|key| gpu.kept_walk_data(key),
+    );
     let mut crop = Frame::new(cw, ch);
     for y in 0..ch {
         for x in 0..cw {
@@ -667,10 +675,15 @@ fn check_against_cpu(e: &Experiment, frame: &Frame, side: u32, session: &Session
     .expect("same size");
     println!(
         "check:      pixels ({x0}, {y0})..({}, {}) against the CPU reference (f64, same \
-         samples, {:.1} s): {d}",
+         samples, {:.1} s{}): {d}",
         x0 + cw,
         y0 + ch,
-        reference.trace_time.as_secs_f64()
+        reference.trace_time.as_secs_f64(),
+        if reference.setup_time.as_secs_f64() >= 0.05 {
+            format!(" and {:.1} s of setup", reference.setup_time.as_secs_f64())
+        } else {
+            String::new()
+        }
     );
     if d.fraction_over() < 0.005 && d.mean_abs < 1e-3 && crop.all_finite() {
         println!("check:      agrees within the GPU tests' tolerance");

@@ -220,6 +220,70 @@ fn the_same_voxels_in_another_shape_build_their_own_walk_data() {
     }
 }
 
+/// The CPU reference walks the walk data the GPU tracer keeps where it is the build
+/// the reference would make (`render --check`): the same `Arc`, the image and counts
+/// of a render that builds its own; and where the key differs (the voxels in another
+/// shape, another budget, another walk) it builds its own.
+#[test]
+fn the_cpu_reference_walks_the_gpu_tracers_build_only_of_its_own_key() {
+    use voxlab::cpu::Prepared;
+    use voxlab::plan::Plan;
+    use voxlab::technique::{HOST_WALK_BYTES, WalkKey, walk_budget};
+    let first = load("baseline.toml", 24);
+    for walk in voxlab::render::Traversal::walks() {
+        let e = Experiment {
+            settings: voxlab::RenderSettings {
+                traversal: walk,
+                ..first.settings.clone()
+            },
+            ..first.clone()
+        };
+        let mut gpu = tracer();
+        render(&mut gpu, &e);
+        let plan = Plan::new(&e.scene, &e.settings);
+        let kept = |k: &WalkKey| gpu.kept_walk_data(k);
+        let reusing = Prepared::reusing(&e.scene, &e.settings, &plan, &kept);
+        let name = walk.name();
+        let Some(data) = plan
+            .traversal
+            .data
+            .map(|_| reusing.regions.clone().unwrap())
+        else {
+            assert!(reusing.regions.is_none(), "{name}");
+            continue;
+        };
+        let budget = walk_budget(&e.settings, HOST_WALK_BYTES);
+        let key = WalkKey::new(plan.traversal, &e.scene.grid, budget);
+        let held = gpu
+            .kept_walk_data(&key)
+            .expect("the tracer keeps its build");
+        assert!(std::sync::Arc::ptr_eq(&data, &held), "{name}: built again");
+        let (w, h) = (e.settings.width, e.settings.height);
+        let own = voxlab::cpu::render(&e.scene, &e.settings);
+        let shared = voxlab::cpu::render_region_reusing(&e.scene, &e.settings, 0..w, 0..h, &kept);
+        assert_eq!(shared.frame, own.frame, "{name}");
+        assert_eq!(shared.stats.voxel_steps, own.stats.voxel_steps, "{name}");
+        // Another key: none kept.
+        let g = &e.scene.grid;
+        let mut reshaped = voxlab::scene::Grid::new(
+            glam::UVec3::new(8, 16, 32).min(g.dims() * 2),
+            g.voxel_size(),
+            g.origin(),
+        )
+        .unwrap();
+        let n = reshaped.data().len().min(g.data().len());
+        reshaped.data_mut()[..n].copy_from_slice(&g.data()[..n]);
+        let others = [
+            WalkKey::new(plan.traversal, &reshaped, budget),
+            WalkKey::new(plan.traversal, g, budget / 2),
+            WalkKey::new(voxlab::technique::default_traversal(), g, budget),
+        ];
+        for (k, other) in others.iter().enumerate() {
+            assert!(gpu.kept_walk_data(other).is_none(), "{name}: other key {k}");
+        }
+    }
+}
+
 type Change = (&'static str, fn(&mut Experiment));
 
 /// Changes of every input of a scene whose first light is an area light and whose

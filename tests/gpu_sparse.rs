@@ -12,7 +12,7 @@ mod common;
 use common::{
     BOXES_WALK, DENSE_WALK, OCTANT_WALK, PROXIMITY_WALK, SPARSE_OCTANT_WALK, SPARSE_WALK,
 };
-use common::{assert_agree, assert_matches_golden, experiment, linear, tracer};
+use common::{assert_agree, assert_matches_golden, cpu_render_reusing, experiment, linear, tracer};
 use glam::{DVec3, IVec3, UVec3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -402,7 +402,8 @@ fn the_seed_scene_at_2048_renders_through_its_tree() {
         memory.walk_data
     );
     assert_eq!(gpu.walk_data_bindings(), 1);
-    let c = voxlab::cpu::render(&e.scene, &e.settings);
+    // The reference walks the tracer's build (30 s on two cores): the same data.
+    let c = cpu_render_reusing(&gpu, &e.scene, &e.settings);
     assert_agree("seed 2048^3", &g.frame, &c.frame);
     let steps_a_ray = |s: &voxlab::frame::RayStats| s.voxel_steps as f64 / s.total_rays() as f64;
     let (gs, cs) = (steps_a_ray(&g.stats), steps_a_ray(&c.stats));
@@ -441,7 +442,7 @@ fn the_sparse_octant_walk_with_cells_of_eight() {
         "{plan}"
     );
     assert_eq!(plan.tree_levels, 2, "{plan}");
-    let c = voxlab::cpu::render(&scene, &s);
+    let c = cpu_render_reusing(&gpu, &scene, &s);
     assert_agree("seed 1024x1024x512, cells of 8", &g.frame, &c.frame);
     // Without the codes (not within 1 MiB a binding): the kernel without them, whose
     // descent also takes two levels here.
@@ -451,7 +452,7 @@ fn the_sparse_octant_walk_with_cells_of_eight() {
     };
     let g_bare = gpu.render_counted(&scene, &bare).unwrap();
     assert_eq!(gpu.walk_data_bindings(), 1);
-    let c_bare = voxlab::cpu::render(&scene, &bare);
+    let c_bare = cpu_render_reusing(&gpu, &scene, &bare);
     assert_walked_alike(
         "seed 1024x1024x512, cells of 8, no codes",
         &g_bare,

@@ -1022,6 +1022,19 @@ impl GpuTracer {
         self.render_range(scene, settings, plan, frames, true)
     }
 
+    /// The walk data this tracer keeps built for `key`, if it keeps it (its latest
+    /// builds): what the CPU reference walks instead of building the same again
+    /// (`crate::cpu::render_region_reusing`).
+    pub fn kept_walk_data(
+        &self,
+        key: &crate::technique::WalkKey,
+    ) -> Option<std::sync::Arc<dyn crate::sparse::Regions>> {
+        self.walk_builds
+            .iter()
+            .find(|(k, _)| k.same(key))
+            .map(|(_, data)| data.clone())
+    }
+
     /// Frames the accumulation a `render_frames` call may continue holds (it continues
     /// at this frame): 0 when there is none, after any other render, a failed one, or
     /// a plan that does not accumulate.

@@ -815,7 +815,9 @@ pub(crate) type WalkData =
 /// the voxels it walks, and the budget it is built within ([`walk_budget`]). The hash
 /// is of the voxels alone, so the dims tell apart grids of one byte string in other
 /// shapes (a volume reshaped, or empty grids of as many voxels), whose data differ.
-/// Two builds of one key are the same data: the GPU tracer keeps its builds by it.
+/// Two builds of one key are the same data: the GPU tracer keeps its builds by it, and
+/// the CPU reference walks one the GPU tracer holds rather than building it again
+/// (`crate::cpu::render_region_reusing`).
 #[derive(Clone, Copy)]
 pub struct WalkKey {
     traversal: &'static TraversalModel,

@@ -23,6 +23,19 @@ pub fn tracer() -> GpuTracer {
     })
 }
 
+/// The CPU reference's render walking the walk data `gpu` keeps for it where that is
+/// the build it would make (`render --check` does so): for large grids, whose data
+/// takes tens of seconds to build (tests/gpu_cache.rs holds that the image and counts
+/// are those of the reference's own build).
+pub fn cpu_render_reusing(
+    gpu: &GpuTracer,
+    scene: &voxlab::scene::Scene,
+    settings: &voxlab::RenderSettings,
+) -> voxlab::RenderOutput {
+    let (w, h) = (settings.width, settings.height);
+    voxlab::cpu::render_region_reusing(scene, settings, 0..w, 0..h, &|k| gpu.kept_walk_data(k))
+}
+
 /// `compare` of two frames that must have the same size.
 #[track_caller]
 pub fn diff(a: &Frame, b: &Frame, domain: Domain, threshold: f64) -> ImageDiff {
