@@ -21,8 +21,9 @@
 //! its timed trace (`build_pyramid`, then a synchronising readback of the coarsest
 //! level), so a cone point pays what a scene that changes every frame pays. (The GPU
 //! tracer reuses its pyramids between renders of an unchanged scene, so its own renders
-//! after the warm-up would charge almost nothing.) The CPU's trace time already holds
-//! its pyramid build (setup 0). Its error is
+//! after the warm-up would charge almost nothing.) On the CPU, a cone point's setup is
+//! what its render prepared before the trace: its pyramids, built afresh every render
+//! (the walk's data a session keeps, as the GPU tracer does). Its error is
 //! RMSE and PSNR on linear radiance and the FLIP mean (NVIDIA's implementation,
 //! `nv-flip`) on the displayed sRGB-encoded 8-bit image (`metrics::flip`). Everything is deterministic but the times.
 
@@ -938,7 +939,8 @@ impl Tracers {
     /// caches them between renders of an unchanged scene, so they are built here afresh,
     /// as a changing scene would need), timed through a synchronising readback of the
     /// coarsest level. Zero without a cone feature. On the CPU, what the render itself
-    /// prepared before its trace, its pyramids built afresh every render.
+    /// prepared before its trace, its pyramids built afresh every render (its walk's
+    /// data the session keeps between renders of one grid).
     fn setup_time(&mut self, r: &Rendered, scene: &Scene, s: &RenderSettings) -> Result<Duration> {
         if r.backend == "cpu" {
             // As on the GPU, only a render with pyramids counts a setup.

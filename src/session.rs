@@ -29,7 +29,21 @@ pub enum Backend {
 
 enum Tracer {
     Gpu(Box<GpuTracer>),
-    Cpu { label: String },
+    Cpu {
+        label: String,
+        /// The walks' data of the latest renders, kept as the GPU tracer keeps its
+        /// own: a loop of renders of one grid builds it once.
+        walks: crate::technique::WalkBuilds,
+    },
+}
+
+impl Tracer {
+    fn cpu(label: String) -> Self {
+        Self::Cpu {
+            label,
+            walks: crate::technique::WalkBuilds::new(crate::technique::WALK_BUILDS_KEPT),
+        }
+    }
 }
 
 /// One tracer kept open across renders.
@@ -71,9 +85,7 @@ impl Session {
     /// A session on the f64 CPU reference, which always opens.
     pub fn cpu() -> Self {
         Self {
-            tracer: Tracer::Cpu {
-                label: crate::cpu::backend_summary(),
-            },
+            tracer: Tracer::cpu(crate::cpu::backend_summary()),
             history: None,
         }
     }
@@ -87,12 +99,10 @@ impl Session {
                 warn(&format!("GPU backend unavailable: {e}"));
                 warn("rendering with the CPU reference instead");
                 Self {
-                    tracer: Tracer::Cpu {
-                        label: format!(
-                            "{} -- fallback, no GPU adapter found",
-                            crate::cpu::backend_summary()
-                        ),
-                    },
+                    tracer: Tracer::cpu(format!(
+                        "{} -- fallback, no GPU adapter found",
+                        crate::cpu::backend_summary()
+                    )),
                     history: None,
                 }
             }
@@ -103,7 +113,7 @@ impl Session {
     pub fn label(&self) -> String {
         match &self.tracer {
             Tracer::Gpu(t) => format!("GPU {}", t.adapter_summary()),
-            Tracer::Cpu { label } => label.clone(),
+            Tracer::Cpu { label, .. } => label.clone(),
         }
     }
 
@@ -112,6 +122,17 @@ impl Session {
         match &self.tracer {
             Tracer::Gpu(t) => Some(t),
             Tracer::Cpu { .. } => None,
+        }
+    }
+
+    /// Builds of a walk's data (the sparse tree, the octant field or codes) since the
+    /// session opened, on either tracer: each keeps the latest
+    /// [`WALK_BUILDS_KEPT`](crate::technique::WALK_BUILDS_KEPT), so a render of a grid
+    /// and walk among them adds none.
+    pub fn walk_data_builds(&self) -> u64 {
+        match &self.tracer {
+            Tracer::Gpu(t) => t.walk_data_builds(),
+            Tracer::Cpu { walks, .. } => walks.built(),
         }
     }
 
@@ -274,7 +295,7 @@ impl Session {
                     .unwrap_or_else(|| Plan::new(scene, settings));
                 (out, plan, timer, device_timed)
             }
-            Tracer::Cpu { .. } => {
+            Tracer::Cpu { walks, .. } => {
                 // The CPU's plan is derived the same way, for the record: it needs no
                 // shader variant, but the scene's needs are the same.
                 let mut plan = Plan::new(scene, settings);
@@ -294,11 +315,12 @@ impl Session {
                     None => settings,
                 };
                 let progress = progress("rows");
-                let out = crate::cpu::render_with_history(
+                let out = crate::cpu::render_keeping(
                     scene,
                     settings,
                     progress.as_ref(),
                     &mut self.history,
+                    walks,
                 );
                 if progress.is_some_and(|p| p.stopped()) {
                     return Err(Error::new(ErrorKind::Interrupted, "render stopped"));

@@ -315,3 +315,46 @@ fn frames_in_ranges_give_the_image_of_one_render() {
     let err = gpu.render_frames(&e.scene, &e.settings, 3..4).unwrap_err();
     assert!(err.message().contains("would skip frames 2..3"), "{err}");
 }
+
+/// A CPU session keeps the walks' data of its latest renders as the GPU tracer does: a
+/// loop of renders of one grid builds it once, two walks alternate without building,
+/// a third puts out the least recently rendered, and a changed grid builds again; every image is the one
+/// a render of its own (`voxlab::cpu::render`) gives, bit for bit.
+#[test]
+fn a_cpu_session_keeps_its_walks_data_across_renders() {
+    use voxlab::render::Traversal;
+    let mut e = Experiment::seed_default();
+    e.scene = voxlab::scene::seed::seed_scene(24).unwrap();
+    (e.settings.width, e.settings.height) = (12, 10);
+    let mut session = Session::cpu();
+    let mut render = |e: &Experiment, walk: &str, builds: u64, what: &str| {
+        let mut e = e.clone();
+        e.settings.traversal = Traversal::named(walk).unwrap();
+        let image = session.render(&e).unwrap();
+        assert_eq!(session.walk_data_builds(), builds, "{what}");
+        let own = voxlab::cpu::render(&e.scene, &e.settings);
+        assert_eq!(image.frame.pixels, own.frame.pixels, "{what}: {walk}");
+        assert_eq!(image.stats, own.stats, "{what}: {walk}");
+        image
+    };
+    let first = render(&e, "sparse_octant", 1, "the first render builds");
+    render(&e, "sparse_octant", 1, "the same grid and walk");
+    render(&e, "octant", 2, "another walk builds");
+    render(&e, "dense", 2, "the dense walk has no data of its own");
+    render(&e, "sparse_octant", 2, "the first walk is kept");
+    render(&e, "proximity", 3, "a third walk builds");
+    render(&e, "sparse_octant", 3, "the latest walk before it is kept");
+    render(&e, "octant", 4, "the oldest gave way");
+    render(&e, "sparse_octant", 4, "kept, and the latest again");
+
+    // A slab across the middle of the grid, in front of the camera: the image changes.
+    let mut changed = e.clone();
+    for x in 0..24 {
+        for y in 0..24 {
+            changed.scene.grid.set(glam::IVec3::new(x, y, 12), 1);
+        }
+    }
+    let other = render(&changed, "sparse_octant", 5, "another grid builds again");
+    render(&e, "sparse_octant", 5, "the first grid's build is kept");
+    assert_ne!(other.frame.pixels, first.frame.pixels, "the slab is seen");
+}

@@ -81,7 +81,14 @@ pub fn render_region(
     columns: std::ops::Range<u32>,
     rows: std::ops::Range<u32>,
 ) -> RenderOutput {
-    render_region_with_progress(scene, settings, (columns, rows), None, &mut None, None)
+    render_region_with_progress(
+        scene,
+        settings,
+        (columns, rows),
+        None,
+        &mut None,
+        Walks::Build,
+    )
 }
 
 /// What holds walk data already built: the build of a key where it holds one (a GPU
@@ -107,7 +114,7 @@ pub fn render_region_reusing(
         (columns, rows),
         None,
         &mut None,
-        Some(kept),
+        Walks::Kept(kept),
     )
 }
 
@@ -130,7 +137,37 @@ pub fn render_with_history(
     history: &mut Option<crate::frame::History>,
 ) -> RenderOutput {
     let whole = (0..settings.width, 0..settings.height);
-    render_region_with_progress(scene, settings, whole, progress, history, None)
+    render_region_with_progress(scene, settings, whole, progress, history, Walks::Build)
+}
+
+/// [`render_with_history`], taking the walk's data from `builds` where it keeps the
+/// render's and keeping it there where it does not: a CPU [`crate::Session`]'s renders.
+pub(crate) fn render_keeping(
+    scene: &Scene,
+    settings: &RenderSettings,
+    progress: Option<&crate::progress::Progress>,
+    history: &mut Option<crate::frame::History>,
+    builds: &mut crate::technique::WalkBuilds,
+) -> RenderOutput {
+    let whole = (0..settings.width, 0..settings.height);
+    render_region_with_progress(
+        scene,
+        settings,
+        whole,
+        progress,
+        history,
+        Walks::Keep(builds),
+    )
+}
+
+/// Where a render's walk data comes from.
+enum Walks<'a> {
+    /// Built for the render.
+    Build,
+    /// From what another tracer holds where it holds the same, else built.
+    Kept(KeptWalkData<'a>),
+    /// From builds kept across renders, and kept there.
+    Keep(&'a mut crate::technique::WalkBuilds),
 }
 
 fn render_region_with_progress(
@@ -139,15 +176,12 @@ fn render_region_with_progress(
     region: (std::ops::Range<u32>, std::ops::Range<u32>),
     progress: Option<&crate::progress::Progress>,
     history: &mut Option<crate::frame::History>,
-    kept: Option<KeptWalkData>,
+    walks: Walks,
 ) -> RenderOutput {
     let setup = Instant::now();
     let plan = Plan::new(scene, settings);
     // Pyramids (and a plug-in model's data) once per render, only when planned.
-    let prepared = match kept {
-        Some(kept) => Prepared::reusing(scene, settings, &plan, kept),
-        None => Prepared::new(scene, settings, &plan),
-    };
+    let prepared = Prepared::prepare(scene, settings, &plan, walks);
     let setup_time = setup.elapsed();
     RenderOutput {
         setup_time,
@@ -439,7 +473,7 @@ pub struct Prepared {
 
 impl Prepared {
     pub fn new(scene: &Scene, settings: &RenderSettings, plan: &Plan) -> Self {
-        Self::prepare(scene, settings, plan, None)
+        Self::prepare(scene, settings, plan, Walks::Build)
     }
 
     /// [`Self::new`], taking the walk's data from `kept` where it holds the same build
@@ -450,17 +484,12 @@ impl Prepared {
         plan: &Plan,
         kept: KeptWalkData,
     ) -> Self {
-        Self::prepare(scene, settings, plan, Some(kept))
+        Self::prepare(scene, settings, plan, Walks::Kept(kept))
     }
 
-    /// Asks `kept` only where it is given: the key hashes the voxels the walk reads
-    /// (a surface's tagged grid is hashed anew each render).
-    fn prepare(
-        scene: &Scene,
-        settings: &RenderSettings,
-        plan: &Plan,
-        kept: Option<KeptWalkData>,
-    ) -> Self {
+    /// Takes a key only where `walks` keeps builds: the key hashes the voxels the walk
+    /// reads (a surface's tagged grid is hashed anew each render).
+    fn prepare(scene: &Scene, settings: &RenderSettings, plan: &Plan, walks: Walks) -> Self {
         let surfaces = match plan.surface.trace(scene) {
             Ok(s) => s,
             // Past the plan's checks only a surface overlapping more voxels than are
@@ -478,14 +507,12 @@ impl Prepared {
             regions: plan.traversal.data.map(|data| {
                 let own = crate::technique::HOST_WALK_BYTES;
                 let budget = crate::technique::walk_budget(settings, own);
-                kept.and_then(|kept| {
-                    kept(&crate::technique::WalkKey::new(
-                        plan.traversal,
-                        grid,
-                        budget,
-                    ))
-                })
-                .unwrap_or_else(|| data(grid, budget))
+                let key = || crate::technique::WalkKey::new(plan.traversal, grid, budget);
+                match walks {
+                    Walks::Build => data(grid, budget),
+                    Walks::Kept(kept) => kept(&key()).unwrap_or_else(|| data(grid, budget)),
+                    Walks::Keep(builds) => builds.get_or_build(key(), || data(grid, budget)),
+                }
             }),
             surfaces,
             cutoff: if plan.ray_cutoff {

@@ -153,9 +153,7 @@ const WATCHED_SPLIT: u32 = 16;
 /// iterations Mesa's software driver allows an invocation (shaders/counters.wgsl).
 const MAX_FRAMES_PER_DISPATCH: u32 = 4096;
 
-/// Walks' data kept built on the host (`GpuTracer::walk_builds`): two, so that two walks
-/// of one grid alternate without building again (at 1024^3 about 32 MiB each).
-pub const WALK_BUILDS_KEPT: usize = 2;
+pub use crate::technique::WALK_BUILDS_KEPT;
 
 /// Ray counters (4 x 64 bit), the invocations whose loops the driver cut, one unused word,
 /// the untraced secondary rays (64 bit).
@@ -363,12 +361,7 @@ pub struct GpuTracer {
     /// benchmark's interleaved frames, the viewer's menu) uploads again but does not
     /// build again (the sparse octant walk's codes take seconds at 1024^3). Only the
     /// `walk_data` buffer is on the device.
-    walk_builds: Vec<(
-        crate::technique::WalkKey,
-        std::sync::Arc<dyn crate::sparse::Regions>,
-    )>,
-    /// Builds of a walk's data since the tracer was made.
-    walk_data_builds: u64,
+    walk_builds: crate::technique::WalkBuilds,
     /// The triangle surfaces of the latest render that traced them: what they were made
     /// from (a hash), the cells, the hash of their tagged grid and their buffer
     /// (`surface` of shaders/bindings.wgsl).
@@ -697,8 +690,7 @@ impl GpuTracer {
             technique_data_builds: 0,
             no_technique_data,
             walk_data: None,
-            walk_builds: Vec::new(),
-            walk_data_builds: 0,
+            walk_builds: crate::technique::WalkBuilds::new(WALK_BUILDS_KEPT),
             surfaces: None,
         })
     }
@@ -767,7 +759,7 @@ impl GpuTracer {
     /// sparse tree's words, the octant codes) since the tracer was made. A render of a
     /// grid and walk among the latest [`WALK_BUILDS_KEPT`] built does not add one.
     pub fn walk_data_builds(&self) -> u64 {
-        self.walk_data_builds
+        self.walk_builds.built()
     }
 
     /// The bindings the walk's data on the device takes: `walk_data` and those of its
@@ -1029,10 +1021,7 @@ impl GpuTracer {
         &self,
         key: &crate::technique::WalkKey,
     ) -> Option<std::sync::Arc<dyn crate::sparse::Regions>> {
-        self.walk_builds
-            .iter()
-            .find(|(k, _)| k.same(key))
-            .map(|(_, data)| data.clone())
+        self.walk_builds.find(key)
     }
 
     /// Frames the accumulation a `render_frames` call may continue holds (it continues

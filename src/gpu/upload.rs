@@ -153,19 +153,7 @@ impl GpuTracer {
             return Ok(b.bytes());
         }
         self.walk_data = None;
-        let kept = self.walk_builds.iter().position(|(k, _)| k.same(&key));
-        let data = match kept {
-            Some(i) => self.walk_builds.remove(i).1,
-            None => {
-                self.walk_data_builds += 1;
-                build(grid, budget)
-            }
-        };
-        // The latest last; the oldest gives way.
-        self.walk_builds.push((key, data.clone()));
-        if self.walk_builds.len() > WALK_BUILDS_KEPT {
-            self.walk_builds.remove(0);
-        }
+        let data = self.walk_builds.get_or_build(key, || build(grid, budget));
         let parts = data.device_words();
         let bytes = (parts.iter().map(|p| p.len()).sum::<usize>() * 4).next_multiple_of(16) as u64;
         let max = self.max_voxel_buffer_bytes();

@@ -866,6 +866,66 @@ impl WalkKey {
     }
 }
 
+/// Walks' data a tracer keeps built on the host (`WalkBuilds`): two, so that two walks
+/// of one grid alternate without building again (at 1024^3 about 32 MiB each).
+pub const WALK_BUILDS_KEPT: usize = 2;
+
+/// Walks' data kept built, by [`WalkKey`]: the latest `kept` builds, so that renders of
+/// one grid, or of walks of it that alternate, build each once. The GPU tracer keeps
+/// its builds in one, and so does a CPU
+/// [`crate::Session`], whose renders otherwise built the data afresh every call (0.6 s
+/// at 256^3 for a trace of a millisecond).
+pub(crate) struct WalkBuilds {
+    kept: usize,
+    /// The oldest first.
+    builds: Vec<(WalkKey, std::sync::Arc<dyn crate::sparse::Regions>)>,
+    built: u64,
+}
+
+impl WalkBuilds {
+    pub(crate) fn new(kept: usize) -> Self {
+        Self {
+            kept,
+            builds: Vec::new(),
+            built: 0,
+        }
+    }
+
+    /// The build of `key`, where one is kept.
+    pub(crate) fn find(&self, key: &WalkKey) -> Option<std::sync::Arc<dyn crate::sparse::Regions>> {
+        self.builds
+            .iter()
+            .find(|(k, _)| k.same(key))
+            .map(|(_, data)| data.clone())
+    }
+
+    /// The build of `key`: the one kept, or `build`'s, kept in place of the oldest;
+    /// either way the latest now.
+    pub(crate) fn get_or_build(
+        &mut self,
+        key: WalkKey,
+        build: impl FnOnce() -> std::sync::Arc<dyn crate::sparse::Regions>,
+    ) -> std::sync::Arc<dyn crate::sparse::Regions> {
+        let data = match self.builds.iter().position(|(k, _)| k.same(&key)) {
+            Some(i) => self.builds.remove(i).1,
+            None => {
+                self.built += 1;
+                build()
+            }
+        };
+        self.builds.push((key, data.clone()));
+        if self.builds.len() > self.kept {
+            self.builds.remove(0);
+        }
+        data
+    }
+
+    /// Builds made since this was made: a render that found its key adds none.
+    pub(crate) fn built(&self) -> u64 {
+        self.built
+    }
+}
+
 /// The walk data budget of the CPU reference: lavapipe's largest binding (128 MiB, also
 /// wgpu's default limit), so that the reference walks what the software driver walks,
 /// step for step.
