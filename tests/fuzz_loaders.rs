@@ -8,8 +8,9 @@
 //! into a sparse tree (the path of grids too large to hold densely): where both loads
 //! succeed, the tree must be the dense grid's.
 //!
-//! CI runs a bounded slice (`VOXLAB_FUZZ_ITERS`, default 8000 mutations per seed, about half a
-//! minute) and every case under `tests/fuzz/regressions/` on every run. Run it longer:
+//! CI runs a bounded slice (`VOXLAB_FUZZ_ITERS`, default 8000 mutations per seed, about
+//! a minute and a half on two cores, the seeds spread over a thread a core) and every case
+//! under `tests/fuzz/regressions/` on every run. Run it longer:
 //!
 //! ```sh
 //! VOXLAB_FUZZ_ITERS=20000 VOXLAB_FUZZ_SEED=7 cargo test --release --test fuzz_loaders -- --nocapture
@@ -40,8 +41,9 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
-/// Loads `path` by its extension as voxlab does; `Err` is fine, a panic is not.
-fn load(path: &Path) -> Result<(), String> {
+/// Loads `path` by its extension as voxlab does; `Err` is fine, a panic is not. `full`:
+/// an experiment also as ablate, info and mesh read it.
+fn load(path: &Path, full: bool) -> Result<(), String> {
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
@@ -50,12 +52,6 @@ fn load(path: &Path) -> Result<(), String> {
         // The experiment as render, ablate (its [ablate] table and sweeps), info and
         // mesh read it: a surface extracted from a loaded grid is a closed 2-manifold.
         "toml" => {
-            // Every fourth load also as ablate, info and mesh read it: the slice stays
-            // within CI's time.
-            static LOADS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-            let full = LOADS
-                .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
-                .is_multiple_of(4);
             let e = Experiment::load(path).map_err(|e| e.to_string())?;
             if !full {
                 return Ok(());
@@ -111,10 +107,10 @@ fn same_voxels(dense: &Grid, sparse: &Grid, path: &Path) {
     );
 }
 
-/// Loads `path` and fails the test on a panic or a hang, naming `what`.
-fn must_not_crash(path: &Path, what: &str) -> Result<(), String> {
+/// Loads `path` (`load`) and fails the test on a panic or a hang, naming `what`.
+fn must_not_crash(path: &Path, full: bool, what: &str) -> Result<(), String> {
     let start = Instant::now();
-    let r = std::panic::catch_unwind(|| load(path));
+    let r = std::panic::catch_unwind(|| load(path, full));
     let took = start.elapsed();
     let r = r.unwrap_or_else(|_| panic!("{what}: loading {} panicked", path.display()));
     assert!(took < MAX_LOAD, "{what}: loading took {took:?}");
@@ -337,52 +333,93 @@ fn mutated_inputs_never_panic_or_hang() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(14);
     let dir = scratch("mutations");
-    let mut errors = 0usize;
-    let mut loads = 0usize;
     let start = Instant::now();
-    for (target, files) in seeds(&dir) {
-        // The big bunny gets fewer mutations: each load voxelizes 3674 triangles.
-        // The composed experiment a quarter: each load voxelizes, places, extracts a
-        // surface and parses the ablation table.
-        let n = if files[0].1.len() > 50_000 {
-            iters / 5
-        } else if files.len() > 2 {
-            iters / 4
-        } else {
-            iters
-        };
-        for it in 0..n {
-            let mut rng = StdRng::seed_from_u64(seed ^ (it as u64).wrapping_mul(0x9e37_79b9));
-            // Which file of the case is mutated: the material library now and then.
-            let k = if files.len() > 1 && rng.random_bool(0.3) {
-                1
-            } else {
-                0
-            };
-            for (i, (name, bytes)) in files.iter().enumerate() {
-                let mut b = bytes.clone();
-                if i == k {
-                    for _ in 0..rng.random_range(1..4) {
-                        mutate(&mut rng, &mut b);
+    let mut cases = seeds(&dir);
+    // The real meshes and volumes, the costliest loads, first: no thread ends alone
+    // with the bunny.
+    cases.reverse();
+    // The cases over a thread a core, each thread in a folder of its own (cases share
+    // file names: a material library, the deer). A case's mutations depend on its
+    // iteration alone, so a failure reproduces on any number of threads.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let (loads, errors) = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..threads)
+            .map(|t| {
+                let (dir, cases, next) = (dir.join(format!("thread-{t}")), &cases, &next);
+                scope.spawn(move || {
+                    std::fs::create_dir_all(&dir).unwrap();
+                    let (mut loads, mut errors) = (0, 0);
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(case) = cases.get(i) else {
+                            return (loads, errors);
+                        };
+                        let (l, e) = mutate_case(case, &dir, iters, seed);
+                        (loads, errors) = (loads + l, errors + e);
                     }
-                }
-                std::fs::write(dir.join(name), &b).unwrap();
-            }
-            let what = format!(
-                "seed file {}, iteration {it}, VOXLAB_FUZZ_SEED={seed}",
-                files[0].0
-            );
-            loads += 1;
-            if must_not_crash(&target, &what).is_err() {
-                errors += 1;
-            }
-        }
-    }
+                })
+            })
+            .collect();
+        workers.into_iter().fold((0, 0), |(l, e), w| {
+            let (wl, we) = w
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            (l + wl, e + we)
+        })
+    });
     println!(
-        "{loads} mutated inputs in {:.1} s: {errors} refused with an error, none panicked or hung",
+        "{loads} mutated inputs in {:.1} s on {threads} threads: {errors} refused with an \
+         error, none panicked or hung",
         start.elapsed().as_secs_f64()
     );
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Loads `iters` mutations of the case `(target, files)` written into `dir`: the loads
+/// and how many were refused with an error.
+fn mutate_case((target, files): &Case, dir: &Path, iters: usize, seed: u64) -> (usize, usize) {
+    let target = dir.join(target.file_name().unwrap());
+    let (mut loads, mut errors) = (0, 0);
+    // The big bunny gets fewer mutations: each load voxelizes 3674 triangles.
+    // The composed experiment a quarter: each load voxelizes, places, extracts a
+    // surface and parses the ablation table.
+    let n = if files[0].1.len() > 50_000 {
+        iters / 5
+    } else if files.len() > 2 {
+        iters / 4
+    } else {
+        iters
+    };
+    for it in 0..n {
+        let mut rng = StdRng::seed_from_u64(seed ^ (it as u64).wrapping_mul(0x9e37_79b9));
+        // Which file of the case is mutated: the material library now and then.
+        let k = if files.len() > 1 && rng.random_bool(0.3) {
+            1
+        } else {
+            0
+        };
+        for (i, (name, bytes)) in files.iter().enumerate() {
+            let mut b = bytes.clone();
+            if i == k {
+                for _ in 0..rng.random_range(1..4) {
+                    mutate(&mut rng, &mut b);
+                }
+            }
+            std::fs::write(dir.join(name), &b).unwrap();
+        }
+        let what = format!(
+            "seed file {}, iteration {it}, VOXLAB_FUZZ_SEED={seed}",
+            files[0].0
+        );
+        loads += 1;
+        // Every fourth experiment also as ablate, info and mesh read it: the slice
+        // stays within CI's time.
+        if must_not_crash(&target, it % 4 == 0, &what).is_err() {
+            errors += 1;
+        }
+    }
+    (loads, errors)
 }
 
 /// Every case kept under tests/fuzz/regressions/ (each crash found, with its description
@@ -406,7 +443,7 @@ fn regression_cases_give_errors_not_crashes() {
         dir.display()
     );
     for case in &cases {
-        let r = must_not_crash(case, &case.display().to_string());
+        let r = must_not_crash(case, true, &case.display().to_string());
         let e = r.expect_err("every regression case is malformed input and must be refused");
         println!("{}: {e}", case.file_name().unwrap().to_string_lossy());
         assert!(
@@ -425,7 +462,7 @@ fn devices_and_fifos_are_refused_at_once() {
     for ext in ["toml", "vox", "obj", "gltf"] {
         let link = dir.join(format!("zero.{ext}"));
         std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
-        let e = must_not_crash(&link, "a link to /dev/zero").unwrap_err();
+        let e = must_not_crash(&link, true, "a link to /dev/zero").unwrap_err();
         assert!(e.contains("not a regular file"), "{ext}: {e}");
     }
     let fifo = dir.join("fifo.toml");
@@ -435,7 +472,7 @@ fn devices_and_fifos_are_refused_at_once() {
         .unwrap()
         .success();
     assert!(ok, "mkfifo failed");
-    let e = must_not_crash(&fifo, "a FIFO").unwrap_err();
+    let e = must_not_crash(&fifo, true, "a FIFO").unwrap_err();
     assert!(e.contains("FIFO"), "{e}");
     // A material library and a glTF buffer that are /dev/zero.
     std::fs::write(
@@ -445,7 +482,7 @@ fn devices_and_fifos_are_refused_at_once() {
     .unwrap();
     std::os::unix::fs::symlink("/dev/zero", dir.join("zero.mtl")).unwrap();
     // Refused, naming the library: dropping it would lose every material.
-    let e = must_not_crash(&dir.join("m.obj"), "mtllib /dev/zero").unwrap_err();
+    let e = must_not_crash(&dir.join("m.obj"), true, "mtllib /dev/zero").unwrap_err();
     assert!(
         e.contains("material library") && e.contains("not a regular file"),
         "{e}"
@@ -456,7 +493,7 @@ fn devices_and_fifos_are_refused_at_once() {
     )
     .unwrap();
     std::os::unix::fs::symlink("/dev/zero", dir.join("zero.bin")).unwrap();
-    let e = must_not_crash(&dir.join("b.gltf"), "a buffer /dev/zero").unwrap_err();
+    let e = must_not_crash(&dir.join("b.gltf"), true, "a buffer /dev/zero").unwrap_err();
     assert!(e.contains("not a regular file"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
