@@ -139,7 +139,8 @@ class Image:
 
 class Session:
     """One tracer kept open across renders: "gpu" (the wgpu kernel on the first adapter)
-    or "cpu" (the f64 reference). Kernel variants compile once per session."""
+    or "cpu" (the f64 reference). Kernel variants compile once per session, and either
+    tracer builds the walk's data of its latest two grids and walks once."""
 
     def __new__(cls, backend: str = "gpu") -> Session: ...
     @property
