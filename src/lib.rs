@@ -59,6 +59,7 @@
 //! examples in these docs) is `pub(crate)`.
 
 pub mod ablate;
+mod accumulation;
 pub mod bench;
 pub mod cpu;
 pub mod dda;

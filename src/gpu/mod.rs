@@ -19,6 +19,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
+use crate::accumulation::AccumulationKey;
 use crate::device::{buffer, buffer_entry, extent, readback, storage_entry, uniform_entry};
 use crate::frame::{Frame, RayStats, RenderOutput};
 use crate::plan::{Plan, ShaderDefs};
@@ -191,69 +192,6 @@ struct GridUpload {
     /// shaders/bindings.wgsl), with the hash of those voxels (the grid's, or its copy with
     /// the triangle cells tagged); only while a plan walks the dense grid.
     voxels: Option<(blake3::Hash, wgpu::Buffer)>,
-}
-
-/// What a [`GpuTracer::render_frames`] accumulation was made from, so that a call that
-/// continues it can tell whether the sums in the output and compensation buffers are
-/// its own: each input by name with a hash of its Debug text (f64 prints exactly, so
-/// equal text is equal input). The voxels are not hashed: the grid upload's generation
-/// stands for them.
-#[derive(Clone, Debug, PartialEq, Eq)]
-struct AccumulationKey {
-    parts: Vec<(&'static str, blake3::Hash)>,
-}
-
-impl AccumulationKey {
-    /// `surface`: the key of the triangle surface the render traces (`SurfaceUpload`'s,
-    /// which holds the surface's own inputs, a mesh's triangles say), `None` for voxels.
-    fn new(
-        scene: &Scene,
-        settings: &RenderSettings,
-        plan: &Plan,
-        surface: Option<blake3::Hash>,
-    ) -> Self {
-        let grid = &scene.grid;
-        let hash = |s: String| blake3::hash(s.as_bytes());
-        Self {
-            parts: vec![
-                ("render settings", hash(format!("{settings:?}"))),
-                (
-                    "plan (kernel variant)",
-                    hash(format!("{:?} {:?}", plan.shader_defs(), plan.pyramid)),
-                ),
-                (
-                    "grid's size or placement",
-                    hash(format!(
-                        "{:?} {:?} {:?}",
-                        grid.dims(),
-                        grid.voxel_size(),
-                        grid.origin()
-                    )),
-                ),
-                ("materials", hash(format!("{:?}", scene.materials))),
-                ("lights", hash(format!("{:?}", scene.lights))),
-                ("camera", hash(format!("{:?}", scene.camera))),
-                ("ambient colour", hash(format!("{:?}", scene.ambient))),
-                // The voxels are the grid generation's (`check_continuation`); the
-                // triangles a surface traces (a mesh's) change no voxel. The upload has
-                // hashed them already: its key, not a second hash of the mesh a frame.
-                (
-                    "surface (the triangles it traces)",
-                    surface.unwrap_or_else(|| hash("voxels".to_string())),
-                ),
-            ],
-        }
-    }
-
-    /// The names of the inputs that differ from `other`'s.
-    fn differences(&self, other: &Self) -> Vec<&'static str> {
-        self.parts
-            .iter()
-            .zip(&other.parts)
-            .filter(|(a, b)| a.1 != b.1)
-            .map(|(a, _)| a.0)
-            .collect()
-    }
 }
 
 /// The accumulation the output and compensation buffers hold after a
@@ -1033,44 +971,17 @@ impl GpuTracer {
 
     /// Whether the accumulation this tracer holds is the one `frames` continues.
     fn check_continuation(&self, key: &AccumulationKey, frames: &Range<u32>) -> Result<()> {
-        let f = format!("frames {}..{}", frames.start, frames.end);
-        let Some(acc) = &self.accumulation else {
-            bail!(
-                "{f}: no accumulation to continue: this tracer's previous render was not a \
-                 render_frames call of an accumulating plan (any other render, or a failed \
-                 one, ends the accumulation); start again at frame 0"
-            );
-        };
-        let n = acc.frames;
-        let mut differs = key.differences(&acc.key);
-        if acc.grid_generation != self.grid_generation() {
-            differs.push("voxel grid (another was uploaded since)");
-        }
-        if acc.pyramid_builds != self.pyramid_builds {
-            differs.push("cone pyramids (rebuilt since)");
-        }
-        if !differs.is_empty() {
-            bail!(
-                "{f}: cannot continue the accumulation of frames 0..{n}, which was made \
-                 from other inputs (changed: {}); start again at frame 0",
-                differs.join(", ")
-            );
-        }
-        if frames.start > n {
-            bail!(
-                "{f}: would skip frames {n}..{}: the accumulation holds frames 0..{n}, so \
-                 the next range must start at {n}",
-                frames.start
-            );
-        }
-        if frames.start < n {
-            bail!(
-                "{f}: frames {}..{n} are already accumulated (it holds frames 0..{n}), so \
-                 the next range must start at {n}",
-                frames.start
-            );
-        }
-        Ok(())
+        let held = self.accumulation.as_ref().map(|acc| {
+            let mut also = Vec::new();
+            if acc.grid_generation != self.grid_generation() {
+                also.push("voxel grid (another was uploaded since)");
+            }
+            if acc.pyramid_builds != self.pyramid_builds {
+                also.push("cone pyramids (rebuilt since)");
+            }
+            (&acc.key, acc.frames, also)
+        });
+        crate::accumulation::check_continuation(held, key, frames).map_err(anyhow::Error::msg)
     }
 
     /// Renders frames `frames` of `plan`'s accumulation and returns the image averaged
