@@ -9,6 +9,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use crate::accumulation::AccumulationKey;
 use crate::error::{Error, ErrorKind, Result};
 use crate::experiment::{Experiment, Override};
 use crate::frame::{DisplayTransform, Frame, RayStats};
@@ -34,6 +35,9 @@ enum Tracer {
         /// The walks' data of the latest renders, kept as the GPU tracer keeps its
         /// own: a loop of renders of one grid builds it once.
         walks: crate::technique::WalkBuilds,
+        /// The sums of the latest `render_frames` call of an accumulating plan, which
+        /// the next may continue: what it was made from, and the sums.
+        accumulation: Option<(AccumulationKey, crate::cpu::FrameSums)>,
     },
 }
 
@@ -42,6 +46,7 @@ impl Tracer {
         Self::Cpu {
             label,
             walks: crate::technique::WalkBuilds::new(crate::technique::WALK_BUILDS_KEPT),
+            accumulation: None,
         }
     }
 }
@@ -162,8 +167,10 @@ impl Session {
     /// refines its image progressively: on the GPU, `frames.start > 0` continues the
     /// accumulation the session's previous call of this left (same scene, settings and
     /// plan, ended at `frames.start`; `GpuTracer::render_frames` says what else it
-    /// checks), and `trace_time` covers this call's frames. The CPU reference keeps no
-    /// accumulation: it renders frames `0..frames.end` afresh, the same image.
+    /// checks), and `trace_time` covers this call's frames. The CPU reference keeps its
+    /// sums in f64 and continues them by the same rule (the image is bit for bit a
+    /// render of frames `0..frames.end`); on both, any other render ends the
+    /// accumulation.
     pub fn render_frames(
         &mut self,
         scene: &Scene,
@@ -295,14 +302,19 @@ impl Session {
                     .unwrap_or_else(|| Plan::new(scene, settings));
                 (out, plan, timer, device_timed)
             }
-            Tracer::Cpu { walks, .. } => {
+            Tracer::Cpu {
+                walks,
+                accumulation,
+                ..
+            } => {
                 // The CPU's plan is derived the same way, for the record: it needs no
                 // shader variant, but the scene's needs are the same.
                 let mut plan = Plan::new(scene, settings);
                 // A range of the accumulation is, on the CPU, the render of its first
-                // frames, the range checked by the rule the GPU tracer checks its own by.
+                // frames, summed on from the sums of the frames before it where the call
+                // continues an accumulation, both checked by the GPU tracer's rules.
                 let ranged;
-                let settings = match &range {
+                let (settings, key) = match &range {
                     Some(r) => {
                         plan.check_frames(settings, r)
                             .map_err(|m| Error::new(ErrorKind::Invalid, m))?;
@@ -310,21 +322,41 @@ impl Session {
                             spp: r.end,
                             ..settings.clone()
                         };
-                        &ranged
+                        let key = plan
+                            .accumulate
+                            .then(|| cpu_accumulation_key(scene, settings, &plan));
+                        if r.start > 0 {
+                            let key = key.as_ref().expect("a range past 0 accumulates");
+                            let holds = accumulation
+                                .as_ref()
+                                .map(|(k, sums)| (k, sums.frames(), Vec::new()));
+                            crate::accumulation::check_continuation(holds, key, r)
+                                .map_err(|m| Error::new(ErrorKind::Invalid, m))?;
+                        }
+                        (&ranged, key)
                     }
-                    None => settings,
+                    None => (settings, None),
                 };
+                // Past the checks the render ends the accumulation held, whether it
+                // continues it or not, and whether it succeeds or fails.
+                let held = accumulation.take();
+                let prior = held
+                    .as_ref()
+                    .filter(|_| range.as_ref().is_some_and(|r| r.start > 0))
+                    .map(|(_, sums)| sums);
                 let progress = progress("rows");
-                let out = crate::cpu::render_keeping(
+                let (out, sums) = crate::cpu::render_keeping(
                     scene,
                     settings,
                     progress.as_ref(),
                     &mut self.history,
                     walks,
+                    prior,
                 );
                 if progress.is_some_and(|p| p.stopped()) {
                     return Err(Error::new(ErrorKind::Interrupted, "render stopped"));
                 }
+                *accumulation = key.map(|key| (key, sums));
                 plan.walk_data = out.walk_data.clone();
                 (out, plan, "wall", false)
             }
@@ -349,6 +381,19 @@ impl Session {
             previous: None,
         })
     }
+}
+
+/// What a CPU accumulation was made from: the GPU tracer's key, with the voxels' hash
+/// where the GPU tracer has its upload's generation, and the triangle surface's inputs
+/// where it has its upload's key.
+fn cpu_accumulation_key(scene: &Scene, settings: &RenderSettings, plan: &Plan) -> AccumulationKey {
+    let surface = plan.surface.traces_triangles().then(|| {
+        let mut h = blake3::Hasher::new();
+        h.update(plan.surface.name().as_bytes());
+        (plan.surface.hash_inputs)(scene, &mut h);
+        h.finalize()
+    });
+    AccumulationKey::new(scene, settings, plan, surface).with("voxels", scene.grid.content_hash())
 }
 
 /// A rendered image and what made it.

@@ -285,6 +285,16 @@ fn frames_in_ranges_give_the_image_of_one_render() {
                 .render_frames(&e.scene, &e.settings, range.clone())
                 .unwrap();
             assert_eq!(image.frames, range.end, "{}", session.label());
+            // The CPU reference's call traces its own frames: the accumulation is
+            // continued, not rendered again from frame 0 (the GPU kernel counts no rays
+            // here).
+            if session.gpu().is_none() {
+                assert_eq!(
+                    image.stats.primary,
+                    16 * 12 * range.len() as u64,
+                    "frames {range:?}"
+                );
+            }
             last = Some(image);
         }
         let last = last.unwrap();
@@ -309,11 +319,57 @@ fn frames_in_ranges_give_the_image_of_one_render() {
                 session.label()
             );
         }
+        // Each tracer continues its own accumulation only where it left off, and only
+        // of the same inputs; any other render ends it.
+        let label = session.label();
+        let mut after = |range: std::ops::Range<u32>, e: &Experiment| {
+            session.render_frames(&e.scene, &e.settings, range)
+        };
+        after(0..2, &e).unwrap();
+        let err = after(3..4, &e).unwrap_err();
+        assert!(
+            err.message().contains("would skip frames 2..3"),
+            "{label}: {err}"
+        );
+        let err = after(1..3, &e).unwrap_err();
+        assert!(
+            err.message()
+                .contains("frames 1..2 are already accumulated"),
+            "{label}: {err}"
+        );
+        let mut moved = e.clone();
+        moved.scene.lights.pop();
+        let err = after(2..3, &moved).unwrap_err();
+        assert!(
+            err.message().contains("cannot continue") && err.message().contains("changed: lights"),
+            "{label}: {err}"
+        );
+        // The refused calls left the accumulation as it was.
+        let image = after(2..4, &e).unwrap();
+        assert_eq!(image.frame.pixels, whole.frame.pixels, "{label}");
+        // (The GPU tracer uploads the other voxels before it refuses, so its
+        // accumulation then ends too: this check is the last.)
+        after(0..2, &e).unwrap();
+        let mut carved = e.clone();
+        let v = carved.scene.grid.dims().as_ivec3() / 2;
+        let m = carved.scene.grid.get(v);
+        carved.scene.grid.set(v, if m == 0 { 1 } else { 0 });
+        let err = after(2..3, &carved).unwrap_err();
+        assert!(err.message().contains("changed: voxel"), "{label}: {err}");
+        // Any other render ends it.
+        session.render(&e).unwrap();
+        let err = session
+            .render_frames(&e.scene, &e.settings, 4..4)
+            .unwrap_err();
+        assert!(err.message().contains("empty range"), "{label}: {err}");
+        let err = session
+            .render_frames(&e.scene, &e.settings, 2..3)
+            .unwrap_err();
+        assert!(
+            err.message().contains("no accumulation to continue"),
+            "{label}: {err}"
+        );
     }
-    // The GPU continues its own accumulation only where it left off.
-    gpu.render_frames(&e.scene, &e.settings, 0..2).unwrap();
-    let err = gpu.render_frames(&e.scene, &e.settings, 3..4).unwrap_err();
-    assert!(err.message().contains("would skip frames 2..3"), "{err}");
 }
 
 /// A CPU session keeps the walks' data of its latest renders as the GPU tracer does: a
@@ -357,4 +413,49 @@ fn a_cpu_session_keeps_its_walks_data_across_renders() {
     let other = render(&changed, "sparse_octant", 5, "another grid builds again");
     render(&e, "sparse_octant", 5, "the first grid's build is kept");
     assert_ne!(other.frame.pixels, first.frame.pixels, "the slab is seen");
+}
+
+/// A CPU session continues its sums in f64 where the last range left off: the image of
+/// frames in ranges is, bit for bit, one render's, also where a filter reads the
+/// primary layers the frames sum (`features.reconstruction = "atrous"`) and where the
+/// pixel filter moves each frame's primary rays.
+#[test]
+fn a_cpu_session_continues_its_sums_bit_for_bit() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
+    let cases: [(&str, &[&str]); 3] = [
+        ("area_lights.toml", &["render.pixel_filter=\"gaussian\""]),
+        (
+            "reconstruction.toml",
+            &["features.reconstruction=\"atrous\"", "render.path_frames=1"],
+        ),
+        ("ratio.toml", &[]),
+    ];
+    for (file, sets) in cases {
+        let mut overrides: Vec<voxlab::experiment::Override> =
+            ["render.width=11", "render.height=7", "render.spp=7"]
+                .iter()
+                .chain(sets)
+                .map(|s| s.parse().unwrap())
+                .collect();
+        overrides.dedup();
+        let e = Experiment::load_with(dir.join(file), &overrides).unwrap();
+        let whole = Session::cpu().render(&e).unwrap();
+        let mut session = Session::cpu();
+        let mut image = None;
+        for range in [0..1, 1..2, 2..6, 6..7] {
+            image = Some(
+                session
+                    .render_frames(&e.scene, &e.settings, range.clone())
+                    .unwrap(),
+            );
+        }
+        let image = image.unwrap();
+        assert_eq!(image.frames, 7, "{file}");
+        assert_eq!(image.frame.pixels, whole.frame.pixels, "{file}");
+        assert_eq!(
+            image.stats.primary,
+            11 * 7,
+            "{file}: only frames 6..7 traced"
+        );
+    }
 }

@@ -141,23 +141,26 @@ pub fn render_with_history(
 }
 
 /// [`render_with_history`], taking the walk's data from `builds` where it keeps the
-/// render's and keeping it there where it does not: a CPU [`crate::Session`]'s renders.
+/// render's and keeping it there where it does not, and summing the frames from those
+/// `prior` holds (of the same scene, settings and plan: the caller's to check): a CPU
+/// [`crate::Session`]'s renders. With the image, the sums of its frames.
 pub(crate) fn render_keeping(
     scene: &Scene,
     settings: &RenderSettings,
     progress: Option<&crate::progress::Progress>,
     history: &mut Option<crate::frame::History>,
     builds: &mut crate::technique::WalkBuilds,
-) -> RenderOutput {
+    prior: Option<&FrameSums>,
+) -> (RenderOutput, FrameSums) {
+    let setup = Instant::now();
+    let plan = Plan::new(scene, settings);
+    let prepared = Prepared::prepare(scene, settings, &plan, Walks::Keep(builds));
+    let setup_time = setup.elapsed();
     let whole = (0..settings.width, 0..settings.height);
-    render_region_with_progress(
-        scene,
-        settings,
-        whole,
-        progress,
-        history,
-        Walks::Keep(builds),
-    )
+    let (out, sums) = trace_region(
+        scene, settings, &plan, &prepared, whole, progress, history, prior,
+    );
+    (RenderOutput { setup_time, ..out }, sums)
 }
 
 /// Where a render's walk data comes from.
@@ -183,10 +186,10 @@ fn render_region_with_progress(
     // Pyramids (and a plug-in model's data) once per render, only when planned.
     let prepared = Prepared::prepare(scene, settings, &plan, walks);
     let setup_time = setup.elapsed();
-    RenderOutput {
-        setup_time,
-        ..trace_region(scene, settings, &plan, &prepared, region, progress, history)
-    }
+    let (out, _) = trace_region(
+        scene, settings, &plan, &prepared, region, progress, history, None,
+    );
+    RenderOutput { setup_time, ..out }
 }
 
 /// [`render`] with what it reads prepared already (`Prepared::new` for the same scene,
@@ -206,11 +209,14 @@ pub(crate) fn render_prepared(
         (0..settings.width, 0..settings.height),
         None,
         &mut None,
+        None,
     )
+    .0
 }
 
 /// The pixels `columns` x `rows` of the image; a temporal reconstruction accumulates
-/// onto `history`.
+/// onto `history`; the frames `prior` holds (the region's first) are summed from there.
+#[allow(clippy::too_many_arguments)]
 fn trace_region(
     scene: &Scene,
     settings: &RenderSettings,
@@ -219,27 +225,29 @@ fn trace_region(
     (columns, rows): (std::ops::Range<u32>, std::ops::Range<u32>),
     progress: Option<&crate::progress::Progress>,
     history: &mut Option<crate::frame::History>,
-) -> RenderOutput {
+    prior: Option<&FrameSums>,
+) -> (RenderOutput, FrameSums) {
     let start = Instant::now();
     let reconstruction = plan.reconstruction;
     if reconstruction.cpu.is_none() {
-        let (means, _, stats) = trace_means(
+        let (means, _, stats, sums) = trace_means(
             scene,
             settings,
             plan,
             prepared,
-            columns.clone(),
-            rows.clone(),
+            (columns.clone(), rows.clone()),
             false,
             progress,
+            prior,
         );
-        return RenderOutput {
+        let out = RenderOutput {
             frame: frame_of(&means, columns.len() as u32, rows.len() as u32),
             stats,
             trace_time: start.elapsed(),
             setup_time: Duration::ZERO,
             walk_data: prepared.regions.as_ref().and_then(|r| r.summary()),
         };
+        return (out, sums);
     }
     // A filter reads around each pixel: the region is traced as far wider as it reads,
     // so a crop is filtered as the whole image is (clamped at the image's edges, as
@@ -249,15 +257,15 @@ fn trace_region(
         r.start.saturating_sub(reach)..r.end.saturating_add(reach).min(side)
     };
     let (wide_columns, wide_rows) = (wide(&columns, settings.width), wide(&rows, settings.height));
-    let (means, layers, stats) = trace_means(
+    let (means, layers, stats, sums) = trace_means(
         scene,
         settings,
         plan,
         prepared,
-        wide_columns.clone(),
-        wide_rows.clone(),
+        (wide_columns.clone(), wide_rows.clone()),
         true,
         progress,
+        prior,
     );
     let layers = layers.expect("asked for");
     let filtered = reconstruction.apply(&layers, &means, settings, history);
@@ -272,13 +280,14 @@ fn trace_region(
             filtered[at..at + columns.len()].to_vec()
         })
         .collect();
-    RenderOutput {
+    let out = RenderOutput {
         frame: frame_of(&crop, columns.len() as u32, rows.len() as u32),
         stats,
         trace_time: start.elapsed(),
         setup_time: Duration::ZERO,
         walk_data: prepared.regions.as_ref().and_then(|r| r.summary()),
-    }
+    };
+    (out, sums)
 }
 
 /// A frame of `width` x `height` pixels from their f64 values, each rounded once.
@@ -290,24 +299,55 @@ fn frame_of(means: &[DVec3], width: u32, height: u32) -> Frame {
     frame
 }
 
+/// Per-pixel sums in f64 of a region's frames `0..frames`, rows from the top (and,
+/// where a reconstruction reads them, of its primary layers): what a CPU session keeps
+/// to continue an accumulation, as the GPU tracer keeps its sums in its buffers. The
+/// sums of frames `0..n` continued over `n..m` are, bit for bit, those of `0..m`: each
+/// pixel's frames are added in order either way.
+#[derive(Clone, Default)]
+pub(crate) struct FrameSums {
+    frames: u32,
+    radiance: Vec<DVec3>,
+    /// Empty where the render read no layers.
+    layers: Vec<PrimaryPixel>,
+}
+
+impl FrameSums {
+    /// The frames summed: `0..frames`.
+    pub(crate) fn frames(&self) -> u32 {
+        self.frames
+    }
+}
+
 /// Every pixel of the region, the mean of its frames in f64, rows from the top; with
-/// `layers`, also the primary layers a reconstruction reads (`crate::frame::PrimaryLayers`).
+/// `layers`, also the primary layers a reconstruction reads (`crate::frame::PrimaryLayers`);
+/// and the sums of which they are the means. The frames `prior` holds (0..n of the same
+/// region) are not traced again: they are summed from there.
 #[allow(clippy::too_many_arguments)]
 fn trace_means(
     scene: &Scene,
     settings: &RenderSettings,
     plan: &Plan,
     prepared: &Prepared,
-    columns: std::ops::Range<u32>,
-    rows: std::ops::Range<u32>,
+    (columns, rows): (std::ops::Range<u32>, std::ops::Range<u32>),
     layers: bool,
     progress: Option<&crate::progress::Progress>,
-) -> (Vec<DVec3>, Option<PrimaryLayers>, RayStats) {
+    prior: Option<&FrameSums>,
+) -> (Vec<DVec3>, Option<PrimaryLayers>, RayStats, FrameSums) {
     let rows_done = std::sync::atomic::AtomicU64::new(0);
     let row_count = rows.len() as u64;
     let frame_cam = scene.camera.frame();
     let (w, h) = (settings.width, settings.height);
     let frames = plan.frames(settings);
+    let first = prior.map_or(0, |p| p.frames);
+    if let Some(p) = prior {
+        assert!(
+            p.radiance.len() == columns.len() * rows.len()
+                && p.layers.len() == if layers { p.radiance.len() } else { 0 }
+                && first <= frames,
+            "a continued accumulation is of the same region, layers and fewer frames"
+        );
+    }
     type Row = (Vec<DVec3>, Vec<PrimaryPixel>, RayStats);
     let out: Vec<Row> = rows
         .clone()
@@ -328,9 +368,13 @@ fn trace_means(
             let row = columns
                 .clone()
                 .map(|i| {
-                    let mut sum = DVec3::ZERO;
-                    let mut layer = PrimaryPixel::default();
-                    for frame in 0..frames {
+                    let at =
+                        (j - rows.start) as usize * columns.len() + (i - columns.start) as usize;
+                    let mut sum = prior.map_or(DVec3::ZERO, |p| p.radiance[at]);
+                    let mut layer = prior
+                        .filter(|_| layers)
+                        .map_or_else(PrimaryPixel::default, |p| p.layers[at]);
+                    for frame in first..frames {
                         let key = SampleKey {
                             pixel: j * w + i,
                             frame,
@@ -358,9 +402,9 @@ fn trace_means(
                         }
                     }
                     if layers {
-                        row_layers.push(layer.mean_over(frames));
+                        row_layers.push(layer);
                     }
-                    sum / frames as f64
+                    sum
                 })
                 .collect();
             if let Some(p) = progress {
@@ -370,22 +414,26 @@ fn trace_means(
             (row, row_layers, stats)
         })
         .collect();
-    let mut means = Vec::with_capacity(columns.len() * rows.len());
-    let mut pixels = Vec::new();
+    let mut sums = FrameSums {
+        frames,
+        radiance: Vec::with_capacity(columns.len() * rows.len()),
+        layers: Vec::new(),
+    };
     let mut stats = RayStats::default();
     for (row, row_layers, s) in out {
-        means.extend(row);
-        pixels.extend(row_layers);
+        sums.radiance.extend(row);
+        sums.layers.extend(row_layers);
         stats += s;
     }
+    let means = sums.radiance.iter().map(|s| s / frames as f64).collect();
     let layers = layers.then(|| PrimaryLayers {
         width: columns.len() as u32,
         height: rows.len() as u32,
         frames,
         camera: frame_cam,
-        pixels,
+        pixels: sums.layers.iter().map(|l| l.mean_over(frames)).collect(),
     });
-    (means, layers, stats)
+    (means, layers, stats, sums)
 }
 
 /// What one frame's primary ray found, for a reconstruction's layers.
