@@ -21,7 +21,7 @@ const LAYERS: &[(&str, &[&str])] = &[
         &["settings", "render", "technique", "plan", "ray_cutoff"],
     ),
     ("experiments", &["experiment", "error"]),
-    ("tracers", &["cpu", "gpu"]),
+    ("tracers", &["accumulation", "cpu", "gpu"]),
     (
         "applications",
         &[
