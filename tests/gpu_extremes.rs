@@ -72,6 +72,60 @@ fn axis_parallel_rays_along_voxel_edges() {
     );
 }
 
+/// The eye at the target, or nearly: every positive `camera.distance` is valid, and
+/// the view is the same from 1e-300 to a thousandth, looking along the orbit's angles
+/// from inside the grid. The view's direction came from `target - eye`, which is zero
+/// below the target's ulp (1e-15 at 8): its NaN rays drew one image on the GPU and
+/// another on the CPU.
+#[test]
+fn eye_at_or_near_the_target() {
+    let mut scene = seed_scene(16).unwrap();
+    // Off the lattice: an eye on a voxel corner is ill-conditioned in its own right
+    // (the stress suite's eye-on-lattice case).
+    scene.camera.target = DVec3::new(8.3, 7.6, 8.45);
+    let mut gpu = tracer();
+    let mut first = None;
+    for (k, distance) in [
+        1e-3,
+        1e-9,
+        1e-12,
+        1e-15,
+        1e-17,
+        1e-40,
+        1e-300,
+        f64::MIN_POSITIVE,
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        scene.camera.distance = distance;
+        // Generated angles, off the axes and on them.
+        scene.camera.yaw = [0.3, 0.0, -2.1, 1.0][k % 4];
+        scene.camera.pitch = [0.2, 0.0, -0.7, std::f64::consts::FRAC_PI_2][k % 4];
+        let f = scene.camera.frame();
+        for v in [f.eye, f.forward, f.right, f.up] {
+            assert!(v.is_finite(), "distance {distance}: {f:?}");
+        }
+        assert!((f.forward.length() - 1.0).abs() < 1e-12, "{distance}");
+        agree(
+            &mut gpu,
+            &format!("eye {distance} from the target, 33x33"),
+            &scene,
+            &settings(33),
+        );
+        if k % 4 == 0 {
+            let c = voxlab::cpu::render(&scene, &settings(9)).frame;
+            let first = first.get_or_insert(c.clone());
+            let close = first
+                .pixels
+                .iter()
+                .zip(&c.pixels)
+                .all(|(a, b)| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-3));
+            assert!(close, "distance {distance}: another view");
+        }
+    }
+}
+
 #[test]
 fn camera_outside_looking_away_sees_only_ambient() {
     let mut scene = seed_scene(16).unwrap();

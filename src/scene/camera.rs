@@ -29,14 +29,22 @@ pub struct CameraFrame {
 
 impl OrbitCamera {
     pub fn eye(&self) -> DVec3 {
+        self.target + self.distance * self.backward()
+    }
+
+    /// The unit vector from the target to the eye.
+    fn backward(&self) -> DVec3 {
         let (sy, cy) = self.yaw.sin_cos();
         let (sp, cp) = self.pitch.sin_cos();
-        self.target + self.distance * DVec3::new(sy * cp, sp, cy * cp)
+        DVec3::new(sy * cp, sp, cy * cp)
     }
 
     pub fn frame(&self) -> CameraFrame {
         let eye = self.eye();
-        let forward = (self.target - eye).normalize();
+        // From the angles, not from `target - eye`: at a distance below the target's
+        // ulp (1e-15 from a target at 8) the eye is the target, and their difference
+        // normalised was NaN, which the two tracers drew differently.
+        let forward = -self.backward();
         // Looking straight up or down: keep yaw's horizontal direction as "right".
         let right = {
             let r = forward.cross(DVec3::Y);
