@@ -238,6 +238,61 @@ pub fn check_surface(scene: &Scene, settings: &RenderSettings) -> Result<(), Str
     (surface.plan)(scene, settings)
 }
 
+/// The largest grid-local coordinate (voxels from the grid's corner) the kernel's f32
+/// holds for `scene`: its grid's largest side, or the eye's farthest coordinate where
+/// the camera is farther out. What the f32 positions of hits and offsets round to.
+fn farthest_coordinate(scene: &Scene) -> f64 {
+    let g = &scene.grid;
+    let eye = (scene.camera.eye() - g.origin()) / g.voxel_size();
+    (g.dims().max_element() as f64).max(eye.abs().max_element())
+}
+
+/// The smallest `render.ray_offset` (voxel widths) the f32 kernel resolves on `scene`:
+/// two f32 ulps of its farthest grid-local coordinate (the grid's largest side, or the
+/// eye's, where a primary ray's hit is as precise as its origin). Below it `p + eps n`
+/// rounds back onto or across the face in f32, where the f64 reference moves off it,
+/// and the two tracers part at faces (`render --check` of experiments/area_lights.toml,
+/// the seed scene at 16^3, at 32x32): an offset of 2e-6 voxel widths drew 1.3 % of the
+/// pixels apart and 1e-9 39 %, 4e-6 none; at 256^3 (48x48) 3e-5 0.7 %, 6.2e-5 none; the
+/// default 1e-3 at `camera.distance = 1e5` (a view narrowed to the grid) 4.4 %, at 1e4
+/// none.
+pub fn min_ray_offset(scene: &Scene) -> f64 {
+    // An f32 ulp at `far`, in f64 so that an eye past f32's range still has one.
+    let far = farthest_coordinate(scene).max(1.0);
+    2.0 * 2f64.powf(far.log2().floor() - 23.0)
+}
+
+/// `render.ray_offset` against what the kernel resolves on `scene`
+/// ([`min_ray_offset`]): `Err` says why the GPU image will part from the reference's.
+/// Every value of the key's declared range is accepted (the grid and camera decide
+/// this bound, not the key); `voxlab render` prints this as a warning.
+pub fn check_ray_offset(scene: &Scene, settings: &RenderSettings) -> Result<(), String> {
+    let min = min_ray_offset(scene);
+    if settings.ray_offset >= min {
+        return Ok(());
+    }
+    let d = scene.grid.dims();
+    let far = farthest_coordinate(scene);
+    let what = if far > d.max_element() as f64 {
+        format!(
+            "the eye is {far:.4e} voxels from the grid's corner (camera.distance and \
+             camera.target place it; a closer camera allows a smaller offset)"
+        )
+    } else {
+        format!(
+            "its farthest face is {} voxels from its corner",
+            d.max_element()
+        )
+    };
+    Err(format!(
+        "render.ray_offset = {} is below what the GPU kernel's f32 resolves on this \
+         {}x{}x{} grid: {what}, where two f32 ulps are {min:.3e} voxel widths; an offset \
+         below that can round away, and the GPU image then parts from the f64 reference's \
+         at faces",
+        settings.ray_offset, d.x, d.y, d.z
+    ))
+}
+
 /// The traversal `settings` name, when it can walk `scene` (its plan rule); the
 /// reason otherwise, for the experiment loader (the plan itself walks the scene with the
 /// `auto` choice and says why).

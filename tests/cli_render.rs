@@ -458,3 +458,40 @@ fn bench_json_prints_one_object_per_row() {
         }
     }
 }
+
+/// A ray offset below what the kernel's f32 resolves on the scene is accepted (it is in
+/// the key's range) and warned of on a GPU render: the image then parts from the
+/// reference's at faces. At the default no warning.
+#[test]
+fn a_ray_offset_below_the_kernels_resolution_is_warned_of() {
+    let dir = scratch("ray-offset");
+    for (offset, warned) in [("0", true), ("1e-7", true), ("0.001", false)] {
+        let o = voxlab(
+            &dir,
+            &[
+                "render",
+                &baseline(),
+                "--width",
+                "8",
+                "--height",
+                "8",
+                "--set",
+                &format!("render.ray_offset={offset}"),
+                "--out",
+                "x.png",
+            ],
+        );
+        let (_, stderr) = text(&o);
+        assert!(o.status.success(), "{stderr}");
+        let warning = stderr
+            .lines()
+            .find(|l| l.starts_with("warning: render.ray_offset"));
+        assert_eq!(warning.is_some(), warned, "{offset}: {stderr}");
+        if let Some(w) = warning {
+            assert!(
+                w.contains("16x16x16 grid") && w.contains("two f32 ulps are"),
+                "{w}"
+            );
+        }
+    }
+}
