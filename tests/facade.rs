@@ -347,8 +347,8 @@ fn frames_in_ranges_give_the_image_of_one_render() {
         // The refused calls left the accumulation as it was.
         let image = after(2..4, &e).unwrap();
         assert_eq!(image.frame.pixels, whole.frame.pixels, "{label}");
-        // (The GPU tracer uploads the other voxels before it refuses, so its
-        // accumulation then ends too: this check is the last.)
+        // Other voxels are refused before the GPU tracer uploads them: the
+        // accumulation survives that refusal too.
         after(0..2, &e).unwrap();
         let mut carved = e.clone();
         let v = carved.scene.grid.dims().as_ivec3() / 2;
@@ -356,6 +356,11 @@ fn frames_in_ranges_give_the_image_of_one_render() {
         carved.scene.grid.set(v, if m == 0 { 1 } else { 0 });
         let err = after(2..3, &carved).unwrap_err();
         assert!(err.message().contains("changed: voxel"), "{label}: {err}");
+        let image = after(2..4, &e).unwrap();
+        assert_eq!(
+            image.frame.pixels, whole.frame.pixels,
+            "{label}: after other voxels"
+        );
         // Any other render ends it.
         session.render(&e).unwrap();
         let err = session

@@ -384,12 +384,23 @@ fn wrong_continuations_are_errors_that_say_why() {
     let seven = gpu.render_frames(&scene, &settings, 3..7).unwrap().frame;
     assert_eq!(gpu.accumulated_frames(), 7);
 
-    // The voxels: uploading another grid ends it, even when the first comes back.
+    // The voxels: other voxels are refused before they are uploaded, so the
+    // accumulation goes on with the first ones (and is the render of 9 frames).
     let mut carved = scene.clone();
     carved.grid.data_mut()[0] = 0;
     assert_ne!(carved.grid.data(), scene.grid.data());
     assert_refused(&mut gpu, &carved, &settings, 7..9, &["voxel grid"]);
-    assert_refused(&mut gpu, &scene, &settings, 7..9, &["voxel grid"]);
+    let nine = gpu.render_frames(&scene, &settings, 7..9).unwrap().frame;
+    assert_bitwise(
+        "7..9 after other voxels were refused",
+        &nine,
+        &reference(&mut gpu, &scene, &settings, 9),
+    );
+    // Another grid's render of its own ends it; coming back to the first does not
+    // bring it back.
+    gpu.render_frames(&scene, &settings, 0..7).unwrap();
+    gpu.render(&carved, &settings).unwrap();
+    assert_refused(&mut gpu, &scene, &settings, 7..9, &["no accumulation"]);
     gpu.render_frames(&scene, &settings, 0..7).unwrap();
 
     // Any other render in between ends it, even of the same scene and settings.

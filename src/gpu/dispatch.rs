@@ -200,6 +200,11 @@ impl GpuTracer {
         // Device allocations fail as errors of the render, never through wgpu's default
         // handler (a panic): a grid texture or buffer the device cannot hold is reported
         // with its size. Popped (in reverse order) once everything is uploaded.
+        if frames.start > 0 {
+            // Before any upload: a grid uploaded for a continuation that is then refused
+            // would end the accumulation it refused to continue.
+            self.check_continued_voxels(scene, &frames)?;
+        }
         let oom_scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation_scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.upload_grid(scene, Self::reads_grid_texture(&plan));

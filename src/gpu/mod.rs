@@ -984,6 +984,26 @@ impl GpuTracer {
         crate::accumulation::check_continuation(held, key, frames).map_err(anyhow::Error::msg)
     }
 
+    /// Whether `scene`'s voxels are those the held accumulation was traced against,
+    /// asked before the render uploads anything; the rest of the key is checked once
+    /// the plan is final ([`Self::check_continuation`]).
+    fn check_continued_voxels(&self, scene: &Scene, frames: &Range<u32>) -> Result<()> {
+        let (Some(acc), Some(grid)) = (&self.accumulation, &self.grid) else {
+            return Ok(());
+        };
+        let held = acc.grid_generation == grid.generation;
+        if !held || (grid.dims == scene.grid.dims() && grid.hash == scene.grid.content_hash()) {
+            return Ok(());
+        }
+        let changed = vec!["voxel grid (other voxels than it was traced against)"];
+        crate::accumulation::check_continuation(
+            Some((&acc.key, acc.frames, changed)),
+            &acc.key,
+            frames,
+        )
+        .map_err(anyhow::Error::msg)
+    }
+
     /// Renders frames `frames` of `plan`'s accumulation and returns the image averaged
     /// over `0..frames.end`; a start above 0 continues the sums in the buffers. With
     /// `continuable` (render_frames) an accumulating render is recorded so the next
