@@ -557,12 +557,10 @@ fn render_one(session: &mut Session, e: &Experiment, out: &Path, opts: &RenderOp
     };
     say!(opts, "experiment: {} ({source})", e.name);
     say!(opts, "backend:    {}", session.label());
-    if session.gpu().is_some()
-        && let Err(why) = voxlab::plan::check_ray_offset(&e.scene, &e.settings)
-    {
-        eprintln!("warning: {why}");
-    }
     let image = session.render_with_progress(e, opts.progress)?;
+    for w in &image.plan.warnings {
+        eprintln!("warning: {w}");
+    }
     // Plan's Display starts with "plan:" and lists what was left out on further lines.
     say!(opts, "{}", image.plan);
     say!(

@@ -138,6 +138,11 @@ pub struct Plan {
     pub surface_reason: String,
     /// What was left out and why, in plain words.
     pub reasons: Vec<String>,
+    /// Where the f32 kernel may part from the f64 reference on this scene and these
+    /// settings ([`check_ray_offset`]): set by `GpuTracer` for what it renders, empty
+    /// for the CPU reference. Not part of the Display, which says what the kernel is
+    /// composed of: each front end shows them as warnings.
+    pub warnings: Vec<String>,
 }
 
 /// The traversal of `scene` under `settings`, and why: the one asked for when it can
@@ -265,7 +270,8 @@ pub fn min_ray_offset(scene: &Scene) -> f64 {
 /// `render.ray_offset` against what the kernel resolves on `scene`
 /// ([`min_ray_offset`]): `Err` says why the GPU image will part from the reference's.
 /// Every value of the key's declared range is accepted (the grid and camera decide
-/// this bound, not the key); `voxlab render` prints this as a warning.
+/// this bound, not the key); the GPU tracer puts it in its plan's `warnings`, which
+/// `voxlab render`, the viewer and Python's `Image.warnings` show.
 pub fn check_ray_offset(scene: &Scene, settings: &RenderSettings) -> Result<(), String> {
     let min = min_ray_offset(scene);
     if settings.ray_offset >= min {
@@ -726,6 +732,7 @@ impl Plan {
             walk_variant: 0,
             walk_data: None,
             reasons,
+            warnings: Vec::new(),
         }
     }
 
@@ -968,6 +975,7 @@ impl Plan {
                     surface: Surface::default(),
                     surface_reason: String::new(),
                     reasons: Vec::new(),
+                    warnings: Vec::new(),
                 };
                 for (i, f) in Self::FLAGS.iter().enumerate() {
                     p.set_flag(f, bits & (1 << i) != 0);

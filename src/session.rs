@@ -483,6 +483,7 @@ impl Image {
             "display": display.encoding.name(),
             "exposure": display.exposure,
             "plan": self.plan.to_string(),
+            "warnings": self.plan.warnings,
             "trace_ms": self.trace_time.as_secs_f64() * 1e3,
             "wall_ms": self.wall_time.as_secs_f64() * 1e3,
             "rays": {

@@ -126,6 +126,7 @@ impl Rig {
                     total,
                     frame_time,
                     plan: "fake plan".to_string(),
+                    warnings: Vec::new(),
                 }),
             ))
             .expect("the app holds the receiver");
@@ -581,6 +582,42 @@ fn current_update_shows_its_frame_count_and_stale_updates_are_ignored() {
     assert!(rig.app().latest(Side::Left).is_none());
     assert!(!rig.has_label(&format!("3 / {cap} frames at {W}x{H}")));
     assert_eq!(rig.app().frames(Side::Right), 9);
+}
+
+/// A worker's update carries its plan's warnings (the GPU kernel's, `Plan::warnings`),
+/// and the side's panel shows each under the plan; an update without any shows none.
+#[test]
+fn a_plans_warnings_are_shown_under_it() {
+    let mut rig = Rig::new(small_area_lights(), false);
+    rig.harness.run_steps(2);
+    let generation = rig.state().generation[0];
+    let cap = rig.state().sides[0].max_spp;
+    let warning = "render.ray_offset = 0 is below what the GPU kernel's f32 resolves";
+    let update = |frames: u32, warnings: Vec<String>| {
+        Report::Update(Update {
+            generation,
+            frame: Arc::new(constant(W, H, 0.5)),
+            frames,
+            total: cap,
+            frame_time: Duration::ZERO,
+            plan: "fake plan".to_string(),
+            warnings,
+        })
+    };
+    rig.reports
+        .send((
+            Channel::Side(Side::Left),
+            update(1, vec![warning.to_string()]),
+        ))
+        .unwrap();
+    rig.harness.run_steps(2);
+    assert!(rig.has_label(&format!("warning: {warning}")));
+    rig.reports
+        .send((Channel::Side(Side::Left), update(2, Vec::new())))
+        .unwrap();
+    rig.harness.run_steps(2);
+    assert_eq!(rig.app().frames(Side::Left), 2);
+    assert!(!rig.has_label_containing("warning: "));
 }
 
 #[test]

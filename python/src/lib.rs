@@ -758,6 +758,14 @@ impl Image {
         self.meta.plan.to_string()
     }
 
+    /// Where the GPU kernel may part from the f64 reference on this scene (a
+    /// `render.ray_offset` below what its f32 resolves): empty on the CPU and at
+    /// settings it resolves.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.meta.plan.warnings.clone()
+    }
+
     #[getter]
     fn backend(&self) -> String {
         self.meta.backend.clone()

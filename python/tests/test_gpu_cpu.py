@@ -143,3 +143,18 @@ def test_a_session_renders_many_experiments_in_turn(cpu, gpu):
     again = gpu.render(a).radiance
     assert np.array_equal(first, again)
     assert_close(gpu.render(b), cpu.render(b), "after a switch")
+
+
+def test_a_ray_offset_the_kernel_cannot_resolve_is_warned_of(cpu, gpu):
+    """A `render.ray_offset` below two f32 ulps of the grid's side is accepted (it is in
+    the key's range) and warned of on the GPU, in the image and in its record; the CPU
+    reference, in f64, has no such warning, nor has the default offset."""
+    e = vx.load(EXPERIMENTS / "baseline.toml", set={"render.width": 8, "render.height": 8})
+    for offset, warned in [(0.0, True), (1e-7, True), (1e-3, False)]:
+        o = e.with_overrides([f"render.ray_offset={offset!r}"])
+        image = gpu.render(o)
+        assert bool(image.warnings) == warned, (offset, image.warnings)
+        assert image.provenance["warnings"] == image.warnings
+        for w in image.warnings:
+            assert w.startswith("render.ray_offset") and "two f32 ulps" in w, w
+        assert cpu.render(o).warnings == []

@@ -127,6 +127,11 @@ class Image:
     @property
     def plan(self) -> str: ...
     @property
+    def warnings(self) -> list[str]:
+        """Where the GPU kernel may part from the f64 reference on this scene (a
+        `render.ray_offset` below what its f32 resolves, docs/limits.md); empty on the
+        CPU and at settings it resolves."""
+    @property
     def backend(self) -> str: ...
     @property
     def width(self) -> int: ...

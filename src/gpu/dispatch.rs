@@ -28,6 +28,8 @@ impl GpuTracer {
             plan.traversal = walk;
             plan.tree_levels = crate::plan::tree_levels(walk, dims);
         }
+        plan.warnings
+            .extend(crate::plan::check_ray_offset(scene, settings).err());
         plan
     }
 

@@ -1471,6 +1471,9 @@ impl ViewerApp {
                     u.frame_time.as_secs_f64() * 1e3
                 ));
                 ui.label(egui::RichText::new(&u.plan).small());
+                for w in &u.warnings {
+                    ui.colored_label(Color32::YELLOW, format!("warning: {w}"));
+                }
             }
             None => {
                 ui.label("rendering...");

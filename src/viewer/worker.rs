@@ -44,6 +44,8 @@ pub struct Update {
     pub frame_time: Duration,
     /// The render plan, as `voxlab render` prints it.
     pub plan: String,
+    /// The plan's warnings (`Plan::warnings`), shown beside it.
+    pub warnings: Vec<String>,
 }
 
 /// A message from a worker.
@@ -211,6 +213,7 @@ fn run(jobs: Receiver<Job>, send: impl Fn(Report)) {
                     total,
                     frame_time,
                     plan,
+                    warnings: image.plan.warnings,
                 }));
             }
             Err(err) => {
