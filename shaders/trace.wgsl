@@ -261,10 +261,11 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Mate
 #endif
 }
 
-// Radiance of the primary ray along dir (ambient included) for one frame.
-fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
+// Radiance of the primary ray from origin along dir (ambient included) for one frame;
+// t0: the eye's distance to origin along the ray.
+fn trace_pixel(origin: vec3<f32>, t0: f32, dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
     var primary: RayEntry;
-    primary.origin = params.eye;
+    primary.origin = origin;
     primary.dir = dir;
     primary.throughput = vec3<f32>(1.0);
     primary.depth_reflection = 0u;
@@ -322,7 +323,7 @@ fn trace_pixel(dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
         if first {
             primary_hit = true;
             primary_normal = n;
-            primary_depth = hit.t * params.voxel_size;
+            primary_depth = (t0 + hit.t) * params.voxel_size;
             primary_material = si;
         }
 #endif
@@ -439,11 +440,18 @@ fn main(
 #endif
     let sx = 2.0 * (f32(gid.x) + offset.x) / f32(params.width) - 1.0;
     let sy = 1.0 - 2.0 * (f32(gid.y) + offset.y) / f32(params.height);
-    let dir = normalize(params.forward + sx * params.right_scaled + sy * params.up_scaled);
+    let along = params.forward + sx * params.right_scaled + sy * params.up_scaled;
+    let dir = normalize(along);
+    // The eye, or for a far one the point `primary_advance` along the pixel's way (the
+    // part along `forward` added on the host in f64): an eye placed in f32 far out is
+    // only as precise as its ulp. Exactly the eye and 0 when primary_advance is 0.
+    let across = sx * params.right_scaled + sy * params.up_scaled;
+    let origin = params.eye + params.primary_advance * across;
+    let t0 = params.primary_advance * length(along);
     var key: SampleKey;
     key.pixel = i;
     key.frame = params.frame_begin + gid.z;
-    let radiance = trace_pixel(dir, key);
+    let radiance = trace_pixel(origin, t0, dir, key);
 #ifdef CONES
     if cone_loop_cut {
         loop_cut();

@@ -47,6 +47,10 @@ struct Params {
     filter_width: f32,
     // Words of each binding of a walk's further words (bindings::walk_more_word).
     walk_part_words: u32,
+    // How far along its unnormalised direction a pixel's primary ray starts from `eye`
+    // (crate::plan::primary_origin): 0, unless the eye is far out, when `eye` is already
+    // moved that far along `forward` on the host in f64.
+    primary_advance: f32,
     // The plan's shadow model's settings in declared order (src/technique/mod.rs,
     // ShadowModel::gpu_settings); read them with bindings::technique_setting.
     technique: vec4<f32>,

@@ -243,27 +243,112 @@ pub fn check_surface(scene: &Scene, settings: &RenderSettings) -> Result<(), Str
     (surface.plan)(scene, settings)
 }
 
-/// The largest grid-local coordinate (voxels from the grid's corner) the kernel's f32
-/// holds for `scene`: its grid's largest side, or the eye's farthest coordinate where
-/// the camera is farther out. What the f32 positions of hits and offsets round to.
-fn farthest_coordinate(scene: &Scene) -> f64 {
+/// Where the GPU kernel starts a pixel's primary ray, in grid-local coordinates:
+/// `eye + advance * (sx * right_scaled + sy * up_scaled)`, a point `advance` along the
+/// pixel's unnormalised direction `forward + sx * right_scaled + sy * up_scaled` from
+/// the camera's eye, so `advance` times that direction's length is where its `t` starts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PrimaryOrigin {
+    /// The camera's eye moved `advance` along `forward`, in f64 before the kernel's one
+    /// rounding to f32.
+    pub eye: glam::DVec3,
+    pub advance: f64,
+}
+
+/// Rebase the primary rays from an eye farther out than this many times the grid's
+/// largest side; nearer, they start at the eye itself (`advance` 0), as they always
+/// did, and the images are bit for bit those of the kernel before the rebase.
+const REBASE_FROM_SIDES: f64 = 4.0;
+
+/// The primary rays' origins for `scene` under `settings` ([`PrimaryOrigin`]). An eye
+/// placed in f32 is only as precise as its ulp: 2e5 voxels out that is 0.016 voxel
+/// widths, and with a view narrow enough for the grid to fill the image 1.6 % of the
+/// pixels (along voxel edges) parted from the f64 reference's. A far eye's rays
+/// therefore start at the grid's side of their way there instead: `advance` is the
+/// eye's distance to the grid's box less one grid side, divided by the longest
+/// unnormalised direction of a pixel sample (the image's corners, widened by the pixel
+/// filter's reach), so that every sample's origin is still outside the box and about
+/// a grid side short of it. Only the part across the view (`advance` times the
+/// sample's offset from `forward`) is left to f32, where its error is relative.
+pub fn primary_origin(scene: &Scene, settings: &RenderSettings) -> PrimaryOrigin {
     let g = &scene.grid;
-    let eye = (scene.camera.eye() - g.origin()) / g.voxel_size();
-    (g.dims().max_element() as f64).max(eye.abs().max_element())
+    let cam = scene.camera.frame();
+    let eye = g.to_local(cam.eye);
+    let side = g.dims().max_element() as f64;
+    if eye.abs().max_element() <= REBASE_FROM_SIDES * side {
+        return PrimaryOrigin { eye, advance: 0.0 };
+    }
+    let dims = g.dims().as_dvec3();
+    let outside = (-eye).max(eye - dims).max(glam::DVec3::ZERO);
+    let (right, up) = primary_spans(&cam, settings);
+    let reach = primary_reach(settings);
+    // forward, right and up are orthogonal: a corner's length is the longest.
+    let longest = (1.0 + reach * reach * (right.length_squared() + up.length_squared())).sqrt();
+    let advance = ((outside.length() - side) / longest).max(0.0);
+    if !advance.is_finite() {
+        return PrimaryOrigin { eye, advance: 0.0 };
+    }
+    PrimaryOrigin {
+        eye: eye + advance * cam.forward,
+        advance,
+    }
+}
+
+/// `right_scaled` and `up_scaled` of the kernel's params: the image's half-width and
+/// half-height at unit distance along `forward`.
+pub(crate) fn primary_spans(
+    cam: &crate::scene::CameraFrame,
+    settings: &RenderSettings,
+) -> (glam::DVec3, glam::DVec3) {
+    let aspect = settings.width as f64 / settings.height as f64;
+    (
+        cam.right * (cam.tan_half_vfov * aspect),
+        cam.up * cam.tan_half_vfov,
+    )
+}
+
+/// The largest `|sx|`, `|sy|` a pixel sample takes (1 at the image's edges), widened by
+/// the pixel filter's reach: a box's half-width, or 6 sigma of the Gaussian (the
+/// kernel's Box-Muller radius is at most 5.8 sigma, from the largest f32 below 1).
+fn primary_reach(settings: &RenderSettings) -> f64 {
+    use crate::render::PixelFilter;
+    let pixels = match settings.pixel_filter {
+        PixelFilter::None => 0.0,
+        PixelFilter::Box => settings.filter_width,
+        PixelFilter::Gaussian => 6.0 * settings.filter_width,
+    };
+    1.0 + 2.0 * pixels / settings.width.min(settings.height).max(1) as f64
+}
+
+/// The largest grid-local coordinate (voxels from the grid's corner) the kernel's f32
+/// holds for `scene`: its grid's largest side, or the farthest a primary ray's origin
+/// lies ([`primary_origin`]: the eye, or where a far eye's rays start). What the f32
+/// positions of hits and offsets round to.
+fn farthest_coordinate(scene: &Scene, settings: &RenderSettings) -> f64 {
+    let side = scene.grid.dims().max_element() as f64;
+    let o = primary_origin(scene, settings);
+    let (right, up) = primary_spans(&scene.camera.frame(), settings);
+    let reach = primary_reach(settings);
+    // The origins fill a rectangle: its farthest coordinate is at a corner.
+    [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)]
+        .into_iter()
+        .map(|(x, y)| o.eye + o.advance * reach * (x * right + y * up))
+        .fold(side, |far, p| far.max(p.abs().max_element()))
 }
 
 /// The smallest `render.ray_offset` (voxel widths) the f32 kernel resolves on `scene`:
-/// two f32 ulps of its farthest grid-local coordinate (the grid's largest side, or the
-/// eye's, where a primary ray's hit is as precise as its origin). Below it `p + eps n`
+/// two f32 ulps of its farthest grid-local coordinate (the grid's largest side, or that
+/// of the primary rays' origins, where a hit is as precise as its ray's origin). Below it `p + eps n`
 /// rounds back onto or across the face in f32, where the f64 reference moves off it,
 /// and the two tracers part at faces (`render --check` of experiments/area_lights.toml,
 /// the seed scene at 16^3, at 32x32): an offset of 2e-6 voxel widths drew 1.3 % of the
-/// pixels apart and 1e-9 39 %, 4e-6 none; at 256^3 (48x48) 3e-5 0.7 %, 6.2e-5 none; the
-/// default 1e-3 at `camera.distance = 1e5` (a view narrowed to the grid) 4.4 %, at 1e4
-/// none.
-pub fn min_ray_offset(scene: &Scene) -> f64 {
+/// pixels apart and 1e-9 39 %, 4e-6 none; at 256^3 (48x48) 3e-5 0.7 %, 6.2e-5 none.
+/// (Before a far eye's rays started near the grid, the default 1e-3 at
+/// `camera.distance = 1e5`, a view narrowed to the grid, drew 4.4 % apart; now none, at
+/// 2e5 and 1e7 too.)
+pub fn min_ray_offset(scene: &Scene, settings: &RenderSettings) -> f64 {
     // An f32 ulp at `far`, in f64 so that an eye past f32's range still has one.
-    let far = farthest_coordinate(scene).max(1.0);
+    let far = farthest_coordinate(scene, settings).max(1.0);
     2.0 * 2f64.powf(far.log2().floor() - 23.0)
 }
 
@@ -273,16 +358,17 @@ pub fn min_ray_offset(scene: &Scene) -> f64 {
 /// this bound, not the key); the GPU tracer puts it in its plan's `warnings`, which
 /// `voxlab render`, the viewer and Python's `Image.warnings` show.
 pub fn check_ray_offset(scene: &Scene, settings: &RenderSettings) -> Result<(), String> {
-    let min = min_ray_offset(scene);
+    let min = min_ray_offset(scene, settings);
     if settings.ray_offset >= min {
         return Ok(());
     }
     let d = scene.grid.dims();
-    let far = farthest_coordinate(scene);
+    let far = farthest_coordinate(scene, settings);
     let what = if far > d.max_element() as f64 {
         format!(
-            "the eye is {far:.4e} voxels from the grid's corner (camera.distance and \
-             camera.target place it; a closer camera allows a smaller offset)"
+            "its primary rays start up to {far:.4e} voxels from the grid's corner (at \
+             the eye, which camera.distance and camera.target place; a closer camera \
+             allows a smaller offset)"
         )
     } else {
         format!(

@@ -142,15 +142,22 @@ fn the_smallest_ray_offset_the_scene_allows() {
         ([100, 20, 33], None),
         ([31, 129, 40], None),
         ([16, 16, 16], Some(3e4)),
+        // Far enough out that an eye placed in f32 is off by more than the offset
+        // (1.6 % of the pixels apart at 2e5 before the primary rays started near the
+        // grid: plan::primary_origin).
+        ([16, 16, 16], Some(2e5)),
+        ([16, 16, 16], Some(1e6)),
+        ([31, 129, 40], Some(1e9)),
     ] {
         let dims = glam::UVec3::from_array(dims);
         let mut scene = voxlab::scene::seed_scene_dims(dims).unwrap();
         if let Some(d) = distance {
             // Far out and looking through a narrow view: the grid fills the image.
             scene.camera.distance = d;
-            scene.camera.vfov = 2.0 * (12.0 / d).atan();
+            let half = 0.75 * dims.max_element() as f64;
+            scene.camera.vfov = 2.0 * (half / d).atan();
         }
-        let min = voxlab::plan::min_ray_offset(&scene);
+        let min = voxlab::plan::min_ray_offset(&scene, &settings(33));
         for offset in [min, 1.7 * min, 1e-3].into_iter().filter(|&o| o >= min) {
             let s = RenderSettings {
                 ray_offset: offset,
@@ -446,4 +453,85 @@ fn emission_is_seen_not_cast() {
         &scene,
         &settings(64),
     );
+}
+
+/// A far eye's primary rays start nearer the grid (`voxlab::plan::primary_origin`):
+/// every pixel sample's origin, over generated views from just past the rebase's
+/// threshold to far out, wide and narrow, with the pixel filters' widest reach, lies
+/// outside the grid's box and short of it (so no voxel is skipped), and the GPU image
+/// agrees with the f64 reference's, which traces from the eye itself.
+#[test]
+fn far_eyes_start_their_rays_outside_the_grid() {
+    use voxlab::render::PixelFilter;
+    let mut gpu = tracer();
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(37);
+    for case in 0..12 {
+        let dims = glam::UVec3::new(
+            rng.random_range(3..24),
+            rng.random_range(3..24),
+            rng.random_range(3..24),
+        );
+        let mut scene = voxlab::scene::seed_scene_dims(dims).unwrap();
+        let side = dims.max_element() as f64;
+        scene.camera.distance = side * 10f64.powf(rng.random_range(0.7..6.0));
+        scene.camera.yaw = rng.random_range(-3.1..3.1);
+        scene.camera.pitch = rng.random_range(-1.5..1.5);
+        // Now a view the grid fills, now one it is a speck in.
+        let half = if case % 2 == 0 {
+            side
+        } else {
+            scene.camera.distance * rng.random_range(0.1..3.0)
+        };
+        scene.camera.vfov = 2.0 * (half / scene.camera.distance).atan();
+        let (pixel_filter, filter_width) = match case % 3 {
+            0 => (PixelFilter::None, 0.5),
+            1 => (PixelFilter::Box, 4.0),
+            _ => (PixelFilter::Gaussian, 4.0),
+        };
+        let s = RenderSettings {
+            pixel_filter,
+            filter_width,
+            spp: if pixel_filter == PixelFilter::None {
+                1
+            } else {
+                2
+            },
+            ..settings(17)
+        };
+        let o = voxlab::plan::primary_origin(&scene, &s);
+        let cam = scene.camera.frame();
+        let aspect = s.width as f64 / s.height as f64;
+        // The samples' own reach: a box's half-width, the Gaussian's largest Box-Muller
+        // radius (5.8 sigma, from the largest f32 below 1).
+        let pixels = match pixel_filter {
+            PixelFilter::None => 0.0,
+            PixelFilter::Box => filter_width,
+            PixelFilter::Gaussian => 5.8 * filter_width,
+        };
+        let reach = 1.0 + 2.0 * pixels / 17.0;
+        for (x, y) in [
+            (-1.0, -1.0),
+            (-1.0, 1.0),
+            (1.0, -1.0),
+            (1.0, 1.0),
+            (0.0, 0.0),
+        ] {
+            let across = cam.right * (cam.tan_half_vfov * aspect * x * reach)
+                + cam.up * (cam.tan_half_vfov * y * reach);
+            let p = o.eye + o.advance * across;
+            let outside = (-p).max(p - dims.as_dvec3()).max_element();
+            assert!(
+                outside > 0.5 * side || o.advance == 0.0,
+                "case {case}: an origin {outside} voxels outside the box: {dims} {o:?} {:?} {p} {x} {y}",
+                scene.camera
+            );
+        }
+        agree(
+            &mut gpu,
+            &format!("far eye, case {case}: {dims} {o:?}"),
+            &scene,
+            &s,
+        );
+    }
 }

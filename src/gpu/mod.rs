@@ -81,7 +81,9 @@ struct GpuParams {
     filter_width: f32,
     // Words of each binding of a walk's further words (`technique::walk_part_words`).
     walk_part_words: u32,
-    _pad: [u32; 3],
+    // `plan::primary_origin`: 0 unless the eye is far out.
+    primary_advance: f32,
+    _pad: [u32; 2],
     // The plan's shadow model's settings (`ShadowModel::gpu_settings`).
     technique: [f32; crate::technique::MAX_GPU_SETTINGS],
 }

@@ -385,17 +385,19 @@ impl GpuTracer {
         let grid = &scene.grid;
         let vs = grid.voxel_size();
         let cam = scene.camera.frame();
-        let aspect = settings.width as f64 / settings.height as f64;
+        let (right_scaled, up_scaled) = crate::plan::primary_spans(&cam, settings);
+        // A far eye's rays start nearer the grid (plan::primary_origin).
+        let origin = crate::plan::primary_origin(scene, settings);
         // Directions keep their length in local coordinates (a uniform scale), so only
         // the eye is transformed; everything in f64 before the one rounding to f32.
         GpuParams {
-            eye: f3(grid.to_local(cam.eye)),
+            eye: f3(origin.eye),
             width: settings.width,
             forward: f3(cam.forward),
             height: settings.height,
-            right_scaled: f3(cam.right * (cam.tan_half_vfov * aspect)),
+            right_scaled: f3(right_scaled),
             num_lights: scene.lights.len() as u32,
-            up_scaled: f3(cam.up * cam.tan_half_vfov),
+            up_scaled: f3(up_scaled),
             max_reflection_depth: settings.max_reflection_depth,
             dims: grid.dims().to_array(),
             max_refraction_depth: settings.max_refraction_depth,
@@ -416,7 +418,8 @@ impl GpuTracer {
             pixel_filter: settings.pixel_filter.code(),
             filter_width: settings.filter_width as f32,
             walk_part_words: 0,
-            _pad: [0; 3],
+            primary_advance: origin.advance as f32,
+            _pad: [0; 2],
             technique: [0.0; crate::technique::MAX_GPU_SETTINGS],
         }
     }
