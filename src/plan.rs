@@ -294,6 +294,34 @@ pub fn primary_origin(scene: &Scene, settings: &RenderSettings) -> PrimaryOrigin
     }
 }
 
+/// Whether the GPU kernel can hold `scene`'s primary rays in f32 ([`primary_origin`]):
+/// an eye so far out (past about 3.4e38 voxels, f32's largest number) that where its
+/// rays start, or how far apart across the view, overflows f32 would give rays of
+/// infinities and NaN, an image of nothing the reference draws (`render --check` at
+/// `camera.distance = 1e200`: every pixel apart). The f64 reference renders it; the GPU
+/// tracer refuses it with this reason.
+pub fn check_primary_origin(scene: &Scene, settings: &RenderSettings) -> Result<(), String> {
+    let o = primary_origin(scene, settings);
+    let (right, up) = primary_spans(&scene.camera.frame(), settings);
+    let across = o.advance * primary_reach(settings) * (right.abs() + up.abs());
+    let f32_max = f32::MAX as f64;
+    let holds = |v: f64| v.abs() < f32_max;
+    if o.eye.to_array().into_iter().all(holds)
+        && holds(o.advance)
+        && across.to_array().into_iter().all(holds)
+    {
+        return Ok(());
+    }
+    let eye = scene.grid.to_local(scene.camera.eye());
+    Err(format!(
+        "camera.distance = {:e} puts the eye {:.4e} voxels from the grid's corner, where the \
+         GPU kernel cannot hold its rays in f32 (at most {f32_max:.4e}): a nearer camera \
+         (or a wider voxel_size), or the CPU reference (--backend cpu), which traces in f64",
+        scene.camera.distance,
+        eye.abs().max_element()
+    ))
+}
+
 /// `right_scaled` and `up_scaled` of the kernel's params: the image's half-width and
 /// half-height at unit distance along `forward`.
 pub(crate) fn primary_spans(
@@ -330,10 +358,20 @@ fn farthest_coordinate(scene: &Scene, settings: &RenderSettings) -> f64 {
     let (right, up) = primary_spans(&scene.camera.frame(), settings);
     let reach = primary_reach(settings);
     // The origins fill a rectangle: its farthest coordinate is at a corner.
-    [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)]
+    let corners = [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)]
         .into_iter()
         .map(|(x, y)| o.eye + o.advance * reach * (x * right + y * up))
-        .fold(side, |far, p| far.max(p.abs().max_element()))
+        .fold(0.0f64, |far, p| far.max(p.abs().max_element()));
+    // Only a ray that enters the box hits and offsets anything. It enters within
+    // |eye - centre| + r of the eye (r the box's half-diagonal) and starts at least
+    // `advance` along (its unnormalised direction is at least unit long), so its origin
+    // is at most the difference from where it enters: a wide view from a far eye has
+    // corners far across the view whose rays all miss.
+    let dims = scene.grid.dims().as_dvec3();
+    let eye = scene.grid.to_local(scene.camera.eye());
+    let r = 0.5 * dims.length();
+    let reaching = side + (eye - 0.5 * dims).length() + r - o.advance;
+    side.max(corners.min(reaching))
 }
 
 /// The smallest `render.ray_offset` (voxel widths) the f32 kernel resolves on `scene`:

@@ -535,3 +535,40 @@ fn far_eyes_start_their_rays_outside_the_grid() {
         );
     }
 }
+
+/// An eye past what f32 holds (about 3.4e38 voxels out) would give the kernel rays of
+/// infinities (every pixel apart from the reference at 1e200): the GPU tracer refuses
+/// it, naming the key, and the f64 reference renders it. Up to there the two agree,
+/// with the narrowest view the key allows, and no warning of the ray offset is due:
+/// only rays that can reach the grid count, not a wide view's far corners.
+#[test]
+fn an_eye_past_f32s_range_is_refused_on_the_gpu() {
+    let mut gpu = tracer();
+    let s = settings(15);
+    for distance in [1e12, 1e20, 1e36, 1e38, 1e40, 1e200, f64::MAX] {
+        let mut scene = seed_scene(16).unwrap();
+        scene.camera.distance = distance;
+        scene.camera.vfov = 1e-6f64.to_radians();
+        let refused = voxlab::plan::check_primary_origin(&scene, &s);
+        if distance <= 1e36 {
+            refused.unwrap();
+            voxlab::plan::check_ray_offset(&scene, &s).unwrap();
+            agree(&mut gpu, &format!("eye {distance:e} out"), &scene, &s);
+        } else if distance >= 1e40 {
+            let why = format!("{:#}", gpu.render(&scene, &s).unwrap_err());
+            assert!(
+                why.contains(&format!("camera.distance = {distance:e}")) && why.contains("f32"),
+                "{why}"
+            );
+            assert_eq!(
+                refused.unwrap_err(),
+                why.trim_start_matches("GPU render failed: ")
+            );
+            let cpu = voxlab::cpu::render(&scene, &s);
+            assert!(
+                cpu.frame.all_finite(),
+                "eye {distance:e} out: the reference"
+            );
+        }
+    }
+}
