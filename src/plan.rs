@@ -322,6 +322,65 @@ pub fn check_primary_origin(scene: &Scene, settings: &RenderSettings) -> Result<
     ))
 }
 
+/// Whether the GPU kernel can hold `scene`'s lights in f32: each light's colour times
+/// its intensity, an area light's extent in voxels, and the square of the light's
+/// farthest distance from the grid (in voxels, for the length of the way to it, and
+/// with the inverse-square falloff in world units, which the kernel divides by). Past f32's largest number (about 3.4e38) the kernel's light
+/// is an infinity or its falloff divides by one (`render --check` with a light of
+/// intensity 1e60 at 1e30: 53 % of the pixels apart, NaN among them; a light 1e30
+/// voxels out without the falloff, 53 % too). Every such value is in its key's range, and the f64
+/// reference renders it; the GPU tracer refuses it with the light and key named.
+pub fn check_lights_f32(scene: &Scene, settings: &RenderSettings) -> Result<(), String> {
+    use crate::scene::{AreaShape, Light};
+    let g = &scene.grid;
+    let vs = g.voxel_size();
+    let max = f32::MAX as f64;
+    let half = 0.5 * g.dims().as_dvec3();
+    let past = |what: String| {
+        Err(format!(
+            "{what}, past what the GPU kernel's f32 holds (at most {max:.4e}); the CPU \
+             reference (--backend cpu) traces it in f64"
+        ))
+    };
+    for (i, light) in scene.lights.iter().enumerate() {
+        let radiance = light.color() * light.intensity();
+        if radiance.max_element() >= max {
+            return past(format!(
+                "lights[{i}].intensity = {:e}: times its color that is {:e}",
+                light.intensity(),
+                radiance.max_element()
+            ));
+        }
+        let p = g.to_local(light.position());
+        // Voxels from the light to the grid's farthest point, and in world units.
+        let far = ((p - half).abs() + half).length();
+        // The kernel squares it for the direction's length, and in world units for
+        // the falloff's divisor.
+        let squared = far * far < max && (!settings.falloff || (far * vs).powi(2) < max);
+        if !squared {
+            return past(format!(
+                "lights[{i}].position = {}: {far:.4e} voxels from the grid's farthest \
+                 point, whose square the kernel takes (the way to the light's length, \
+                 the inverse-square falloff's divisor)",
+                light.position()
+            ));
+        }
+        if let Light::Area(a) = light {
+            let (key, extent) = match a.shape {
+                AreaShape::Rect { width, height } => ("size", width.max(height)),
+                AreaShape::Disk { radius } | AreaShape::Sphere { radius } => ("radius", radius),
+            };
+            if extent / vs >= max {
+                return past(format!(
+                    "lights[{i}].{key} = {extent:e}: {:e} voxels across",
+                    extent / vs
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// `right_scaled` and `up_scaled` of the kernel's params: the image's half-width and
 /// half-height at unit distance along `forward`.
 pub(crate) fn primary_spans(

@@ -234,6 +234,76 @@ fn lights_inside_voxels_at_distance_zero_and_far_away() {
     agree(&mut gpu, "stiff lights, falloff off", &scene, &s);
 }
 
+/// Lights at the edge of what the kernel's f32 holds: intensities up to 3e38 and
+/// distances whose square (the way's length, the falloff's divisor) is up to 1e38 agree with the f64
+/// reference, with and without the falloff; past it (the light's radiance, its
+/// position, the falloff's square, an area light's extent) the GPU tracer refuses the
+/// render naming the light's key, where its image had NaN (53 % of the pixels apart at
+/// intensity 1e60, and 1e30 voxels out without the falloff), and the reference renders
+/// it.
+#[test]
+fn lights_past_f32s_range_are_refused_on_the_gpu() {
+    let mut gpu = tracer();
+    let c = seed_scene(16).unwrap().grid.centre();
+    let up = DVec3::new(0.2, 1.0, 0.4).normalize();
+    let point = |distance: f64, intensity: f64| {
+        Light::Point(PointLight {
+            position: c + distance * up,
+            color: DVec3::ONE,
+            intensity,
+        })
+    };
+    let with = |light: Light, falloff: bool| {
+        let mut scene = seed_scene(16).unwrap();
+        scene.lights = vec![light];
+        let mut s = settings(16);
+        s.falloff = falloff;
+        (scene, s)
+    };
+    for (light, falloff) in [
+        (point(1e19, 3e38), true),
+        (point(1e19, 3e38), false),
+        (point(1e3, 3e38), true),
+    ] {
+        let (scene, s) = with(light.clone(), falloff);
+        agree(
+            &mut gpu,
+            &format!("{light:?}, falloff {falloff}"),
+            &scene,
+            &s,
+        );
+    }
+    let area = |size: f64| {
+        let mut scene = voxlab::experiment::Experiment::load(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/area_lights.toml"),
+        )
+        .unwrap()
+        .scene;
+        if let Light::Area(a) = &mut scene.lights[0] {
+            a.shape = AreaShape::Disk { radius: size };
+        }
+        scene.lights.truncate(1);
+        scene.lights.remove(0)
+    };
+    for (light, falloff, key) in [
+        (point(10.0, 1e39), true, "lights[0].intensity = 1e39"),
+        (point(1e30, 1e60), true, "lights[0].intensity = 1e60"),
+        (point(2e19, 1.0), true, "lights[0].position"),
+        (point(1e30, 1.0), false, "lights[0].position"),
+        (point(1e39, 1.0), false, "lights[0].position"),
+        (point(1e200, 1.0), false, "lights[0].position"),
+        (area(1e39), true, "lights[0].radius = 1e39"),
+    ] {
+        let (scene, s) = with(light.clone(), falloff);
+        let why = format!("{:#}", gpu.render(&scene, &s).unwrap_err());
+        assert!(why.contains(key) && why.contains("f32"), "{light:?}: {why}");
+        assert!(
+            voxlab::cpu::render(&scene, &s).frame.all_finite(),
+            "{light:?}: the reference"
+        );
+    }
+}
+
 #[test]
 fn total_internal_reflection_and_ior_one() {
     let mut scene = seed_scene(16).unwrap();
