@@ -716,11 +716,48 @@ fn check_against_cpu(e: &Experiment, frame: &Frame, side: u32, session: &Session
     );
     if d.fraction_over() < 0.005 && d.mean_abs < 1e-3 && crop.all_finite() {
         println!("check:      agrees within the GPU tests' tolerance");
-        Ok(())
-    } else {
-        bail!(
-            "the GPU image differs from the CPU reference by more than the GPU tests allow \
-             (under 0.5 % of pixels over 2/255 and a mean below 1e-3): {d}"
-        )
+        return Ok(());
     }
+    // Where the rays of a pixel pass through voxel edges or corners, f32 and f64 may
+    // pick either face and both are right: the stress suite's test of which pixels the
+    // reference itself moves under a turn of the rays tells those apart (it traces
+    // pixel centres one ray a frame, so not under a pixel filter or a filter of the
+    // image).
+    let conditioning = !plan.pixel_filter && plan.reconstruction.cpu.is_none() && !path_history;
+    if conditioning && crop.all_finite() {
+        // The stress suite's turn moves a ray by about 1e-4 voxels at its scenes'
+        // distances (a few grid sides); a farther eye turns less, so that the band
+        // around the edges stays as narrow and a real error there is not excused.
+        let g = &e.scene.grid;
+        let side = g.dims().max_element() as f64;
+        let distance = (g.to_local(e.scene.camera.eye()) - 0.5 * g.dims().as_dvec3()).length();
+        let turn = voxlab::stress::CONDITION_TURN * (2.0 * side / distance).min(1.0);
+        let unstable = voxlab::stress::ill_conditioned_region(
+            &e.scene,
+            &e.settings,
+            (x0..x0 + cw, y0..y0 + ch),
+            &reference.frame,
+            turn,
+        );
+        let ill = unstable.iter().filter(|&&u| u).count();
+        let over = voxlab::stress::over_well_conditioned(&crop, &reference.frame, &unstable);
+        let well = unstable.len() - ill;
+        println!(
+            "check:      {ill} of the {} pixels are ill-conditioned (the reference itself \
+             moves past 2/255 when the primary rays turn by {turn:.1e} rad: rays through \
+             voxel edges or corners); {over} of the other {well} are over 2/255",
+            unstable.len(),
+        );
+        if (over as f64) < 0.005 * well as f64 {
+            println!(
+                "check:      agrees within the stress suite's tolerance (under 0.5 % of the \
+                 well-conditioned pixels over 2/255)"
+            );
+            return Ok(());
+        }
+    }
+    bail!(
+        "the GPU image differs from the CPU reference by more than the GPU tests allow \
+         (under 0.5 % of pixels over 2/255 and a mean below 1e-3): {d}"
+    )
 }

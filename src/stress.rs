@@ -815,13 +815,7 @@ pub fn run_case(gpu: Option<&mut GpuTracer>, case: &StressCase) -> StressRow {
         _ => None,
     };
     let over_well_conditioned = match &gpu_result {
-        GpuResult::Rendered { frame, .. } => frame
-            .pixels
-            .iter()
-            .zip(&cpu.frame.pixels)
-            .zip(&unstable)
-            .filter(|((g, c), u)| !**u && pixel_diff(g, c) > TOLERANCE)
-            .count(),
+        GpuResult::Rendered { frame, .. } => over_well_conditioned(frame, &cpu.frame, &unstable),
         _ => 0,
     };
     let flip = match &gpu_result {
@@ -852,6 +846,18 @@ pub fn run_case(gpu: Option<&mut GpuTracer>, case: &StressCase) -> StressRow {
 
 pub use crate::metrics::flip_mean;
 
+/// The pixels of `image` over [`TOLERANCE`] from `oracle` that `unstable`
+/// ([`ill_conditioned`]) does not mark: what the stress suite's verdict counts.
+pub fn over_well_conditioned(image: &Frame, oracle: &Frame, unstable: &[bool]) -> usize {
+    image
+        .pixels
+        .iter()
+        .zip(&oracle.pixels)
+        .zip(unstable)
+        .filter(|((g, c), u)| !**u && pixel_diff(g, c) > TOLERANCE)
+        .count()
+}
+
 /// Largest displayed-channel difference of two pixels (NaN counts as infinite).
 fn pixel_diff(a: &[f32; 3], b: &[f32; 3]) -> f64 {
     (0..3)
@@ -866,21 +872,43 @@ fn pixel_diff(a: &[f32; 3], b: &[f32; 3]) -> f64 {
 /// [`CONDITION_TURN`] one way or the other. The eye stays exactly where it is (so its
 /// medium does too): the rays are traced from it with the reference's `trace_ray`.
 pub fn ill_conditioned(case: &StressCase, oracle: &Frame) -> Vec<bool> {
-    use rayon::prelude::*;
-    let cam = case.scene.camera.frame();
     let (w, h) = (case.settings.width, case.settings.height);
+    ill_conditioned_region(
+        &case.scene,
+        &case.settings,
+        (0..w, 0..h),
+        oracle,
+        CONDITION_TURN,
+    )
+}
+
+/// [`ill_conditioned`] for the pixels `columns` x `rows` of the image, `oracle` their
+/// reference (a crop, rows from the top), under a turn of `turn` radians: what
+/// `render --check` asks of a crop that differs. Pixels at their centres, without a
+/// pixel filter's offsets.
+pub fn ill_conditioned_region(
+    scene: &Scene,
+    settings: &crate::render::RenderSettings,
+    (columns, rows): (std::ops::Range<u32>, std::ops::Range<u32>),
+    oracle: &Frame,
+    turn: f64,
+) -> Vec<bool> {
+    use rayon::prelude::*;
+    let cam = scene.camera.frame();
+    let (w, h) = (settings.width, settings.height);
     // Across the view, and generic so it does not run along a lattice axis.
-    let across = (0.8 * cam.right + 0.6 * cam.up) * CONDITION_TURN;
-    let plan = crate::plan::Plan::new(&case.scene, &case.settings);
-    let frames = plan.frames(&case.settings);
+    let across = (0.8 * cam.right + 0.6 * cam.up) * turn;
+    let plan = crate::plan::Plan::new(scene, settings);
+    let frames = plan.frames(settings);
     // Once for the image: `trace_ray` would derive the plan (a scan of the grid) per ray.
-    let prepared = crate::cpu::Prepared::new(&case.scene, &case.settings, &plan);
+    let prepared = crate::cpu::Prepared::new(scene, settings, &plan);
     let prepared = &prepared;
-    (0..h)
-        .into_par_iter()
+    let (x0, y0) = (columns.start, rows.start);
+    rows.into_par_iter()
         .flat_map_iter(|j| {
             let mut stats = crate::RayStats::default();
-            (0..w)
+            columns
+                .clone()
                 .map(move |i| {
                     let dir = cam.primary_dir(i, j, w, h);
                     let mut unstable = false;
@@ -893,18 +921,12 @@ pub fn ill_conditioned(case: &StressCase, oracle: &Frame) -> Vec<bool> {
                                 frame,
                             };
                             sum += crate::cpu::trace_ray_with(
-                                &case.scene,
-                                &case.settings,
-                                prepared,
-                                key,
-                                cam.eye,
-                                d,
-                                &mut stats,
+                                scene, settings, prepared, key, cam.eye, d, &mut stats,
                             );
                         }
                         let c = sum / frames as f64;
                         let p = [c.x as f32, c.y as f32, c.z as f32];
-                        unstable |= pixel_diff(&p, &oracle.get(i, j)) > TOLERANCE;
+                        unstable |= pixel_diff(&p, &oracle.get(i - x0, j - y0)) > TOLERANCE;
                     }
                     unstable
                 })

@@ -500,14 +500,19 @@ fn a_ray_offset_below_the_kernels_resolution_is_warned_of() {
 /// agrees on a plain render and on a temporal reconstruction's path end (whose
 /// reference renders the whole path: a crop without the history drew 22 % of
 /// reconstruction.toml's pixels apart at 24x24, and the check failed on the shipped
-/// experiment), and fails, saying so, where the two do part (a ray offset of 1e-9,
-/// below what the f32 kernel resolves).
+/// experiment); where rays pass through voxel edges and corners (an eye on a lattice
+/// point, 1.4 % apart) it agrees by the stress suite's test of the pixels the
+/// reference itself moves under a turn of the rays, and says so; and it fails, saying
+/// so, where the two do part (a ray offset of 1e-9, below what the f32 kernel
+/// resolves, 39 % apart with none of them ill-conditioned).
 #[test]
 fn check_compares_like_with_like() {
     let dir = scratch("check");
     let experiments = concat!(env!("CARGO_MANIFEST_DIR"), "/experiments");
-    let cases: [(&str, &[&str], bool); 4] = [
+    let cases: [(&str, &[&str], bool); 6] = [
         ("baseline.toml", &[], true),
+        ("stress/eye_on_lattice.toml", &[], true),
+        ("stress/camera_in_glass.toml", &[], true),
         ("reconstruction.toml", &[], true),
         (
             "reconstruction.toml",
@@ -542,7 +547,14 @@ fn check_compares_like_with_like() {
             agrees,
             "{file} {sets:?}: {stdout}\n{stderr}"
         );
-        if agrees {
+        if file.starts_with("stress/") {
+            // Apart beyond the GPU tests' tolerance, only at ill-conditioned pixels.
+            assert!(
+                stdout.contains("are ill-conditioned")
+                    && stdout.contains("agrees within the stress suite's tolerance"),
+                "{stdout}"
+            );
+        } else if agrees {
             assert!(
                 stdout.contains("agrees within the GPU tests' tolerance"),
                 "{stdout}"
