@@ -157,6 +157,21 @@ impl Surface {
         crate::technique::surface(name).map(Surface)
     }
 
+    /// What [`Self::trace`] reads of `scene`, hashed: the kind, the grid's placement, its
+    /// voxels (`voxels`: the grid's content hash, which the caller has taken), the
+    /// materials' count and the surface's own inputs (a mesh). Equal keys list the same
+    /// triangles: the GPU tracer keys its upload by it, a CPU session its kept trace.
+    pub fn trace_key(self, scene: &crate::scene::Scene, voxels: blake3::Hash) -> blake3::Hash {
+        let mut h = blake3::Hasher::new();
+        h.update(self.name().as_bytes());
+        let g = &scene.grid;
+        h.update(format!("{:?}", (g.dims(), g.voxel_size(), g.origin())).as_bytes());
+        h.update(voxels.as_bytes());
+        h.update(&(scene.materials.len() as u64).to_le_bytes());
+        (self.hash_inputs)(scene, &mut h);
+        h.finalize()
+    }
+
     /// The triangles this surface traces in `scene`, listed in its grid: none for voxels
     /// (or a mesh surface on a scene without a mesh, which the plan has refused
     /// already), the scene's mesh, or the smooth surface of its grid

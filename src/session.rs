@@ -38,6 +38,9 @@ enum Tracer {
         /// The sums of the latest `render_frames` call of an accumulating plan, which
         /// the next may continue: what it was made from, and the sums.
         accumulation: Option<(AccumulationKey, crate::cpu::FrameSums)>,
+        /// The triangle surface of the latest render that traced one, as the GPU
+        /// tracer keeps its upload.
+        surface: crate::cpu::KeptSurface,
     },
 }
 
@@ -47,6 +50,7 @@ impl Tracer {
             label,
             walks: crate::technique::WalkBuilds::new(crate::technique::WALK_BUILDS_KEPT),
             accumulation: None,
+            surface: None,
         }
     }
 }
@@ -305,6 +309,7 @@ impl Session {
             Tracer::Cpu {
                 walks,
                 accumulation,
+                surface,
                 ..
             } => {
                 // The CPU's plan is derived the same way, for the record: it needs no
@@ -350,7 +355,7 @@ impl Session {
                     settings,
                     progress.as_ref(),
                     &mut self.history,
-                    walks,
+                    (walks, surface),
                     prior,
                 );
                 if progress.is_some_and(|p| p.stopped()) {
@@ -387,12 +392,10 @@ impl Session {
 /// where the GPU tracer has its upload's generation, and the triangle surface's inputs
 /// where it has its upload's key.
 fn cpu_accumulation_key(scene: &Scene, settings: &RenderSettings, plan: &Plan) -> AccumulationKey {
-    let surface = plan.surface.traces_triangles().then(|| {
-        let mut h = blake3::Hasher::new();
-        h.update(plan.surface.name().as_bytes());
-        (plan.surface.hash_inputs)(scene, &mut h);
-        h.finalize()
-    });
+    let surface = plan
+        .surface
+        .traces_triangles()
+        .then(|| plan.surface.trace_key(scene, scene.grid.content_hash()));
     AccumulationKey::new(scene, settings, plan, surface).with("voxels", scene.grid.content_hash())
 }
 

@@ -464,3 +464,27 @@ fn a_cpu_session_continues_its_sums_bit_for_bit() {
         );
     }
 }
+
+/// A CPU session keeps the triangle surface it listed (as the GPU tracer keeps its
+/// upload): renders of a mesh surface, the same with a voxel changed, and the first
+/// again each give, bit for bit, the image a render of its own gives.
+#[test]
+fn a_cpu_session_keeps_its_surface_and_its_images_are_their_own() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
+    let overrides: Vec<voxlab::experiment::Override> = ["render.width=12", "render.height=10"]
+        .iter()
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let e = Experiment::load_with(dir.join("bunny_mesh.toml"), &overrides).unwrap();
+    let mut carved = e.clone();
+    let v = carved.scene.grid.dims().as_ivec3() / 2;
+    let m = carved.scene.grid.get(v);
+    carved.scene.grid.set(v, if m == 0 { 1 } else { 0 });
+    let mut session = Session::cpu();
+    for (what, e) in [("first", &e), ("carved", &carved), ("first again", &e)] {
+        let image = session.render(e).unwrap();
+        let own = voxlab::cpu::render(&e.scene, &e.settings);
+        assert_eq!(image.frame.pixels, own.frame.pixels, "{what}");
+        assert_eq!(image.stats, own.stats, "{what}");
+    }
+}

@@ -3,6 +3,7 @@
 //! tests and the fallback renderer when no GPU adapter exists. It follows
 //! `src/trace_contract.md` to the letter.
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
@@ -149,12 +150,12 @@ pub(crate) fn render_keeping(
     settings: &RenderSettings,
     progress: Option<&crate::progress::Progress>,
     history: &mut Option<crate::frame::History>,
-    builds: &mut crate::technique::WalkBuilds,
+    (builds, surface): (&mut crate::technique::WalkBuilds, &mut KeptSurface),
     prior: Option<&FrameSums>,
 ) -> (RenderOutput, FrameSums) {
     let setup = Instant::now();
     let plan = Plan::new(scene, settings);
-    let prepared = Prepared::prepare(scene, settings, &plan, Walks::Keep(builds));
+    let prepared = Prepared::prepare(scene, settings, &plan, Walks::Keep(builds, surface));
     let setup_time = setup.elapsed();
     let whole = (0..settings.width, 0..settings.height);
     let (out, sums) = trace_region(
@@ -169,9 +170,14 @@ enum Walks<'a> {
     Build,
     /// From what another tracer holds where it holds the same, else built.
     Kept(KeptWalkData<'a>),
-    /// From builds kept across renders, and kept there.
-    Keep(&'a mut crate::technique::WalkBuilds),
+    /// From builds kept across renders, and kept there; likewise the triangle surface.
+    Keep(&'a mut crate::technique::WalkBuilds, &'a mut KeptSurface),
 }
+
+/// The triangle surface a CPU session traced last, by [`crate::render::Surface::trace_key`]:
+/// a render of the same grid and mesh lists it again from there (the glass bunny's
+/// mesh took 150 ms a render to list, before a trace of milliseconds at 16x16).
+pub(crate) type KeptSurface = Option<(blake3::Hash, Arc<SurfaceTrace>)>;
 
 fn render_region_with_progress(
     scene: &Scene,
@@ -510,7 +516,7 @@ pub struct Prepared {
     /// has any (the dense walk reads the grid's voxels).
     pub regions: Option<std::sync::Arc<dyn Regions>>,
     /// The triangle surfaces, when the plan traces them.
-    pub surfaces: Option<SurfaceTrace>,
+    pub surfaces: Option<Arc<SurfaceTrace>>,
     /// The ray cutoff in force (0 when the plan has none) and the lights' bounds it
     /// compares (`crate::ray_cutoff`).
     pub cutoff: f32,
@@ -537,15 +543,29 @@ impl Prepared {
 
     /// Takes a key only where `walks` keeps builds: the key hashes the voxels the walk
     /// reads (a surface's tagged grid is hashed anew each render).
-    fn prepare(scene: &Scene, settings: &RenderSettings, plan: &Plan, walks: Walks) -> Self {
-        let surfaces = match plan.surface.trace(scene) {
-            Ok(s) => s,
+    fn prepare(scene: &Scene, settings: &RenderSettings, plan: &Plan, mut walks: Walks) -> Self {
+        let trace = || match plan.surface.trace(scene) {
+            Ok(s) => s.map(Arc::new),
             // Past the plan's checks only a surface overlapping more voxels than are
             // kept fails; it is drawn as voxels, and said so.
             Err(e) => {
                 eprintln!("warning: {e}; the scene is drawn as voxels");
                 None
             }
+        };
+        let surfaces = match &mut walks {
+            Walks::Keep(_, kept) if plan.surface.traces_triangles() => {
+                let key = plan.surface.trace_key(scene, scene.grid.content_hash());
+                match kept.as_ref().filter(|(k, _)| *k == key) {
+                    Some((_, t)) => Some(t.clone()),
+                    None => {
+                        let t = trace();
+                        **kept = t.clone().map(|t| (key, t));
+                        t
+                    }
+                }
+            }
+            _ => trace(),
         };
         let grid = surfaces.as_ref().map_or(&scene.grid, |s| &s.tagged);
         Self {
@@ -559,7 +579,7 @@ impl Prepared {
                 match walks {
                     Walks::Build => data(grid, budget),
                     Walks::Kept(kept) => kept(&key()).unwrap_or_else(|| data(grid, budget)),
-                    Walks::Keep(builds) => builds.get_or_build(key(), || data(grid, budget)),
+                    Walks::Keep(builds, _) => builds.get_or_build(key(), || data(grid, budget)),
                 }
             }),
             surfaces,
@@ -581,7 +601,7 @@ impl Prepared {
     pub(crate) fn shadow_walk(&self, medium: u8) -> ShadowWalk<'_> {
         ShadowWalk {
             regions: self.regions.as_deref(),
-            surfaces: self.surfaces.as_ref(),
+            surfaces: self.surfaces.as_deref(),
             medium,
             end_offset: self.shadow_end_offset,
             clear: false,
@@ -660,7 +680,7 @@ fn trace_tree(
         let (hit, steps) = cast_through(
             walk_grid,
             prepared.regions.as_deref(),
-            prepared.surfaces.as_ref(),
+            prepared.surfaces.as_deref(),
             ray.origin,
             ray.dir,
             ray.medium,
@@ -908,3 +928,55 @@ fn direct_light(
 // The two models' own entry points, where tests and the cone injection call them.
 pub use crate::technique::beer_lambert::{shadow_beer_lambert, shadow_beer_lambert_over};
 pub use crate::technique::min_kt::{shadow_min_kt, shadow_min_kt_over};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A CPU session's kept surface is listed again only when what it was listed from
+    /// changes: the same grid and mesh give the same trace (not a copy), a changed voxel
+    /// or another surface kind a new one, whose images are the renders' own.
+    #[test]
+    fn a_kept_surface_is_reused_only_for_its_own_inputs() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
+        let e = crate::experiment::Experiment::load(dir.join("bunny_mesh.toml")).unwrap();
+        let settings = RenderSettings {
+            width: 8,
+            height: 8,
+            ..e.settings.clone()
+        };
+        let mut builds = crate::technique::WalkBuilds::new(crate::technique::WALK_BUILDS_KEPT);
+        let mut kept: KeptSurface = None;
+        let mut prepare = |scene: &Scene, settings: &RenderSettings| {
+            let plan = Plan::new(scene, settings);
+            Prepared::prepare(scene, settings, &plan, Walks::Keep(&mut builds, &mut kept))
+                .surfaces
+                .expect("a triangle surface")
+        };
+        let first = prepare(&e.scene, &settings);
+        assert!(
+            Arc::ptr_eq(&first, &prepare(&e.scene, &settings)),
+            "listed again"
+        );
+        let mut carved = e.scene.clone();
+        let v = carved.grid.dims().as_ivec3() / 2;
+        carved
+            .grid
+            .set(v, if carved.grid.get(v) == 0 { 1 } else { 0 });
+        let other = prepare(&carved, &settings);
+        assert!(
+            !Arc::ptr_eq(&first, &other),
+            "a changed voxel kept the old surface"
+        );
+        let smooth = RenderSettings {
+            surface: crate::render::Surface::named("smooth").unwrap(),
+            ..settings.clone()
+        };
+        let smoothed = prepare(&carved, &smooth);
+        assert!(
+            !Arc::ptr_eq(&other, &smoothed),
+            "another kind kept the mesh"
+        );
+        assert!(Arc::ptr_eq(&smoothed, &prepare(&carved, &smooth)));
+    }
+}

@@ -226,18 +226,13 @@ impl GpuTracer {
             self.surfaces = None;
             return Ok(None);
         }
-        // What the cells were listed from: the kind, the grid's placement, its voxels
-        // (the hash upload_grid has just taken, not taken again) and the mesh.
-        let mut h = blake3::Hasher::new();
-        h.update(plan.surface.name().as_bytes());
-        let g = &scene.grid;
-        h.update(format!("{:?}", (g.dims(), g.voxel_size(), g.origin())).as_bytes());
-        match &self.grid {
-            Some(u) => h.update(u.hash.as_bytes()),
-            None => h.update(g.content_hash().as_bytes()),
-        };
-        (plan.surface.hash_inputs)(scene, &mut h);
-        let key = h.finalize();
+        // What the cells were listed from, with the voxels' hash upload_grid has just
+        // taken (not taken again).
+        let voxels = self
+            .grid
+            .as_ref()
+            .map_or_else(|| scene.grid.content_hash(), |u| u.hash);
+        let key = plan.surface.trace_key(scene, voxels);
         if let Some(u) = self.surfaces.as_ref().filter(|u| u.key == key) {
             return Ok(Some(u.trace.clone()));
         }
