@@ -952,8 +952,10 @@ impl<'a> Ctx<'a> {
 /// A type error ("invalid type: string, expected an integer") with the key's allowed
 /// range added. The range is declared once, by the check that parses the key: the text is
 /// parsed again with the value replaced by one of the right type that no range admits
-/// (the smallest integer, or -1e300), and that check's requirement is quoted. Keys of
-/// arrays of tables, and keys whose check admits the probe, keep the message as it was.
+/// (the smallest integer, or -1e300; for an array, that many -1e300s), and that check's
+/// requirement is quoted. An array's shape is said ("an array of 2 numbers") where the
+/// probe finds it, whether or not its numbers have a range; a scalar key whose check
+/// admits the probe keeps the message as it was.
 fn with_allowed_range(e: ExperimentError, text: &str, path: &Path) -> ExperimentError {
     let ExperimentError::Invalid {
         file,
@@ -964,33 +966,42 @@ fn with_allowed_range(e: ExperimentError, text: &str, path: &Path) -> Experiment
     else {
         return e;
     };
-    let probe = if message.contains("expected an integer") {
-        Some(toml_edit::value(i64::MIN))
-    } else if message.contains("expected a number") {
-        Some(toml_edit::value(-1e300))
-    } else {
-        None
+    let numbers = |n: usize| {
+        let array: toml_edit::Array = std::iter::repeat_n(-1e300, n).collect();
+        (toml_edit::value(array), Some(n))
     };
-    let range = probe.and_then(|value| {
-        if key.contains('[') {
-            return None;
-        }
+    // Serde names an array's length only when the value was one of another length.
+    let stated_length = message
+        .split_once("expected an array of length ")
+        .and_then(|(_, n)| n.trim().parse::<usize>().ok());
+    let probes = if message.contains("expected an integer") {
+        vec![(toml_edit::value(i64::MIN), None)]
+    } else if message.contains("expected a number") {
+        vec![(toml_edit::value(-1e300), None)]
+    } else if let Some(n) = stated_length {
+        vec![numbers(n)]
+    } else if message.contains("expected a sequence") {
+        // Every array of numbers in the model is a vector or a rect's sides.
+        vec![numbers(3), numbers(2)]
+    } else {
+        Vec::new()
+    };
+    let range = probes.into_iter().find_map(|(value, length)| {
         let mut doc: toml_edit::DocumentMut = text.parse().ok()?;
-        let mut parts: Vec<&str> = key.split('.').collect();
-        let last = parts.pop()?;
-        let mut table = doc.as_table_mut();
-        for p in parts {
-            table = table.get_mut(p)?.as_table_mut()?;
-        }
-        *table.get_mut(last)? = value;
+        *item_at_mut(&mut doc, &key)? = value;
         let probed = doc.to_string();
-        let ctx = Ctx::new(&probed, path);
+        // A length serde refuses is not the key's: try the next.
         let raw: RawExperiment = toml::from_str(&probed).ok()?;
-        match build(raw, &ctx, None) {
+        let requirement = match build(raw, &Ctx::new(&probed, path), None) {
             Err(ExperimentError::Invalid {
                 key: k, message: m, ..
             }) if k == key => m.rsplit_once(": ").map(|(_, req)| req.to_string()),
             _ => None,
+        };
+        match (length, requirement) {
+            (Some(n), Some(r)) => Some(format!("an array of {n} numbers: {r}")),
+            (Some(n), None) => Some(format!("an array of {n} numbers")),
+            (None, r) => r,
         }
     });
     let message = match range {
@@ -1003,6 +1014,44 @@ fn with_allowed_range(e: ExperimentError, text: &str, path: &Path) -> Experiment
         key,
         message,
     }
+}
+
+/// The item a key names (`render.width`, `lights[0].size`), where the document has it.
+fn item_at_mut<'a>(
+    doc: &'a mut toml_edit::DocumentMut,
+    key: &str,
+) -> Option<&'a mut toml_edit::Item> {
+    enum Step<'k> {
+        Name(&'k str),
+        At(usize),
+    }
+    let mut steps = Vec::new();
+    for part in key.split('.') {
+        match part.strip_suffix(']').and_then(|p| p.split_once('[')) {
+            Some((name, at)) => {
+                steps.push(Step::Name(name));
+                steps.push(Step::At(at.parse().ok()?));
+            }
+            None => steps.push(Step::Name(part)),
+        }
+    }
+    // Looked up first without changing anything: a mutable lookup by name inserts the
+    // name where it is missing.
+    let mut item = doc.as_item();
+    for step in &steps {
+        item = match step {
+            Step::Name(name) => item.get(*name)?,
+            Step::At(at) => item.get(*at)?,
+        };
+    }
+    let mut item = doc.as_item_mut();
+    for step in &steps {
+        item = match step {
+            Step::Name(name) => item.get_mut(*name)?,
+            Step::At(at) => item.get_mut(*at)?,
+        };
+    }
+    Some(item)
 }
 
 /// Serde lists the expected fields as ", expected one of `a`, `b`" or ", expected `a`"

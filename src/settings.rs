@@ -525,7 +525,7 @@ pub const LIGHT_SIDE: Setting = Setting::new(
     NON_NEGATIVE,
     f64::NAN,
     "world units",
-    "a rect light's width and height",
+    "each of a rect light's [width, height]",
 );
 /// A disk or sphere light's `radius`.
 pub const LIGHT_RADIUS: Setting = Setting::new(

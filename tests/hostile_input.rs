@@ -352,6 +352,71 @@ fn a_type_error_states_the_allowed_range() {
     assert!(e.contains("expected a number") && e.contains("> 0"), "{e}");
 }
 
+/// Keys of arrays of tables and keys that take arrays state what they take too: the
+/// shape (a vector's 3 numbers, a rect's 2 sides) and the range of each number, in the
+/// `[[table]]` form and the inline one, for any entry of the array.
+#[test]
+fn a_type_error_in_an_array_states_its_shape_and_range() {
+    let rect = "type = \"rect\", position = [1, 2, 3], intensity = 1, normal = [0, -1, 0]";
+    let point = "type = \"point\", position = [1, 2, 3], intensity = 1";
+    let cases = [
+        // (file, key, what the message must say)
+        (
+            format!("lights = [{{{point}}}, {{{rect}, size = 2}}]\n"),
+            "lights[1].size",
+            "an array of 2 numbers: each side must be a finite number >= 0",
+        ),
+        (
+            format!("lights = [{{{rect}, size = [1, 2, 3]}}]\n"),
+            "lights[0].size",
+            "an array of 2 numbers: each side",
+        ),
+        (
+            format!("lights = [{{{point}, color = true}}]\n"),
+            "lights[0].color",
+            "an array of 3 numbers: every component must be a finite number >= 0",
+        ),
+        (
+            "[[lights]]\ntype = \"point\"\nposition = [1, 2]\nintensity = 1\n".to_string(),
+            "lights[0].position",
+            "expected an array of length 3; an array of 3 numbers",
+        ),
+        (
+            "[[lights]]\ntype = \"point\"\nposition = [1, 2, 3]\nintensity = 1\n\
+             [[lights]]\ntype = \"point\"\nposition = [1, 2, 3]\nintensity = \"bright\"\n"
+                .to_string(),
+            "lights[1].intensity",
+            "expected a number; must be a finite number >= 0",
+        ),
+        (
+            "[[materials]]\nname = \"a\"\n[[materials]]\nname = \"b\"\nkd = \"half\"\n".to_string(),
+            "materials[1].kd",
+            "expected a number; must be a finite number in [0, 1]",
+        ),
+        (
+            "[[materials]]\nname = \"a\"\nsigma = [1, 2, 3, 4]\n".to_string(),
+            "materials[0].sigma",
+            "an array of 3 numbers: every component must be a finite number >= 0",
+        ),
+        (
+            "[[materials]]\nname = \"a\"\nalbedo = 0.5\n".to_string(),
+            "materials[0].albedo",
+            "an array of 3 numbers: every component",
+        ),
+        (
+            "[camera]\ntarget = 4\n".to_string(),
+            "camera.target",
+            "expected a sequence; an array of 3 numbers",
+        ),
+    ];
+    for (text, key, says) in cases {
+        let e = Experiment::from_str(&text, "x.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(key) && e.contains(says), "{text}\n{e}");
+    }
+}
+
 /// A mesh of the wrong scale is named as such (its size and the voxel it would give),
 /// not as "too large".
 #[test]
