@@ -76,11 +76,74 @@ fn json_to_toml(json: &str, what: &str) -> PyResult<String> {
             },
         )));
     }
+    let value = toml_of(value, String::new()).map_err(|(key, message)| {
+        to_py(voxlab::Error::from(
+            voxlab::experiment::ExperimentError::Invalid {
+                file: what.to_string(),
+                line: None,
+                key,
+                message,
+            },
+        ))
+    })?;
     toml::to_string(&value).map_err(|e| {
         err(
             ErrorKind::Invalid,
             format!("{what}: not expressible as TOML ({e}); None has no TOML value"),
         )
+    })
+}
+
+/// What `voxlab._json_text` writes for the floats JSON has no word for and TOML has:
+/// the experiment's own checks then name the key and its range.
+const NON_FINITE: [(&str, f64); 3] = [
+    ("\u{0}voxlab:nan", f64::NAN),
+    ("\u{0}voxlab:inf", f64::INFINITY),
+    ("\u{0}voxlab:-inf", f64::NEG_INFINITY),
+];
+
+/// `v` as TOML, at the dotted key `at`; `Err((key, message))` for an integer TOML
+/// cannot hold. Nulls are found before (`first_null`).
+fn toml_of(v: serde_json::Value, at: String) -> Result<toml::Value, (String, String)> {
+    use serde_json::Value as J;
+    let child = |k: &str| {
+        if at.is_empty() {
+            k.to_string()
+        } else {
+            format!("{at}.{k}")
+        }
+    };
+    Ok(match v {
+        J::Null => return Err((at, ": None has no TOML value".to_string())),
+        J::Bool(b) => toml::Value::Boolean(b),
+        J::Number(n) => match (n.as_i64(), n.as_f64()) {
+            (Some(i), _) if !n.is_f64() => toml::Value::Integer(i),
+            (_, Some(f)) if n.is_f64() => toml::Value::Float(f),
+            _ => {
+                return Err((
+                    at,
+                    format!(" = {n}: an integer past TOML's range (64-bit signed)"),
+                ));
+            }
+        },
+        J::String(s) => match NON_FINITE.iter().find(|(mark, _)| *mark == s) {
+            Some(&(_, f)) => toml::Value::Float(f),
+            None => toml::Value::String(s),
+        },
+        J::Array(a) => toml::Value::Array(
+            a.into_iter()
+                .enumerate()
+                .map(|(i, v)| toml_of(v, format!("{at}[{i}]")))
+                .collect::<Result<_, _>>()?,
+        ),
+        J::Object(m) => toml::Value::Table(
+            m.into_iter()
+                .map(|(k, v)| {
+                    let key = child(&k);
+                    Ok::<_, (String, String)>((k, toml_of(v, key)?))
+                })
+                .collect::<Result<_, _>>()?,
+        ),
     })
 }
 
@@ -378,8 +441,8 @@ impl Grid {
                 let doc = PyDict::new(py);
                 doc.set_item("materials", p)?;
                 let json: String = py
-                    .import("json")?
-                    .call_method1("dumps", (doc,))
+                    .import("voxlab")?
+                    .call_method1("_json_text", (doc,))
                     .map_err(|e| err(ErrorKind::Invalid, format!("palette: {e}")))?
                     .extract()?;
                 Some(json_to_toml(&json, "palette")?)

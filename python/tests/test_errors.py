@@ -1,6 +1,7 @@
 """Every error of a bad file, text, dict or override is a VoxlabError (a ValueError)
 with the command line's message, file, line and key."""
 
+import numpy as np
 import pytest
 
 import voxlab as vx
@@ -77,10 +78,40 @@ def test_a_bad_dict_names_its_key():
         vx.load({"render": {"spp": None}})
     with pytest.raises(vx.VoxlabError, match=r"lights\[1\].color\[1\]: None"):
         vx.load({"lights": [{"type": "point"}, {"color": [1, None, 1]}]})
-    with pytest.raises(vx.VoxlabError, match="Out of range float"):
-        vx.load({"render": {"filter_width": float("inf")}})
     with pytest.raises(vx.VoxlabError, match="has no TOML value"):
         vx.load(EXPERIMENTS / "baseline.toml", set={"render.width": object()})
+
+
+NON_FINITE_DICTS = [
+    ({"render": {"filter_width": float("inf")}}, "render.filter_width", "= inf: must be a finite number in (0, 4]"),
+    ({"render": {"width": float("nan")}}, "render.width", "must be an integer in 1..=16384"),
+    ({"materials": [{"name": "a"}, {"name": "b", "kd": float("-inf")}]}, "materials[1].kd", "= -inf: must be a finite number in [0, 1]"),
+    ({"camera": {"target": np.array([0.0, np.nan, 0.0])}}, "camera.target", "= [0.0, nan, 0.0]"),
+    ({"lights": [{"type": "point", "position": [1, 2, 3], "intensity": np.float32("inf")}]}, "lights[0].intensity", "must be a finite number >= 0"),
+]
+
+
+@pytest.mark.parametrize("d,key,says", NON_FINITE_DICTS, ids=lambda c: str(c)[:40])
+def test_a_non_finite_number_in_a_dict_is_named_by_its_key(d, key, says):
+    """JSON has no NaN or infinity: a dict's reach TOML's, so the key's own check says
+    what it allows (the encoder used to refuse the whole dict, naming nothing)."""
+    with pytest.raises(vx.VoxlabError) as e:
+        vx.load(d)
+    assert e.value.key == key, str(e.value)
+    assert says in str(e.value)
+    # A palette of Grid.from_numpy is read the same way.
+    if "materials" in d:
+        with pytest.raises(vx.VoxlabError) as p:
+            vx.Grid.from_numpy(np.ones((2, 2, 2), np.uint8), palette=d["materials"])
+        assert p.value.key == key and says in str(p.value), str(p.value)
+
+
+def test_numpy_values_in_a_palette_are_numbers():
+    g = vx.Grid.from_numpy(
+        np.ones((2, 2, 2), np.uint8),
+        palette=[{"name": "chalk", "kd": np.float32(0.5), "albedo": np.array([1.0, 0.5, 0.25])}],
+    )
+    assert g.palette == ["void", "chalk"]
 
 
 def test_a_missing_file_and_a_file_of_the_wrong_kind(tmp_path):

@@ -84,6 +84,33 @@ def _toml_value(key: str, v: Any) -> str:
     raise _error(f"--set {key}: a {type(v).__name__} has no TOML value", key)
 
 
+# JSON has no NaN or infinity and TOML has: they cross to python/src/lib.rs as these
+# strings (its NON_FINITE), which it writes as TOML's nan and inf, so that the
+# experiment's own check names the key and its range ("must be a finite number in
+# [0, 1]") rather than the JSON encoder refusing the whole dict.
+_NON_FINITE = {"nan": "\x00voxlab:nan", "inf": "\x00voxlab:inf", "-inf": "\x00voxlab:-inf"}
+
+
+def _json_text(v: Any) -> str:
+    """`v` (dicts, lists, numbers, numpy arrays and scalars) as JSON for the native
+    loader, non-finite floats marked."""
+
+    def walk(x: Any) -> Any:
+        if isinstance(x, np.ndarray):
+            return walk(x.tolist())
+        if isinstance(x, np.generic):
+            return walk(x.item())
+        if isinstance(x, float) and not math.isfinite(x):
+            return _NON_FINITE["nan" if math.isnan(x) else "inf" if x > 0 else "-inf"]
+        if isinstance(x, Mapping):
+            return {k: walk(y) for k, y in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [walk(y) for y in x]
+        return x
+
+    return json.dumps(walk(v), allow_nan=False)
+
+
 def _overrides(set: Optional[Mapping[str, Any]]) -> list:
     if set is None:
         return []
@@ -112,7 +139,7 @@ def load(
     if isinstance(source, Mapping):
         label = name or "<dict>"
         try:
-            text = json.dumps(source, allow_nan=False)
+            text = _json_text(source)
         except (TypeError, ValueError) as e:
             raise _error(f"{label}: {e}") from None
         return _native.load_json(text, label, sets)
