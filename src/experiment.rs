@@ -873,6 +873,20 @@ impl<'a> Ctx<'a> {
             .trim()
             .replace("expected i64", "expected an integer")
             .replace("expected f64", "expected a number");
+        // Serde quotes a float in full: 1e308 as 309 digits.
+        let msg = match msg.split_once("floating point `") {
+            Some((head, rest)) => match rest.split_once('`') {
+                Some((number, tail)) => match number.parse::<f64>() {
+                    Ok(v) => format!(
+                        "{head}floating point `{}`{tail}",
+                        crate::input::short_number(v)
+                    ),
+                    Err(_) => msg.clone(),
+                },
+                None => msg.clone(),
+            },
+            None => msg,
+        };
         // Serde names our structs ("expected struct RawRender"): to the file, a table.
         let msg = match msg.find("expected struct Raw") {
             Some(at) => format!("{}expected a table", &msg[..at]),

@@ -232,6 +232,22 @@ pub(crate) fn excerpt(text: &str, max: usize) -> String {
     format!("{head}... ({} more characters)", n - max)
 }
 
+/// A number as a message quotes it: as written where that is short (`22.4`), else in
+/// exponent form (`1e300`, not the 301 digits Rust's `Display` writes).
+pub fn short_number(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e9).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// [`short_number`] of each component, as `[x, y, z]`.
+pub fn short_vector(v: glam::DVec3) -> String {
+    let [x, y, z] = v.to_array().map(short_number);
+    format!("[{x}, {y}, {z}]")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -268,5 +284,18 @@ mod tests {
     fn excerpts_are_cut() {
         assert_eq!(excerpt("abc", 5), "abc");
         assert_eq!(excerpt("abcdef", 3), "abc... (3 more characters)");
+    }
+
+    #[test]
+    fn numbers_are_quoted_short() {
+        assert_eq!(super::short_number(22.4), "22.4");
+        assert_eq!(super::short_number(0.0), "0");
+        assert_eq!(super::short_number(-1e308), "-1e308");
+        assert_eq!(super::short_number(1e-300), "1e-300");
+        assert_eq!(super::short_number(f64::NAN), "NaN");
+        assert_eq!(
+            super::short_vector(glam::DVec3::new(1e300, 0.5, f64::INFINITY)),
+            "[1e300, 0.5, inf]"
+        );
     }
 }

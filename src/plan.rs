@@ -314,10 +314,12 @@ pub fn check_primary_origin(scene: &Scene, settings: &RenderSettings) -> Result<
     }
     let eye = scene.grid.to_local(scene.camera.eye());
     Err(format!(
-        "camera.distance = {:e} puts the eye {:.4e} voxels from the grid's corner, where the \
-         GPU kernel cannot hold its rays in f32 (at most {f32_max:.4e}): a nearer camera \
-         (or a wider voxel_size), or the CPU reference (--backend cpu), which traces in f64",
-        scene.camera.distance,
+        "camera.distance = {} from camera.target = {} puts the eye {:.4e} voxels from the \
+         grid's corner, where the GPU kernel cannot hold its rays in f32 (at most \
+         {f32_max:.4e}): a nearer camera (or a wider voxel_size), or the CPU reference \
+         (--backend cpu), which traces in f64",
+        crate::input::short_number(scene.camera.distance),
+        crate::input::short_vector(scene.camera.target),
         eye.abs().max_element()
     ))
 }
@@ -353,7 +355,14 @@ pub fn check_lights_f32(scene: &Scene, settings: &RenderSettings) -> Result<(), 
         }
         let p = g.to_local(light.position());
         // Voxels from the light to the grid's farthest point, and in world units.
-        let far = ((p - half).abs() + half).length();
+        let way = (p - half).abs() + half;
+        // Scaled so that a light 1e300 out is as many voxels, not an infinity.
+        let longest = way.max_element();
+        let far = if longest > 0.0 && longest.is_finite() {
+            longest * (way / longest).length()
+        } else {
+            way.length()
+        };
         // The kernel squares it for the direction's length, and in world units for
         // the falloff's divisor.
         let squared = far * far < max && (!settings.falloff || (far * vs).powi(2) < max);
@@ -362,7 +371,7 @@ pub fn check_lights_f32(scene: &Scene, settings: &RenderSettings) -> Result<(), 
                 "lights[{i}].position = {}: {far:.4e} voxels from the grid's farthest \
                  point, whose square the kernel takes (the way to the light's length, \
                  the inverse-square falloff's divisor)",
-                light.position()
+                crate::input::short_vector(light.position())
             ));
         }
         if let Light::Area(a) = light {

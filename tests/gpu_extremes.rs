@@ -292,11 +292,17 @@ fn lights_past_f32s_range_are_refused_on_the_gpu() {
         (point(1e30, 1.0), false, "lights[0].position"),
         (point(1e39, 1.0), false, "lights[0].position"),
         (point(1e200, 1.0), false, "lights[0].position"),
+        (
+            point(1e300, 1.0),
+            false,
+            "lights[0].position = [1.8257418583505538e299",
+        ),
         (area(1e39), true, "lights[0].radius = 1e39"),
     ] {
         let (scene, s) = with(light.clone(), falloff);
         let why = format!("{:#}", gpu.render(&scene, &s).unwrap_err());
         assert!(why.contains(key) && why.contains("f32"), "{light:?}: {why}");
+        assert!(quotes_numbers_short(&why), "{why}");
         assert!(
             voxlab::cpu::render(&scene, &s).frame.all_finite(),
             "{light:?}: the reference"
@@ -641,4 +647,20 @@ fn an_eye_past_f32s_range_is_refused_on_the_gpu() {
             );
         }
     }
+    // An eye as far because its target is: both keys are named, the numbers short.
+    let mut scene = seed_scene(16).unwrap();
+    scene.camera.target = DVec3::new(1e300, 0.0, -2.5);
+    let why = format!("{:#}", gpu.render(&scene, &s).unwrap_err());
+    assert!(
+        why.contains("camera.target = [1e300, 0, -2.5]") && why.contains("camera.distance"),
+        "{why}"
+    );
+    assert!(quotes_numbers_short(&why), "{why}");
+}
+
+/// No number in `message` runs past 20 digits (Rust's `Display` writes 1e300 as 301).
+fn quotes_numbers_short(message: &str) -> bool {
+    message
+        .split(|c: char| !c.is_ascii_digit())
+        .all(|digits| digits.len() <= 20)
 }

@@ -418,14 +418,16 @@ impl Grid {
 fn check_placement(voxel_size: f64, origin: DVec3) -> Result<(), SceneError> {
     if !(MIN_VOXEL_SIZE..=MAX_VOXEL_SIZE).contains(&voxel_size) {
         return Err(SceneError::new(format!(
-            "voxel size {voxel_size}: must be in [{MIN_VOXEL_SIZE:e}, {MAX_VOXEL_SIZE:e}] \
+            "voxel size {}: must be in [{MIN_VOXEL_SIZE:e}, {MAX_VOXEL_SIZE:e}] \
              (world units; beyond them camera distances and light falloff leave f64's \
-             range)"
+             range)",
+            crate::input::short_number(voxel_size)
         )));
     }
     if !origin.is_finite() {
         return Err(SceneError::new(format!(
-            "grid origin {origin}: must be finite"
+            "grid origin {}: must be finite",
+            crate::input::short_vector(origin)
         )));
     }
     Ok(())

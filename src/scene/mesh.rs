@@ -748,9 +748,12 @@ pub fn voxelize_layout(
         Resolution::VoxelSize(s) => {
             if !(s.is_finite() && s > 0.0) {
                 return Err(LoadErrorKind::InvalidOption(format!(
-                    "voxel size {s}: must be a finite number > 0 (in the mesh's units; \
+                    "voxel size {}: must be a finite number > 0 (in the mesh's units; \
                      the mesh is {} x {} x {})",
-                    extent.x, extent.y, extent.z
+                    crate::input::short_number(s),
+                    crate::input::short_number(extent.x),
+                    crate::input::short_number(extent.y),
+                    crate::input::short_number(extent.z)
                 )));
             }
             s
