@@ -35,7 +35,7 @@ fn geometric(p: Guide, gradient: vec2<f32>, q: Guide, offset: vec2<f32>) -> f32 
         return 0.0;
     }
     let along = dot(gradient, offset);
-    let wz = exp(-abs(p.depth - q.depth) / max(setting(2u) * abs(along) + EPS_DEPTH * abs(p.depth), 1e-30));
+    let wz = exp(-abs(p.depth - q.depth) / max(setting(2u) * abs(along) + EPS_DEPTH * abs(fp.depth_origin + p.depth), 1e-30));
     // pow(0, 0) is undefined in WGSL; the reference's max(0, n.n')^0 is 1.
     var wn = 1.0;
     if setting(1u) > 0.0 {

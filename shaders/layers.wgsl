@@ -18,12 +18,19 @@ struct FilterParams {
     // Whether `history_in` holds the previous frame of a camera path (a temporal
     // reconstruction's; crate::frame::History).
     has_history: u32,
-    pad_b: u32,
-    pad_c: u32,
+    // Where this frame's and the history's depths count from (world units): the guide
+    // and the history hold each primary depth less it (src/gpu/reconstruct.rs,
+    // depth_origin; 0 for an eye near the grid).
+    depth_origin: f32,
+    previous_depth_origin: f32,
     // The reconstruction's settings in declared order (Reconstruction::values).
     settings: array<vec4<f32>, 2>,
-    // This frame's camera and the history's (crate::scene::CameraFrame): eye and
-    // tan(vfov / 2), forward, right, up.
+    // This frame's camera and the history's, in the cameras' bases, each hit less its
+    // depth origin along forward (src/gpu/reconstruct.rs, reprojection_rows): `camera`
+    // the offset of this frame's origin from the history's in the history camera's
+    // basis and tan(vfov / 2), then the change of basis (row i: the history's axis i
+    // dotted with this frame's forward, right, up); `previous` tan(vfov / 2) in w, then
+    // the history camera's forward, right, up.
     camera: array<vec4<f32>, 4>,
     previous: array<vec4<f32>, 4>,
 }

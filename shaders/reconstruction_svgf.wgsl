@@ -10,31 +10,29 @@
 // As svgf::MIN_HISTORY_WEIGHT.
 const MIN_HISTORY_WEIGHT: f32 = 0.01;
 
-struct Camera {
-    eye: vec3<f32>,
-    tan_half_vfov: f32,
-    forward: vec3<f32>,
-    right: vec3<f32>,
-    up: vec3<f32>,
-}
-
-fn camera(c: array<vec4<f32>, 4>) -> Camera {
-    var out: Camera;
-    out.eye = c[0].xyz;
-    out.tan_half_vfov = c[0].w;
-    out.forward = c[1].xyz;
-    out.right = c[2].xyz;
-    out.up = c[3].xyz;
-    return out;
-}
-
-// The ray through pixel (x, y)'s centre (crate::scene::CameraFrame::primary_dir).
-fn centre_dir(c: Camera, x: i32, y: i32) -> vec3<f32> {
+// Pixel (x, y)'s ray through its centre in its camera's basis (forward, right, up),
+// unnormalised (crate::scene::CameraFrame::primary_dir). The reprojection works in
+// the cameras' bases, their offset and change of basis given in f64 by the host
+// (src/gpu/reconstruct.rs, reprojection_rows): in world coordinates a far eye's
+// narrow view kept a ray's sideways part to a few digits.
+fn centre_ray(tan_half_vfov: f32, x: i32, y: i32) -> vec3<f32> {
     let w = f32(fp.width);
     let h = f32(fp.height);
     let sx = 2.0 * (f32(x) + 0.5) / w - 1.0;
     let sy = 1.0 - 2.0 * (f32(y) + 0.5) / h;
-    return normalize(c.forward + (sx * c.tan_half_vfov * (w / h)) * c.right + (sy * c.tan_half_vfov) * c.up);
+    return vec3<f32>(1.0, sx * tan_half_vfov * (w / h), sy * tan_half_vfov);
+}
+
+// The hit `origin + relative` along pixel (x, y)'s ray in its camera's basis about its
+// eye, less `origin` along forward: the depth's large part stays out of f32 sums.
+fn hit_at(tan_half_vfov: f32, x: i32, y: i32, origin: f32, relative: f32) -> vec3<f32> {
+    let c = centre_ray(tan_half_vfov, x, y);
+    let side = dot(c.yz, c.yz);
+    let len = sqrt(1.0 + side);
+    let depth = origin + relative;
+    // depth / len - origin, with len - 1 = side / (len + 1).
+    let forward = (relative - origin * side / (len + 1.0)) / len;
+    return vec3<f32>(forward, depth * c.y / len, depth * c.z / len);
 }
 
 struct Reprojected {
@@ -44,20 +42,22 @@ struct Reprojected {
     length: f32,
 }
 
-// The history at pixel (x, y), reprojected (svgf::reproject).
-fn reproject(x: i32, y: i32, position: vec3<f32>, normal: vec3<f32>, material: f32) -> Reprojected {
+// The history at pixel (x, y), reprojected (svgf::reproject); `local` the hit in the
+// current camera's basis about its eye, less its depth origin (hit_at).
+fn reproject(x: i32, y: i32, local: vec3<f32>, normal: vec3<f32>, material: f32) -> Reprojected {
     var out: Reprojected;
     out.found = false;
-    let cam = camera(fp.previous);
     let w = f32(fp.width);
     let h = f32(fp.height);
-    let v = position - cam.eye;
-    let f = dot(v, cam.forward);
+    // x_p - eye' in the previous camera's basis, less its depth origin along forward.
+    let v = fp.camera[0].xyz + vec3<f32>(dot(fp.camera[1].xyz, local), dot(fp.camera[2].xyz, local), dot(fp.camera[3].xyz, local));
+    let f = fp.previous_depth_origin + v.x;
     if !(f > 0.0) {
         return out;
     }
-    let sx = dot(v, cam.right) / (f * cam.tan_half_vfov * (w / h));
-    let sy = dot(v, cam.up) / (f * cam.tan_half_vfov);
+    let tan_previous = fp.previous[0].w;
+    let sx = v.y / (f * tan_previous * (w / h));
+    let sy = v.z / (f * tan_previous);
     let u = (sx + 1.0) * 0.5 * w - 0.5;
     let t = (1.0 - sy) * 0.5 * h - 0.5;
     // Far outside (or not finite): no tap can be inside.
@@ -89,8 +89,10 @@ fn reproject(x: i32, y: i32, position: vec3<f32>, normal: vec3<f32>, material: f
         if b.w < 0.5 || b.z != material || dot(normal, g.xyz) < setting(6u) {
             continue;
         }
-        let xq = cam.eye + g.w * centre_dir(cam, qx, qy);
-        if abs(dot(position - xq, g.xyz)) > setting(5u) * g.w {
+        // The tap's hit and normal in the previous camera's basis about its eye.
+        let xq = hit_at(tan_previous, qx, qy, fp.previous_depth_origin, g.w);
+        let nq = vec3<f32>(dot(g.xyz, fp.previous[1].xyz), dot(g.xyz, fp.previous[2].xyz), dot(g.xyz, fp.previous[3].xyz));
+        if abs(dot(v - xq, nq)) > setting(5u) * (fp.previous_depth_origin + g.w) {
             continue;
         }
         let weight = select(1.0 - fu, fu, dx > 0) * select(1.0 - ft, ft, dy > 0);
@@ -131,14 +133,13 @@ fn prepare_pixel(x: i32, y: i32, i: u32) {
     }
     let g = guide[2u * i];
     let material = guide[2u * i + 1u].z;
-    let cam = camera(fp.camera);
-    let position = cam.eye + g.w * centre_dir(cam, x, y);
+    let local = hit_at(fp.camera[0].w, x, y, fp.depth_origin, g.w);
     let l = luminance(c);
     var visibility = c;
     var moments = vec2<f32>(l, l * l);
     var length = 1.0;
     if fp.has_history != 0u {
-        let r = reproject(x, y, position, g.xyz, material);
+        let r = reproject(x, y, local, g.xyz, material);
         if r.found {
             length = r.length + 1.0;
             let a = max(setting(4u), 1.0 / length);

@@ -262,7 +262,8 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Mate
 }
 
 // Radiance of the primary ray from origin along dir (ambient included) for one frame;
-// t0: the eye's distance to origin along the ray.
+// t0: the eye's distance to origin along the ray less params.primary_advance, the
+// depth origin the primary layers count from (src/gpu/reconstruct.rs, depth_origin).
 fn trace_pixel(origin: vec3<f32>, t0: f32, dir: vec3<f32>, key: SampleKey) -> vec3<f32> {
     var primary: RayEntry;
     primary.origin = origin;
@@ -447,7 +448,10 @@ fn main(
     // only as precise as its ulp. Exactly the eye and 0 when primary_advance is 0.
     let across = sx * params.right_scaled + sy * params.up_scaled;
     let origin = params.eye + params.primary_advance * across;
-    let t0 = params.primary_advance * length(along);
+    // The way to origin less the advance: advance (|along| - 1), with |along|^2 = 1 +
+    // |across|^2 (across is orthogonal to forward), so that a far eye's depth keeps
+    // its digits in f32 (0 when primary_advance is 0).
+    let t0 = params.primary_advance * dot(across, across) / (length(along) + 1.0);
     var key: SampleKey;
     key.pixel = i;
     key.frame = params.frame_begin + gid.z;

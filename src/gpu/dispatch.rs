@@ -455,7 +455,10 @@ impl GpuTracer {
             let f = self.reconstruct(
                 plan.reconstruction,
                 settings,
-                &scene.camera.frame(),
+                (
+                    &scene.camera.frame(),
+                    reconstruct::depth_origin(scene, settings),
+                ),
                 &output,
                 compensation.as_ref(),
                 frames.end,

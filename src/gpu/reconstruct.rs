@@ -38,21 +38,60 @@ struct FilterParams {
     accumulated: u32,
     pass_index: u32,
     has_history: u32,
-    pad: [u32; 2],
+    /// Where this frame's and the history's primary depths count from (world units):
+    /// the layers hold the depth less it ([`depth_origin`]).
+    depth_origin: f32,
+    previous_depth_origin: f32,
     settings: [f32; 8],
     camera: [[f32; 4]; 4],
     previous: [[f32; 4]; 4],
 }
 
-/// `FilterParams::camera`'s layout of a camera frame.
-fn camera_rows(c: &crate::scene::CameraFrame) -> [[f32; 4]; 4] {
-    let v = |v: glam::DVec3, w: f64| [v.x as f32, v.y as f32, v.z as f32, w as f32];
-    [
-        v(c.eye, c.tan_half_vfov),
-        v(c.forward, 0.0),
-        v(c.right, 0.0),
-        v(c.up, 0.0),
-    ]
+/// Where a render's primary layers count their depth from (world units): the primary
+/// rays' advance (`crate::plan::primary_origin`), 0 for an eye near the grid. The
+/// kernel writes each depth less it (shaders/trace.wgsl), so that a far eye's hits keep
+/// their digits: 1e8 voxels out, f32 holds a depth to 8 voxels.
+pub(super) fn depth_origin(scene: &crate::scene::Scene, settings: &RenderSettings) -> f64 {
+    crate::plan::primary_origin(scene, settings).advance * scene.grid.voxel_size()
+}
+
+/// `FilterParams::camera` and `previous`: the current frame's camera and the previous
+/// one's as the kernel reprojects with them (shaders/reconstruction_svgf.wgsl), in the
+/// cameras' own bases, each hit less its depth origin along `forward`. `camera` holds
+/// the offset of that origin (the current eye plus `depth` along its forward) from the
+/// previous one's, in the previous camera's basis, and the current `tan_half_vfov`,
+/// then the rows of the change of basis (previous axis i . current axis j);
+/// `previous` its `tan_half_vfov` and its axes. Taken here in f64: a far eye's narrow
+/// view placed in world coordinates in f32 kept a ray's sideways part to a few digits
+/// (forward + 2e-5 right at 1e6), and a hit found as `eye + depth d` lost the eye's
+/// ulp: `render --check` of an `svgf` path drew 1.6 % of a 24x24 image apart at 3e5,
+/// 2 % at 1e6 and 11 % at 1e8, its history read partly from neighbouring pixels.
+fn reprojection_rows(
+    (current, depth): (&crate::scene::CameraFrame, f64),
+    (previous, previous_depth): (&crate::scene::CameraFrame, f64),
+) -> ([[f32; 4]; 4], [[f32; 4]; 4]) {
+    use glam::DVec3;
+    let v = |v: DVec3, w: f64| [v.x as f32, v.y as f32, v.z as f32, w as f32];
+    let axes = |c: &crate::scene::CameraFrame| [c.forward, c.right, c.up];
+    let (from, to) = (axes(previous), axes(current));
+    let in_previous = |u: DVec3| DVec3::from(from.map(|a| a.dot(u)));
+    let change = |i: usize| DVec3::from(to.map(|b| from[i].dot(b)));
+    let offset = in_previous(current.eye + depth * current.forward - previous.eye)
+        - DVec3::X * previous_depth;
+    (
+        [
+            v(offset, current.tan_half_vfov),
+            v(change(0), 0.0),
+            v(change(1), 0.0),
+            v(change(2), 0.0),
+        ],
+        [
+            v(DVec3::ZERO, previous.tan_half_vfov),
+            v(previous.forward, 0.0),
+            v(previous.right, 0.0),
+            v(previous.up, 0.0),
+        ],
+    )
 }
 
 /// A temporal reconstruction's history on the device (`crate::frame::History`): two
@@ -64,8 +103,9 @@ pub(super) struct GpuHistory {
     size: (u32, u32),
     buffers: [wgpu::Buffer; 2],
     latest: usize,
-    /// The camera of the latest frame, `None` while the history is empty.
-    camera: Option<crate::scene::CameraFrame>,
+    /// The camera of the latest frame and its depth origin ([`depth_origin`]), `None`
+    /// while the history is empty.
+    camera: Option<(crate::scene::CameraFrame, f64)>,
 }
 
 /// The most settings a reconstruction may declare: `FilterParams::settings`.
@@ -255,7 +295,7 @@ impl GpuTracer {
         &mut self,
         r: &'static Reconstruction,
         settings: &RenderSettings,
-        camera: &crate::scene::CameraFrame,
+        (camera, depth_origin): (&crate::scene::CameraFrame, f64),
         planes: &wgpu::Buffer,
         compensation: Option<&wgpu::Buffer>,
         frames: u32,
@@ -289,6 +329,11 @@ impl GpuTracer {
         };
         let values = r.values(settings);
         debug_assert!(values.len() <= MAX_FILTER_SETTINGS);
+        let (previous_camera, previous_depth_origin) = previous.unwrap_or((*camera, depth_origin));
+        let reprojection = reprojection_rows(
+            (camera, depth_origin),
+            (&previous_camera, previous_depth_origin),
+        );
         let mut p = FilterParams {
             width: w,
             height: h,
@@ -296,10 +341,11 @@ impl GpuTracer {
             accumulated: compensation.is_some() as u32,
             pass_index: 0,
             has_history: previous.is_some() as u32,
-            pad: [0; 2],
+            depth_origin: depth_origin as f32,
+            previous_depth_origin: previous_depth_origin as f32,
             settings: [0.0; 8],
-            camera: camera_rows(camera),
-            previous: camera_rows(&previous.unwrap_or_default()),
+            camera: reprojection.0,
+            previous: reprojection.1,
         };
         for (o, v) in p.settings.iter_mut().zip(&values) {
             *o = *v as f32;
@@ -361,7 +407,7 @@ impl GpuTracer {
             && let Some(h) = &mut self.history
         {
             h.latest = 1 - h.latest;
-            h.camera = Some(*camera);
+            h.camera = Some((*camera, depth_origin));
         }
         Ok(Filtered {
             image: colors[1 - reads].clone(),
