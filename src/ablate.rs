@@ -568,7 +568,11 @@ pub fn load_with(
 ) -> Result<(Experiment, AblateConfig, String), ExperimentError> {
     let path = path.as_ref();
     let experiment = Experiment::load_with(path, overrides)?;
-    let text = crate::experiment::read_text(path)?;
+    // The [ablate] table from the text the experiment was parsed from, not a second read.
+    let text = match &experiment.source_record {
+        Some(r) => r.text.to_string(),
+        None => crate::experiment::read_text(path)?,
+    };
     let text = crate::experiment::apply_overrides(&text, overrides)?;
     let mut config = AblateConfig::from_str(&text, path)?;
     config.overrides = overrides.iter().map(|o| o.to_string()).collect();
@@ -1945,14 +1949,23 @@ fn csv_sidecar(
     adapter: &str,
     rev: &str,
 ) -> serde_json::Value {
-    let assets = e
-        .source_path
+    // As the files were when the sweep read them (a file edited while it ran is not
+    // the one it measured).
+    let recorded = e
+        .source_record
         .as_ref()
-        .and_then(|p| {
-            let text = crate::experiment::read_text(p).ok()?;
-            Some(crate::experiment::write::input_hashes(&text, p))
-        })
-        .unwrap_or_default();
+        .filter(|r| r.overrides == c.overrides);
+    let assets = match recorded {
+        Some(r) => r.inputs.clone(),
+        None => e
+            .source_path
+            .as_ref()
+            .and_then(|p| {
+                let text = crate::experiment::read_text(p).ok()?;
+                Some(crate::experiment::write::input_hashes(&text, p))
+            })
+            .unwrap_or_default(),
+    };
     serde_json::json!({
         "file": "ablation.csv",
         "voxlab": env!("CARGO_PKG_VERSION"),

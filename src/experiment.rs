@@ -51,9 +51,49 @@ pub struct Experiment {
     pub name: String,
     /// The file it was read from (`None` for built-in experiments).
     pub source_path: Option<PathBuf>,
+    /// What was read from `source_path` and when: records quote it, whatever the
+    /// files hold by the time an image is written (`None` where nothing was read, or
+    /// where `source_path` was set by hand: records then read the file).
+    pub source_record: Option<Arc<SourceRecord>>,
     pub scene: Scene,
     /// Render settings, the feature switches (`settings.features`) included.
     pub settings: RenderSettings,
+}
+
+/// An experiment file as it was read, with what it read in turn: what an image's
+/// provenance and ablate's records quote. Taken at load, so that a file edited while a
+/// render or a sweep runs (or between `voxlab.load` and a render in Python) is not
+/// recorded as the one the image was made from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SourceRecord {
+    /// The file's text as read, before overrides.
+    pub text: Arc<str>,
+    /// The overrides applied to it, as `KEY=VALUE`.
+    pub overrides: Vec<String>,
+    /// The `[scene]` table with the overrides, its paths resolved
+    /// ([`write::scene_source`]).
+    pub scene: toml::Table,
+    /// Every file read (the experiment's own first, then its assets) with the blake3
+    /// hash of its content when it was read.
+    pub inputs: Vec<serde_json::Value>,
+}
+
+impl SourceRecord {
+    /// The record of `text`, read from `path`, loaded with `overrides`.
+    pub fn new(path: &Path, text: &str, overrides: &[Override]) -> Result<Self, ExperimentError> {
+        let applied = apply_overrides(text, overrides)?;
+        let mut inputs = vec![serde_json::json!({
+            "path": path.display().to_string(),
+            "blake3": blake3::hash(text.as_bytes()).to_hex().to_string(),
+        })];
+        inputs.extend(write::input_hashes(&applied, path).into_iter().skip(1));
+        Ok(Self {
+            text: text.into(),
+            overrides: overrides.iter().map(|o| o.to_string()).collect(),
+            scene: write::scene_source(&applied, path)?,
+            inputs,
+        })
+    }
 }
 
 /// The text of the experiment file `path`: a regular file of at most
@@ -352,6 +392,7 @@ impl Experiment {
         Self {
             name: "seed".to_string(),
             source_path: None,
+            source_record: None,
             scene: seed_scene(SEED_SIZE).expect("the seed scene at its own size is valid"),
             settings: RenderSettings::default(),
         }
@@ -392,6 +433,7 @@ impl Experiment {
             .map_err(|e| scene_error(format!("render.traversal: {e}")))?;
         self.scene = scene;
         self.source_path = None;
+        self.source_record = None;
         Ok(())
     }
 
@@ -400,7 +442,7 @@ impl Experiment {
         let path = path.as_ref();
         let text = read_text(path)?;
         let mut e = Self::from_str(&text, path)?;
-        e.source_path = Some(path.to_path_buf());
+        e.set_source(path, &text, &[])?;
         Ok(e)
     }
 
@@ -617,8 +659,22 @@ impl Experiment {
         let path = path.as_ref();
         let text = read_text(path)?;
         let mut e = Self::from_str_with(&text, path, overrides)?;
-        e.source_path = Some(path.to_path_buf());
+        e.set_source(path, &text, overrides)?;
         Ok(e)
+    }
+
+    /// Names `path` as the file this experiment was parsed from, as `text` with
+    /// `overrides`, and records them ([`SourceRecord`]): what a caller that read the
+    /// file itself sets.
+    pub fn set_source(
+        &mut self,
+        path: &Path,
+        text: &str,
+        overrides: &[Override],
+    ) -> Result<(), ExperimentError> {
+        self.source_record = Some(Arc::new(SourceRecord::new(path, text, overrides)?));
+        self.source_path = Some(path.to_path_buf());
+        Ok(())
     }
 
     /// [`Experiment::from_str`] with `--set` overrides (see [`Experiment::load_with`]).
@@ -1476,6 +1532,7 @@ fn build(
     Ok(Experiment {
         name,
         source_path: None,
+        source_record: None,
         scene,
         settings,
     })

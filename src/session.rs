@@ -457,14 +457,20 @@ impl Image {
         let labels: Vec<String> = overrides.iter().map(|o| o.to_string()).collect();
         // The [scene] table as the file (with the overrides) gives it, so the resolved
         // experiment renders again from its own text.
-        let (scene_source, assets) = match &e.source_path {
-            Some(p) => {
+        let recorded = e
+            .source_record
+            .as_ref()
+            .filter(|r| e.source_path.is_some() && r.overrides == labels);
+        let (scene_source, assets) = match (&e.source_path, recorded) {
+            // As the files were when it was read.
+            (Some(_), Some(r)) => (r.scene.clone(), r.inputs.clone()),
+            (Some(p), None) => {
                 let text = crate::experiment::read_text(p)?;
                 let text = crate::experiment::apply_overrides(&text, overrides)?;
                 let assets = crate::experiment::write::input_hashes(&text, p);
                 (crate::experiment::write::scene_source(&text, p)?, assets)
             }
-            None => (toml::Table::new(), Vec::new()),
+            (None, _) => (toml::Table::new(), Vec::new()),
         };
         let resolved = crate::experiment::to_toml(e, &scene_source)?;
         let s = &self.stats;

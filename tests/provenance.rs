@@ -96,6 +96,79 @@ fn images_carry_what_made_them() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A record quotes the files as they were read, not as they are when the image is
+/// written: an experiment loaded, its file and its mesh then changed on disk (a user
+/// editing while a render or a sweep runs, or between `voxlab.load` and a render in
+/// Python), renders the scene it read, and its record names that scene and those
+/// files' hashes (it re-read the file and hashed the mesh anew, so the record
+/// reproduced another image).
+#[test]
+fn a_record_quotes_the_files_as_they_were_read() {
+    let dir = std::env::temp_dir().join(format!("voxlab-provenance-read-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let tet = |s: f64| {
+        format!("v 0 0 0\nv {s} 0 0\nv 0 {s} 0\nv 0 0 {s}\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    };
+    let file = |yaw: f64| {
+        format!(
+            "[scene]\nmesh = \"tet.obj\"\nresolution = 8\nmaterial = \"solid\"\n\
+             [camera]\nyaw_deg = {yaw}\n[render]\nwidth = 8\nheight = 8\n"
+        )
+    };
+    let (path, mesh) = (dir.join("tet.toml"), dir.join("tet.obj"));
+    std::fs::write(&path, file(10.0)).unwrap();
+    std::fs::write(&mesh, tet(1.0)).unwrap();
+    let set: Vec<Override> = vec!["render.spp=2".parse().unwrap()];
+    let read = Experiment::load_with(&path, &set).unwrap();
+    let (text_then, mesh_then) = (std::fs::read(&path).unwrap(), std::fs::read(&mesh).unwrap());
+    // Changed on disk after it was read.
+    std::fs::write(&path, file(70.0)).unwrap();
+    std::fs::write(&mesh, tet(2.0)).unwrap();
+    let mut session = voxlab::Session::cpu();
+    let image = session.render(&read).unwrap();
+    let record = image
+        .provenance(
+            &read,
+            &set,
+            voxlab::frame::DisplayTransform::default(),
+            None,
+        )
+        .unwrap();
+    let hashes: Vec<(String, String)> = record["assets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| {
+            (
+                a["path"].as_str().unwrap().to_string(),
+                a["blake3"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        hashes,
+        vec![
+            (
+                path.display().to_string(),
+                blake3::hash(&text_then).to_hex().to_string()
+            ),
+            (
+                mesh.display().to_string(),
+                blake3::hash(&mesh_then).to_hex().to_string()
+            ),
+        ]
+    );
+    // The resolved experiment is the one rendered (the mesh's voxels come with its
+    // path, which now holds another mesh: the camera and settings are what it pins).
+    let resolved = record["resolved_experiment"].as_str().unwrap();
+    let again = Experiment::from_str(resolved, dir.join("again.toml")).unwrap();
+    assert_eq!(again.scene.camera, read.scene.camera);
+    assert_eq!(again.settings, read.settings);
+    assert_eq!(read.scene.camera.yaw, 10f64.to_radians());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `--display srgb` and `--exposure`: the PNG holds the sRGB encoding of 2^EV times the
 /// radiance the EXR holds, and the record says so.
 #[test]

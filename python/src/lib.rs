@@ -202,7 +202,8 @@ impl Experiment {
         let mut e = voxlab::Experiment::from_str_with_cache(&text, &path, &overrides, &mut cache)
             .map_err(|e| to_py(e.into()))?;
         if from_file {
-            e.source_path = Some(path.clone());
+            e.set_source(&path, &text, &overrides)
+                .map_err(|e| to_py(e.into()))?;
         }
         if let Some(g) = &grid {
             e.set_grid(g.grid.clone(), g.palette.clone())
@@ -270,6 +271,13 @@ impl Experiment {
             .source_path
             .as_ref()
             .map(|p| p.display().to_string())
+    }
+
+    /// Whether the file it was read from holds other text now (or cannot be read): a
+    /// command that reads the file again (ablate) would not run this experiment.
+    fn _source_changed(&self) -> bool {
+        self.from_file
+            && voxlab::experiment::read_text(&self.path).ok().as_ref() != Some(&self.text)
     }
 
     #[getter]

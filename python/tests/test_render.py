@@ -51,6 +51,33 @@ def test_the_record_re_renders_the_same_image_through_the_command_line(backend, 
         assert np.mean(d > 2) <= 0.005
 
 
+def test_an_experiment_edited_on_disk_renders_and_records_what_was_loaded(cpu, tmp_path):
+    """The file changed after vx.load: the image is the loaded experiment's, and its
+    record quotes the file as it was read (it used to read the file again: the record's
+    hash and scene were the edited file's, and re-rendered another image); ablate,
+    which reads the file, refuses."""
+    text = (EXPERIMENTS / "reconstruction.toml").read_text()
+    path, original = tmp_path / "mine.toml", tmp_path / "original.toml"
+    path.write_text(text)
+    original.write_text(text)
+    e = vx.load(path, set={"render.width": 12, "render.height": 9})
+    edited = text.replace("min = [6, 1, 8]", "min = [2, 1, 2]").replace("yaw_deg = 25.0", "yaw_deg = 70.0")
+    assert edited != text
+    path.write_text(edited)
+    im = cpu.render(e)
+    # The record of the same text rendered through the command line.
+    theirs = tmp_path / "cli.exr"
+    cli("render", original, "--backend", "cpu", "--width", 12, "--height", 9, "--out", theirs)
+    record = json.loads((tmp_path / "cli.exr.json").read_text())
+    assert im.provenance["assets"][0]["blake3"] == record["assets"][0]["blake3"]
+    again = tmp_path / "again.toml"
+    again.write_text(im.provenance["resolved_experiment"])
+    assert np.array_equal(cpu.render(vx.load(again)).radiance, im.radiance)
+    with pytest.raises(vx.VoxlabError, match="changed on disk since the experiment was loaded"):
+        vx.ablate(e, tmp_path / "ablate")
+    assert not (tmp_path / "ablate").exists()
+
+
 def test_save_is_all_or_nothing(cpu, tmp_path):
     im = cpu.render(small("baseline.toml"))
     with pytest.raises(vx.VoxlabError):

@@ -323,6 +323,13 @@ def ablate(
                 "its outputs"
             )
         path = experiment.source
+        # ablate reads the file (its [ablate] table too): it must hold what was loaded.
+        if experiment._source_changed():
+            raise _error(
+                f"ablate(): {path} changed on disk since the experiment was loaded, and "
+                "ablate reads the file: load it again (voxlab.load) to sweep what it "
+                "holds now"
+            )
         sets = list(experiment.overrides) + sets
     else:
         path = os.fspath(experiment)

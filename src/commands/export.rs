@@ -32,9 +32,14 @@ pub(crate) fn cmd_export(a: &ExportArgs) -> Result<()> {
     let ExportTarget::Mitsuba = a.to;
     let (e, text) = match &a.experiment {
         Some(p) => {
-            let text =
-                voxlab::experiment::apply_overrides(&voxlab::experiment::read_text(p)?, &a.set)?;
-            (Experiment::load_with(p, &a.set)?, text)
+            // The text the experiment was parsed from, not a second read of the file.
+            let e = Experiment::load_with(p, &a.set)?;
+            let read = match &e.source_record {
+                Some(r) => r.text.to_string(),
+                None => voxlab::experiment::read_text(p)?,
+            };
+            let text = voxlab::experiment::apply_overrides(&read, &a.set)?;
+            (e, text)
         }
         None => (
             Experiment::from_str_with("", "seed", &a.set)?,

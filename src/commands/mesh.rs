@@ -62,14 +62,20 @@ pub(crate) fn cmd_mesh(a: &MeshArgs) -> Result<()> {
     let d = e.scene.grid.dims();
     // What made the mesh, beside it: the experiment (its text with the overrides, every
     // file it reads, hashed), the build, the relaxation.
-    let (text, inputs) = match &a.experiment {
-        Some(p) => {
+    // The text as it was meshed, not as the file may hold it by now.
+    let (text, inputs) = match (&a.experiment, &e.source_record) {
+        (Some(p), Some(r)) => {
+            let text = voxlab::experiment::apply_overrides(&r.text, &a.set)?;
+            let inputs = voxlab::experiment::write::input_files(&text, p);
+            (text, inputs)
+        }
+        (Some(p), None) => {
             let text =
                 voxlab::experiment::apply_overrides(&voxlab::experiment::read_text(p)?, &a.set)?;
             let inputs = voxlab::experiment::write::input_files(&text, p);
             (text, inputs)
         }
-        None => (String::new(), Vec::new()),
+        (None, _) => (String::new(), Vec::new()),
     };
     let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     let write_record = voxlab::output::write_sidecar(
