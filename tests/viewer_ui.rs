@@ -887,7 +887,10 @@ fn assert_export_matches(rig: &Rig, side: Side, toml: &Path, frames: u32, size: 
     expected.settings.width = size.0;
     expected.settings.height = size.1;
     assert_eq!(loaded.source_path.as_deref(), Some(toml));
+    // What it was read from is the file's own record, not part of the experiment.
+    assert!(loaded.source_record.is_some());
     loaded.source_path = expected.source_path.clone();
+    loaded.source_record = expected.source_record.clone();
     assert_eq!(loaded.name, expected.name);
     assert_eq!(loaded.scene, expected.scene);
     assert_eq!(loaded.settings, expected.settings);
