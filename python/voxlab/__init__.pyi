@@ -174,7 +174,9 @@ def load(
     given as a dict (`{"render.spp": 8}`). Raises VoxlabError with the CLI's message."""
 
 def rmse(a: Union[npt.ArrayLike, Image], b: Union[npt.ArrayLike, Image]) -> float:
-    """Root-mean-square difference over every channel of two linear images."""
+    """Root-mean-square difference over every channel of two linear images; a NaN in
+    either counts as an infinite difference (the result is inf, never a NaN that a
+    comparison would pass over)."""
 
 def flip(
     reference: Union[npt.ArrayLike, Image],
@@ -182,7 +184,8 @@ def flip(
     ppd: Optional[float] = None,
 ) -> tuple[float, npt.NDArray[np.float32]]:
     """FLIP (LDR, on sRGB display values) at `ppd` pixels per degree (default 67):
-    (mean, map (height, width))."""
+    (mean, map (height, width)). A NaN in either image spreads through the map (its
+    filters read around each pixel) and into the mean."""
 
 def techniques() -> list[dict[str, Any]]:
     """Every technique: name, slot, switch, summary (with its paper), settings."""
