@@ -89,7 +89,8 @@ fn reproject(x: i32, y: i32, local: vec3<f32>, normal: vec3<f32>, material: f32)
         if b.w < 0.5 || b.z != material || dot(normal, g.xyz) < setting(6u) {
             continue;
         }
-        // The tap's hit and normal in the previous camera's basis about its eye.
+        // The tap's hit (less the previous depth origin along forward) and its normal
+        // in the previous camera's basis.
         let xq = hit_at(tan_previous, qx, qy, fp.previous_depth_origin, g.w);
         let nq = vec3<f32>(dot(g.xyz, fp.previous[1].xyz), dot(g.xyz, fp.previous[2].xyz), dot(g.xyz, fp.previous[3].xyz));
         if abs(dot(v - xq, nq)) > setting(5u) * (fp.previous_depth_origin + g.w) {
