@@ -48,9 +48,11 @@ use crate::frame::Frame;
 use crate::metrics::{Domain, compare};
 use crate::output::write_frame_with_provenance;
 use crate::plan::Plan;
-use crate::render::{Features, MAX_SAMPLES, RenderSettings, Transmittance};
+use crate::render::{Features, RenderSettings, Transmittance};
 use crate::scene::{Light, PointLight, Scene};
 use crate::session::{Backend, Session};
+use crate::settings::Setting;
+use crate::settings::ablate::{REFERENCE_SPP, RUNS, SEEDS, SPP, WARMUP};
 use crate::technique::Knob;
 
 /// Part of the reference cache key. Bump it whenever a tracer's model changes what an
@@ -63,14 +65,6 @@ pub(crate) const MODEL_VERSION: u32 = 2;
 /// samples are independent of the swept points' (which use the experiment's seed).
 /// Nested samples would share noise with the reference and understate the error.
 const REFERENCE_SEED_OFFSETS: [u32; 2] = [0x9E37_79B9, 0x3C6E_F372];
-
-/// Seeds per point when `[ablate] seeds` is not given: three is the fewest with an
-/// interval (t = 4.30 at 2 degrees of freedom) at three times the cost of one.
-pub(crate) const DEFAULT_SEEDS: u32 = 3;
-
-/// The most seeds per point; far below the reference's seed offsets, so a point's seeds
-/// never draw the reference's samples.
-pub(crate) const MAX_SEEDS: u32 = 64;
 
 // ---------------------------------------------------------------------------------------
 // Configuration: the `[ablate]` table.
@@ -185,11 +179,11 @@ impl AblateConfig {
 impl Default for AblateConfig {
     fn default() -> Self {
         Self {
-            reference_spp: 1024,
+            reference_spp: REFERENCE_SPP.default as u32,
             spp: (0..=8).map(|k| 1 << k).collect(),
-            seeds: DEFAULT_SEEDS,
-            runs: 3,
-            warmup: 1,
+            seeds: SEEDS.default as u32,
+            runs: RUNS.default as u32,
+            warmup: WARMUP.default as u32,
             // Every registered model.
             transmittance: crate::technique::TRANSMITTANCES
                 .iter()
@@ -283,12 +277,11 @@ impl AblateConfig {
         let raw: RawFile = toml::from_str(text).map_err(|e| loc.serde_error(&e))?;
         let raw = raw.ablate.unwrap_or_default();
         let mut c = Self::default();
-        let int = |key: &str, v: i64, lo: u32, hi: u32| -> Result<u32, ExperimentError> {
-            if (i64::from(lo)..=i64::from(hi)).contains(&v) {
-                Ok(v as u32)
-            } else {
-                Err(loc.invalid(key, format!("must be an integer in {lo}..={hi}")))
-            }
+        // Every declared range lies within u32.
+        let int = |s: &Setting, v: i64| -> Result<u32, ExperimentError> {
+            s.check(v as f64)
+                .map(|v| v as u32)
+                .map_err(|req| loc.invalid(s.key, req))
         };
         if let Some(list) = &raw.spp {
             if list.is_empty() {
@@ -296,12 +289,8 @@ impl AblateConfig {
             }
             let mut out = Vec::new();
             for &v in list {
-                let v = int("spp", v, 1, MAX_SAMPLES).map_err(|_| {
-                    loc.invalid(
-                        "spp",
-                        format!("every entry must be an integer in 1..={MAX_SAMPLES}"),
-                    )
-                })?;
+                let v = int(&SPP, v)
+                    .map_err(|_| loc.invalid("spp", format!("every entry {}", SPP.range_text())))?;
                 if out.last().is_some_and(|&last| v <= last) {
                     return Err(loc.invalid("spp", "must be strictly ascending"));
                 }
@@ -310,7 +299,7 @@ impl AblateConfig {
             c.spp = out;
         }
         if let Some(v) = raw.reference_spp {
-            c.reference_spp = int("reference_spp", v, 2, MAX_SAMPLES)?;
+            c.reference_spp = int(&REFERENCE_SPP, v)?;
         }
         let top = *c.spp.last().expect("spp is not empty");
         if c.reference_spp < top {
@@ -323,13 +312,13 @@ impl AblateConfig {
             ));
         }
         if let Some(v) = raw.seeds {
-            c.seeds = int("seeds", v, 1, MAX_SEEDS)?;
+            c.seeds = int(&SEEDS, v)?;
         }
         if let Some(v) = raw.runs {
-            c.runs = int("runs", v, 1, 1000)?;
+            c.runs = int(&RUNS, v)?;
         }
         if let Some(v) = raw.warmup {
-            c.warmup = int("warmup", v, 0, 100)?;
+            c.warmup = int(&WARMUP, v)?;
         }
         if let Some(list) = &raw.transmittance {
             let mut out = Vec::new();

@@ -27,14 +27,13 @@ use crate::settings::{self, Field, Setting};
 use crate::surface::SurfaceMesh;
 
 use crate::render::{Features, RenderSettings};
-use crate::scene::seed::{SEED_AMBIENT, seed_camera, seed_grid, seed_lights, seed_scene};
+use crate::scene::seed::{
+    SEED_AMBIENT, SEED_SIZE, seed_camera, seed_grid, seed_lights, seed_scene,
+};
 use crate::scene::{
     AreaLight, AreaShape, DENSE_MAX_VOXELS, Dielectric, Emission, Grid, Light, MAX_SPARSE_SIDE,
-    MAX_VOXEL_SIZE, MIN_VOXEL_SIZE, Material, PointLight, SEED_SHININESS, Scene, Storage,
+    Material, PointLight, SEED_SHININESS, Scene, Storage,
 };
-
-/// Grid side of the seed scene (`[scene] size` when neither `size` nor `dims` is given).
-pub(crate) const SEED_SIZE: u32 = 16;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 enum RulesName {
@@ -1196,21 +1195,6 @@ fn path_at(item: &toml_edit::Item, span: &Range<usize>, prefix: &str) -> Option<
 // ---------------------------------------------------------------------------------------
 // Validation and assembly.
 
-/// A float in a range; `what` names the range for the message (e.g. "> 0").
-fn float_where(
-    ctx: &Ctx,
-    key: &str,
-    v: f64,
-    ok: impl Fn(f64) -> bool,
-    what: &str,
-) -> Result<f64, ExperimentError> {
-    if v.is_finite() && ok(v) {
-        Ok(v)
-    } else {
-        Err(ctx.invalid(key, format!("must be a finite number {what}")))
-    }
-}
-
 fn vec3_where(
     ctx: &Ctx,
     key: &str,
@@ -1895,7 +1879,6 @@ fn build_light(
 /// seed's (plus `[[materials]]`), as for a generator. Mesh warnings (an open mesh)
 /// are printed to stderr. `None` when the scene comes from a generator.
 fn load_scene_file(s: &RawScene, ctx: &Ctx) -> Result<Option<LoadedScene>, ExperimentError> {
-    use crate::scene::mesh::MAX_RESOLUTION;
     use crate::scene::{Resolution, VoxelizeOptions, load_vox, voxelize_mesh};
     let not_without = |present: bool, key: &str, needs: &str| {
         if present {
@@ -1947,19 +1930,15 @@ fn load_scene_file(s: &RawScene, ctx: &Ctx) -> Result<Option<LoadedScene>, Exper
     let dir = Path::new(&ctx.file).parent().unwrap_or(Path::new(""));
     let (grid, palette, mesh) = if let Some(p) = &s.vox {
         let model = match s.model {
-            Some(m) => Some(int_in(ctx, "scene.model", m, 0..=i64::from(u32::MAX))? as usize),
+            Some(m) => {
+                Some(declared(ctx, "scene.model", &settings::SCENE_MODEL, m as f64)? as usize)
+            }
             None => None,
         };
         let v = load_vox(dir.join(p), model).map_err(|e| ctx.invalid(key, e))?;
         let mut grid = v.grid;
         if let Some(vs) = s.voxel_size {
-            let vs = float_where(
-                ctx,
-                "scene.voxel_size",
-                vs,
-                |x| (MIN_VOXEL_SIZE..=MAX_VOXEL_SIZE).contains(&x),
-                "in [1e-6, 1e6] (world units)",
-            )?;
+            let vs = declared(ctx, "scene.voxel_size", &settings::SCENE_VOXEL_SIZE, vs)?;
             grid = grid
                 .placed(vs, grid.origin())
                 .map_err(|e| ctx.invalid("scene.voxel_size", e))?;
@@ -1974,15 +1953,18 @@ fn load_scene_file(s: &RawScene, ctx: &Ctx) -> Result<Option<LoadedScene>, Exper
                     "give either scene.resolution or scene.voxel_size for a mesh, not both",
                 ));
             }
-            (Some(n), None) => Resolution::Count(int_in(
+            (Some(n), None) => Resolution::Count(declared(
                 ctx,
                 "scene.resolution",
-                n,
-                1..=i64::from(MAX_RESOLUTION),
+                &settings::SCENE_RESOLUTION,
+                n as f64,
+            )? as u32),
+            (None, Some(v)) => Resolution::VoxelSize(declared(
+                ctx,
+                "scene.voxel_size",
+                &settings::SCENE_VOXEL_SIZE,
+                v,
             )?),
-            (None, Some(v)) => {
-                Resolution::VoxelSize(float_where(ctx, "scene.voxel_size", v, |x| x > 0.0, "> 0")?)
-            }
             (None, None) => {
                 return Err(ctx.invalid(
                     "scene.mesh",
@@ -2049,13 +2031,16 @@ fn build_grid(s: &RawScene, ctx: &Ctx) -> Result<Grid, ExperimentError> {
                 "give either scene.size or scene.dims, not both",
             ));
         }
-        (Some(n), None) => UVec3::splat(int_in(ctx, "scene.size", n, 1..=i64::from(u32::MAX))?),
+        (Some(n), None) => {
+            UVec3::splat(declared(ctx, "scene.size", &settings::SCENE_SIZE, n as f64)? as u32)
+        }
         (None, Some(d)) => {
-            if !d.iter().all(|&n| (1..=i64::from(u32::MAX)).contains(&n)) {
-                return Err(ctx.invalid(
-                    "scene.dims",
-                    format!("every dimension must be an integer in 1..={}", u32::MAX),
-                ));
+            if let Some(Err(req)) = d
+                .iter()
+                .map(|&n| settings::SCENE_SIDE.check(n as f64))
+                .find(Result::is_err)
+            {
+                return Err(ctx.invalid("scene.dims", format!("every side {req}")));
             }
             UVec3::new(d[0] as u32, d[1] as u32, d[2] as u32)
         }
@@ -2080,14 +2065,8 @@ fn build_grid(s: &RawScene, ctx: &Ctx) -> Result<Grid, ExperimentError> {
         ));
     }
     let voxel_size = match s.voxel_size {
-        Some(v) => float_where(
-            ctx,
-            "scene.voxel_size",
-            v,
-            |x| (MIN_VOXEL_SIZE..=MAX_VOXEL_SIZE).contains(&x),
-            "in [1e-6, 1e6] (world units)",
-        )?,
-        None => 1.0,
+        Some(v) => declared(ctx, "scene.voxel_size", &settings::SCENE_VOXEL_SIZE, v)?,
+        None => settings::SCENE_VOXEL_SIZE.default,
     };
     let origin = match s.origin {
         Some(o) => vec3_where(ctx, "scene.origin", o, |_| true, "")?,

@@ -99,8 +99,11 @@ struct TechniquesArgs {
 #[derive(Args, Debug)]
 struct SettingsArgs {
     /// Print the markdown table docs/experiments.md holds (the default: plain text).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "json")]
     markdown: bool,
+    /// Print one JSON array of records (key, type, default, min, max, range, unit, doc).
+    #[arg(long)]
+    json: bool,
 }
 
 #[cfg(feature = "viewer")]
@@ -432,7 +435,9 @@ fn main() -> ExitCode {
         }
         Some(Command::Settings(args)) => {
             let table = voxlab::settings::markdown();
-            if args.markdown {
+            if args.json {
+                println!("{:#}", voxlab::settings::listing_json());
+            } else if args.markdown {
                 print!("{table}");
             } else {
                 // The same rows without the markdown rules.

@@ -1,7 +1,7 @@
 //! Every numeric setting of an experiment file, declared once: its key, type, allowed
 //! range, default, unit and meaning. Technique settings (`crate::technique`) use the
-//! same [`Setting`]; this module declares the model's own: the camera, the render
-//! settings, the materials and the lights.
+//! same [`Setting`]; this module declares the model's own (the camera, the render
+//! settings, the materials and the lights), the scene's and `voxlab ablate`'s.
 //!
 //! The parser checks a value with [`Setting::check`] and names the range in the words of
 //! [`Setting::range_text`]; the writer writes [`Field::get`]; the viewer's widgets span
@@ -15,7 +15,10 @@ use crate::render::{
     MAX_DEPTH_LIMIT, MAX_FILTER_WIDTH, MAX_IMAGE_SIDE, MAX_PATH_FRAMES, MAX_SAMPLES,
     MAX_TOTAL_DEPTH_LIMIT, RenderSettings,
 };
-use crate::scene::{Material, OrbitCamera};
+use crate::scene::mesh::MAX_RESOLUTION;
+use crate::scene::{
+    DENSE_MAX_VOXELS, MAX_SPARSE_SIDE, MAX_VOXEL_SIZE, MIN_VOXEL_SIZE, Material, OrbitCamera,
+};
 
 /// The type and allowed range of a setting.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -159,6 +162,53 @@ impl Setting {
             Kind::Int { min, max } => (min as f64, max as f64),
             Kind::Float { min, max, .. } => (min, max),
         }
+    }
+
+    /// The record of `voxlab settings --json` and `voxlab techniques --json` under `key`:
+    /// type, default (`null` where it has none), bounds (`null`: none), range, unit, doc.
+    pub fn json(&self, key: &str) -> serde_json::Value {
+        use serde_json::json;
+        // An integer setting's numbers are JSON integers, so that a script can pass them
+        // back as they are (a TOML float is no integer setting's value).
+        let (kind, min, max, min_open, max_open, default) = match self.kind {
+            Kind::Int { min, max } => (
+                "int",
+                json!(min),
+                json!(max),
+                false,
+                false,
+                json!(self.default.is_finite().then_some(self.default as i64)),
+            ),
+            Kind::Float {
+                min,
+                max,
+                min_open,
+                max_open,
+            } => {
+                // f64::MAX stands for "no bound".
+                let bound = |v: f64| json!((v.abs() < f64::MAX).then_some(v));
+                (
+                    "float",
+                    bound(min),
+                    bound(max),
+                    min_open,
+                    max_open,
+                    json!(self.default.is_finite().then_some(self.default)),
+                )
+            }
+        };
+        json!({
+            "key": key,
+            "type": kind,
+            "default": default,
+            "min": min,
+            "max": max,
+            "min_open": min_open,
+            "max_open": max_open,
+            "range": self.range_text().trim_start_matches("must be "),
+            "unit": self.unit,
+            "doc": self.doc,
+        })
     }
 
     /// The TOML value of `v` in this setting's type.
@@ -544,6 +594,125 @@ pub const LIGHT_ROTATION: Setting = Setting::new(
     "about the light's normal",
 );
 
+/// `[scene] size`: the side of a generator's cube. Larger cubes than a dense grid holds
+/// (`scene::DENSE_MAX_VOXELS`) are held as a sparse tree, whose sides are at most
+/// `scene::MAX_SPARSE_SIDE`.
+pub const SCENE_SIZE: Setting = Setting::new(
+    "size",
+    Kind::Int {
+        min: 1,
+        max: MAX_SPARSE_SIDE as i64,
+    },
+    crate::scene::seed::SEED_SIZE as f64,
+    "voxels",
+    "a generator's grid: a cube of this side (or give dims)",
+);
+/// Each of `[scene] dims`. A side past `DENSE_MAX_VOXELS` makes the grid sparse, whose
+/// sides are at most `MAX_SPARSE_SIDE`: no grid has one, so the range ends there.
+pub const SCENE_SIDE: Setting = Setting::new(
+    "dims",
+    Kind::Int {
+        min: 1,
+        max: DENSE_MAX_VOXELS as i64,
+    },
+    f64::NAN,
+    "voxels",
+    "each of a generator's grid's [x, y, z]; past 2^28 voxels in all the grid is a sparse tree, \
+     each side at most 4096",
+);
+/// `[scene] voxel_size`, for every source (a `.vox` file's voxels, a mesh's units).
+pub const SCENE_VOXEL_SIZE: Setting = Setting::new(
+    "voxel_size",
+    Kind::closed(MIN_VOXEL_SIZE, MAX_VOXEL_SIZE),
+    1.0,
+    "world units",
+    "a voxel's width (with a mesh, in its units and instead of resolution)",
+);
+/// `[scene] resolution`, with a mesh.
+pub const SCENE_RESOLUTION: Setting = Setting::new(
+    "resolution",
+    Kind::Int {
+        min: 1,
+        max: MAX_RESOLUTION as i64,
+    },
+    f64::NAN,
+    "voxels",
+    "with a mesh: voxels along its longest axis (or give voxel_size)",
+);
+/// `[scene] model`, with a `.vox` file.
+pub const SCENE_MODEL: Setting = Setting::new(
+    "model",
+    Kind::Int {
+        min: 0,
+        max: u32::MAX as i64,
+    },
+    f64::NAN,
+    "",
+    "with a .vox file: load only this model (0-based), unmoved (absent: the whole scene graph)",
+);
+
+/// `[ablate]`'s numbers: `crate::ablate::AblateConfig::from_str` checks them.
+pub mod ablate {
+    use super::{Kind, Setting};
+    use crate::render::MAX_SAMPLES;
+
+    /// Seeds per point when `[ablate] seeds` is not given: three is the fewest with an
+    /// interval (t = 4.30 at 2 degrees of freedom) at three times the cost of one.
+    pub(crate) const DEFAULT_SEEDS: u32 = 3;
+
+    /// The most seeds per point; far below the reference's seed offsets
+    /// (`crate::ablate`), so a point's seeds never draw the reference's samples.
+    pub(crate) const MAX_SEEDS: u32 = 64;
+
+    pub const REFERENCE_SPP: Setting = Setting::new(
+        "reference_spp",
+        Kind::Int {
+            min: 2,
+            max: MAX_SAMPLES as i64,
+        },
+        1024.0,
+        "frames",
+        "the converged reference's samples (in two halves), at least the largest swept spp",
+    );
+    pub const SPP: Setting = Setting::new(
+        "spp",
+        Kind::Int {
+            min: 1,
+            max: MAX_SAMPLES as i64,
+        },
+        f64::NAN,
+        "frames",
+        "each of the stochastic curve's sample counts, strictly ascending (default 1, 2, 4 .. 256)",
+    );
+    pub const SEEDS: Setting = Setting::new(
+        "seeds",
+        Kind::Int {
+            min: 1,
+            max: MAX_SEEDS as i64,
+        },
+        DEFAULT_SEEDS as f64,
+        "",
+        "independent renders of each point: its mean and 95 % interval",
+    );
+    pub const RUNS: Setting = Setting::new(
+        "runs",
+        Kind::Int { min: 1, max: 1000 },
+        3.0,
+        "",
+        "timed renders of each point and seed: their median is its time",
+    );
+    pub const WARMUP: Setting = Setting::new(
+        "warmup",
+        Kind::Int { min: 0, max: 100 },
+        1.0,
+        "",
+        "untimed renders before a point's timed ones",
+    );
+
+    /// Every one, in the order `voxlab settings` lists them.
+    pub const SETTINGS: &[Setting] = &[REFERENCE_SPP, SPP, SEEDS, RUNS, WARMUP];
+}
+
 /// Every declared table of the model, for listings and tests: (table, its numbers).
 pub fn model_settings() -> Vec<(&'static str, Vec<Setting>)> {
     let mut render = RENDER.iter().map(|f| f.setting).collect::<Vec<_>>();
@@ -574,12 +743,45 @@ fn range_cell(s: &Setting) -> String {
     }
 }
 
-/// Every declared number of the model as a markdown table (`voxlab settings
+/// Every declared number of an experiment file: the model's ([`model_settings`]), the
+/// scene's and `voxlab ablate`'s.
+pub fn file_settings() -> Vec<(&'static str, Vec<Setting>)> {
+    let mut all = model_settings();
+    all.insert(
+        0,
+        (
+            "scene",
+            vec![
+                SCENE_SIZE,
+                SCENE_SIDE,
+                SCENE_VOXEL_SIZE,
+                SCENE_RESOLUTION,
+                SCENE_MODEL,
+            ],
+        ),
+    );
+    all.push(("ablate", ablate::SETTINGS.to_vec()));
+    all
+}
+
+/// Every declared number of an experiment file as records (`voxlab settings --json`, the
+/// Python `settings()`), each keyed `table.key` as [`Setting::json`] writes it.
+pub fn listing_json() -> serde_json::Value {
+    file_settings()
+        .into_iter()
+        .flat_map(|(table, s)| {
+            s.into_iter()
+                .map(move |s| s.json(&format!("{table}.{}", s.key)))
+        })
+        .collect()
+}
+
+/// Every declared number of an experiment file as a markdown table (`voxlab settings
 /// --markdown`; `docs/experiments.md` holds it, and a test keeps the two equal).
 pub fn markdown() -> String {
     let mut out = String::from("| key | type | range | default | unit | what it does |\n");
     out += "|---|---|---|---|---|---|\n";
-    for (table, settings) in model_settings() {
+    for (table, settings) in file_settings() {
         for s in settings {
             let kind = match s.kind {
                 Kind::Int { .. } => "integer",

@@ -4,7 +4,7 @@
 //! value to its widget's range when it shows it: a widget narrower than the file once
 //! rendered `vfov_deg = 0.5` as 1).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use voxlab::experiment::{Experiment, to_toml};
 use voxlab::settings::{self, Kind, Setting};
@@ -294,5 +294,129 @@ fn the_docs_table_is_the_declarations() {
         &page[at..at + end],
         settings::markdown(),
         "docs/experiments.md's table differs from `voxlab settings --markdown`"
+    );
+}
+
+/// The file that sets `[scene]`'s `key` to `value`, with the source the key needs: a
+/// generator's empty grid (no voxels to fill at the largest sides), a thin triangle for
+/// a mesh's resolution (65536 voxels along it, one across), the deer for a model.
+fn scene_file(key: &str, value: &str) -> String {
+    match key {
+        "size" => format!("[scene]\ngenerator = \"empty\"\nsize = {value}\n"),
+        "dims" => format!("[scene]\ngenerator = \"empty\"\ndims = [1, {value}, 1]\n"),
+        "resolution" => format!("[scene]\nmesh = \"thin.obj\"\nresolution = {value}\n"),
+        "model" => format!("[scene]\nvox = \"{}\"\nmodel = {value}\n", deer()),
+        _ => format!("[scene]\n{key} = {value}\n"),
+    }
+}
+
+fn deer() -> String {
+    concat!(env!("CARGO_MANIFEST_DIR"), "/experiments/data/deer.vox").replace('\\', "/")
+}
+
+/// `[scene]`'s and `[ablate]`'s numbers take exactly their declared ranges, and a value
+/// outside is refused in the declaration's words under the key's name. The high end of
+/// `scene.model` depends on the file's models (the deer has one), so only its low end is
+/// accepted here.
+#[test]
+fn scene_and_ablate_numbers_take_exactly_their_declared_ranges() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("settings-scene");
+    std::fs::create_dir_all(&dir).unwrap();
+    // One unit long, a millionth across: at resolution 65536 a grid of 65536 x 1 x 1.
+    std::fs::write(
+        dir.join("thin.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 0.000001 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    let probe = dir.join("probe.toml");
+    let all = settings::file_settings();
+    let of = |t: &str| {
+        all.iter()
+            .find(|(name, _)| *name == t)
+            .map(|(_, s)| s.clone())
+            .expect("declared")
+    };
+    for s in of("scene") {
+        for (i, v) in ends(&s).into_iter().enumerate() {
+            if s.key == "model" && i == 1 {
+                continue;
+            }
+            let text = scene_file(s.key, &literal(&s, v));
+            Experiment::from_str(&text, &probe)
+                .unwrap_or_else(|e| panic!("scene.{} = {v} is in its range: {e}", s.key));
+        }
+        for v in outside(&s) {
+            let text = scene_file(s.key, &literal(&s, v));
+            let err = Experiment::from_str(&text, &probe)
+                .expect_err(&format!("scene.{} = {v} is outside its range", s.key))
+                .to_string();
+            assert!(err.contains(&format!("scene.{}", s.key)), "{err}");
+            if v.is_finite() && (v.fract() == 0.0 || matches!(s.kind, Kind::Float { .. })) {
+                assert!(
+                    err.contains(&s.range_text()),
+                    "{err}\nwant {}",
+                    s.range_text()
+                );
+            }
+        }
+    }
+    // The reference takes at least the largest swept count.
+    let ablate_file = |key: &str, value: &str| match key {
+        "spp" => format!("[ablate]\nreference_spp = 65536\nspp = [{value}]\n"),
+        "reference_spp" => format!("[ablate]\nspp = [1]\nreference_spp = {value}\n"),
+        _ => format!("[ablate]\n{key} = {value}\n"),
+    };
+    for s in of("ablate") {
+        for v in ends(&s) {
+            let text = ablate_file(s.key, &literal(&s, v));
+            let c = voxlab::ablate::AblateConfig::from_str(&text, &probe)
+                .unwrap_or_else(|e| panic!("ablate.{} = {v} is in its range: {e}", s.key));
+            let got = match s.key {
+                "reference_spp" => c.reference_spp,
+                "spp" => c.spp[0],
+                "seeds" => c.seeds,
+                "runs" => c.runs,
+                "warmup" => c.warmup,
+                k => panic!("ablate.{k} is not read here"),
+            };
+            assert_eq!(f64::from(got), v, "ablate.{}", s.key);
+        }
+        for v in outside(&s) {
+            let text = ablate_file(s.key, &literal(&s, v));
+            let err = voxlab::ablate::AblateConfig::from_str(&text, &probe)
+                .expect_err(&format!("ablate.{} = {v} is outside its range", s.key))
+                .to_string();
+            assert!(err.contains(&format!("ablate.{}", s.key)), "{err}");
+            if v.fract() == 0.0 {
+                assert!(
+                    err.contains(&s.range_text()),
+                    "{err}\nwant {}",
+                    s.range_text()
+                );
+            }
+        }
+    }
+    // The defaults are the model's.
+    let d = voxlab::ablate::AblateConfig::default();
+    for s in of("ablate").iter().filter(|s| !s.default.is_nan()) {
+        let got = match s.key {
+            "reference_spp" => d.reference_spp,
+            "seeds" => d.seeds,
+            "runs" => d.runs,
+            "warmup" => d.warmup,
+            k => panic!("ablate.{k}'s default is not read here"),
+        };
+        assert_eq!(f64::from(got), s.default, "ablate.{}", s.key);
+    }
+    let seed = Experiment::seed_default();
+    let size = of("scene")[0];
+    assert_eq!(size.key, "size");
+    assert_eq!(f64::from(seed.scene.grid.dims().x), size.default);
+    // The dims' doc states the limits it cannot format.
+    let side = of("scene")[1];
+    assert!(side.doc.contains("2^28") && voxlab::scene::DENSE_MAX_VOXELS == 1 << 28);
+    assert!(
+        side.doc
+            .contains(&voxlab::scene::MAX_SPARSE_SIDE.to_string())
     );
 }

@@ -950,6 +950,12 @@ fn techniques_json() -> String {
     voxlab::technique::listing_json().to_string()
 }
 
+/// Every declared number of an experiment file as JSON text (`voxlab settings --json`).
+#[pyfunction]
+fn settings_json() -> String {
+    voxlab::settings::listing_json().to_string()
+}
+
 /// FLIP's default viewing distance, pixels per degree (the one ablate uses).
 #[pyfunction]
 fn flip_default_ppd() -> f32 {
@@ -1196,6 +1202,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(flip, m)?)?;
     m.add_function(wrap_pyfunction!(flip_default_ppd, m)?)?;
     m.add_function(wrap_pyfunction!(techniques_json, m)?)?;
+    m.add_function(wrap_pyfunction!(settings_json, m)?)?;
     m.add_function(wrap_pyfunction!(ablate, m)?)?;
     Ok(())
 }

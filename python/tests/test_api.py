@@ -22,6 +22,30 @@ def test_techniques_are_the_command_lines_registry():
                 assert s["type"] in ("int", "float") and s["range"]
 
 
+def test_settings_are_the_command_lines_and_the_parser_holds_them():
+    mine = vx.settings()
+    assert mine == json.loads(cli("settings", "--json").stdout)
+    keys = [s["key"] for s in mine]
+    assert len(keys) == len(set(keys))
+    assert {"scene.size", "render.width", "camera.vfov_deg", "ablate.seeds"} <= set(keys)
+    # Each [render] and [camera] number with a lower bound: the bound itself loads (if
+    # closed) and a step below it is refused under the key, in the listed words.
+    checked = 0
+    for s in mine:
+        table, key = s["key"].split(".")
+        if table not in ("render", "camera") or s["min"] is None:
+            continue
+        step = 1 if s["type"] == "int" else max(abs(s["min"]) * 1e-3, 1e-9)
+        if not s["min_open"]:
+            vx.load({table: {key: s["min"]}})
+        below = int(s["min"] - step) if s["type"] == "int" else s["min"] - step
+        with pytest.raises(vx.VoxlabError) as e:
+            vx.load({table: {key: below}})
+        assert s["key"] in str(e.value) and s["range"] in str(e.value), (s, str(e.value))
+        checked += 1
+    assert checked >= 15
+
+
 def test_rmse_is_the_root_mean_square_over_every_channel():
     rng = np.random.default_rng(3)
     a = rng.random((5, 7, 3), dtype=np.float32)

@@ -42,6 +42,7 @@ __all__ = [
     "load",
     "rmse",
     "flip",
+    "settings",
     "techniques",
     "ablate",
 ]
@@ -260,6 +261,13 @@ def flip(reference: Any, test: Any, ppd: Optional[float] = None) -> tuple:
     return _native.flip(
         _image_array(reference, "reference"), _image_array(test, "test"), p
     )
+
+
+def settings() -> list:
+    """Every declared number of an experiment file (`voxlab settings --json`): per key
+    (`table.key`) its type, default (None where it has none), min, max, range, unit and
+    doc."""
+    return json.loads(_native.settings_json())
 
 
 def techniques() -> list:

@@ -187,6 +187,10 @@ def flip(
     (mean, map (height, width)). A NaN in either image spreads through the map (its
     filters read around each pixel) and into the mean."""
 
+def settings() -> list[dict[str, Any]]:
+    """Every declared number of an experiment file: key (`table.key`), type, default,
+    min, max, range, unit, doc."""
+
 def techniques() -> list[dict[str, Any]]:
     """Every technique: name, slot, switch, summary (with its paper), settings."""
 

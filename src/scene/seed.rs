@@ -8,6 +8,9 @@ use super::{
 };
 use crate::sparse::{SparseTree, VoxelSource};
 
+/// Grid side of the seed scene (`[scene] size` when neither `size` nor `dims` is given).
+pub const SEED_SIZE: u32 = 16;
+
 /// Ambient colour of the seed's implementation.
 pub(crate) const SEED_AMBIENT: DVec3 = DVec3::new(0.05, 0.075, 0.1);
 

@@ -1237,7 +1237,6 @@ fn declared_setting(r: &ListingRow, key: &str) -> Option<(String, &'static Setti
 /// technique its name, slot, switch and summary (with the paper it follows), and each
 /// setting's key, type, default (`null` where it has none), range and unit.
 pub fn listing_json() -> serde_json::Value {
-    let finite = |v: f64| v.is_finite().then_some(v);
     let rows: Vec<serde_json::Value> = listing()
         .iter()
         .map(|r| {
@@ -1245,33 +1244,7 @@ pub fn listing_json() -> serde_json::Value {
                 .settings
                 .iter()
                 .map(|key| match declared_setting(r, key) {
-                    Some((_, s)) => {
-                        let (kind, min, max, min_open, max_open) = match s.kind {
-                            crate::settings::Kind::Int { min, max } => {
-                                ("int", min as f64, max as f64, false, false)
-                            }
-                            crate::settings::Kind::Float {
-                                min,
-                                max,
-                                min_open,
-                                max_open,
-                            } => ("float", min, max, min_open, max_open),
-                        };
-                        // f64::MAX stands for "no bound".
-                        let bound = |v: f64| (v.abs() < f64::MAX).then_some(v);
-                        serde_json::json!({
-                            "key": key,
-                            "type": kind,
-                            "default": finite(s.default),
-                            "min": bound(min),
-                            "max": bound(max),
-                            "min_open": min_open,
-                            "max_open": max_open,
-                            "range": s.range_text().trim_start_matches("must be "),
-                            "unit": s.unit,
-                            "doc": s.doc,
-                        })
-                    }
+                    Some((_, s)) => s.json(key),
                     None => serde_json::json!({ "key": key }),
                 })
                 .collect();
