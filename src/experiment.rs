@@ -1062,9 +1062,17 @@ fn with_allowed_range(e: ExperimentError, text: &str, path: &Path) -> Experiment
         // A length serde refuses is not the key's: try the next.
         let raw: RawExperiment = toml::from_str(&probed).ok()?;
         let requirement = match build(raw, &Ctx::new(&probed, path), None) {
+            // An entry's probe may be refused under its array (`scene.dims[1]`: "scene.dims:
+            // every side ...").
             Err(ExperimentError::Invalid {
                 key: k, message: m, ..
-            }) if k == key => m.rsplit_once(": ").map(|(_, req)| req.to_string()),
+            }) if k == key
+                || key
+                    .strip_prefix(k.as_str())
+                    .is_some_and(|r| r.starts_with('[')) =>
+            {
+                m.rsplit_once(": ").map(|(_, req)| req.to_string())
+            }
             _ => None,
         };
         match (length, requirement) {

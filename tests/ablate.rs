@@ -661,6 +661,19 @@ fn ablate_table_errors_name_file_line_and_key() {
         "must be a list of numbers",
     );
     check("[ablate]\nspp = 4", 16, "ablate.spp", "invalid type");
+    // A declared number of the wrong type says what it takes.
+    check(
+        "[ablate]\nseeds = 1.5",
+        16,
+        "ablate.seeds = 1.5",
+        "expected an integer; must be an integer in 1..=64",
+    );
+    check(
+        "[ablate]\nspp = [1, \"2\"]",
+        16,
+        "ablate.spp[1]",
+        "expected an integer; every entry must be an integer in 1..=65536 (frames)",
+    );
     check(
         "[ablate]\nsamples = 4",
         16,

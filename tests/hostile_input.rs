@@ -408,6 +408,17 @@ fn a_type_error_in_an_array_states_its_shape_and_range() {
             "camera.target",
             "expected a sequence; an array of 3 numbers",
         ),
+        // An entry's range is its array's.
+        (
+            "[scene]\ndims = [8, 2.5, 8]\n".to_string(),
+            "scene.dims[1] = 2.5",
+            "expected an integer; every side must be an integer in 1..=268435456 (voxels)",
+        ),
+        (
+            "[scene]\nsize = \"big\"\n".to_string(),
+            "scene.size",
+            "expected an integer; must be an integer in 1..=4096 (voxels)",
+        ),
     ];
     for (text, key, says) in cases {
         let e = Experiment::from_str(&text, "x.toml")
