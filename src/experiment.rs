@@ -813,6 +813,46 @@ impl SceneCache {
     }
 }
 
+/// What an experiment's name may be, in the words of the messages.
+pub(crate) const NAME_RULE: &str =
+    "1 to 128 characters from A-Z a-z 0-9 - _ . (not starting with '.')";
+
+/// Whether `name` is an experiment's name ([`NAME_RULE`]): it names the default output
+/// file, so it is a file name on every system.
+pub(crate) fn is_valid_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= 128
+        && !name.starts_with('.')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
+}
+
+/// The name of an experiment whose file gives none: its file's stem, each character
+/// [`NAME_RULE`] does not take (a space, `<`, a letter outside ASCII) and a leading '.'
+/// as '_', cut to 128 characters. A stem taken as it was ("my scene", Python's
+/// "<dict>") rendered and then failed to write the image.
+pub(crate) fn name_from_stem(stem: &str) -> String {
+    let name: String = stem
+        .chars()
+        .enumerate()
+        .map(|(i, c)| {
+            let allowed = c.is_ascii_alphanumeric() || "-_.".contains(c);
+            if allowed && !(i == 0 && c == '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .take(128)
+        .collect();
+    if name.is_empty() {
+        "experiment".to_string()
+    } else {
+        name
+    }
+}
+
 /// What error messages need: the file's name, and the text to find lines in. The one
 /// TOML locator: the experiment's parser and `[ablate]`'s (`crate::ablate`) both name
 /// `file:line: key = value: requirement` through it.
@@ -1353,21 +1393,14 @@ fn build(
     cache: Option<&mut SceneCache>,
 ) -> Result<Experiment, ExperimentError> {
     let name = match raw.name {
-        Some(n) => {
-            let ok = !n.is_empty()
-                && n.len() <= 128
-                && !n.starts_with('.')
-                && n.chars()
-                    .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c));
-            if !ok {
-                return Err(ctx.invalid(
-                    "name",
-                    "must be 1 to 128 characters from A-Z a-z 0-9 - _ . (not starting with '.'): it names the output file",
-                ));
-            }
-            n
+        Some(n) if is_valid_name(&n) => n,
+        Some(_) => {
+            return Err(ctx.invalid(
+                "name",
+                format!("must be {NAME_RULE}: it names the output file"),
+            ));
         }
-        None => ctx.stem.clone(),
+        None => name_from_stem(&ctx.stem),
     };
 
     // Render settings first: the ambient colour belongs to the scene.

@@ -573,3 +573,40 @@ fn check_compares_like_with_like() {
         );
     }
 }
+
+/// A file whose name is no experiment name (a space, a letter outside ASCII, a leading
+/// '.') and that gives none renders under its stem made valid, to the default path: it
+/// once rendered and then failed to write the image's record.
+#[test]
+fn a_file_name_that_is_no_experiment_name_still_renders_and_writes() {
+    let dir = scratch("stem-names");
+    let text = std::fs::read_to_string(baseline()).unwrap();
+    for (file, name) in [
+        ("my scene.toml", "my_scene"),
+        ("\u{fc}ber.toml", "_ber"),
+        (".hidden.toml", "_hidden"),
+    ] {
+        std::fs::write(dir.join(file), &text).unwrap();
+        let o = voxlab(
+            &dir,
+            &[
+                "render",
+                file,
+                "--backend",
+                "cpu",
+                "--width",
+                "8",
+                "--height",
+                "8",
+            ],
+        );
+        let (stdout, stderr) = self::text(&o);
+        assert!(o.status.success(), "{file}: {stderr}");
+        let png = dir.join("out").join(format!("{name}.png"));
+        assert!(png.is_file(), "{file}: no {}\n{stdout}", png.display());
+        let record =
+            std::fs::read_to_string(dir.join("out").join(format!("{name}.png.json"))).unwrap();
+        let record: serde_json::Value = serde_json::from_str(&record).unwrap();
+        assert_eq!(record["experiment"], name, "{file}");
+    }
+}

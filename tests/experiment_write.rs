@@ -611,3 +611,26 @@ fn the_cache_applies_boxes_and_mesh_materials_to_a_copy() {
         }
     }
 }
+
+/// An experiment named by its file's stem has a name the writer takes, whatever the
+/// stem: Python's dicts and texts are "<dict>" and "<text>" in messages.
+#[test]
+fn a_name_taken_from_a_stem_is_one_the_writer_takes() {
+    let long = "x".repeat(300);
+    for (stem, want) in [
+        ("<dict>", "_dict_".to_string()),
+        ("my scene", "my_scene".to_string()),
+        ("..dots", "_.dots".to_string()),
+        ("ok-name_1.2", "ok-name_1.2".to_string()),
+        ("\u{e9}t\u{e9}", "_t_".to_string()),
+        (long.as_str(), "x".repeat(128)),
+    ] {
+        let e = Experiment::from_str("[render]\nwidth = 8\n", Path::new(&format!("{stem}.toml")))
+            .unwrap_or_else(|err| panic!("{stem}: {err}"));
+        assert_eq!(e.name, want, "{stem}");
+        let text = to_toml(&e, &toml::Table::new())
+            .unwrap_or_else(|err| panic!("{stem}: the writer refuses {:?}: {err}", e.name));
+        let again = Experiment::from_str(&text, Path::new("elsewhere.toml")).unwrap();
+        assert_eq!(again.name, want);
+    }
+}

@@ -51,6 +51,30 @@ def test_the_record_re_renders_the_same_image_through_the_command_line(backend, 
         assert np.mean(d > 2) <= 0.005
 
 
+@pytest.mark.parametrize(
+    "source, name, want",
+    [
+        ({"render": {"width": 8, "height": 8}}, None, "_dict_"),
+        ("[render]\nwidth = 8\nheight = 8\n", None, "_text_"),
+        ({"render": {"width": 8, "height": 8}}, "my sweep", "my_sweep"),
+    ],
+)
+def test_a_dict_or_text_renders_saves_and_records(cpu, tmp_path, source, name, want):
+    """Loaded without a file, the experiment is named after its label made a valid name
+    (its image once rendered and then had no record: "<dict>" is no experiment name)."""
+    e = vx.load(source, name=name)
+    assert e.name == want
+    im = cpu.render(e)
+    assert im.provenance["experiment"] == want
+    im.save(tmp_path / "a.png")
+    resolved = tmp_path / "resolved.toml"
+    resolved.write_text(json.loads((tmp_path / "a.png.json").read_text())["resolved_experiment"])
+    cli("render", resolved, "--backend", "cpu", "--out", tmp_path / "b.png")
+    assert np.array_equal(
+        np.asarray(PILImage.open(tmp_path / "a.png")), np.asarray(PILImage.open(tmp_path / "b.png"))
+    )
+
+
 def test_an_experiment_edited_on_disk_renders_and_records_what_was_loaded(cpu, tmp_path):
     """The file changed after vx.load: the image is the loaded experiment's, and its
     record quotes the file as it was read (it used to read the file again: the record's

@@ -134,7 +134,9 @@ def load(
     """An experiment from a file path, TOML text (any string with a newline or that
     starts with '['), or a dict of the file's tables; `set` overrides keys as the
     command line's `--set` does (`{"render.spp": 8, "features.shadow_model": "sdf"}`).
-    `name` names text or a dict in messages. Raises VoxlabError with the command
+    `name` names text or a dict in messages (default "<dict>", "<text>") and, unless
+    the file gives `name`, the experiment, each character other than A-Z a-z 0-9 - _ .
+    as '_' ("_dict_"), as a file's stem does. Raises VoxlabError with the command
     line's message."""
     sets = _overrides(set)
     if isinstance(source, Mapping):

@@ -388,19 +388,10 @@ pub fn to_toml(e: &Experiment, scene_source: &Table) -> Result<String, WriteErro
         key,
         message,
     };
-    let name_ok = !e.name.is_empty()
-        && e.name.len() <= 128
-        && !e.name.starts_with('.')
-        && e.name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c));
-    if !name_ok {
+    if !super::is_valid_name(&e.name) {
         return Err(err(
             "name".into(),
-            format!(
-                "{:?}: an experiment name is 1 to 128 characters from A-Z a-z 0-9 - _ . (not starting with '.')",
-                e.name
-            ),
+            format!("{:?}: an experiment name is {}", e.name, super::NAME_RULE),
         ));
     }
     let materials = &e.scene.materials;
