@@ -50,9 +50,10 @@ pub struct Experiment {
     pub name: String,
     /// The file it was read from (`None` for built-in experiments).
     pub source_path: Option<PathBuf>,
-    /// What was read from `source_path` and when: records quote it, whatever the
-    /// files hold by the time an image is written (`None` where nothing was read, or
-    /// where `source_path` was set by hand: records then read the file).
+    /// The text it was parsed from, as read from `source_path` or given, and its
+    /// assets when read: records quote it, whatever the files hold by the time an image
+    /// is written (`None` for built-in experiments, voxels set in memory, or where
+    /// `source_path` was set by hand: records then read the file).
     pub source_record: Option<Arc<SourceRecord>>,
     pub scene: Scene,
     /// Render settings, the feature switches (`settings.features`) included.
@@ -446,13 +447,35 @@ impl Experiment {
     }
 
     /// Parses and validates experiment text; `path` names it in messages and gives the
-    /// default name (its stem). `source_path` stays `None`: nothing was read from disk.
+    /// default name (its stem). `source_path` stays `None`: nothing was read from disk;
+    /// `source_record` holds the text, so that an image's record gives its `[scene]`.
     pub fn from_str(text: &str, path: impl AsRef<Path>) -> Result<Self, ExperimentError> {
         let path = path.as_ref();
+        Self::parse(text, path, None)?.recorded(text, path, &[])
+    }
+
+    /// The parser itself: text to a checked experiment, without its record.
+    fn parse(
+        text: &str,
+        path: &Path,
+        cache: Option<&mut SceneCache>,
+    ) -> Result<Self, ExperimentError> {
         let ctx = Ctx::new(text, path);
         let raw: RawExperiment = toml::from_str(text)
             .map_err(|e| with_allowed_range(ctx.serde_error(&e), text, path))?;
-        build(raw, &ctx, None)
+        build(raw, &ctx, cache)
+    }
+
+    /// The experiment with the record of `text` (read from `path`, or named so) and
+    /// `overrides` ([`SourceRecord`]).
+    fn recorded(
+        mut self,
+        text: &str,
+        path: &Path,
+        overrides: &[Override],
+    ) -> Result<Self, ExperimentError> {
+        self.source_record = Some(Arc::new(SourceRecord::new(path, text, overrides)?));
+        Ok(self)
     }
 
     /// [`Experiment::from_str`], but the grid and the file palette come from `cache` when
@@ -466,10 +489,7 @@ impl Experiment {
         cache: &mut SceneCache,
     ) -> Result<Self, ExperimentError> {
         let path = path.as_ref();
-        let ctx = Ctx::new(text, path);
-        let raw: RawExperiment = toml::from_str(text)
-            .map_err(|e| with_allowed_range(ctx.serde_error(&e), text, path))?;
-        build(raw, &ctx, Some(cache))
+        Self::parse(text, path, Some(cache))?.recorded(text, path, &[])
     }
 }
 
@@ -671,7 +691,17 @@ impl Experiment {
         text: &str,
         overrides: &[Override],
     ) -> Result<(), ExperimentError> {
-        self.source_record = Some(Arc::new(SourceRecord::new(path, text, overrides)?));
+        // Parsed from this very text and path: the record made then holds.
+        let labels: Vec<String> = overrides.iter().map(|o| o.to_string()).collect();
+        let made = self.source_record.as_ref().is_some_and(|r| {
+            *r.text == *text
+                && r.overrides == labels
+                && r.inputs.first().and_then(|i| i["path"].as_str())
+                    == Some(path.display().to_string().as_str())
+        });
+        if !made {
+            self.source_record = Some(Arc::new(SourceRecord::new(path, text, overrides)?));
+        }
         self.source_path = Some(path.to_path_buf());
         Ok(())
     }
@@ -698,9 +728,11 @@ impl Experiment {
         if overrides.is_empty() {
             return Self::from_str_cached(text, path, cache);
         }
-        Self::from_str_cached(text, path, cache)?;
+        Self::parse(text, path, Some(&mut *cache))?;
         let edited = apply_overrides(text, overrides)?;
-        Self::from_str_cached(&edited, path, cache).map_err(|e| blame_override(e, overrides))
+        Self::parse(&edited, path, Some(cache))
+            .map_err(|e| blame_override(e, overrides))?
+            .recorded(text, path, overrides)
     }
 }
 

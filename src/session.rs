@@ -457,13 +457,10 @@ impl Image {
         let labels: Vec<String> = overrides.iter().map(|o| o.to_string()).collect();
         // The [scene] table as the file (with the overrides) gives it, so the resolved
         // experiment renders again from its own text.
-        let recorded = e
-            .source_record
-            .as_ref()
-            .filter(|r| e.source_path.is_some() && r.overrides == labels);
+        let recorded = e.source_record.as_ref().filter(|r| r.overrides == labels);
         let (scene_source, assets) = match (&e.source_path, recorded) {
-            // As the files were when it was read.
-            (Some(_), Some(r)) => (r.scene.clone(), r.inputs.clone()),
+            // As the files (or the text) were when it was read.
+            (_, Some(r)) => (r.scene.clone(), r.inputs.clone()),
             (Some(p), None) => {
                 let text = crate::experiment::read_text(p)?;
                 let text = crate::experiment::apply_overrides(&text, overrides)?;
@@ -472,7 +469,20 @@ impl Image {
             }
             (None, _) => (toml::Table::new(), Vec::new()),
         };
-        let resolved = crate::experiment::to_toml(e, &scene_source)?;
+        let mut resolved = crate::experiment::to_toml(e, &scene_source)?;
+        // No [scene] table: the file renders the seed's scene at its size, which is not
+        // what was rendered where the voxels were set in memory.
+        let seed_size = glam::UVec3::splat(crate::scene::seed::SEED_SIZE);
+        if scene_source.is_empty()
+            && crate::scene::seed::seed_grid(seed_size, 1.0, glam::DVec3::ZERO)
+                .is_ok_and(|g| g != e.scene.grid)
+        {
+            resolved = resolved.replacen(
+                crate::experiment::write::HEADER,
+                crate::experiment::write::IN_MEMORY_HEADER,
+                1,
+            );
+        }
         let s = &self.stats;
         Ok(serde_json::json!({
             "voxlab": env!("CARGO_PKG_VERSION"),

@@ -169,6 +169,62 @@ fn a_record_quotes_the_files_as_they_were_read() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Text parsed without a file (the library's `from_str`, Python's dicts and text) is
+/// recorded with its `[scene]`: the record's resolved experiment gave an empty one, so
+/// it rendered the seed's 16^3 scene in place of the 8^3 one it claimed to render
+/// exactly. Voxels set in memory have no `[scene]` table, and the record says so.
+#[test]
+fn a_record_of_text_gives_its_scene_and_one_of_voxels_in_memory_says_so() {
+    let record = |e: &Experiment, set: &[Override]| {
+        let image = voxlab::Session::cpu().render(e).unwrap();
+        let r = image
+            .provenance(e, set, voxlab::frame::DisplayTransform::default(), None)
+            .unwrap();
+        (image, r)
+    };
+    let text = "[scene]\ngenerator = \"seed\"\nsize = 8\n[render]\nwidth = 8\nheight = 8\n";
+    let set: Vec<Override> = vec!["scene.voxel_size=0.5".parse().unwrap()];
+    for (e, set) in [
+        (Experiment::from_str(text, "<text>").unwrap(), vec![]),
+        (
+            Experiment::from_str_with(text, "<dict>", &set).unwrap(),
+            set.clone(),
+        ),
+    ] {
+        assert_eq!(e.source_path, None);
+        let (image, r) = record(&e, &set);
+        let resolved = r["resolved_experiment"].as_str().unwrap();
+        assert!(resolved.contains("size = 8"), "{resolved}");
+        let again = Experiment::from_str(resolved, "again.toml").unwrap();
+        assert!(
+            again.scene.grid == e.scene.grid,
+            "the record renders other voxels"
+        );
+        let (image_again, _) = record(&again, &[]);
+        assert_eq!(image_again.radiance(), image.radiance());
+        // The text itself is the first input, by its hash.
+        assert_eq!(
+            r["assets"][0]["blake3"].as_str().unwrap(),
+            blake3::hash(text.as_bytes()).to_hex().to_string()
+        );
+    }
+    // The same voxels put in memory: the same [scene]-less record as the seed's own.
+    let mut e = Experiment::from_str(text, "<text>").unwrap();
+    let (grid, materials) = (e.scene.grid.clone(), e.scene.materials.clone());
+    e.set_grid(grid, materials).unwrap();
+    let (_, r) = record(&e, &[]);
+    let resolved = r["resolved_experiment"].as_str().unwrap();
+    assert!(
+        resolved.starts_with(
+            "# Written by voxlab from an experiment whose voxels were given in memory"
+        ),
+        "{resolved}"
+    );
+    let (_, r) = record(&Experiment::seed_default(), &[]);
+    let resolved = r["resolved_experiment"].as_str().unwrap();
+    assert!(resolved.contains("renders exactly this"), "{resolved}");
+}
+
 /// `--display srgb` and `--exposure`: the PNG holds the sRGB encoding of 2^EV times the
 /// radiance the EXR holds, and the record says so.
 #[test]

@@ -54,14 +54,16 @@ def test_the_record_re_renders_the_same_image_through_the_command_line(backend, 
 @pytest.mark.parametrize(
     "source, name, want",
     [
-        ({"render": {"width": 8, "height": 8}}, None, "_dict_"),
-        ("[render]\nwidth = 8\nheight = 8\n", None, "_text_"),
+        ({"scene": {"size": 8}, "render": {"width": 8, "height": 8}}, None, "_dict_"),
+        ("[scene]\nsize = 8\n[render]\nwidth = 8\nheight = 8\n", None, "_text_"),
         ({"render": {"width": 8, "height": 8}}, "my sweep", "my_sweep"),
     ],
 )
 def test_a_dict_or_text_renders_saves_and_records(cpu, tmp_path, source, name, want):
     """Loaded without a file, the experiment is named after its label made a valid name
-    (its image once rendered and then had no record: "<dict>" is no experiment name)."""
+    (its image once rendered and then had no record: "<dict>" is no experiment name),
+    and its record's resolved experiment keeps its [scene] (it once gave an empty one,
+    which rendered the seed's 16^3 scene in place of the 8^3)."""
     e = vx.load(source, name=name)
     assert e.name == want
     im = cpu.render(e)
@@ -72,6 +74,16 @@ def test_a_dict_or_text_renders_saves_and_records(cpu, tmp_path, source, name, w
     cli("render", resolved, "--backend", "cpu", "--out", tmp_path / "b.png")
     assert np.array_equal(
         np.asarray(PILImage.open(tmp_path / "a.png")), np.asarray(PILImage.open(tmp_path / "b.png"))
+    )
+
+
+def test_a_record_of_voxels_in_memory_says_it_does_not_give_them(cpu):
+    a = np.zeros((6, 6, 6), dtype=np.uint8)
+    a[1:5, 0, 1:5] = 3
+    e = small("baseline.toml").with_grid(vx.Grid.from_numpy(a))
+    resolved = cpu.render(e).provenance["resolved_experiment"]
+    assert resolved.startswith(
+        "# Written by voxlab from an experiment whose voxels were given in memory"
     )
 
 

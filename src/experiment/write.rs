@@ -38,6 +38,13 @@ pub struct WriteError {
 pub(crate) const HEADER: &str = "# Written by voxlab from an experiment, every value resolved: \
                           `voxlab render` renders exactly this.";
 
+/// [`HEADER`] where the voxels were given in memory (Python's `with_grid`): no `[scene]`
+/// table gives them, and the file renders its settings over the seed's scene.
+pub(crate) const IN_MEMORY_HEADER: &str = "# Written by voxlab from an experiment whose voxels \
+    were given in memory (its image's record names them: \"grid\", their blake3 hash), every \
+    other value resolved: `voxlab render` renders these settings over the seed's scene, \
+    not those voxels.";
+
 /// The `[scene]` table of experiment text as written (empty if the file has none), with
 /// relative `vox` and `mesh` paths resolved against the file's directory, as the loader
 /// resolves them, and made absolute (canonical where the file exists); absolute paths
