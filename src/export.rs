@@ -985,9 +985,19 @@ pub fn write_mitsuba(
     let xml = dir.join("scene.xml");
     let mut outputs: Vec<PathBuf> = scene.files.iter().map(|(p, _)| dir.join(p)).collect();
     outputs.push(crate::output::sidecar_path(&xml));
-    let inputs = match &e.source_path {
-        Some(p) => crate::experiment::write::input_files(text, p),
-        None => Vec::new(),
+    // Text parsed without a file (Python's dicts and text) reads its assets all the same,
+    // relative to where its label names it; the label itself is no file.
+    let inputs = match (&e.source_path, &e.source_record) {
+        (Some(p), _) => crate::experiment::write::input_files(text, p),
+        (None, Some(r)) => {
+            let label = r
+                .inputs
+                .first()
+                .and_then(|i| i["path"].as_str())
+                .unwrap_or("");
+            crate::experiment::write::input_files(text, std::path::Path::new(label)).split_off(1)
+        }
+        (None, None) => Vec::new(),
     };
     if let Some((o, i)) = crate::experiment::write::overwrites(&outputs, &inputs) {
         return Err(Error::new(
@@ -1008,6 +1018,9 @@ pub fn write_mitsuba(
         serde_json::json!({
             "experiment": e.name,
             "experiment_text": text,
+            // The voxels exported, whatever gave them (the text's [scene], or an array
+            // set in memory, which the text does not give).
+            "grid": e.scene.grid.record(),
             "strict": strict,
             "triangles": scene.triangles,
             "files": scene.files.iter().map(|(p, _)| p.display().to_string()).collect::<Vec<_>>(),

@@ -514,12 +514,7 @@ impl Image {
                 "counted": s.total_rays() > 0,
             },
             // The voxels rendered, whatever made them (a file, a generator, an array).
-            "grid": {
-                "dims": e.scene.grid.dims().to_array(),
-                "voxel_size": e.scene.grid.voxel_size(),
-                "origin": e.scene.grid.origin().to_array(),
-                "blake3": e.scene.grid.content_hash().to_hex().to_string(),
-            },
+            "grid": e.scene.grid.record(),
             "finite": self.frame.all_finite(),
             "output": output.map(|p| p.display().to_string()),
             "resolved_experiment": resolved,

@@ -496,3 +496,51 @@ fn beer_lambert_glass_gets_an_absorbing_interior() {
     let msg = mitsuba(&e, false).unwrap_err().to_string();
     assert!(msg.contains("materials[clear].sigma"), "{msg}");
 }
+
+/// An export's record names what it read and the voxels it wrote: text parsed without a
+/// file (Python's dicts and text) hashes its mesh as a file's would (it listed no
+/// inputs), and voxels set in memory, which no text gives, are named by their hash.
+#[test]
+fn the_record_names_the_inputs_of_text_and_the_voxels_written() {
+    let root = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("export-record");
+    let _ = std::fs::remove_dir_all(&root);
+    std::fs::create_dir_all(&root).unwrap();
+    let mesh = root.join("tet.obj");
+    std::fs::write(
+        &mesh,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .unwrap();
+    let text = format!(
+        "[scene]\nmesh = {:?}\nresolution = 4\nmaterial = \"solid\"\n",
+        mesh.display().to_string()
+    );
+    let record = |e: &Experiment, out: &str| -> serde_json::Value {
+        let dir = root.join(out);
+        voxlab::export::write_mitsuba(e, &text, &dir, false).unwrap();
+        serde_json::from_slice(&std::fs::read(dir.join("scene.xml.json")).unwrap()).unwrap()
+    };
+    let e = Experiment::from_str(&text, "<dict>").unwrap();
+    let r = record(&e, "text");
+    let inputs: Vec<&str> = r["inputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["path"].as_str().unwrap())
+        .collect();
+    assert_eq!(inputs, [mesh.display().to_string()], "{r:#}");
+    assert_eq!(r["grid"], e.scene.grid.record());
+    // Other voxels set in memory: the record names those.
+    let mut moved = e.clone();
+    let other = Grid::new(UVec3::new(3, 2, 1), 1.0, DVec3::ZERO).unwrap();
+    moved
+        .set_grid(other.clone(), e.scene.materials.clone())
+        .unwrap();
+    let r = record(&moved, "memory");
+    assert_eq!(
+        r["grid"]["blake3"],
+        other.content_hash().to_hex().to_string()
+    );
+    assert_ne!(r["grid"], record(&e, "text-again")["grid"]);
+    let _ = std::fs::remove_dir_all(&root);
+}

@@ -256,6 +256,17 @@ impl Grid {
         }
     }
 
+    /// What a record names the voxels by, whatever made them (a file, a generator, an
+    /// array): dims, voxel size, origin and the content's blake3 hash.
+    pub fn record(&self) -> serde_json::Value {
+        serde_json::json!({
+            "dims": self.dims().to_array(),
+            "voxel_size": self.voxel_size(),
+            "origin": self.origin().to_array(),
+            "blake3": self.content_hash().to_hex().to_string(),
+        })
+    }
+
     /// A hash of the voxels as bytes: not of the placement, nor of the dims (the same
     /// bytes in another shape hash alike), so the device caches keyed by it hold the
     /// dims beside it.
