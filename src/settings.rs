@@ -651,6 +651,37 @@ pub const SCENE_MODEL: Setting = Setting::new(
     "with a .vox file: load only this model (0-based), unmoved (absent: the whole scene graph)",
 );
 
+/// `[[scene.models]] model`, with a `.vox` file.
+pub const MODEL_INDEX: Setting = Setting::new(
+    "model",
+    Kind::Int {
+        min: 0,
+        max: u32::MAX as i64,
+    },
+    f64::NAN,
+    "",
+    "with vox: only this model of the file (0-based; absent: the whole scene graph)",
+);
+/// `[[scene.models]] resolution`, with a mesh; the grid's longest side bounds it too.
+pub const MODEL_RESOLUTION: Setting = Setting::new(
+    "resolution",
+    Kind::Int {
+        min: 1,
+        max: MAX_RESOLUTION as i64,
+    },
+    f64::NAN,
+    "voxels",
+    "with mesh: voxels along its longest axis, at most the grid's longest side",
+);
+/// `[[scene.models]] scale`: each voxel of a `.vox` model becomes scale^3 voxels.
+pub const MODEL_SCALE: Setting = Setting::new(
+    "scale",
+    Kind::Int { min: 1, max: 16 },
+    1.0,
+    "",
+    "with vox: each voxel becomes a cube of scale^3 voxels",
+);
+
 /// `[ablate]`'s numbers: `crate::ablate::AblateConfig::from_str` checks them.
 pub mod ablate {
     use super::{Kind, Setting};
@@ -758,6 +789,13 @@ pub fn file_settings() -> Vec<(&'static str, Vec<Setting>)> {
                 SCENE_RESOLUTION,
                 SCENE_MODEL,
             ],
+        ),
+    );
+    all.insert(
+        1,
+        (
+            "scene.models",
+            vec![MODEL_INDEX, MODEL_RESOLUTION, MODEL_SCALE],
         ),
     );
     all.push(("ablate", ablate::SETTINGS.to_vec()));

@@ -360,6 +360,52 @@ fn scene_and_ablate_numbers_take_exactly_their_declared_ranges() {
             }
         }
     }
+    // A one-voxel .vox model (scale 16 fills a 16^3 grid) and the thin triangle
+    // (resolution 65536 along a grid as long).
+    let mut cube = voxlab::Grid::new(glam::UVec3::ONE, 1.0, glam::DVec3::ZERO).unwrap();
+    cube.set(glam::IVec3::ZERO, 1);
+    voxlab::scene::write_vox(
+        dir.join("one.vox"),
+        &cube,
+        &voxlab::scene::seed_palette()[1..],
+    )
+    .unwrap();
+    let model_file = |key: &str, value: &str| match key {
+        "resolution" => format!(
+            "[scene]\ngenerator = \"empty\"\ndims = [65536, 1, 1]\n\
+             [[scene.models]]\nmesh = \"thin.obj\"\nmaterial = \"solid\"\nresolution = {value}\n"
+        ),
+        _ => format!(
+            "[scene]\ngenerator = \"empty\"\nsize = 16\n[[scene.models]]\nvox = \"one.vox\"\n{key} = {value}\n"
+        ),
+    };
+    for s in of("scene.models") {
+        for (i, v) in ends(&s).into_iter().enumerate() {
+            if s.key == "model" && i == 1 {
+                continue;
+            }
+            let text = model_file(s.key, &literal(&s, v));
+            Experiment::from_str(&text, &probe)
+                .unwrap_or_else(|e| panic!("scene.models.{} = {v} is in its range: {e}", s.key));
+        }
+        for v in outside(&s) {
+            let text = model_file(s.key, &literal(&s, v));
+            let err = Experiment::from_str(&text, &probe)
+                .expect_err(&format!(
+                    "scene.models.{} = {v} is outside its range",
+                    s.key
+                ))
+                .to_string();
+            assert!(err.contains(&format!("scene.models[0].{}", s.key)), "{err}");
+            if v.is_finite() && v.fract() == 0.0 {
+                assert!(
+                    err.contains(&s.range_text()),
+                    "{err}\nwant {}",
+                    s.range_text()
+                );
+            }
+        }
+    }
     // The reference takes at least the largest swept count.
     let ablate_file = |key: &str, value: &str| match key {
         "spp" => format!("[ablate]\nreference_spp = 65536\nspp = [{value}]\n"),

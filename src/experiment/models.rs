@@ -14,14 +14,13 @@ use std::path::Path;
 use glam::{IVec3, UVec3};
 use serde::Deserialize;
 
-use super::{Ctx, ExperimentError, MaterialRef, int_in};
+use super::{Ctx, ExperimentError, MaterialRef, declared, int_in};
 use crate::scene::{Grid, Material, Scene};
+use crate::settings::{MODEL_INDEX, MODEL_RESOLUTION, MODEL_SCALE};
 use crate::sparse::{ModelOverlay, PlacedModel, SparseTree};
 
 /// At most this many models in one scene: each is a file load, bounded on its own.
 pub(crate) const MAX_MODELS: usize = 64;
-/// A `.vox` model's largest integer scale (each voxel becomes scale^3 voxels).
-pub(crate) const MAX_MODEL_SCALE: i64 = 16;
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -96,7 +95,7 @@ pub(super) fn load_models(
             (Some(p), None) => {
                 let model = match m.model {
                     Some(v) => {
-                        Some(int_in(ctx, &key(i, "model"), v, 0..=i64::from(u32::MAX))? as usize)
+                        Some(declared(ctx, &key(i, "model"), &MODEL_INDEX, v as f64)? as usize)
                     }
                     None => None,
                 };
@@ -115,6 +114,7 @@ pub(super) fn load_models(
                 };
                 // A model must fit the grid: a longer axis than the grid's longest side
                 // is refused before the (bounded, but possibly large) voxelization.
+                declared(ctx, &key(i, "resolution"), &MODEL_RESOLUTION, n as f64)?;
                 let side = grid.max_element().min(MAX_RESOLUTION);
                 let n = int_in(ctx, &key(i, "resolution"), n, 1..=i64::from(side))?;
                 let options = VoxelizeOptions {
@@ -228,7 +228,7 @@ pub(super) fn place_models(
             (None, None) => unreachable!("extend_palette maps every model without a material"),
         };
         let scale = match m.scale {
-            Some(s) => int_in(ctx, &key(i, "scale"), s, 1..=MAX_MODEL_SCALE)?,
+            Some(s) => declared(ctx, &key(i, "scale"), &MODEL_SCALE, s as f64)? as u32,
             None => 1,
         };
         let size = l.grid.dims() * scale;
