@@ -2024,7 +2024,7 @@ fn load_scene_file(s: &RawScene, ctx: &Ctx) -> Result<Option<LoadedScene>, Exper
     let (grid, palette, mesh) = if let Some(p) = &s.vox {
         let model = match s.model {
             Some(m) => {
-                Some(declared(ctx, "scene.model", &settings::SCENE_MODEL, m as f64)? as usize)
+                Some(declared(ctx, "scene.model", &settings::VOX_MODEL, m as f64)? as usize)
             }
             None => None,
         };

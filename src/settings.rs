@@ -46,6 +46,11 @@ impl Kind {
         }
     }
 
+    /// An integer in `min..=max`.
+    pub const fn int(min: i64, max: i64) -> Self {
+        Kind::Int { min, max }
+    }
+
     /// A number `> min` (up to `max`, included).
     pub const fn above(min: f64, max: f64) -> Self {
         Kind::Float {
@@ -512,10 +517,7 @@ pub const MAX_WALK_BUDGET_MIB: u32 = 1 << 16;
 /// `[render] max_depth`: optional, so not a [`Field`] of [`RENDER`].
 pub(crate) const MAX_DEPTH: Setting = Setting::new(
     "max_depth",
-    Kind::Int {
-        min: 0,
-        max: MAX_TOTAL_DEPTH_LIMIT as i64,
-    },
+    Kind::int(0, MAX_TOTAL_DEPTH_LIMIT as i64),
     f64::NAN,
     "",
     "reflections and refractions together along one path (absent: no joint bound)",
@@ -599,10 +601,7 @@ pub const LIGHT_ROTATION: Setting = Setting::new(
 /// `scene::MAX_SPARSE_SIDE`.
 pub const SCENE_SIZE: Setting = Setting::new(
     "size",
-    Kind::Int {
-        min: 1,
-        max: MAX_SPARSE_SIDE as i64,
-    },
+    Kind::int(1, MAX_SPARSE_SIDE as i64),
     crate::scene::seed::SEED_SIZE as f64,
     "voxels",
     "a generator's grid: a cube of this side (or give dims)",
@@ -611,10 +610,7 @@ pub const SCENE_SIZE: Setting = Setting::new(
 /// sides are at most `MAX_SPARSE_SIDE`: no grid has one, so the range ends there.
 pub const SCENE_SIDE: Setting = Setting::new(
     "dims",
-    Kind::Int {
-        min: 1,
-        max: DENSE_MAX_VOXELS as i64,
-    },
+    Kind::int(1, DENSE_MAX_VOXELS as i64),
     f64::NAN,
     "voxels",
     "each of a generator's grid's [x, y, z]; past 2^28 voxels in all the grid is a sparse tree, \
@@ -631,44 +627,24 @@ pub const SCENE_VOXEL_SIZE: Setting = Setting::new(
 /// `[scene] resolution`, with a mesh.
 pub const SCENE_RESOLUTION: Setting = Setting::new(
     "resolution",
-    Kind::Int {
-        min: 1,
-        max: MAX_RESOLUTION as i64,
-    },
+    Kind::int(1, MAX_RESOLUTION as i64),
     f64::NAN,
     "voxels",
     "with a mesh: voxels along its longest axis (or give voxel_size)",
 );
-/// `[scene] model`, with a `.vox` file.
-pub const SCENE_MODEL: Setting = Setting::new(
+/// `model` of `[scene]` and of `[[scene.models]]`, with a `.vox` file.
+pub const VOX_MODEL: Setting = Setting::new(
     "model",
-    Kind::Int {
-        min: 0,
-        max: u32::MAX as i64,
-    },
+    Kind::int(0, u32::MAX as i64),
     f64::NAN,
     "",
-    "with a .vox file: load only this model (0-based), unmoved (absent: the whole scene graph)",
+    "with a .vox file: only this model of the file (0-based), unmoved (absent: the whole scene graph)",
 );
 
-/// `[[scene.models]] model`, with a `.vox` file.
-pub const MODEL_INDEX: Setting = Setting::new(
-    "model",
-    Kind::Int {
-        min: 0,
-        max: u32::MAX as i64,
-    },
-    f64::NAN,
-    "",
-    "with vox: only this model of the file (0-based; absent: the whole scene graph)",
-);
 /// `[[scene.models]] resolution`, with a mesh; the grid's longest side bounds it too.
 pub const MODEL_RESOLUTION: Setting = Setting::new(
     "resolution",
-    Kind::Int {
-        min: 1,
-        max: MAX_RESOLUTION as i64,
-    },
+    Kind::int(1, MAX_RESOLUTION as i64),
     f64::NAN,
     "voxels",
     "with mesh: voxels along its longest axis, at most the grid's longest side",
@@ -676,7 +652,7 @@ pub const MODEL_RESOLUTION: Setting = Setting::new(
 /// `[[scene.models]] scale`: each voxel of a `.vox` model becomes scale^3 voxels.
 pub const MODEL_SCALE: Setting = Setting::new(
     "scale",
-    Kind::Int { min: 1, max: 16 },
+    Kind::int(1, 16),
     1.0,
     "",
     "with vox: each voxel becomes a cube of scale^3 voxels",
@@ -697,44 +673,35 @@ pub mod ablate {
 
     pub const REFERENCE_SPP: Setting = Setting::new(
         "reference_spp",
-        Kind::Int {
-            min: 2,
-            max: MAX_SAMPLES as i64,
-        },
+        Kind::int(2, MAX_SAMPLES as i64),
         1024.0,
         "frames",
         "the converged reference's samples (in two halves), at least the largest swept spp",
     );
     pub const SPP: Setting = Setting::new(
         "spp",
-        Kind::Int {
-            min: 1,
-            max: MAX_SAMPLES as i64,
-        },
+        Kind::int(1, MAX_SAMPLES as i64),
         f64::NAN,
         "frames",
         "each of the stochastic curve's sample counts, strictly ascending (default 1, 2, 4 .. 256)",
     );
     pub const SEEDS: Setting = Setting::new(
         "seeds",
-        Kind::Int {
-            min: 1,
-            max: MAX_SEEDS as i64,
-        },
+        Kind::int(1, MAX_SEEDS as i64),
         DEFAULT_SEEDS as f64,
         "",
         "independent renders of each point: its mean and 95 % interval",
     );
     pub const RUNS: Setting = Setting::new(
         "runs",
-        Kind::Int { min: 1, max: 1000 },
+        Kind::int(1, 1000),
         3.0,
         "",
         "timed renders of each point and seed: their median is its time",
     );
     pub const WARMUP: Setting = Setting::new(
         "warmup",
-        Kind::Int { min: 0, max: 100 },
+        Kind::int(0, 100),
         1.0,
         "",
         "untimed renders before a point's timed ones",
@@ -787,7 +754,7 @@ pub fn file_settings() -> Vec<(&'static str, Vec<Setting>)> {
                 SCENE_SIDE,
                 SCENE_VOXEL_SIZE,
                 SCENE_RESOLUTION,
-                SCENE_MODEL,
+                VOX_MODEL,
             ],
         ),
     );
@@ -795,7 +762,7 @@ pub fn file_settings() -> Vec<(&'static str, Vec<Setting>)> {
         1,
         (
             "scene.models",
-            vec![MODEL_INDEX, MODEL_RESOLUTION, MODEL_SCALE],
+            vec![VOX_MODEL, MODEL_RESOLUTION, MODEL_SCALE],
         ),
     );
     all.push(("ablate", ablate::SETTINGS.to_vec()));

@@ -32,7 +32,7 @@ def test_settings_are_the_command_lines_and_the_parser_holds_them():
     # closed) and a step below it is refused under the key, in the listed words.
     checked = 0
     for s in mine:
-        table, key = s["key"].split(".")
+        table, key = s["key"].rsplit(".", 1)
         if table not in ("render", "camera") or s["min"] is None:
             continue
         step = 1 if s["type"] == "int" else max(abs(s["min"]) * 1e-3, 1e-9)

@@ -16,7 +16,7 @@ use serde::Deserialize;
 
 use super::{Ctx, ExperimentError, MaterialRef, declared, int_in};
 use crate::scene::{Grid, Material, Scene};
-use crate::settings::{MODEL_INDEX, MODEL_RESOLUTION, MODEL_SCALE};
+use crate::settings::{MODEL_RESOLUTION, MODEL_SCALE, VOX_MODEL};
 use crate::sparse::{ModelOverlay, PlacedModel, SparseTree};
 
 /// At most this many models in one scene: each is a file load, bounded on its own.
@@ -95,7 +95,7 @@ pub(super) fn load_models(
             (Some(p), None) => {
                 let model = match m.model {
                     Some(v) => {
-                        Some(declared(ctx, &key(i, "model"), &MODEL_INDEX, v as f64)? as usize)
+                        Some(declared(ctx, &key(i, "model"), &VOX_MODEL, v as f64)? as usize)
                     }
                     None => None,
                 };
