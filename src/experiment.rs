@@ -101,12 +101,24 @@ pub struct SourceRecord {
 impl SourceRecord {
     /// The record of `text`, read from `path`, loaded with `overrides`.
     pub fn new(path: &Path, text: &str, overrides: &[Override]) -> Result<Self, ExperimentError> {
+        Self::with_assets(path, text, overrides, None)
+    }
+
+    /// [`SourceRecord::new`] with the assets' hashes given where a [`SceneCache`] took
+    /// them when it loaded the scene (`None`: hashed now). A viewer's edit or a sweep's
+    /// point re-parses the text: it neither reads nor hashes a large mesh again.
+    fn with_assets(
+        path: &Path,
+        text: &str,
+        overrides: &[Override],
+        assets: Option<Vec<serde_json::Value>>,
+    ) -> Result<Self, ExperimentError> {
         let applied = apply_overrides(text, overrides)?;
         let mut inputs = vec![serde_json::json!({
             "path": path.display().to_string(),
             "blake3": blake3::hash(text.as_bytes()).to_hex().to_string(),
         })];
-        inputs.extend(write::input_hashes(&applied, path).into_iter().skip(1));
+        inputs.extend(assets.unwrap_or_else(|| write::asset_hashes(&applied, path)));
         Ok(Self {
             text: text.into(),
             overrides: overrides.iter().map(|o| o.to_string()).collect(),
@@ -471,7 +483,7 @@ impl Experiment {
     /// `source_record` holds the text, so that an image's record gives its `[scene]`.
     pub fn from_str(text: &str, path: impl AsRef<Path>) -> Result<Self, ExperimentError> {
         let path = path.as_ref();
-        Self::parse(text, path, None)?.recorded(text, path, &[])
+        Self::parse(text, path, None)?.recorded(text, path, &[], None)
     }
 
     /// The parser itself: text to a checked experiment, without its record.
@@ -493,8 +505,11 @@ impl Experiment {
         text: &str,
         path: &Path,
         overrides: &[Override],
+        assets: Option<Vec<serde_json::Value>>,
     ) -> Result<Self, ExperimentError> {
-        self.source_record = Some(Arc::new(SourceRecord::new(path, text, overrides)?));
+        self.source_record = Some(Arc::new(SourceRecord::with_assets(
+            path, text, overrides, assets,
+        )?));
         Ok(self)
     }
 
@@ -509,7 +524,8 @@ impl Experiment {
         cache: &mut SceneCache,
     ) -> Result<Self, ExperimentError> {
         let path = path.as_ref();
-        Self::parse(text, path, Some(cache))?.recorded(text, path, &[])
+        let e = Self::parse(text, path, Some(&mut *cache))?;
+        e.recorded(text, path, &[], cache.assets())
     }
 }
 
@@ -750,9 +766,9 @@ impl Experiment {
         }
         Self::parse(text, path, Some(&mut *cache))?;
         let edited = apply_overrides(text, overrides)?;
-        Self::parse(&edited, path, Some(cache))
-            .map_err(|e| blame_override(e, overrides))?
-            .recorded(text, path, overrides)
+        let e = Self::parse(&edited, path, Some(&mut *cache))
+            .map_err(|e| blame_override(e, overrides))?;
+        e.recorded(text, path, overrides, cache.assets())
     }
 }
 
@@ -832,9 +848,16 @@ struct CachedScene {
     palette: Option<Vec<Material>>,
     models: Vec<models::LoadedModel>,
     mesh: Option<Arc<SurfaceMesh>>,
+    /// The hashes of the files it read, taken when it read them (a record's assets).
+    assets: Vec<serde_json::Value>,
 }
 
 impl SceneCache {
+    /// The held scene's asset hashes, as taken when it was loaded.
+    fn assets(&self) -> Option<Vec<serde_json::Value>> {
+        self.entry.as_ref().map(|c| c.assets.clone())
+    }
+
     pub fn new() -> Self {
         Self::default()
     }
@@ -1423,6 +1446,7 @@ fn scene_voxels(
         palette: palette.clone(),
         models: models.clone(),
         mesh: mesh.clone(),
+        assets: write::asset_hashes(ctx.text, Path::new(&ctx.file)),
     });
     Ok((grid, palette, models, mesh))
 }
@@ -2023,9 +2047,7 @@ fn load_scene_file(s: &RawScene, ctx: &Ctx) -> Result<Option<LoadedScene>, Exper
     let dir = Path::new(&ctx.file).parent().unwrap_or(Path::new(""));
     let (grid, palette, mesh) = if let Some(p) = &s.vox {
         let model = match s.model {
-            Some(m) => {
-                Some(declared(ctx, "scene.model", &settings::VOX_MODEL, m as f64)? as usize)
-            }
+            Some(m) => Some(declared(ctx, "scene.model", &settings::VOX_MODEL, m as f64)? as usize),
             None => None,
         };
         let v = load_vox(dir.join(p), model).map_err(|e| ctx.invalid(key, e))?;

@@ -225,6 +225,56 @@ fn a_record_of_text_gives_its_scene_and_one_of_voxels_in_memory_says_so() {
     assert!(resolved.contains("renders exactly this"), "{resolved}");
 }
 
+/// A text's record hashes its assets, and a parse that reuses a [`SceneCache`]'s voxels
+/// reuses the hashes taken when they were read (a viewer's edits and a sweep's points
+/// re-parse the text: a large mesh was read and hashed again for each). Its voxels and
+/// its hashes are then of the same file, even after the file changed.
+#[test]
+fn a_text_records_its_assets_as_read_and_a_cached_parse_reuses_them() {
+    let dir = std::env::temp_dir().join(format!("voxlab-provenance-assets-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let mesh = dir.join("tet.obj");
+    let tet = |s: f64| {
+        format!("v 0 0 0\nv {s} 0 0\nv 0 {s} 0\nv 0 0 {s}\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    };
+    std::fs::write(&mesh, tet(1.0)).unwrap();
+    let hash_then = blake3::hash(tet(1.0).as_bytes()).to_hex().to_string();
+    let text = format!(
+        "[scene]\nmesh = {:?}\nresolution = 4\nmaterial = \"solid\"\n",
+        mesh.display().to_string()
+    );
+    let hashes = |e: &Experiment| -> Vec<String> {
+        e.source_record
+            .as_ref()
+            .unwrap()
+            .inputs
+            .iter()
+            .map(|i| i["blake3"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let text_hash = blake3::hash(text.as_bytes()).to_hex().to_string();
+    let want = vec![text_hash.clone(), hash_then.clone()];
+    assert_eq!(
+        hashes(&Experiment::from_str(&text, "<text>").unwrap()),
+        want
+    );
+    let mut cache = voxlab::experiment::SceneCache::new();
+    let first = Experiment::from_str_cached(&text, "<text>", &mut cache).unwrap();
+    assert_eq!(hashes(&first), want);
+    std::fs::write(&mesh, tet(2.0)).unwrap();
+    let set: Vec<Override> = vec!["render.spp=2".parse().unwrap()];
+    let again = Experiment::from_str_with_cache(&text, "<text>", &set, &mut cache).unwrap();
+    assert_eq!(cache.hits(), 2, "the voxels came from the cache");
+    assert!(again.scene.grid == first.scene.grid);
+    assert_eq!(
+        hashes(&again),
+        want,
+        "the hashes are of the voxels' file as read"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `--display srgb` and `--exposure`: the PNG holds the sRGB encoding of 2^EV times the
 /// radiance the EXR holds, and the record says so.
 #[test]

@@ -90,6 +90,16 @@ pub(crate) fn input_hashes(text: &str, path: &Path) -> Vec<serde_json::Value> {
         .collect()
 }
 
+/// [`input_hashes`] less the experiment file's own: its assets (`path` places their
+/// relative paths and may name no file, as text's label does).
+pub(crate) fn asset_hashes(text: &str, path: &Path) -> Vec<serde_json::Value> {
+    input_files(text, path)
+        .into_iter()
+        .skip(1)
+        .filter_map(|f| crate::output::file_record(&f))
+        .collect()
+}
+
 /// Every file an experiment given as `text` (overrides applied) at `path` reads: the
 /// file itself, its scene's and its models' `vox` and `mesh` files, and each OBJ's
 /// material libraries (`mtllib`). What a command that writes must never overwrite.
