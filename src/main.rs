@@ -440,10 +440,39 @@ fn main() -> ExitCode {
             } else if args.markdown {
                 print!("{table}");
             } else {
-                // The same rows without the markdown rules.
-                for line in table.lines().filter(|l| !l.starts_with("|---")) {
-                    let cells: Vec<&str> = line.trim_matches('|').split(" | ").collect();
-                    println!("{}", cells.join("  ").replace('`', "").trim());
+                // The same rows without the markdown rules, in columns (the last, what a
+                // key does, as long as it is).
+                let rows: Vec<Vec<String>> = table
+                    .lines()
+                    .filter(|l| !l.starts_with("|---"))
+                    .map(|l| {
+                        l.trim()
+                            .trim_matches('|')
+                            .split(" | ")
+                            .map(|c| c.trim().replace('`', ""))
+                            .collect()
+                    })
+                    .collect();
+                let columns = rows.iter().map(Vec::len).max().unwrap_or(0);
+                let widths: Vec<usize> = (0..columns)
+                    .map(|c| {
+                        rows.iter()
+                            .filter_map(|r| r.get(c))
+                            .map(|v| v.chars().count())
+                            .max()
+                            .unwrap_or(0)
+                    })
+                    .collect();
+                for row in &rows {
+                    let mut line = String::new();
+                    for (c, cell) in row.iter().enumerate() {
+                        if c + 1 < row.len() {
+                            line += &format!("{cell:<w$}  ", w = widths[c]);
+                        } else {
+                            line += cell;
+                        }
+                    }
+                    println!("{}", line.trim_end());
                 }
             }
             Ok(())

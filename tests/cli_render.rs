@@ -610,3 +610,27 @@ fn a_file_name_that_is_no_experiment_name_still_renders_and_writes() {
         assert_eq!(record["experiment"], name, "{file}");
     }
 }
+
+/// `voxlab settings` lists every declared number of a file once, in columns: each line
+/// starts with its key and what it does starts at the same place on every line.
+#[test]
+fn settings_lists_every_declared_number_in_columns() {
+    let o = voxlab(Path::new("."), &["settings"]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    let lines: Vec<&str> = stdout.lines().collect();
+    let want: Vec<String> = voxlab::settings::file_settings()
+        .into_iter()
+        .flat_map(|(table, s)| s.into_iter().map(move |s| format!("{table}.{}", s.key)))
+        .collect();
+    assert_eq!(lines.len(), want.len() + 1, "{stdout}");
+    for (line, key) in lines[1..].iter().zip(&want) {
+        assert_eq!(line.split_whitespace().next(), Some(key.as_str()), "{line}");
+    }
+    let doc_at = lines[0].find("what it does").unwrap();
+    let settings = voxlab::settings::file_settings();
+    let docs = settings.iter().flat_map(|(_, s)| s.iter().map(|s| s.doc));
+    for (line, doc) in lines[1..].iter().zip(docs) {
+        assert_eq!(line.get(doc_at..), Some(doc), "{line}");
+    }
+}
