@@ -264,34 +264,21 @@ impl<'a> Locator<'a> {
     /// Serde's error, and for a declared number of the wrong type (`seeds = 1.5`, `spp =
     /// [1, "2"]`) what the key takes, as the experiment's keys say it.
     fn serde_error(&self, e: &toml::de::Error) -> ExperimentError {
-        match self.0.serde_error(e) {
-            ExperimentError::Invalid {
-                file,
-                line,
-                key,
-                message,
-            } if message.contains("invalid type") => {
-                let declared = crate::settings::ablate::SETTINGS.iter().find(|s| {
-                    key.strip_prefix("ablate.")
-                        .and_then(|k| k.strip_prefix(s.key))
-                        .is_some_and(|rest| rest.is_empty() || rest.starts_with('['))
-                });
-                let message = match declared {
-                    Some(s) if s.key == SPP.key => {
-                        format!("{message}; every entry {}", s.range_text())
-                    }
-                    Some(s) => format!("{message}; {}", s.range_text()),
-                    None => message,
-                };
-                ExperimentError::Invalid {
-                    file,
-                    line,
-                    key,
-                    message,
-                }
+        self.0.serde_error(e).with_requirement(|key, message| {
+            if !message.contains("invalid type") {
+                return None;
             }
-            other => other,
-        }
+            let s = crate::settings::ablate::SETTINGS.iter().find(|s| {
+                key.strip_prefix("ablate.")
+                    .and_then(|k| k.strip_prefix(s.key))
+                    .is_some_and(|rest| rest.is_empty() || rest.starts_with('['))
+            })?;
+            Some(if s.key == SPP.key {
+                format!("every entry {}", s.range_text())
+            } else {
+                s.range_text()
+            })
+        })
     }
 }
 

@@ -188,6 +188,34 @@ pub enum ExperimentError {
 }
 
 impl ExperimentError {
+    /// An `Invalid` error with what `requirement(key, message)` gives appended after
+    /// "; " (what the key takes, where its message does not say); any other as it is.
+    pub(crate) fn with_requirement(
+        self,
+        requirement: impl FnOnce(&str, &str) -> Option<String>,
+    ) -> Self {
+        match self {
+            Self::Invalid {
+                file,
+                line,
+                key,
+                message,
+            } => {
+                let message = match requirement(&key, &message) {
+                    Some(r) => format!("{message}; {r}"),
+                    None => message,
+                };
+                Self::Invalid {
+                    file,
+                    line,
+                    key,
+                    message,
+                }
+            }
+            other => other,
+        }
+    }
+
     /// The line the error points at (1-based), if it has one.
     pub fn line(&self) -> Option<usize> {
         match self {
@@ -1141,15 +1169,11 @@ impl<'a> Ctx<'a> {
 /// probe finds it, whether or not its numbers have a range; a scalar key whose check
 /// admits the probe keeps the message as it was.
 fn with_allowed_range(e: ExperimentError, text: &str, path: &Path) -> ExperimentError {
-    let ExperimentError::Invalid {
-        file,
-        line,
-        key,
-        message,
-    } = e
-    else {
-        return e;
-    };
+    e.with_requirement(|key, message| allowed_range(key, message, text, path))
+}
+
+/// What `key` takes, asked of its check by a probe ([`with_allowed_range`]).
+fn allowed_range(key: &str, message: &str, text: &str, path: &Path) -> Option<String> {
     let numbers = |n: usize| {
         let array: toml_edit::Array = std::iter::repeat_n(-1e300, n).collect();
         (toml_edit::value(array), Some(n))
@@ -1170,9 +1194,9 @@ fn with_allowed_range(e: ExperimentError, text: &str, path: &Path) -> Experiment
     } else {
         Vec::new()
     };
-    let range = probes.into_iter().find_map(|(value, length)| {
+    probes.into_iter().find_map(|(value, length)| {
         let mut doc: toml_edit::DocumentMut = text.parse().ok()?;
-        *item_at_mut(&mut doc, &key)? = value;
+        *item_at_mut(&mut doc, key)? = value;
         let probed = doc.to_string();
         // A length serde refuses is not the key's: try the next.
         let raw: RawExperiment = toml::from_str(&probed).ok()?;
@@ -1195,17 +1219,7 @@ fn with_allowed_range(e: ExperimentError, text: &str, path: &Path) -> Experiment
             (Some(n), None) => Some(format!("an array of {n} numbers")),
             (None, r) => r,
         }
-    });
-    let message = match range {
-        Some(r) => format!("{message}; {r}"),
-        None => message,
-    };
-    ExperimentError::Invalid {
-        file,
-        line,
-        key,
-        message,
-    }
+    })
 }
 
 /// The item a key names (`render.width`, `lights[0].size`), where the document has it.
