@@ -297,6 +297,17 @@ fn the_experiments_spp_caps_the_accumulation_of_both_sides() {
     let s = load_state(&opts).unwrap();
     assert_eq!(s.sides[0].max_spp, 37);
     assert_eq!(s.rendered(Side::Right).settings.spp, 37);
+    // Every spp a file takes, up to the largest, is the cap it asks for: the viewer
+    // once held any past 4096 at 4096 without a word.
+    let most = voxlab::render::MAX_SAMPLES;
+    for spp in [4097, most] {
+        opts.overrides = vec![format!("render.spp={spp}").parse().unwrap()];
+        let s = load_state(&opts).unwrap();
+        for side in Side::BOTH {
+            assert_eq!(s.sides[side.index()].max_spp, spp);
+            assert_eq!(s.rendered(side).settings.spp, spp);
+        }
+    }
     // The default spp of 1 leaves the viewer's own cap.
     let s = seed_state();
     assert_eq!(s.sides[0].max_spp, voxlab::viewer::state::DEFAULT_VIEW_SPP);

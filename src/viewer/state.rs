@@ -150,8 +150,9 @@ impl SideSettings {
     }
 }
 
-/// Largest accumulation cap the viewer offers.
-pub const MAX_VIEW_SPP: u32 = 4096;
+/// Largest accumulation cap the viewer offers: what `render.spp` takes, so a file's spp
+/// is the cap it asks for, never cut to a smaller one.
+pub const MAX_VIEW_SPP: u32 = crate::render::MAX_SAMPLES;
 
 /// Default accumulation cap per side, when the experiment's spp is 1 (its default).
 pub const DEFAULT_VIEW_SPP: u32 = 256;
@@ -205,7 +206,7 @@ impl ViewerState {
         // 1 is also the default, so it leaves the viewer's own cap.
         let cap = match base.settings.spp {
             0 | 1 => DEFAULT_VIEW_SPP,
-            n => n.min(MAX_VIEW_SPP),
+            n => n,
         };
         let left = SideSettings::from_settings(&base.settings, cap);
         let mut right = left.clone();
