@@ -81,6 +81,27 @@ pub struct DisplayTransform {
     pub exposure: f64,
 }
 
+impl DisplayTransform {
+    /// The exposures a display takes, in stops either way: 2^32 shows a radiance of
+    /// 2.3e-10 as white and 2^-32 one of 4.3e9, and the scale stays an f32's normal
+    /// number (`Frame::to_display_rgb8`). The command line's `--exposure`, Python's
+    /// `Image.save` and the viewer's control all take this range.
+    pub const MAX_EXPOSURE: f64 = 32.0;
+
+    /// `ev` if it is an exposure a display takes ([`Self::MAX_EXPOSURE`]), else what
+    /// it must be.
+    pub fn check_exposure(ev: f64) -> Result<f64, String> {
+        if ev.is_finite() && ev.abs() <= Self::MAX_EXPOSURE {
+            Ok(ev)
+        } else {
+            let m = Self::MAX_EXPOSURE;
+            Err(format!(
+                "exposure {ev}: must be a number of stops in [-{m}, {m}]"
+            ))
+        }
+    }
+}
+
 /// The sRGB transfer function of a linear value in [0, 1] (IEC 61966-2-1).
 pub fn srgb_encode(v: f32) -> f32 {
     if v <= 0.003_130_8 {

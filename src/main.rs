@@ -307,10 +307,10 @@ enum DisplayArg {
 }
 
 fn parse_exposure(s: &str) -> Result<f64, String> {
-    s.parse::<f64>()
-        .ok()
-        .filter(|x| x.is_finite() && (-32.0..=32.0).contains(x))
-        .ok_or_else(|| format!("`{s}`: exposure must be a number of stops in [-32, 32]"))
+    let ev = s
+        .parse::<f64>()
+        .map_err(|_| format!("`{s}`: exposure must be a number of stops"))?;
+    voxlab::frame::DisplayTransform::check_exposure(ev)
 }
 
 impl RenderOpts {

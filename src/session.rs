@@ -529,6 +529,8 @@ impl Image {
         provenance: &serde_json::Value,
         display: DisplayTransform,
     ) -> Result<()> {
+        DisplayTransform::check_exposure(display.exposure)
+            .map_err(|e| Error::new(ErrorKind::Invalid, e))?;
         let text = serde_json::to_string_pretty(provenance)
             .map_err(|e| Error::new(ErrorKind::Other, e.to_string()))?;
         crate::output::write_frame_with_provenance(&self.frame, path, &text, display)?;

@@ -1201,6 +1201,22 @@ fn view_modes_compare_the_same_pixels_and_b_flips_the_sides() {
     );
 }
 
+/// `voxlab view --exposure EV` takes what `render --exposure` takes, and the view bar's
+/// control shows it as given: it once held any exposure past 16 stops at 16 without a
+/// word, so the window showed another image than the one asked for.
+#[test]
+fn the_exposure_control_keeps_every_exposure_the_command_line_takes() {
+    let most = voxlab::frame::DisplayTransform::MAX_EXPOSURE;
+    let mut rig = Rig::new(small_area_lights(), false);
+    for ev in [-most, -20.0, 20.0, most] {
+        assert_eq!(voxlab::frame::DisplayTransform::check_exposure(ev), Ok(ev));
+        rig.harness.state_mut().display.exposure = ev;
+        rig.harness.run_steps(2);
+        assert_eq!(rig.app().display.exposure, ev);
+    }
+    assert!(voxlab::frame::DisplayTransform::check_exposure(most + 0.5).is_err());
+}
+
 #[test]
 fn the_probe_reads_each_sides_radiance_and_a_click_pins_it() {
     let mut rig = Rig::new(small_area_lights(), false);

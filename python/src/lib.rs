@@ -856,12 +856,7 @@ impl Image {
                 ));
             }
         };
-        if !exposure.is_finite() || exposure.abs() > 64.0 {
-            return Err(err(
-                ErrorKind::Invalid,
-                format!("exposure {exposure}: must be a number of stops in [-64, 64]"),
-            ));
-        }
+        DisplayTransform::check_exposure(exposure).map_err(|e| err(ErrorKind::Invalid, e))?;
         let transform = DisplayTransform { encoding, exposure };
         let mut record = self
             .meta

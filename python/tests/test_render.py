@@ -133,6 +133,25 @@ def test_save_is_all_or_nothing(cpu, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.png", "file", "x.exr", "x.exr.json"]
 
 
+def test_save_takes_the_exposures_the_command_line_takes(cpu, tmp_path):
+    """One range of exposures: `Image.save` took [-64, 64] where `render --exposure`
+    took [-32, 32] (and the viewer 16)."""
+    im = cpu.render(small("baseline.toml"))
+    for ev in (-32, 32):
+        im.save(tmp_path / f"ok{ev}.png", exposure=ev)
+        cli("render", EXPERIMENTS / "baseline.toml", "--backend", "cpu", "--width", "8",
+            "--height", "8", "--exposure", ev, "--out", tmp_path / f"cli{ev}.png")
+        assert PILImage.open(tmp_path / f"ok{ev}.png").size == (24, 16)
+    for ev in (-32.5, 33, 64):
+        with pytest.raises(vx.VoxlabError) as e:
+            im.save(tmp_path / "x.png", exposure=ev)
+        proc = cli("render", EXPERIMENTS / "baseline.toml", "--backend", "cpu",
+                   "--exposure", ev, "--out", tmp_path / "y.png", check=False)
+        assert proc.returncode != 0
+        assert str(e.value) in proc.stderr, (str(e.value), proc.stderr)
+    assert not (tmp_path / "x.png").exists() and not (tmp_path / "y.png").exists()
+
+
 def long_render():
     """A CPU render of many seconds (area lights, 96x96, 64 frames)."""
     return small("area_lights.toml", 96, 96, spp=64)

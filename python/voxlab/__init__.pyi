@@ -138,7 +138,8 @@ class Image:
     @property
     def height(self) -> int: ...
     def save(self, path: _PathLike, display: str = "linear", exposure: float = 0.0) -> None:
-        """Writes `.png` (8 bits; `display` "linear" or "srgb", `exposure` in stops) or
+        """Writes `.png` (8 bits; `display` "linear" or "srgb", `exposure` in stops, -32 to 32 as
+        `voxlab render --exposure`) or
         `.exr` (linear) with the record inside and beside it (`<path>.json`): both or
         neither."""
 

@@ -935,11 +935,10 @@ impl ViewerApp {
                     }
                 });
             let row = ui.label("exposure EV").id;
-            ui.add(
-                egui::DragValue::new(&mut d.exposure)
-                    .speed(0.05)
-                    .range(-16.0..=16.0),
-            )
+            ui.add(egui::DragValue::new(&mut d.exposure).speed(0.05).range(
+                -crate::frame::DisplayTransform::MAX_EXPOSURE
+                    ..=crate::frame::DisplayTransform::MAX_EXPOSURE,
+            ))
             .labelled_by(row);
             ui.checkbox(&mut d.srgb, "sRGB display");
             egui::ComboBox::from_label("zoom")
