@@ -282,4 +282,25 @@ fn scripted_viewer_saves_what_render_reproduces() {
         capture.pixels.iter().any(|p| *p != first),
         "the window capture is one colour"
     );
+
+    // A scripted run whose save fails ends with the save's error: it waited for a
+    // window capture that a failed save never asks for, and ran until killed.
+    let unwritable = exp.join("saved");
+    let (ok, stdout, stderr) = run_voxlab(
+        &[
+            "view",
+            exp.to_str().unwrap(),
+            "--frames",
+            "1",
+            "--save-dir",
+            unwritable.to_str().unwrap(),
+        ],
+        Some(&x.display),
+        Duration::from_secs(120),
+    );
+    assert!(
+        !ok && stderr.contains("save failed: cannot create"),
+        "stdout:\n{stdout}\nstderr:\n{stderr}"
+    );
+    assert!(!unwritable.exists());
 }

@@ -985,6 +985,35 @@ fn save_button_writes_each_sides_image_and_the_experiment_that_reproduces_it() {
     assert!(rig.has_label_containing("saved "));
 }
 
+/// A save is both sides or nothing: pressed before the right side's first image, it
+/// wrote the left side's files and then failed, leaving half a save behind.
+#[test]
+fn a_save_before_both_sides_have_an_image_writes_nothing() {
+    let mut rig = Rig::new(small_area_lights(), false);
+    rig.harness.run_steps(2);
+    let dir = temp_dir("save-half").join("new");
+    rig.harness.state_mut().save_dir = dir.display().to_string();
+    rig.send_current(Side::Left, gradient(W, H), 3);
+    rig.harness.run_steps(2);
+    rig.harness.get_by_label("Save images + TOML").click();
+    rig.harness.run_steps(2);
+    assert_eq!(
+        rig.app().status,
+        "save failed: the right side has no image yet; nothing written"
+    );
+    assert!(!dir.exists(), "a failed save made {}", dir.display());
+    assert!(rig.outcome.lock().unwrap().saved.is_empty());
+    // Once it has one, the save writes both.
+    rig.send_current(Side::Right, constant(W, H, 0.5), 4);
+    rig.harness.run_steps(2);
+    rig.harness.get_by_label("Save images + TOML").click();
+    rig.harness.run_steps(2);
+    let name = rig.state().base.name.clone();
+    for side in Side::BOTH {
+        assert!(dir.join(format!("{name}-001-{}.png", side.name())).exists());
+    }
+}
+
 #[test]
 fn save_side_exports_the_traced_size_of_an_adaptive_image() {
     let mut rig = Rig::new(small_area_lights(), true);

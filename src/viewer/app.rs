@@ -675,12 +675,21 @@ impl ViewerApp {
     /// the TOML's paths.
     pub fn save_side(&mut self, side: Side, dir: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
         let stem = self.save_stem(dir);
-        let files = self.save_side_as(side, dir, &stem)?;
-        Ok((files[0].clone(), files[2].clone()))
+        let mut written = Vec::new();
+        self.save_side_as(side, dir, &stem, &mut written)
+            .map_err(|e| anyhow::anyhow!("{e:#}; {}", remove_written(&written)))
     }
 
-    /// Writes `STEM-SIDE.png`, `.exr`, `.toml` and, with a reference, `-error.exr`.
-    fn save_side_as(&mut self, side: Side, dir: &Path, stem: &str) -> anyhow::Result<Vec<PathBuf>> {
+    /// Writes `STEM-SIDE.png`, `.exr`, `.toml` and, with a reference, `-error.exr`,
+    /// adding each file to `written` once it is whole, so that a caller whose save
+    /// fails later can take them back; returns the PNG's and the TOML's paths.
+    fn save_side_as(
+        &mut self,
+        side: Side,
+        dir: &Path,
+        stem: &str,
+        written: &mut Vec<PathBuf>,
+    ) -> anyhow::Result<(PathBuf, PathBuf)> {
         let u = self.views[side.index()]
             .latest
             .clone()
@@ -713,50 +722,52 @@ impl ViewerApp {
             encoding: crate::frame::DisplayEncoding::Linear,
             exposure: 0.0,
         };
-        crate::output::write_frame_with_provenance(&u.frame, &png, &record, linear)?;
-        crate::output::write_frame_with_provenance(&u.frame, &exr, &record, linear)?;
-        crate::output::write_file(&toml, text.as_bytes())?;
         let sidecar = |p: &PathBuf| crate::output::sidecar_path(p);
-        let mut files = vec![png.clone(), exr.clone(), toml, sidecar(&png), sidecar(&exr)];
+        // Each image is written with its record, both or neither.
+        crate::output::write_frame_with_provenance(&u.frame, &png, &record, linear)?;
+        written.extend([png.clone(), sidecar(&png)]);
+        crate::output::write_frame_with_provenance(&u.frame, &exr, &record, linear)?;
+        written.extend([exr.clone(), sidecar(&exr)]);
+        crate::output::write_file(&toml, text.as_bytes())?;
+        written.push(toml.clone());
         if let Some((reference, frame, _)) = self.pair(side)
             && let Some(error) = display::difference(&frame, &reference)
         {
             let path = PathBuf::from(format!("{}-error.exr", base.display()));
             crate::output::write_frame(&error, &path)?;
-            files.push(path);
+            written.push(path);
         }
-        Ok(files)
+        Ok((png, toml))
     }
 
     /// Saves both sides, their difference (`STEM-difference.exr`, |L - R| in linear
     /// radiance, when they have one size) and a capture of the window, under one new
-    /// prefix.
-    pub(crate) fn save_all(&mut self, ctx: &egui::Context) {
+    /// prefix: every file or, where one cannot be written, none (a side without an
+    /// image yet fails the save before anything is written).
+    ///
+    /// Returns whether the files were written and the capture asked for; where not,
+    /// `status` says why.
+    pub(crate) fn save_all(&mut self, ctx: &egui::Context) -> bool {
+        if let Some(side) = Side::BOTH
+            .into_iter()
+            .find(|s| self.views[s.index()].latest.is_none())
+        {
+            self.status = format!(
+                "save failed: the {} side has no image yet; nothing written",
+                side.name()
+            );
+            return false;
+        }
         let dir = PathBuf::from(self.save_dir.trim());
         if let Err(e) = std::fs::create_dir_all(&dir) {
             self.status = format!("save failed: cannot create {}: {e}", dir.display());
-            return;
+            return false;
         }
         let stem = self.save_stem(&dir);
         let mut saved = Vec::new();
-        for side in Side::BOTH {
-            match self.save_side_as(side, &dir, &stem) {
-                Ok(files) => saved.extend(files),
-                Err(e) => {
-                    self.status = format!("save failed: {e:#}");
-                    return;
-                }
-            }
-        }
-        if let (Some(l), Some(r)) = (self.latest(Side::Left), self.latest(Side::Right))
-            && let Some(d) = display::difference(&l.frame, &r.frame)
-        {
-            let path = dir.join(format!("{stem}-difference.exr"));
-            if let Err(e) = crate::output::write_frame(&d, &path) {
-                self.status = format!("save failed: {e:#}");
-                return;
-            }
-            saved.push(path);
+        if let Err(e) = self.save_sides(&dir, &stem, &mut saved) {
+            self.status = format!("save failed: {e:#}; {}", remove_written(&saved));
+            return false;
         }
         let capture = dir.join(format!("{stem}-window.png"));
         // The capture's record: the build and the files saved with it, whose own
@@ -772,8 +783,14 @@ impl ViewerApp {
         *done.lock().expect("capture lock") = None;
         let repaint = ctx.clone();
         ctx.request_screenshot(move |image| {
+            // The capture with its record or neither.
             let result = write_capture(&image, &capture)
-                .and_then(|()| Ok(crate::output::write_sidecar(&capture, &record)?))
+                .and_then(|()| {
+                    crate::output::write_sidecar(&capture, &record).map_err(|e| {
+                        let _ = std::fs::remove_file(&capture);
+                        e.into()
+                    })
+                })
                 .map(|()| capture.clone())
                 .map_err(|e| format!("{e:#}"));
             *done.lock().expect("capture lock") = Some(result);
@@ -792,6 +809,28 @@ impl ViewerApp {
             .expect("outcome lock")
             .saved
             .extend(saved);
+        true
+    }
+
+    /// Both sides' files and their difference under `stem`, each added to `saved` once
+    /// it is whole.
+    fn save_sides(
+        &mut self,
+        dir: &Path,
+        stem: &str,
+        saved: &mut Vec<PathBuf>,
+    ) -> anyhow::Result<()> {
+        for side in Side::BOTH {
+            self.save_side_as(side, dir, stem, saved)?;
+        }
+        if let (Some(l), Some(r)) = (self.latest(Side::Left), self.latest(Side::Right))
+            && let Some(d) = display::difference(&l.frame, &r.frame)
+        {
+            let path = dir.join(format!("{stem}-difference.exr"));
+            crate::output::write_frame(&d, &path)?;
+            saved.push(path);
+        }
+        Ok(())
     }
 
     /// Drives a scripted run: once both sides hold their frames at full size, save,
@@ -820,8 +859,18 @@ impl ViewerApp {
                     })
                 });
                 if ready {
-                    self.save_all(ctx);
-                    self.automation_stage = 1;
+                    if self.save_all(ctx) {
+                        self.automation_stage = 1;
+                    } else {
+                        // No capture will come: the run ends with the save's error
+                        // instead of waiting for one.
+                        self.outcome.lock().expect("outcome lock").error =
+                            Some(self.status.clone());
+                        self.automation_stage = 2;
+                        if a.exit {
+                            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                        }
+                    }
                 }
             }
             1 => {
@@ -918,7 +967,8 @@ impl ViewerApp {
                 .clicked()
             {
                 let ctx = ui.ctx().clone();
-                self.save_all(&ctx);
+                // A failure is in the status line.
+                let _ = self.save_all(&ctx);
             }
         });
     }
@@ -1901,4 +1951,18 @@ fn write_capture(image: &ColorImage, path: &Path) -> anyhow::Result<()> {
     img.write_to(&mut png, image::ImageFormat::Png)?;
     crate::output::write_file(path, png.get_ref())?;
     Ok(())
+}
+
+/// Removes the files a failed save wrote, and says what it could not remove.
+fn remove_written(written: &[PathBuf]) -> String {
+    let left: Vec<String> = written
+        .iter()
+        .filter(|p| std::fs::remove_file(p).is_err() && p.exists())
+        .map(|p| p.display().to_string())
+        .collect();
+    if left.is_empty() {
+        "nothing written".into()
+    } else {
+        format!("could not remove {}", left.join(", "))
+    }
 }
