@@ -51,6 +51,9 @@ enum RulesName {
 pub struct Experiment {
     /// The `name` key, else the file's stem; names the default output `out/<name>.png`.
     pub name: String,
+    /// The `description` key: free text for the reader, which the written experiment
+    /// (every record, the viewer's saves) keeps.
+    pub description: Option<String>,
     /// The file it was read from (`None` for built-in experiments).
     pub source_path: Option<PathBuf>,
     /// The text it was parsed from, as read from `source_path` or given, and its
@@ -68,12 +71,14 @@ impl PartialEq for Experiment {
         // Every field named, so that a new one is not left out unseen.
         let Experiment {
             name,
+            description,
             source_path,
             source_record: _,
             scene,
             settings,
         } = self;
         *name == other.name
+            && *description == other.description
             && *source_path == other.source_path
             && *scene == other.scene
             && *settings == other.settings
@@ -242,7 +247,6 @@ fn location(file: &str, line: Option<usize>) -> String {
 #[serde(deny_unknown_fields)]
 struct RawExperiment {
     name: Option<String>,
-    #[allow(dead_code)] // free text for the reader; kept so the key is allowed
     description: Option<String>,
     #[serde(default)]
     scene: RawScene,
@@ -451,6 +455,7 @@ impl Experiment {
     pub fn seed_default() -> Self {
         Self {
             name: "seed".to_string(),
+            description: None,
             source_path: None,
             source_record: None,
             scene: seed_scene(SEED_SIZE).expect("the seed scene at its own size is valid"),
@@ -1646,6 +1651,7 @@ fn build(
 
     Ok(Experiment {
         name,
+        description: raw.description,
         source_path: None,
         source_record: None,
         scene,

@@ -47,6 +47,7 @@ fn write(e: &Experiment, source: &Table) -> String {
 #[track_caller]
 fn assert_same(a: &Experiment, b: &Experiment, what: &str) {
     assert_eq!(a.name, b.name, "{what}: name");
+    assert_eq!(a.description, b.description, "{what}: description");
     assert_eq!(a.settings, b.settings, "{what}: settings");
     assert_eq!(a.scene.camera, b.scene.camera, "{what}: camera");
     assert_eq!(a.scene.lights, b.scene.lights, "{what}: lights");
@@ -119,6 +120,9 @@ fn unit(v: DVec3) -> DVec3 {
 fn odd_experiment() -> Experiment {
     let mut e = Experiment::seed_default();
     e.name = "odd-values_1.2".into();
+    // Free text as a reader writes it: quotes of both kinds, runs of three, newlines, a
+    // tab, a backslash at the end, letters outside ASCII.
+    e.description = Some("a \"quoted\" 'word', \"\"\" and '''\nline two\tü ∑ 🦌\\".into());
     e.scene.lights = vec![
         Light::Point(PointLight {
             position: DVec3::new(-3.25, -1e-3, -7.0e5),

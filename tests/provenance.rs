@@ -225,6 +225,27 @@ fn a_record_of_text_gives_its_scene_and_one_of_voxels_in_memory_says_so() {
     assert!(resolved.contains("renders exactly this"), "{resolved}");
 }
 
+/// An experiment's description is the reader's, and the written experiment every
+/// record quotes keeps it (it was dropped: a record of an ablation point said nothing of
+/// what the file said it was for).
+#[test]
+fn a_record_keeps_the_experiments_description() {
+    let text = "description = \"slab \\\"A\\\", sigma swept\\nsecond line\"\n\
+                [scene]\nsize = 8\n[render]\nwidth = 4\nheight = 4\n";
+    let e = Experiment::from_str(text, "described.toml").unwrap();
+    assert_eq!(
+        e.description.as_deref(),
+        Some("slab \"A\", sigma swept\nsecond line")
+    );
+    let image = voxlab::Session::cpu().render(&e).unwrap();
+    let r = image
+        .provenance(&e, &[], voxlab::frame::DisplayTransform::default(), None)
+        .unwrap();
+    let again =
+        Experiment::from_str(r["resolved_experiment"].as_str().unwrap(), "again.toml").unwrap();
+    assert_eq!(again.description, e.description);
+}
+
 /// A text's record hashes its assets, and a parse that reuses a [`SceneCache`]'s voxels
 /// reuses the hashes taken when they were read (a viewer's edits and a sweep's points
 /// re-parse the text: a large mesh was read and hashed again for each). Its voxels and

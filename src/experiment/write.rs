@@ -433,6 +433,9 @@ pub fn to_toml(e: &Experiment, scene_source: &Table) -> Result<String, WriteErro
 
     let mut head = Table::new();
     head.insert("name".into(), e.name.clone().into());
+    if let Some(d) = &e.description {
+        head.insert("description".into(), d.clone().into());
+    }
     if e.scene.lights.is_empty() {
         // Absent would mean the seed's lights.
         head.insert("lights".into(), Value::Array(Vec::new()));
@@ -448,7 +451,8 @@ pub fn to_toml(e: &Experiment, scene_source: &Table) -> Result<String, WriteErro
         |key: &str, t: &Table| toml::to_string(t).map_err(|e| err(key.to_string(), e.to_string()));
 
     let mut out = format!("{HEADER}\n\n");
-    out += &to_string("name", &head)?;
+    out +=
+        &ordered(&head, &["name", "description"]).map_err(|e| err("name".into(), e.to_string()))?;
     // The scene source as toml writes it (nested `[[scene.boxes]]` included).
     check("", &scene)?;
     out += "\n";
