@@ -81,7 +81,13 @@ pub struct BenchRow {
     pub traversal: &'static str,
     /// What rays hit: the surface's name.
     pub surface: &'static str,
+    /// The median of `times`.
     pub median: Duration,
+    /// The timed frames in the order of their rounds. The walks of one scene, surface
+    /// and backend are timed a frame of each in turn, so round `r` of two such rows ran
+    /// side by side, and their ratio round by round measures the difference under the
+    /// same load ([`Ratio`]).
+    pub times: Vec<Duration>,
     /// The median wall time of a whole call of a warm tracer, as a display loop makes
     /// it: on the GPU the plan, the checks of what the device holds, the submit and the
     /// image's readback around the device's time, over three calls back to back; on the
@@ -107,6 +113,15 @@ impl BenchRow {
     pub fn ms(&self) -> f64 {
         self.median.as_secs_f64() * 1e3
     }
+
+    /// The fastest and slowest timed frames in ms, `lo to hi` (one frame: its time).
+    pub fn range_text(&self) -> String {
+        let ms = |d: Option<&Duration>| d.map_or(self.ms(), |d| d.as_secs_f64() * 1e3);
+        match (self.times.iter().min(), self.times.iter().max()) {
+            (lo, hi) if lo == hi => format!("{:.1}", ms(lo)),
+            (lo, hi) => format!("{:.1} to {:.1}", ms(lo), ms(hi)),
+        }
+    }
     pub fn mrays_per_s(&self) -> f64 {
         self.stats.total_rays() as f64 / self.median.as_secs_f64() / 1e6
     }
@@ -128,6 +143,7 @@ impl BenchRow {
             "triangle_tests": s.triangle_tests,
             "build_ms": self.build.as_secs_f64() * 1e3,
             "ms_per_frame": self.ms(),
+            "ms_per_frame_runs": self.times.iter().map(|t| t.as_secs_f64() * 1e3).collect::<Vec<_>>(),
             "wall_ms_per_call": self.wall.as_secs_f64() * 1e3,
             "mrays_per_s": self.mrays_per_s(),
             "msteps_per_s": self.msteps_per_s(),
@@ -149,6 +165,115 @@ impl BenchRow {
 fn median(mut times: Vec<Duration>) -> Duration {
     times.sort();
     times[times.len() / 2]
+}
+
+/// The ratio of two rows' frame times (`num` over `den`) with the range the runs give
+/// it: round by round where the two rows were timed in the same rounds (one scene,
+/// surface and backend: their frames alternate), else the widest it could be, from the
+/// slowest and the fastest frame of each. A ratio whose range holds 1 is no difference
+/// the runs can tell from their noise, and says so.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ratio {
+    /// The ratio of the medians.
+    pub median: f64,
+    pub lo: f64,
+    pub hi: f64,
+    /// Whether `lo` and `hi` are of the ratios round by round.
+    pub paired: bool,
+}
+
+impl Ratio {
+    /// The ratio of two rows' frame times, paired where they were timed in the same
+    /// rounds (one backend, scene and surface).
+    pub fn of(num: &BenchRow, den: &BenchRow) -> Self {
+        let times = |r: &BenchRow| {
+            if r.times.is_empty() {
+                vec![r.median]
+            } else {
+                r.times.clone()
+            }
+        };
+        let paired =
+            num.backend == den.backend && num.scene == den.scene && num.surface == den.surface;
+        Self::of_times(&times(num), &times(den), paired)
+    }
+
+    /// The ratio of the medians of `num` and `den` with its range: of the ratios round
+    /// by round where `paired` (the two timed frame by frame in turn, as many of each),
+    /// else from the slowest and fastest frames.
+    pub fn of_times(num: &[Duration], den: &[Duration], paired: bool) -> Self {
+        let secs = |v: &[Duration]| -> Vec<f64> { v.iter().map(Duration::as_secs_f64).collect() };
+        let (a, b) = (secs(num), secs(den));
+        let median = median(num.to_vec()).as_secs_f64() / median(den.to_vec()).as_secs_f64();
+        let paired = paired && a.len() == b.len() && a.len() > 1;
+        let (lo, hi) = if paired {
+            a.iter()
+                .zip(&b)
+                .map(|(x, y)| x / y)
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
+                    (lo.min(r), hi.max(r))
+                })
+        } else {
+            let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+            let max = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            (min(&a) / max(&b), max(&a) / min(&b))
+        };
+        Self {
+            median,
+            lo,
+            hi,
+            paired,
+        }
+    }
+
+    /// The record of `--json`: the ratio of the medians, its range, and how the range
+    /// was taken.
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "median": self.median,
+            "lo": self.lo,
+            "hi": self.hi,
+            "paired": self.paired,
+        })
+    }
+
+    /// For a table's cell: `1.23 (1.10 to 1.31)`, and `, noise` where the range holds 1.
+    pub fn cell(&self) -> String {
+        format!(
+            "{:.2} ({:.2} to {:.2}{})",
+            self.median,
+            self.lo,
+            self.hi,
+            if self.within_noise() { ", noise" } else { "" }
+        )
+    }
+
+    /// Whether the runs cannot tell the two rows apart: the range holds 1.
+    pub fn within_noise(&self) -> bool {
+        self.lo <= 1.0 && 1.0 <= self.hi
+    }
+}
+
+impl std::fmt::Display for Ratio {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{:.2}x ({:.2} to {:.2} {}{})",
+            self.median,
+            self.lo,
+            self.hi,
+            if self.paired {
+                "round by round"
+            } else {
+                "from the runs' slowest and fastest frames"
+            },
+            if self.within_noise() {
+                ": within the runs' noise"
+            } else {
+                ""
+            }
+        )
+    }
 }
 
 fn scene_label(name: &str, scene: &Scene) -> String {
@@ -205,7 +330,8 @@ fn bench_gpu(
         .map(|w| {
             let (row, _) = w.state?;
             Ok(BenchRow {
-                median: median(w.times),
+                median: median(w.times.clone()),
+                times: w.times,
                 ..row
             })
         })
@@ -257,6 +383,7 @@ fn prepare_gpu_row(
         traversal: plan.name,
         surface: s.surface.name(),
         median: Duration::ZERO,
+        times: Vec::new(),
         wall: median(walls),
         stats: counted.stats,
         bytes_per_voxel: (memory.grid + memory.walk_data) as f64 / scene.grid.voxel_count() as f64,
@@ -292,6 +419,7 @@ fn bench_cpu(name: &str, scene: &Scene, walks: &[RenderSettings], runs: usize) -
                 traversal: plan.traversal.name,
                 surface: s.surface.name(),
                 median: Duration::ZERO,
+                times: Vec::new(),
                 wall: Duration::ZERO,
                 stats: warm.stats,
                 bytes_per_voxel,
@@ -310,9 +438,10 @@ fn bench_cpu(name: &str, scene: &Scene, walks: &[RenderSettings], runs: usize) -
     timing
         .into_iter()
         .map(|(_, _, _, row, times)| {
-            let median = median(times);
+            let median = median(times.clone());
             BenchRow {
                 median,
+                times,
                 wall: median,
                 ..row
             }
@@ -555,8 +684,8 @@ pub fn surface_table(rows: &[SurfaceRow]) -> String {
 pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> String {
     let mut out = format!(
         "{}x{}, depth {}/{} (experiments: their own render settings, one frame); GPU: {adapter}; CPU: {}; host: {}\n\n\
-         | scene | surface | backend | walk | median ms/frame | timer | wall ms/call | steps/iteration | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | steps/ray | triangle tests/ray | bytes/voxel | build ms |\n\
-         |---:|---|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+         | scene | surface | backend | walk | median ms/frame | runs' range ms | timer | wall ms/call | steps/iteration | Mrays/s | Msteps/s | rays/frame (primary + secondary + shadow) | voxel steps/frame | steps/ray | triangle tests/ray | bytes/voxel | build ms |\n\
+         |---:|---|---|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         settings.width,
         settings.height,
         settings.max_reflection_depth,
@@ -566,12 +695,13 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     );
     for r in rows {
         out += &format!(
-            "| {} | {} | {} | {} | {:.1} | {} | {:.1} | {} | {:.2} | {:.1} | {} ({} + {} + {}) | {} | {:.2} | {} | {:.4} | {:.1} |\n",
+            "| {} | {} | {} | {} | {:.1} | {} | {} | {:.1} | {} | {:.2} | {:.1} | {} ({} + {} + {}) | {} | {:.2} | {} | {:.4} | {:.1} |\n",
             r.scene,
             r.surface,
             r.backend,
             r.traversal,
             r.ms(),
+            r.range_text(),
             r.timer,
             r.wall.as_secs_f64() * 1e3,
             r.dda_unroll.map_or("-".to_string(), |n| n.to_string()),
@@ -602,11 +732,11 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     for g in rows.iter().filter(|r| r.backend == "gpu") {
         if let Some(c) = partner(g, "cpu", g.traversal, g.surface) {
             ratios += &format!(
-                "{} {} {}: GPU is {:.2}x the CPU's speed (time ratio CPU/GPU)\n",
+                "{} {} {}: GPU is {} the CPU's speed (time ratio CPU/GPU)\n",
                 g.scene,
                 g.surface,
                 g.traversal,
-                c.median.as_secs_f64() / g.median.as_secs_f64()
+                Ratio::of(c, g)
             );
         }
     }
@@ -615,12 +745,12 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     for s in rows.iter().filter(|r| r.traversal != default) {
         if let Some(d) = partner(s, s.backend, default, s.surface) {
             ratios += &format!(
-                "{} {} {}: {} is {:.2}x {default}'s speed, with {:.2}x fewer steps per ray\n",
+                "{} {} {}: {} is {} {default}'s speed, with {:.2}x fewer steps per ray\n",
                 s.scene,
                 s.surface,
                 s.backend,
                 s.traversal,
-                d.median.as_secs_f64() / s.median.as_secs_f64(),
+                Ratio::of(d, s),
                 d.stats.voxel_steps as f64 / s.stats.voxel_steps.max(1) as f64
             );
         }
@@ -630,12 +760,12 @@ pub fn table(rows: &[BenchRow], adapter: &str, settings: &RenderSettings) -> Str
     for t in rows.iter().filter(|r| r.surface != voxels) {
         if let Some(v) = partner(t, t.backend, t.traversal, voxels) {
             ratios += &format!(
-                "{} {} {} {}: {:.2}x the voxel image's time per frame\n",
+                "{} {} {} {}: {} the voxel image's time per frame\n",
                 t.scene,
                 t.surface,
                 t.backend,
                 t.traversal,
-                t.median.as_secs_f64() / v.median.as_secs_f64()
+                Ratio::of(t, v)
             );
         }
     }
@@ -817,6 +947,9 @@ pub struct PlanRow {
     pub reduced: crate::plan::Plan,
     pub reduced_ms: f64,
     pub full_ms: f64,
+    /// The full kernel's time over the reduced one's, round by round (the two are timed
+    /// a frame of each in turn).
+    pub time_ratio: Ratio,
     pub reduced_bytes: u64,
     pub full_bytes: u64,
     /// Largest per-channel difference between the two images: 0 shows the comparison
@@ -831,6 +964,7 @@ impl PlanRow {
             "plan": self.reduced.to_string(),
             "reduced_ms": self.reduced_ms,
             "full_ms": self.full_ms,
+            "time_full_over_reduced": self.time_ratio.json(),
             "reduced_bytes": self.reduced_bytes,
             "full_bytes": self.full_bytes,
             "max_diff": self.max_diff,
@@ -838,21 +972,17 @@ impl PlanRow {
     }
 }
 
-fn median_ms(
+/// A warm frame of `plan` (its image and the device's bytes), so that the timed rounds
+/// that follow find its pipeline built.
+fn warm_plan(
     gpu: &mut GpuTracer,
     scene: &Scene,
     settings: &RenderSettings,
     plan: &crate::plan::Plan,
-    runs: usize,
-) -> Result<(f64, crate::frame::Frame, u64)> {
+) -> Result<(crate::frame::Frame, u64)> {
     let warm = gpu.render_plan(scene, settings, plan.clone())?;
     let bytes = gpu.last_memory().map_or(0, |m| m.total());
-    let mut times = Vec::new();
-    for _ in 0..runs.max(1) {
-        let out = gpu.render_plan(scene, settings, plan.clone())?;
-        times.push(gpu.last_gpu_time().unwrap_or(out.trace_time));
-    }
-    Ok((median(times).as_secs_f64() * 1e3, warm.frame, bytes))
+    Ok((warm.frame, bytes))
 }
 
 /// Scenes that leave something out: opaque materials only (no refraction), no lights
@@ -882,8 +1012,19 @@ pub fn bench_plans(
     for (name, scene) in scenes {
         let reduced = crate::plan::Plan::new(scene, settings);
         let full = reduced.with_all_code(scene, settings);
-        let (reduced_ms, a, reduced_bytes) = median_ms(gpu, scene, settings, &reduced, runs)?;
-        let (full_ms, b, full_bytes) = median_ms(gpu, scene, settings, &full, runs)?;
+        let (a, reduced_bytes) = warm_plan(gpu, scene, settings, &reduced)?;
+        let (b, full_bytes) = warm_plan(gpu, scene, settings, &full)?;
+        // A frame of each in turn, so that load on a shared machine falls on both alike.
+        let (mut reduced_times, mut full_times) = (Vec::new(), Vec::new());
+        for _ in 0..runs.max(1) {
+            for (plan, times) in [(&reduced, &mut reduced_times), (&full, &mut full_times)] {
+                let out = gpu.render_plan(scene, settings, plan.clone())?;
+                times.push(gpu.last_gpu_time().unwrap_or(out.trace_time));
+            }
+        }
+        let ms = |t: &[Duration]| median(t.to_vec()).as_secs_f64() * 1e3;
+        let (reduced_ms, full_ms) = (ms(&reduced_times), ms(&full_times));
+        let time_ratio = Ratio::of_times(&full_times, &reduced_times, true);
         let max_diff = a
             .pixels
             .iter()
@@ -895,6 +1036,7 @@ pub fn bench_plans(
             reduced,
             reduced_ms,
             full_ms,
+            time_ratio,
             reduced_bytes,
             full_bytes,
             max_diff,
@@ -905,14 +1047,14 @@ pub fn bench_plans(
 
 pub fn plan_table(rows: &[PlanRow]) -> String {
     let mut out = String::from(
-        "| scene | reduced plan | reduced ms | full ms | time full/reduced | reduced MiB | full MiB | memory full/reduced | max image diff |\n\
+        "| scene | reduced plan | reduced ms | full ms | time full/reduced (round by round) | reduced MiB | full MiB | memory full/reduced | max image diff |\n\
          |---|---|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let mib = |b: u64| b as f64 / 1048576.0;
     for r in rows {
         let flags = r.reduced.flags_on();
         out += &format!(
-            "| {} | {} (stack {}) | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1e} |\n",
+            "| {} | {} (stack {}) | {:.1} | {:.1} | {} | {:.2} | {:.2} | {:.2} | {:.1e} |\n",
             r.scene,
             if flags.is_empty() {
                 "primary only".to_string()
@@ -922,7 +1064,7 @@ pub fn plan_table(rows: &[PlanRow]) -> String {
             r.reduced.ray_stack_size,
             r.reduced_ms,
             r.full_ms,
-            r.full_ms / r.reduced_ms,
+            r.time_ratio.cell(),
             mib(r.reduced_bytes),
             mib(r.full_bytes),
             r.full_bytes as f64 / r.reduced_bytes as f64,
@@ -1035,6 +1177,7 @@ mod tests {
             traversal,
             surface: "voxels",
             median: Duration::from_millis(1),
+            times: vec![Duration::from_millis(1)],
             wall: Duration::from_millis(1),
             stats: RayStats {
                 primary: 4,
@@ -1047,6 +1190,48 @@ mod tests {
             timer: "wall",
             dda_unroll: None,
         }
+    }
+
+    fn timed(backend: &'static str, traversal: &'static str, ms: &[u64]) -> BenchRow {
+        let times: Vec<Duration> = ms.iter().map(|&m| Duration::from_millis(m)).collect();
+        BenchRow {
+            median: median(times.clone()),
+            times,
+            ..row(backend, traversal, 5)
+        }
+    }
+
+    /// Two walks timed in the same rounds are compared round by round; a range that holds
+    /// 1 is said to be noise, whatever the medians' ratio.
+    #[test]
+    fn a_ratio_carries_the_range_of_its_rounds() {
+        let (a, b) = (
+            timed("gpu", "octant", &[10, 12, 11]),
+            timed("gpu", "boxes", &[10, 11, 12]),
+        );
+        let r = Ratio::of(&a, &b);
+        assert!(r.paired);
+        assert_eq!(r.median, 1.0);
+        assert!(
+            (r.lo - 11.0 / 12.0).abs() < 1e-12 && (r.hi - 12.0 / 11.0).abs() < 1e-12,
+            "{r:?}"
+        );
+        assert!(r.within_noise());
+        assert!(r.to_string().contains("within the runs' noise"), "{r}");
+        // Faster in every round: a finding, its range clear of 1.
+        let c = timed("gpu", "boxes", &[8, 9, 9]);
+        let r = Ratio::of(&a, &c);
+        assert!(!r.within_noise() && r.lo > 1.0, "{r:?}");
+        assert!(!r.to_string().contains("noise"), "{r}");
+        // Rows of two backends were not timed in the same rounds: the widest range.
+        let cpu = timed("cpu", "octant", &[40, 44, 42]);
+        let r = Ratio::of(&cpu, &a);
+        assert!(!r.paired);
+        assert!(
+            (r.lo - 40.0 / 12.0).abs() < 1e-12 && (r.hi - 4.4).abs() < 1e-12,
+            "{r:?}"
+        );
+        assert!(r.to_string().contains("slowest and fastest"), "{r}");
     }
 
     #[test]

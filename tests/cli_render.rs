@@ -426,6 +426,12 @@ fn bench_json_prints_one_object_per_row() {
         assert_eq!(r["bench"], "seed");
         assert_eq!(r["image_side"], 16);
         assert!(r["ms_per_frame"].as_f64().unwrap() > 0.0, "{r}");
+        // The timed frames behind the median: one run of each here.
+        assert_eq!(
+            r["ms_per_frame_runs"],
+            serde_json::json!([r["ms_per_frame"]]),
+            "{r}"
+        );
         // A whole call of a warm tracer: the device's time and what the host adds.
         assert!(r["wall_ms_per_call"].as_f64().unwrap() > 0.0, "{r}");
         if r["backend"] == "cpu" {
@@ -633,4 +639,37 @@ fn settings_lists_every_declared_number_in_columns() {
     for (line, doc) in lines[1..].iter().zip(docs) {
         assert_eq!(line.get(doc_at..), Some(doc), "{line}");
     }
+}
+
+/// A ratio the bench prints between two walks carries the range of its rounds, and the
+/// table each row's range: a comparison with no spread would call noise a finding.
+#[test]
+fn bench_ratios_carry_the_range_of_their_rounds() {
+    let dir = scratch("bench-ratios");
+    let o = voxlab(
+        &dir,
+        &[
+            "bench",
+            "--sizes",
+            "8",
+            "--size",
+            "16",
+            "--gpu-runs",
+            "4",
+            "--no-cpu",
+            "--traversal",
+            "dense,octant",
+        ],
+    );
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        out.contains("| median ms/frame | runs' range ms |"),
+        "{out}"
+    );
+    let line = out
+        .lines()
+        .find(|l| l.contains("octant is ") && l.contains("dense's speed"))
+        .unwrap_or_else(|| panic!("no ratio of octant to dense:\n{out}"));
+    assert!(line.contains(" round by round)"), "{line}");
 }

@@ -22,6 +22,8 @@ pub struct FilterRow {
     pub plain_ms: f64,
     pub filtered_ms: f64,
     pub filter_ms: f64,
+    /// The filtered frame's time over the plain one's, round by round (interleaved).
+    pub time_ratio: super::Ratio,
 }
 
 impl FilterRow {
@@ -33,6 +35,7 @@ impl FilterRow {
             "plain_ms_per_frame": self.plain_ms,
             "filtered_ms_per_frame": self.filtered_ms,
             "filter_ms_per_frame": self.filter_ms,
+            "time_filtered_over_none": self.time_ratio.json(),
         })
     }
 }
@@ -94,6 +97,7 @@ pub fn bench_reconstructions(
                 plain_ms: ms(&frame[0]),
                 filtered_ms: ms(&frame[k + 1]),
                 filter_ms: ms(&filter[k + 1]),
+                time_ratio: super::Ratio::of_times(&frame[k + 1], &frame[0], true),
             });
         }
     }
@@ -102,12 +106,12 @@ pub fn bench_reconstructions(
 
 pub fn filter_table(rows: &[FilterRow]) -> String {
     let mut out = String::from(
-        "| experiment | reconstruction | image | frame ms, none | frame ms, filtered | filter passes ms | filtered / none |\n\
+        "| experiment | reconstruction | image | frame ms, none | frame ms, filtered | filter passes ms | filtered / none (round by round) |\n\
          |---|---|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         out += &format!(
-            "| {} | {} | {}x{} | {:.1} | {:.1} | {:.1} | {:.2} |\n",
+            "| {} | {} | {}x{} | {:.1} | {:.1} | {:.1} | {} |\n",
             r.experiment,
             r.reconstruction,
             r.size,
@@ -115,7 +119,7 @@ pub fn filter_table(rows: &[FilterRow]) -> String {
             r.plain_ms,
             r.filtered_ms,
             r.filter_ms,
-            r.filtered_ms / r.plain_ms
+            r.time_ratio.cell()
         );
     }
     out
