@@ -196,6 +196,14 @@ fn traced(throughput: vec3<f32>) -> bool {
 #endif
 }
 
+// |v| without squaring v's components: from its largest one, so that a vector whose
+// components' squares are no f32 (below about 1e-19) keeps its length. As
+// crate::cpu::scaled_length.
+fn scaled_length(v: vec3<f32>) -> f32 {
+    let m = max(abs(v.x), max(abs(v.y), abs(v.z)));
+    return select(0.0, m * length(v / m), m > 0.0);
+}
+
 // Pushes the refraction ray, then the reflection ray (contract order), for a hit of
 // ray r at p with shading normal n and the surface's own normal ng (the rays start off
 // the surface along it) on material h, shaded by s. A ray that leaves the grid from
@@ -209,16 +217,19 @@ fn spawn(r: RayEntry, p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, h: u32, s: Mate
     if s.kt > 0.0 {
         let eta = materials[r.medium].ior / materials[h].ior;
         let c = -dot(n, d);
-        // sin^2 of the incidence from the ray's part along the surface, not 1 - c * c:
+        // sin of the incidence from the ray's part along the surface, not 1 - c * c:
         // in f32 that loses a near-normal ray's sin^2 below about 1e-7, and with it the
         // critical angle of a large eta (an ior of 1e3 drew 11 % of the seed scene's
         // pixels apart from the f64 reference). On a voxel face, whose normal is an
-        // axis, the part is exact.
+        // axis, the part is exact. The refracted sine eta sin_i is squared after the
+        // product: eta^2 leaves f32 past an eta of 1.8e19, where eta sin_i need not.
+        // And sin_i is the part's length taken at its own scale: squared, the part of a
+        // ray that entered a pane of ior 1e30 (1e-30 a component) is no f32 at all.
         let along = d + c * n;
-        let sin2_i = dot(along, along);
-        let k = 1.0 - eta * eta * sin2_i;
+        let sin_t = eta * scaled_length(along);
+        let k = 1.0 - sin_t * sin_t;
         // The material's split (dielectric.wgsl); k < 0: total internal reflection.
-        let w = split_weights(s, c, sin2_i, eta, k < 0.0);
+        let w = split_weights(s, c, sin_t, eta, k < 0.0);
         w_r = w.x;
         if k >= 0.0 && w.y > 0.0 {
 #ifdef REFRACTION

@@ -390,6 +390,55 @@ pub fn check_lights_f32(scene: &Scene, settings: &RenderSettings) -> Result<(), 
     Ok(())
 }
 
+/// Whether the kernel's f32 holds the indices of refraction it divides: at a
+/// transmitting hit `eta = ior(medium) / ior(hit)` over void and the materials the grid
+/// uses. Each must be a normal f32 and their largest ratio below f32's largest number
+/// (about 3.4e38), so that `eta` is finite: an ior of 1e39 is an infinity in f32, and
+/// `eta sin_i` of an infinite `eta` at normal incidence is NaN where the f64 reference
+/// refracts the ray straight on. Every such value is in the key's range (`> 0`), and
+/// the reference renders it; the GPU tracer refuses it with the material and key named.
+/// A scene where nothing transmits reads no ior.
+pub fn check_iors_f32(scene: &Scene) -> Result<(), String> {
+    let used = scene.grid.materials_used();
+    if !shading_materials(scene).iter().any(|(_, m)| m.kt > 0.0) {
+        return Ok(());
+    }
+    let media: Vec<(usize, f64)> = (0..scene.materials.len())
+        .filter(|&i| i == VOID as usize || used[i])
+        .map(|i| (i, scene.materials[i].ior))
+        .collect();
+    let name = |i: usize| format!("materials[{}].ior", scene.materials[i].name);
+    let (lo, hi) = (f64::from(f32::MIN_POSITIVE), f64::from(f32::MAX));
+    if let Some(&(i, ior)) = media.iter().find(|(_, ior)| !(lo..hi).contains(ior)) {
+        return Err(format!(
+            "{} = {ior:e}: outside what the GPU kernel's f32 holds as a normal number \
+             ({lo:.4e} to {hi:.4e}); the CPU reference (--backend cpu) traces it in f64",
+            name(i)
+        ));
+    }
+    let (min, max) = media
+        .iter()
+        .fold(((0, f64::INFINITY), (0, 0.0)), |(min, max), &(i, v)| {
+            (
+                if v < min.1 { (i, v) } else { min },
+                if v > max.1 { (i, v) } else { max },
+            )
+        });
+    if max.1 / min.1 >= hi {
+        return Err(format!(
+            "{} = {:e} over {} = {:e}: a ratio of indices of refraction of {:e}, past what \
+             the GPU kernel's f32 holds (at most {hi:.4e}); the CPU reference (--backend \
+             cpu) traces it in f64",
+            name(max.0),
+            max.1,
+            name(min.0),
+            min.1,
+            max.1 / min.1
+        ));
+    }
+    Ok(())
+}
+
 /// `right_scaled` and `up_scaled` of the kernel's params: the image's half-width and
 /// half-height at unit distance along `forward`.
 pub(crate) fn primary_spans(

@@ -329,14 +329,27 @@ fn total_internal_reflection_and_ior_one() {
 /// pixels apart from the reference, 1e4 32 %); the kernel takes sin^2 from the ray's
 /// tangential part. The semi-solid cube gets the reciprocal, so rays cross both kinds
 /// of interface.
+///
+/// Past 1e7 the reference's own `1 - c^2` (f64) lost the sine of the ray inside the
+/// glass (a quarter of the pixels apart at 1e8, the reference the wrong one), and past
+/// 1e19 the kernel's `eta^2` and the squared sine of that ray left f32 (1e30): both
+/// take the sine at the part's own scale and square `eta sin_i`. Every ior f32 holds,
+/// with a ratio it holds; the GPU refuses the others, naming the material.
 #[test]
 fn extreme_indices_of_refraction() {
     let mut gpu = tracer();
-    for ior in [1e-3, 0.2, 2.5, 40.0, 1e3, 1e4, 1e6] {
+    for ior in [
+        1e-37, 1e-20, 1e-3, 0.2, 2.5, 40.0, 1e3, 1e4, 1e6, 3e7, 1e8, 1e12, 1e19, 1e30, 3e38,
+    ] {
         for fresnel in [false, true] {
             let mut scene = seed_scene(16).unwrap();
             scene.materials[1].ior = ior;
-            scene.materials[2].ior = 1.0 / ior;
+            // The reciprocal while the two iors' ratio stays within f32.
+            scene.materials[2].ior = if ior * ior < 1e38 && ior * ior > 1e-38 {
+                1.0 / ior
+            } else {
+                1.0
+            };
             if fresnel {
                 for m in scene.materials.iter_mut().filter(|m| m.kt > 0.0) {
                     m.dielectric = Dielectric::Fresnel;
@@ -349,6 +362,28 @@ fn extreme_indices_of_refraction() {
                 &settings(40),
             );
         }
+    }
+    // An ior f32 does not hold, or a ratio it does not: refused on the GPU, the
+    // material and the key named; the reference renders it.
+    for (glass, semi, words) in [
+        (
+            1e39,
+            1.5,
+            "materials[glass].ior = 1e39: outside what the GPU kernel's f32 holds",
+        ),
+        (
+            1e-39,
+            1.5,
+            "materials[glass].ior = 1e-39: outside what the GPU kernel's f32 holds",
+        ),
+        (1e30, 1e-30, "a ratio of indices of refraction of 1e60"),
+    ] {
+        let mut scene = seed_scene(16).unwrap();
+        scene.materials[1].ior = glass;
+        scene.materials[2].ior = semi;
+        let err = gpu.render(&scene, &settings(8)).unwrap_err();
+        assert!(format!("{err:#}").contains(words), "{err:#}");
+        assert!(voxlab::cpu::render(&scene, &settings(8)).frame.all_finite());
     }
 }
 

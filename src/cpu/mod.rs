@@ -17,7 +17,7 @@ use crate::frame::{Frame, PrimaryLayers, PrimaryPixel, RayStats, RenderOutput, l
 use crate::plan::Plan;
 use crate::ray_cutoff::{light_shaded, spawned, traced};
 use crate::render::{RenderSettings, Rules};
-use crate::scene::{Dielectric, Scene, fresnel_dielectric};
+use crate::scene::{Dielectric, Scene, fresnel_dielectric_at};
 use crate::sparse::Regions;
 use crate::triangles::SurfaceTrace;
 
@@ -804,7 +804,8 @@ fn spawn(
         if m.dielectric == Dielectric::Fresnel {
             // The interface's own split, 1 under total internal reflection
             // (shaders/dielectric.wgsl is its f32 twin).
-            let f = fresnel_dielectric(-n.dot(ray.dir), eta);
+            let c = -n.dot(ray.dir);
+            let f = fresnel_dielectric_at(c, eta * scaled_length(ray.dir + c * n), eta);
             reflection_weight = m.kr * f;
             refraction = m.kt * (1.0 - f);
             // The cutoff's weights as the kernel multiplies them, so a weight at the
@@ -858,13 +859,30 @@ fn spawn(
     }
 }
 
+/// `|v|` without squaring `v`'s components: from its largest one, so that the part
+/// along the surface of a ray that entered a medium of a far larger index (its
+/// components' squares past f64's smallest number) keeps its length (shaders/trace.wgsl
+/// `scaled_length` is the f32 twin).
+pub fn scaled_length(v: DVec3) -> f64 {
+    let m = v.abs().max_element();
+    if m > 0.0 { m * (v / m).length() } else { 0.0 }
+}
+
 /// Snell's law in vector form (`sin t1 / sin t2 = n2 / n1`, `eta = n1 / n2`) for a unit
 /// direction `d` and a unit normal `n` facing against it; `None` under total internal
-/// reflection.
+/// reflection. `eta d + (eta c - sqrt(k)) n` with `k = 1 - eta^2 (1 - c^2)` (the
+/// contract's form), evaluated as the f32 kernel does: `sin_i` from the ray's part
+/// along the surface, `d + c n` ([`scaled_length`]), and `eta sin_i` squared after the
+/// product. `1 - c^2`
+/// has no digits left for a near-normal ray's `sin^2` below about 1e-16, where the
+/// critical angle of an `eta` past 1e8 lies: the reference drew a quarter of the seed
+/// scene's pixels apart from the kernel's at a glass ior of 1e8, itself the wrong one.
 pub fn refract(d: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
     let c = -n.dot(d);
-    let k = 1.0 - eta * eta * (1.0 - c * c);
-    (k >= 0.0).then(|| (eta * d + (eta * c - k.sqrt()) * n).normalize())
+    let along = d + c * n;
+    let sin_t = eta * scaled_length(along);
+    let k = 1.0 - sin_t * sin_t;
+    (k >= 0.0).then(|| (eta * along - k.sqrt() * n).normalize())
 }
 
 /// A shaded point: the hit, its shading normal (facing the ray), where shadow rays

@@ -767,6 +767,7 @@ impl GpuTracer {
         scene.validate()?;
         crate::plan::check_primary_origin(scene, settings).map_err(anyhow::Error::msg)?;
         crate::plan::check_lights_f32(scene, settings).map_err(anyhow::Error::msg)?;
+        crate::plan::check_iors_f32(scene).map_err(anyhow::Error::msg)?;
         let (w, h) = (settings.width, settings.height);
         if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
             bail!("image size {w}x{h}: each side must be in 1..={MAX_IMAGE_SIDE}");

@@ -86,7 +86,16 @@ impl Dielectric {
 /// internal reflection (`sin_t > 1`).
 pub fn fresnel_dielectric(cos_i: f64, eta: f64) -> f64 {
     let cos_i = cos_i.clamp(0.0, 1.0);
-    let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+    fresnel_dielectric_at(cos_i, eta * (1.0 - cos_i * cos_i).sqrt(), eta)
+}
+
+/// [`fresnel_dielectric`] given `sin_t = eta sin_i` as well, as the tracers have it:
+/// from the ray's part along the surface, not `1 - cos_i^2`, which has no digits left
+/// for a near-normal ray's `sin^2` below about 1e-16 (f64), where the critical angle
+/// of an `eta` past 1e8 lies ([`crate::cpu::refract`]).
+pub fn fresnel_dielectric_at(cos_i: f64, sin_t: f64, eta: f64) -> f64 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin2_t = sin_t * sin_t;
     if sin2_t >= 1.0 {
         return 1.0;
     }

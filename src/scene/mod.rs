@@ -16,8 +16,8 @@ pub use grid::{
 };
 pub use light::{AreaLight, AreaShape, Emission, Light, PointLight};
 pub use material::{
-    Dielectric, MIN_KT_FOR_SIGMA, Material, SEED_SHININESS, fresnel_dielectric, seed_ids,
-    seed_palette,
+    Dielectric, MIN_KT_FOR_SIGMA, Material, SEED_SHININESS, fresnel_dielectric,
+    fresnel_dielectric_at, seed_ids, seed_palette,
 };
 pub use mesh::{Resolution, VoxelizeOptions, Voxelized, load_mesh, voxelize_mesh};
 pub use seed::{seed_scene, seed_scene_dims};
