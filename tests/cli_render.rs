@@ -673,3 +673,31 @@ fn bench_ratios_carry_the_range_of_their_rounds() {
         .unwrap_or_else(|| panic!("no ratio of octant to dense:\n{out}"));
     assert!(line.contains(" round by round)"), "{line}");
 }
+
+/// Radiance past f32's range is an infinity in the GPU image and in the reference alike
+/// (which rounds its f64 sums to f32 once): `--check` takes the same infinities as
+/// agreeing. It failed such a render, printing figures that passed (the displayed values
+/// clamp an infinity to 1), with "differs by more than the GPU tests allow".
+#[test]
+fn check_agrees_where_both_images_hold_the_same_infinities() {
+    let dir = scratch("check-infinite");
+    let exp = dir.join("bright.toml");
+    std::fs::write(
+        &exp,
+        "[[materials]]\nname = \"glass\"\nemission = [1e38, 1e38, 1e38]\n\
+         [render]\nwidth = 8\nheight = 8\n",
+    )
+    .unwrap();
+    let o = voxlab(
+        &dir,
+        &["render", "bright.toml", "--check", "--out", "bright.exr"],
+    );
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{out}\n{err}");
+    assert!(out.contains("check:      agrees"), "{out}");
+    let image = read_exr(dir.join("bright.exr")).unwrap();
+    assert!(
+        image.pixels.iter().flatten().any(|c| c.is_infinite()),
+        "the scene no longer overflows f32; the test needs a brighter one"
+    );
+}
