@@ -338,12 +338,7 @@ pub fn check_lights_f32(scene: &Scene, settings: &RenderSettings) -> Result<(), 
     let vs = g.voxel_size();
     let max = f32::MAX as f64;
     let half = 0.5 * g.dims().as_dvec3();
-    let past = |what: String| {
-        Err(format!(
-            "{what}, past what the GPU kernel's f32 holds (at most {max:.4e}); the CPU \
-             reference (--backend cpu) traces it in f64"
-        ))
-    };
+    let past = |what: String| Err(past_f32(&what));
     for (i, light) in scene.lights.iter().enumerate() {
         let radiance = light.color() * light.intensity();
         if radiance.max_element() >= max {
@@ -390,6 +385,18 @@ pub fn check_lights_f32(scene: &Scene, settings: &RenderSettings) -> Result<(), 
     Ok(())
 }
 
+/// What a value the GPU kernel's f32 cannot hold gets on the GPU tracer: the reference
+/// is the way to render it.
+const REFERENCE_IN_F64: &str = "the CPU reference (--backend cpu) traces it in f64";
+
+/// `what` is past f32's largest number, so the GPU tracer refuses it.
+fn past_f32(what: &str) -> String {
+    format!(
+        "{what}, past what the GPU kernel's f32 holds (at most {:.4e}); {REFERENCE_IN_F64}",
+        f32::MAX
+    )
+}
+
 /// Whether the kernel's f32 holds the indices of refraction it divides: at a
 /// transmitting hit `eta = ior(medium) / ior(hit)` over void and the materials the grid
 /// uses. Each must be a normal f32 and their largest ratio below f32's largest number
@@ -412,7 +419,7 @@ pub fn check_iors_f32(scene: &Scene) -> Result<(), String> {
     if let Some(&(i, ior)) = media.iter().find(|(_, ior)| !(lo..hi).contains(ior)) {
         return Err(format!(
             "{} = {ior:e}: outside what the GPU kernel's f32 holds as a normal number \
-             ({lo:.4e} to {hi:.4e}); the CPU reference (--backend cpu) traces it in f64",
+             ({lo:.4e} to {hi:.4e}); {REFERENCE_IN_F64}",
             name(i)
         ));
     }
@@ -425,16 +432,14 @@ pub fn check_iors_f32(scene: &Scene) -> Result<(), String> {
             )
         });
     if max.1 / min.1 >= hi {
-        return Err(format!(
-            "{} = {:e} over {} = {:e}: a ratio of indices of refraction of {:e}, past what \
-             the GPU kernel's f32 holds (at most {hi:.4e}); the CPU reference (--backend \
-             cpu) traces it in f64",
+        return Err(past_f32(&format!(
+            "{} = {:e} over {} = {:e}: a ratio of indices of refraction of {:e}",
             name(max.0),
             max.1,
             name(min.0),
             min.1,
             max.1 / min.1
-        ));
+        )));
     }
     Ok(())
 }
