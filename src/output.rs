@@ -148,19 +148,22 @@ fn encoding_text(e: &image::ImageError) -> String {
 /// image was written.
 pub fn write_frame(frame: &Frame, path: impl AsRef<Path>) -> Result<(), OutputError> {
     let path = path.as_ref();
+    write_together(vec![(path.to_path_buf(), frame_fill(frame, path)?)])
+}
+
+/// The [`Fill`] of [`write_frame`]: `frame` in the format `path`'s extension names.
+pub(crate) fn frame_fill<'a>(frame: &'a Frame, path: &Path) -> Result<Fill<'a>, OutputError> {
     let format = OutputFormat::from_path(path)?;
-    write_atomically(path, |tmp| match format {
+    let path = path.to_path_buf();
+    Ok(Box::new(move |tmp: &Path| match format {
         OutputFormat::Png => {
             let img = RgbImage::from_raw(frame.width, frame.height, frame.to_rgb8())
                 .expect("a Frame holds width * height pixels");
             img.save_with_format(tmp, format.image_format())
-                .map_err(|error| OutputError::Write {
-                    path: path.to_path_buf(),
-                    error,
-                })
+                .map_err(|error| OutputError::Write { path, error })
         }
-        OutputFormat::Exr => write_exr(frame, path, tmp),
-    })
+        OutputFormat::Exr => write_exr(frame, &path, tmp),
+    }))
 }
 
 /// Linear RGB f32 as a scanline EXR (ZIP, 16 lines a block, increasing Y): the layout
@@ -196,14 +199,31 @@ pub fn write_frame_with_provenance(
     json: &str,
     display: crate::frame::DisplayTransform,
 ) -> Result<(), OutputError> {
-    let path = path.as_ref();
+    // The image and its record appear together or not at all.
+    write_together(frame_with_provenance_fills(
+        frame,
+        path.as_ref(),
+        json,
+        display,
+    )?)
+}
+
+/// The [`Fill`]s of [`write_frame_with_provenance`]: the image, then its sidecar, for a
+/// caller that writes them with other files as one output.
+pub(crate) fn frame_with_provenance_fills<'a>(
+    frame: &'a Frame,
+    path: &Path,
+    json: &'a str,
+    display: crate::frame::DisplayTransform,
+) -> Result<Vec<(PathBuf, Fill<'a>)>, OutputError> {
     let format = OutputFormat::from_path(path)?;
     let sidecar = sidecar_path(path);
+    let at = path.to_path_buf();
     let image = move |tmp: &Path| match format {
-        OutputFormat::Exr => write_exr(frame, path, tmp),
+        OutputFormat::Exr => write_exr(frame, &at, tmp),
         OutputFormat::Png => {
             let io = |error| OutputError::WriteFile {
-                path: path.to_path_buf(),
+                path: at.clone(),
                 error,
             };
             let file = File::create(tmp).map_err(io)?;
@@ -226,8 +246,7 @@ pub fn write_frame_with_provenance(
             writer.finish().map_err(encoding)
         }
     };
-    // The image and its record appear together or not at all.
-    write_together(vec![
+    Ok(vec![
         (path.to_path_buf(), Box::new(image) as Fill),
         (sidecar.clone(), bytes_fill(&sidecar, json.as_bytes())),
     ])
@@ -305,15 +324,6 @@ pub fn write_sidecar(path: &Path, record: &serde_json::Value) -> Result<(), Outp
 pub(crate) fn write_file(path: impl AsRef<Path>, bytes: &[u8]) -> Result<(), OutputError> {
     let path = path.as_ref();
     write_together(vec![(path.to_path_buf(), bytes_fill(path, bytes))])
-}
-
-/// Creates `path`'s directory, lets `write` fill a temporary file beside `path`, and
-/// renames it into place; on any failure the temporary file is removed.
-fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&Path) -> Result<(), OutputError>,
-) -> Result<(), OutputError> {
-    write_together(vec![(path.to_path_buf(), Box::new(write))])
 }
 
 /// What fills one temporary file of [`write_together`].

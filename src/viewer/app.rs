@@ -675,21 +675,14 @@ impl ViewerApp {
     /// the TOML's paths.
     pub fn save_side(&mut self, side: Side, dir: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
         let stem = self.save_stem(dir);
-        let mut written = Vec::new();
-        self.save_side_as(side, dir, &stem, &mut written)
-            .map_err(|e| anyhow::anyhow!("{e:#}; {}", remove_written(&written)))
+        let files = self.side_files(side, dir, &stem)?;
+        crate::output::write_together(files.fills()?)?;
+        Ok((files.png, files.toml))
     }
 
-    /// Writes `STEM-SIDE.png`, `.exr`, `.toml` and, with a reference, `-error.exr`,
-    /// adding each file to `written` once it is whole, so that a caller whose save
-    /// fails later can take them back; returns the PNG's and the TOML's paths.
-    fn save_side_as(
-        &mut self,
-        side: Side,
-        dir: &Path,
-        stem: &str,
-        written: &mut Vec<PathBuf>,
-    ) -> anyhow::Result<(PathBuf, PathBuf)> {
+    /// What a save writes for `side`: `STEM-SIDE.png`, `.exr`, `.toml` and, with a
+    /// reference, `-error.exr`, made before anything is written.
+    fn side_files(&mut self, side: Side, dir: &Path, stem: &str) -> anyhow::Result<SideFiles> {
         let u = self.views[side.index()]
             .latest
             .clone()
@@ -718,26 +711,19 @@ impl ViewerApp {
             "resolved_experiment": text,
         });
         let record = serde_json::to_string_pretty(&record)?;
-        let linear = crate::frame::DisplayTransform {
-            encoding: crate::frame::DisplayEncoding::Linear,
-            exposure: 0.0,
-        };
-        let sidecar = |p: &PathBuf| crate::output::sidecar_path(p);
-        // Each image is written with its record, both or neither.
-        crate::output::write_frame_with_provenance(&u.frame, &png, &record, linear)?;
-        written.extend([png.clone(), sidecar(&png)]);
-        crate::output::write_frame_with_provenance(&u.frame, &exr, &record, linear)?;
-        written.extend([exr.clone(), sidecar(&exr)]);
-        crate::output::write_file(&toml, text.as_bytes())?;
-        written.push(toml.clone());
-        if let Some((reference, frame, _)) = self.pair(side)
-            && let Some(error) = display::difference(&frame, &reference)
-        {
-            let path = PathBuf::from(format!("{}-error.exr", base.display()));
-            crate::output::write_frame(&error, &path)?;
-            written.push(path);
-        }
-        Ok((png, toml))
+        let error = self.pair(side).and_then(|(reference, frame, _)| {
+            display::difference(&frame, &reference)
+                .map(|e| (PathBuf::from(format!("{}-error.exr", base.display())), e))
+        });
+        Ok(SideFiles {
+            png,
+            exr,
+            toml,
+            frame: u.frame,
+            record,
+            text,
+            error,
+        })
     }
 
     /// Saves both sides, their difference (`STEM-difference.exr`, |L - R| in linear
@@ -764,11 +750,42 @@ impl ViewerApp {
             return false;
         }
         let stem = self.save_stem(&dir);
-        let mut saved = Vec::new();
-        if let Err(e) = self.save_sides(&dir, &stem, &mut saved) {
-            self.status = format!("save failed: {e:#}; {}", remove_written(&saved));
-            return false;
-        }
+        let sides = match Side::BOTH
+            .into_iter()
+            .map(|side| self.side_files(side, &dir, &stem))
+            .collect::<anyhow::Result<Vec<_>>>()
+        {
+            Ok(sides) => sides,
+            Err(e) => {
+                self.status = format!("save failed: {e:#}; nothing written");
+                return false;
+            }
+        };
+        let difference = match (self.latest(Side::Left), self.latest(Side::Right)) {
+            (Some(l), Some(r)) => display::difference(&l.frame, &r.frame)
+                .map(|d| (dir.join(format!("{stem}-difference.exr")), d)),
+            _ => None,
+        };
+        // Every file of both sides and their difference as one output: all are renamed
+        // into place once all are whole (output::write_together), or none is.
+        let written = (|| {
+            let mut fills = Vec::new();
+            for files in &sides {
+                fills.extend(files.fills()?);
+            }
+            if let Some((path, d)) = &difference {
+                fills.push((path.clone(), crate::output::frame_fill(d, path)?));
+            }
+            let paths: Vec<PathBuf> = fills.iter().map(|(p, _)| p.clone()).collect();
+            crate::output::write_together(fills).map(|()| paths)
+        })();
+        let saved = match written {
+            Ok(paths) => paths,
+            Err(e) => {
+                self.status = format!("save failed: {e}; nothing written");
+                return false;
+            }
+        };
         let capture = dir.join(format!("{stem}-window.png"));
         // The capture's record: the build and the files saved with it, whose own
         // records say what each side rendered.
@@ -810,27 +827,6 @@ impl ViewerApp {
             .saved
             .extend(saved);
         true
-    }
-
-    /// Both sides' files and their difference under `stem`, each added to `saved` once
-    /// it is whole.
-    fn save_sides(
-        &mut self,
-        dir: &Path,
-        stem: &str,
-        saved: &mut Vec<PathBuf>,
-    ) -> anyhow::Result<()> {
-        for side in Side::BOTH {
-            self.save_side_as(side, dir, stem, saved)?;
-        }
-        if let (Some(l), Some(r)) = (self.latest(Side::Left), self.latest(Side::Right))
-            && let Some(d) = display::difference(&l.frame, &r.frame)
-        {
-            let path = dir.join(format!("{stem}-difference.exr"));
-            crate::output::write_frame(&d, &path)?;
-            saved.push(path);
-        }
-        Ok(())
     }
 
     /// Drives a scripted run: once both sides hold their frames at full size, save,
@@ -1953,16 +1949,42 @@ fn write_capture(image: &ColorImage, path: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Removes the files a failed save wrote, and says what it could not remove.
-fn remove_written(written: &[PathBuf]) -> String {
-    let left: Vec<String> = written
-        .iter()
-        .filter(|p| std::fs::remove_file(p).is_err() && p.exists())
-        .map(|p| p.display().to_string())
-        .collect();
-    if left.is_empty() {
-        "nothing written".into()
-    } else {
-        format!("could not remove {}", left.join(", "))
+/// One side's files of a save ([`ViewerApp::side_files`]).
+struct SideFiles {
+    png: PathBuf,
+    exr: PathBuf,
+    toml: PathBuf,
+    frame: std::sync::Arc<crate::Frame>,
+    record: String,
+    text: String,
+    /// The side's error map against its reference, where it has one.
+    error: Option<(PathBuf, crate::Frame)>,
+}
+
+impl SideFiles {
+    /// The PNG and the EXR, each with its record, the experiment file and the error map,
+    /// for [`crate::output::write_together`]: the images linear, as `voxlab render`
+    /// writes them.
+    fn fills(&self) -> Result<Vec<(PathBuf, crate::output::Fill<'_>)>, crate::output::OutputError> {
+        use crate::output::{bytes_fill, frame_fill, frame_with_provenance_fills};
+        let linear = crate::frame::DisplayTransform {
+            encoding: crate::frame::DisplayEncoding::Linear,
+            exposure: 0.0,
+        };
+        let mut fills = frame_with_provenance_fills(&self.frame, &self.png, &self.record, linear)?;
+        fills.extend(frame_with_provenance_fills(
+            &self.frame,
+            &self.exr,
+            &self.record,
+            linear,
+        )?);
+        fills.push((
+            self.toml.clone(),
+            bytes_fill(&self.toml, self.text.as_bytes()),
+        ));
+        if let Some((path, e)) = &self.error {
+            fills.push((path.clone(), frame_fill(e, path)?));
+        }
+        Ok(fills)
     }
 }
