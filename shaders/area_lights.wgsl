@@ -6,7 +6,7 @@
 
 #import voxlab::types::{Material, Light, LIGHT_POINT, LIGHT_RECT, LIGHT_DISK}
 #import voxlab::bindings::params
-#import voxlab::counters::loop_cut
+#import voxlab::counters::{loop_cut, loop_guard}
 #import voxlab::sampling::{SampleKey, light_sample}
 #import voxlab::phong::point_contribution
 #import voxlab::emission::emitted
@@ -57,7 +57,7 @@ fn sampled_light(
         sum += point_contribution(q, p, n, d, x, emitted(light, x, p), s);
         continuing {
             k++;
-            break if k >= count;
+            break if k >= count || loop_guard();
         }
     }
     // Only the driver's loop limit ends it early (shaders/counters.wgsl).

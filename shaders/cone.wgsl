@@ -38,7 +38,8 @@ struct ConeParams {
     indirect_range: f32,
     // tan(theta / 2) of point lights' shadow cones.
     point_tan_half: f32,
-    pad_b: f32,
+    // Always 0: the loops here leave on their own exit condition or this (loop_guard).
+    loop_guard: u32,
 }
 
 struct ConeResult {
@@ -50,6 +51,14 @@ struct ConeResult {
 // software driver's loop limit (shaders/counters.wgsl, loop_cut, which the tracer's
 // entry point calls for it; this module is also composed without the counters).
 var<private> cone_loop_cut: bool;
+
+// Always false, and no compiler can know it: each loop here leaves with `break if <its
+// exit> || loop_guard()`, so the check after it is not dead code to the driver's
+// optimiser (shaders/counters.wgsl, loop_guard, whose uniform this module, composed
+// without the tracer's bindings too, does not see).
+fn loop_guard() -> bool {
+    return cone.loop_guard != 0u;
+}
 
 const OCCLUSION_CUTOFF: f32 = 0.99;
 const MAX_CONE_STEPS: u32 = 4096u;
@@ -187,7 +196,7 @@ fn march(o: vec3<f32>, w: vec3<f32>, tan_half: f32, max_dist: f32, gather: bool)
         if !done { done = march_step(&m, o, w, tan_half, max_dist, gather); }
         if !done { done = march_step(&m, o, w, tan_half, max_dist, gather); }
         continuing {
-            break if done;
+            break if done || loop_guard();
         }
     }
     // Every step count ends the march (MAX_CONE_STEPS), so the loop ends with `done`;
@@ -227,7 +236,7 @@ fn ambient_occlusion(p: vec3<f32>, n: vec3<f32>) -> f32 {
         sum += 1.0 - march(o, w, cone.hemi_tan_half, cone.ao_range, false).occlusion;
         continuing {
             k++;
-            break if k >= cone.ao_cones;
+            break if k >= cone.ao_cones || loop_guard();
         }
     }
     if k < cone.ao_cones {
@@ -248,7 +257,7 @@ fn indirect_light(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
         sum += march(o, w, cone.hemi_tan_half, cone.indirect_range, true).radiance;
         continuing {
             k++;
-            break if k >= cone.ao_cones;
+            break if k >= cone.ao_cones || loop_guard();
         }
     }
     if k < cone.ao_cones {

@@ -3,7 +3,7 @@
 // COUNT_RAYS every function is empty and the compiler drops the calls.
 #define_import_path voxlab::counters
 
-#import voxlab::bindings::counters
+#import voxlab::bindings::{counters, params}
 
 // Index of the counter of invocations whose loops the driver cut short (see loop_cut).
 const LOOPS_CUT: u32 = 8u;
@@ -32,6 +32,21 @@ var<private> loops_cut: bool;
 
 fn loop_cut() {
     loops_cut = true;
+}
+
+// What keeps those checks in the driver's code: every loop leaves with
+// `break if <its exit> || loop_guard()`. The limiter is added below NIR (in gallivm's
+// LLVM IR), so to Mesa's NIR optimiser a loop whose only exit is `break if done` proves
+// `done` after it, and the check `if !done { loop_cut(); }` is dead code to it
+// (nir_opt_if replaces a condition's uses in the blocks its branch dominates). So it
+// was, for the loops whose check tested the exit's own boolean: cone marches of
+// `cones.step_factor = 1e-4` came back wrong on lavapipe with no cut reported, and are
+// refused since (tests/loop_limit.rs). With wgpu's loop counter (force_loop_bounding,
+// dropped in src/gpu/mod.rs) every loop had a second exit and the checks stood.
+// `params.loop_guard` is always 0 and a uniform, so no compiler can drop it, and a check
+// after the loop proves nothing it could fold.
+fn loop_guard() -> bool {
+    return params.loop_guard != 0u;
 }
 
 // primary, secondary, shadow, voxel steps. One invocation's counts fit u32 easily.

@@ -6,7 +6,7 @@
 
 #import voxlab::types::Material
 #import voxlab::bindings::{params, lights}
-#import voxlab::counters::loop_cut
+#import voxlab::counters::{loop_cut, loop_guard}
 #import voxlab::sampling::SampleKey
 #import voxlab::shadow_model::light_term
 
@@ -34,7 +34,7 @@ fn local_light(p: vec3<f32>, n: vec3<f32>, ng: vec3<f32>, d: vec3<f32>, s: Mater
 #endif
             continuing {
                 j++;
-                break if j >= params.num_lights;
+                break if j >= params.num_lights || loop_guard();
             }
         }
     }

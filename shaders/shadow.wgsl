@@ -7,7 +7,7 @@
 
 #import voxlab::bindings::voxel_inside
 #import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, dda_skip, dda_region, max_steps}
-#import voxlab::counters::loop_cut
+#import voxlab::counters::{loop_cut, loop_guard}
 #import voxlab::transmittance::{Absorb, absorb_start, absorb_pass, absorb_result}
 
 // The walk's state beside the model's (a variable of its own: the model's functions
@@ -66,7 +66,7 @@ fn transmittance(q: vec3<f32>, d: vec3<f32>, len: f32) -> vec3<f32> {
         #walk_steps done = shadow_step(&s, &w, &absorb, len);
         continuing {
             i += #{DDA_UNROLL}u;
-            break if done || i >= n;
+            break if done || i >= n || loop_guard();
         }
     }
     // Any other way out is the driver's loop limit (shaders/counters.wgsl).

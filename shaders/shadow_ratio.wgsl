@@ -8,7 +8,7 @@
 
 #import voxlab::types::{Material, Light, LIGHT_RECT, EMISSION_LAMBERTIAN}
 #import voxlab::bindings::params
-#import voxlab::counters::{count_shadow, loop_cut}
+#import voxlab::counters::{count_shadow, loop_cut, loop_guard}
 #import voxlab::sampling::{SampleKey, light_sample}
 #import voxlab::area_lights::{sample_point, sampled_light}
 #import voxlab::phong::shadow_to
@@ -197,7 +197,7 @@ fn light_term(
         visible += vis;
         continuing {
             k++;
-            break if k >= count;
+            break if k >= count || loop_guard();
         }
     }
     // Only the driver's loop limit ends it early (shaders/counters.wgsl).

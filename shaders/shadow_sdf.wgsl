@@ -5,7 +5,7 @@
 
 #import voxlab::types::{Material, Light, LIGHT_POINT, LIGHT_RECT}
 #import voxlab::bindings::{params, technique_data, technique_setting, voxel_inside}
-#import voxlab::counters::{count_shadow, loop_cut}
+#import voxlab::counters::{count_shadow, loop_cut, loop_guard}
 #import voxlab::sampling::SampleKey
 #import voxlab::phong::{shadow_to, unshadowed}
 #import voxlab::emission::emitted
@@ -68,7 +68,7 @@ fn penumbra(q: vec3<f32>, d: vec3<f32>, len: f32, k: f32) -> f32 {
         #walk_steps done = penumbra_step(&s, &t0, &p, len, k);
         continuing {
             i += #{DDA_UNROLL}u;
-            break if done || i >= n;
+            break if done || i >= n || loop_guard();
         }
     }
     // Any other way out is the driver's loop limit (shaders/counters.wgsl).

@@ -6,7 +6,7 @@
 
 #import voxlab::types::{Material, Light, LIGHT_RECT}
 #import voxlab::bindings::params
-#import voxlab::counters::loop_cut
+#import voxlab::counters::{loop_cut, loop_guard}
 #import voxlab::sampling::{SampleKey, light_sample}
 #import voxlab::area_lights::sampled_light
 #import voxlab::phong::point_contribution
@@ -132,7 +132,7 @@ fn light_term(
         sum += point_contribution(q, p, n, d, x, emitted(light, x, p) * w, s);
         continuing {
             k++;
-            break if k >= count;
+            break if k >= count || loop_guard();
         }
     }
     // Only the driver's loop limit ends it early (shaders/counters.wgsl).

@@ -8,7 +8,7 @@
 #import voxlab::bindings::voxel_inside
 #import voxlab::traversal::{Dda, enter, dda_init, dda_axis, dda_advance, dda_skip, dda_region, walk_bound}
 #import voxlab::triangles::{WatertightRay, watertight_ray, cell_range, next_transition, is_cell, CELL_TOLERANCE}
-#import voxlab::counters::loop_cut
+#import voxlab::counters::{loop_cut, loop_guard}
 #import voxlab::transmittance::{Absorb, absorb_start, absorb_pass, absorb_result}
 
 // The media so far: the current one and where it began, the last crossing taken, and
@@ -51,7 +51,7 @@ fn pass_cell(s: ptr<function, Dda>, w: ptr<function, Media>, absorb: ptr<functio
         }
         continuing {
             k++;
-            break if !more;
+            break if !more || loop_guard();
         }
     }
     // Any other way out is the driver's loop limit (shaders/counters.wgsl).
@@ -127,7 +127,7 @@ fn surface_transmittance(q: vec3<f32>, d: vec3<f32>, len: f32, medium: u32) -> v
             }
             continuing {
                 i += #{DDA_UNROLL}u;
-                break if done || i >= n;
+                break if done || i >= n || loop_guard();
             }
         }
     }

@@ -18,7 +18,7 @@
 #ifdef TRIANGLES
 #import voxlab::triangles::shadow_medium
 #endif
-#import voxlab::counters::{count_primary, count_secondary, count_untraced, flush_counts, loop_cut, shadows_clear}
+#import voxlab::counters::{count_primary, count_secondary, count_untraced, flush_counts, loop_cut, loop_guard, shadows_clear}
 #import voxlab::sampling::{SampleKey, pixel_sample}
 #ifdef CONES
 #import voxlab::cone::cone_loop_cut
@@ -399,7 +399,7 @@ fn trace_pixel(origin: vec3<f32>, t0: f32, dir: vec3<f32>, key: SampleKey) -> ve
             } else {
                 finished = true;
             }
-            break if finished;
+            break if finished || loop_guard();
         }
     }
     if !finished {

@@ -6,7 +6,7 @@
 
 #import voxlab::types::{BIG, Region}
 #import voxlab::bindings::{params, voxel_inside}
-#import voxlab::counters::{count_step, loop_cut}
+#import voxlab::counters::{count_step, loop_cut, loop_guard}
 #import voxlab::regions::{RegionCursor, REGIONS_ARE_VOXELS, region_cursor, region_at}
 #import voxlab::triangles::{is_cell, cell_range, watertight_ray, next_transition, transition_normals}
 
@@ -347,7 +347,7 @@ fn cast_ray(o: vec3<f32>, d: vec3<f32>, medium: u32, t_limit: f32) -> Hit {
 #endif
         continuing {
             i += #{DDA_UNROLL}u;
-            break if done || i >= n;
+            break if done || i >= n || loop_guard();
         }
     }
     // The walk ends by a step, or after max_steps; leaving the loop any other way is the

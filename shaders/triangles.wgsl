@@ -7,7 +7,7 @@
 
 #import voxlab::types::BIG
 #import voxlab::bindings::{params, surface}
-#import voxlab::counters::loop_cut
+#import voxlab::counters::{loop_cut, loop_guard}
 
 // The material the walks read for a cell (triangles::SURFACE_TAG).
 const SURFACE_TAG: u32 = 255u;
@@ -198,7 +198,7 @@ fn next_transition(range: vec2<u32>, r: WatertightRay, t0: f32, t1: f32, after: 
         consider_eight(&tr, r, range, j, lo, hi, after);
         continuing {
             j += 8u;
-            break if j >= range.y;
+            break if j >= range.y || loop_guard();
         }
     }
     if j < range.y {

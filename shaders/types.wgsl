@@ -51,6 +51,9 @@ struct Params {
     // (crate::plan::primary_origin): 0, unless the eye is far out, when `eye` is already
     // moved that far along `forward` on the host in f64.
     primary_advance: f32,
+    // Always 0, which no compiler can know: the tracer's loops leave on their own exit
+    // condition or this (shaders/counters.wgsl, loop_guard).
+    loop_guard: u32,
     // The plan's shadow model's settings in declared order (src/technique/mod.rs,
     // ShadowModel::gpu_settings); read them with bindings::technique_setting.
     technique: vec4<f32>,

@@ -83,7 +83,9 @@ struct GpuParams {
     walk_part_words: u32,
     // `plan::primary_origin`: 0 unless the eye is far out.
     primary_advance: f32,
-    _pad: [u32; 2],
+    // Always 0 (`loop_guard`, shaders/counters.wgsl).
+    loop_guard: u32,
+    _pad: u32,
     // The plan's shadow model's settings (`ShadowModel::gpu_settings`).
     technique: [f32; crate::technique::MAX_GPU_SETTINGS],
 }
@@ -878,7 +880,9 @@ impl GpuTracer {
             // would never end, so that a driver may not assume it ends. Every loop of
             // the tracer has its own bound (the walks' max_steps, the stack's depth
             // limits, the light and sample counts), so the counter is only cost: 3 to
-            // 4 % of a frame of the seed scene on lavapipe. Bounds checks stay.
+            // 4 % of a frame of the seed scene on lavapipe. Bounds checks stay. Without
+            // it each loop's exit carries `loop_guard()` (shaders/counters.wgsl), or the
+            // driver's compiler drops the checks that report its loop limit.
             let mut checks = wgpu::ShaderRuntimeChecks::checked();
             checks.force_loop_bounding = false;
             // SAFETY: the module is the tracer's own WGSL, composed and validated by

@@ -80,7 +80,8 @@ pub(crate) struct GpuConeParams {
     pub indirect_strength: f32,
     pub indirect_range: f32,
     pub point_tan_half: f32,
-    pub _pad: f32,
+    // Always 0 (`loop_guard`, shaders/cone.wgsl).
+    pub loop_guard: u32,
 }
 const _: () = assert!(std::mem::size_of::<GpuConeParams>() == 64);
 
@@ -99,7 +100,7 @@ impl GpuConeParams {
             indirect_strength: c.indirect_strength as f32,
             indirect_range: indirect_range(layout) as f32,
             point_tan_half: (c.aperture_deg.to_radians() / 2.0).tan() as f32,
-            _pad: 0.0,
+            loop_guard: 0,
         }
     }
 }

@@ -414,7 +414,8 @@ impl GpuTracer {
             filter_width: settings.filter_width as f32,
             walk_part_words: 0,
             primary_advance: origin.advance as f32,
-            _pad: [0; 2],
+            loop_guard: 0,
+            _pad: 0,
             technique: [0.0; crate::technique::MAX_GPU_SETTINGS],
         }
     }
