@@ -265,6 +265,12 @@ impl Experiment {
         self.inner.name.clone()
     }
 
+    /// The file's `description` key, as its records keep it; None without one.
+    #[getter]
+    fn description(&self) -> Option<String> {
+        self.inner.description.clone()
+    }
+
     #[getter]
     fn source(&self) -> Option<String> {
         self.inner

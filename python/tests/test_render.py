@@ -232,3 +232,16 @@ def test_save_fails_whole_on_an_odd_name_or_a_blocked_record(cpu, tmp_path):
         im.save(tmp_path / "x.png")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.png.json"]
     assert not any((tmp_path / "x.png.json").iterdir())
+
+
+def test_an_experiment_keeps_its_description(cpu):
+    """The file's `description`, as every record quotes it (the record's resolved
+    experiment keeps it too); None without one."""
+    e = vx.load(EXPERIMENTS / "ablate_area.toml")
+    assert e.description == "seed scene, one rect area light, Beer-Lambert: error against time"
+    text = '[render]\nwidth = 4\nheight = 4\n'
+    assert vx.load(text).description is None
+    d = vx.load('description = "odd \\"quoted\\" \\u00e9"\n' + text)
+    assert d.description == 'odd "quoted" \u00e9'
+    im = cpu.render(d)
+    assert vx.load(im.provenance["resolved_experiment"]).description == d.description

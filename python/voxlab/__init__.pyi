@@ -75,6 +75,9 @@ class Experiment:
     @property
     def name(self) -> str: ...
     @property
+    def description(self) -> Optional[str]:
+        """The file's `description` key, as its records keep it; None without one."""
+    @property
     def source(self) -> Optional[str]:
         """The file it was read from; None for text, dicts and replaced grids."""
     @property
