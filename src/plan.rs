@@ -1150,6 +1150,41 @@ impl Plan {
             .collect()
     }
 
+    /// The settings of the shadow model and lighting terms the plan composed, as `voxlab
+    /// techniques` lists them, and every setting of a shared table one of them reads
+    /// (each once, in order): what else a render the driver's loop limit cuts could
+    /// change (a cone march's step and its cones, say).
+    pub fn technique_settings(&self) -> Vec<String> {
+        use crate::technique::Slot;
+        let mut keys = Vec::new();
+        for row in crate::technique::listing() {
+            let composed = match row.slot {
+                Slot::Shadow => row.name == self.shadow_model.name,
+                Slot::Lighting => self.terms.iter().any(|t| t.name == row.name),
+                _ => false,
+            };
+            if composed {
+                for key in row.settings {
+                    if !keys.contains(&key) {
+                        keys.push(key);
+                    }
+                }
+            }
+        }
+        for group in crate::technique::SETTING_GROUPS {
+            let prefix = format!("{}.", group.table);
+            if keys.iter().any(|k| k.starts_with(&prefix)) {
+                for s in group.settings {
+                    let key = format!("{prefix}{}", s.key());
+                    if !keys.contains(&key) {
+                        keys.push(key);
+                    }
+                }
+            }
+        }
+        keys
+    }
+
     /// The value of a flag of [`KERNEL_FLAGS`] by name (false for a name it lacks).
     pub fn flag(&self, name: &str) -> bool {
         KERNEL_FLAGS

@@ -69,6 +69,15 @@ fn a_render_the_loop_limit_cuts_is_refused_never_wrong() {
         }
     }
     eprintln!("refused as cut: {refused:?}");
+    // The refusal names what would lower the cone case's loops: its march's settings.
+    let (_, e) = &cases[0];
+    if let Err(err) = gpu.render(&e.scene, &e.settings) {
+        let message = format!("{err:#}");
+        assert!(
+            message.contains("cones.step_factor") && message.contains("cones.ao_cones"),
+            "{message}"
+        );
+    }
     if gpu.adapter_info().device_type == wgpu::DeviceType::Cpu {
         // The cases are meant to reach the limit there: a test none of whose renders is
         // cut would hold nothing against the check.
@@ -79,4 +88,24 @@ fn a_render_the_loop_limit_cuts_is_refused_never_wrong() {
             "lavapipe refused {refused:?}"
         );
     }
+}
+
+/// What the refusal offers beyond the depth limits and samples: the settings of the
+/// techniques the plan composed, and the shared table they read, nothing for the
+/// baseline.
+#[test]
+fn a_plans_technique_settings_are_those_of_what_it_composed() {
+    use voxlab::plan::Plan;
+    let settings_of = |file: &str| {
+        let e = experiment(file);
+        Plan::new(&e.scene, &e.settings).technique_settings()
+    };
+    assert!(settings_of("baseline.toml").is_empty());
+    let ao = settings_of("ambient_occlusion.toml");
+    for key in ["cones.ao_cones", "cones.step_factor", "cones.levels"] {
+        assert!(ao.contains(&key.to_string()), "{ao:?}");
+    }
+    let sdf = settings_of("sdf.toml");
+    assert!(sdf.iter().all(|k| k.starts_with("techniques.sdf.")), "{sdf:?}");
+    assert!(!sdf.is_empty());
 }

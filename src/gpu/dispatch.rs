@@ -153,6 +153,15 @@ impl GpuTracer {
         plan: &Plan,
     ) -> anyhow::Error {
         let info = self.adapter.get_info();
+        let techniques = plan.technique_settings();
+        let techniques = if techniques.is_empty() {
+            String::new()
+        } else {
+            format!(
+                ", the settings of its techniques ({})",
+                techniques.join(", ")
+            )
+        };
         anyhow::Error::new(LoopsCut).context(format!(
             "{} of {} pixel-frames of this image were cut short by the driver ({}, {}): \
              Mesa's software driver (llvmpipe, lavapipe) ends every loop of an \
@@ -161,7 +170,7 @@ impl GpuTracer {
              these pixels needs more (depth limits {}/{}, {} light sample(s), {} \
              light(s), grid {}x{}x{}; {} voxel steps per loop iteration). The image \
              would be wrong, so none is returned: lower light_samples, the depth limits \
-             (or max_depth) or the grid size, or render with --backend cpu or on a \
+             (or max_depth) or the grid size{}, or render with --backend cpu or on a \
              hardware GPU",
             cut,
             pixel_frames,
@@ -175,6 +184,7 @@ impl GpuTracer {
             scene.grid.dims().y,
             scene.grid.dims().z,
             plan.dda_unroll,
+            techniques,
         ))
     }
 

@@ -434,7 +434,7 @@ struct LoopsCut;
 
 impl std::fmt::Display for LoopsCut {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "the driver's loop limit cut the walk")
+        write!(f, "the driver's loop limit cut a loop of the kernel short")
     }
 }
 
