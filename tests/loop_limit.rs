@@ -106,6 +106,9 @@ fn a_plans_technique_settings_are_those_of_what_it_composed() {
         assert!(ao.contains(&key.to_string()), "{ao:?}");
     }
     let sdf = settings_of("sdf.toml");
-    assert!(sdf.iter().all(|k| k.starts_with("techniques.sdf.")), "{sdf:?}");
+    assert!(
+        sdf.iter().all(|k| k.starts_with("techniques.sdf.")),
+        "{sdf:?}"
+    );
     assert!(!sdf.is_empty());
 }

@@ -512,8 +512,16 @@ impl Grid {
             .grid
             .to_dense()
             .map_err(|e| err(ErrorKind::Scene, e.0))?;
+        // A sparse grid's dense copy is handed to numpy as it is, not copied again: one
+        // copy of the voxels either way.
+        let voxels = match dense {
+            std::borrow::Cow::Borrowed(g) => g.data().to_vec(),
+            std::borrow::Cow::Owned(g) => g
+                .into_dense()
+                .ok_or_else(|| err(ErrorKind::Scene, "the grid's dense copy is not dense"))?,
+        };
         let d = self.grid.dims();
-        PyArray1::from_vec(py, dense.data().to_vec()).reshape_with_order(
+        PyArray1::from_vec(py, voxels).reshape_with_order(
             [d.x as usize, d.y as usize, d.z as usize],
             NPY_ORDER::NPY_FORTRANORDER,
         )
