@@ -1489,8 +1489,6 @@ pub struct AblateReport {
     pub external: Option<(external::External, Vec<Row>)>,
 }
 
-/// Runs the whole ablation of `e` and writes its outputs under `opts.out_dir`.
-/// `source` is the experiment file's text, copied into the outputs.
 /// The files a run writes directly into its output directory (the point images go under
 /// `images/`, the references under the cache directory).
 pub const OUTPUT_FILES: &[&str] = &[
@@ -1630,6 +1628,8 @@ fn calibrate<'p>(
     Ok((reference, curves))
 }
 
+/// Runs the whole ablation of `e` and writes its outputs under `opts.out_dir`.
+/// `source` is the experiment file's text, copied into the outputs.
 pub fn run(
     e: &Experiment,
     c: &AblateConfig,

@@ -965,15 +965,12 @@ pub fn write_mitsuba(
     strict: bool,
 ) -> crate::Result<MitsubaScene> {
     use crate::error::{Error, ErrorKind};
-    if dir.exists() && !dir.is_dir() {
-        return Err(Error::new(
-            ErrorKind::Output,
-            format!(
-                "{}: export writes a directory (scene.xml and meshes/), and this is a file",
-                dir.display()
-            ),
-        ));
-    }
+    crate::output::check_directory_output(
+        "--to mitsuba",
+        dir,
+        "export writes a directory (scene.xml and meshes/)",
+    )
+    .map_err(|m| Error::new(ErrorKind::Output, m))?;
     let scene = mitsuba(e, strict).map_err(|err| {
         let kind = match err {
             ExportError::Strict { .. } => ErrorKind::Invalid,

@@ -273,6 +273,19 @@ pub fn read_png_provenance(path: impl AsRef<Path>) -> Result<Option<String>, Out
     Ok(text)
 }
 
+/// Refuses a command's output directory that is an existing file, before the command
+/// does any work (a stress run takes minutes): `flag` names the option that gave it,
+/// `writes` what the command writes there.
+pub fn check_directory_output(flag: &str, dir: &Path, writes: &str) -> Result<(), String> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(format!(
+            "{flag} {}: {writes}, and this is a file",
+            dir.display()
+        ));
+    }
+    Ok(())
+}
+
 /// `<path>.json`: where the provenance record of the output `path` goes.
 pub fn sidecar_path(path: &Path) -> PathBuf {
     let mut s = path.as_os_str().to_owned();

@@ -149,3 +149,60 @@ fn ablate_never_writes_over_its_own_experiment() {
         &[exp.as_path()],
     );
 }
+
+/// A directory output given as an existing file is refused before any work, naming the
+/// option, the path and what the command writes there; the file is left as it was.
+/// `ablate` and `stress` said "creating FILE: File exists" (`stress` only after its
+/// whole run, minutes in).
+#[test]
+fn a_directory_output_that_is_a_file_is_refused_at_once() {
+    let d = dir("directory_output_file");
+    let file = d.join("not_a_directory");
+    std::fs::write(&file, b"keep me").unwrap();
+    let ablate = manifest().join("experiments/ablate_area.toml");
+    let baseline = manifest().join("experiments/baseline.toml");
+    for (args, option) in [
+        (
+            vec![
+                "ablate".as_ref(),
+                ablate.as_os_str(),
+                "--out".as_ref(),
+                file.as_os_str(),
+            ],
+            "--out",
+        ),
+        (
+            vec!["stress".as_ref(), "--out".as_ref(), file.as_os_str()],
+            "--out",
+        ),
+        (
+            vec![
+                "export".as_ref(),
+                baseline.as_os_str(),
+                "--to".as_ref(),
+                "mitsuba".as_ref(),
+                file.as_os_str(),
+            ],
+            "--to mitsuba",
+        ),
+    ] {
+        let started = std::time::Instant::now();
+        let o = voxlab(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} succeeded:\n{err}");
+        assert!(
+            err.contains(&format!("{option} {}", file.display()))
+                && err.contains("writes a directory")
+                && err.contains("this is a file"),
+            "{args:?}: {err}"
+        );
+        // Refused before any case or point renders (a stress run takes minutes).
+        assert!(started.elapsed().as_secs() < 30, "{args:?}: refused late");
+        assert_eq!(std::fs::read(&file).unwrap(), b"keep me");
+        assert_eq!(
+            std::fs::read_dir(&d).unwrap().count(),
+            1,
+            "{args:?} left files"
+        );
+    }
+}

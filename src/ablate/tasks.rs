@@ -607,6 +607,13 @@ impl Driver {
         source: Option<&str>,
         opts: &AblateOptions,
     ) -> Result<Option<external::External>> {
+        crate::output::check_directory_output(
+            "--out",
+            &opts.out_dir,
+            "ablate writes a directory (ablation.csv, plot.png, table.md, images/ and \
+             the rest)",
+        )
+        .map_err(anyhow::Error::msg)?;
         let has_area = e.scene.lights.iter().any(|l| l.is_area());
         if !has_area && c.sweeps.is_empty() {
             bail!(

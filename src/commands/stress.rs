@@ -18,6 +18,12 @@ pub(crate) struct StressArgs {
 }
 
 pub(crate) fn cmd_stress(a: &StressArgs) -> Result<()> {
+    voxlab::output::check_directory_output(
+        "--out",
+        &a.out,
+        "stress writes a directory (stress.md, stress.csv and their records)",
+    )
+    .map_err(anyhow::Error::msg)?;
     // A missing adapter is reported in every row (and fails them), not hidden.
     let mut gpu = match GpuTracer::new() {
         Ok(t) => Some(t),
