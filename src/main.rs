@@ -193,6 +193,16 @@ fn parse_window(s: &str) -> Result<(f32, f32), String> {
 #[cfg(feature = "viewer")]
 fn cmd_view(args: ViewArgs) -> Result<()> {
     use voxlab::viewer::{Automation, ViewOptions};
+    if let Some(dir) = &args.save_dir {
+        // Before the window opens and the frames accumulate, not at the save.
+        voxlab::output::check_directory_output(
+            "--save-dir",
+            dir,
+            "the viewer saves both sides' images and records and a window capture into a \
+             directory",
+        )
+        .map_err(anyhow::Error::msg)?;
+    }
     let automation = match (args.frames, args.save_dir) {
         (Some(frames), Some(save_dir)) => Some(Automation {
             frames,

@@ -153,7 +153,7 @@ fn ablate_never_writes_over_its_own_experiment() {
 /// A directory output given as an existing file is refused before any work, naming the
 /// option, the path and what the command writes there; the file is left as it was.
 /// `ablate` and `stress` said "creating FILE: File exists" (`stress` only after its
-/// whole run, minutes in).
+/// whole run, minutes in), the scripted viewer only after its frames and a window.
 #[test]
 fn a_directory_output_that_is_a_file_is_refused_at_once() {
     let d = dir("directory_output_file");
@@ -185,6 +185,17 @@ fn a_directory_output_that_is_a_file_is_refused_at_once() {
             ],
             "--to mitsuba",
         ),
+        (
+            vec![
+                "view".as_ref(),
+                baseline.as_os_str(),
+                "--frames".as_ref(),
+                "1".as_ref(),
+                "--save-dir".as_ref(),
+                file.as_os_str(),
+            ],
+            "--save-dir",
+        ),
     ] {
         let started = std::time::Instant::now();
         let o = voxlab(&args);
@@ -192,7 +203,7 @@ fn a_directory_output_that_is_a_file_is_refused_at_once() {
         assert!(!o.status.success(), "{args:?} succeeded:\n{err}");
         assert!(
             err.contains(&format!("{option} {}", file.display()))
-                && err.contains("writes a directory")
+                && err.contains("directory")
                 && err.contains("this is a file"),
             "{args:?}: {err}"
         );
