@@ -37,14 +37,15 @@ fn loop_cut() {
 // What keeps those checks in the driver's code: every loop leaves with
 // `break if <its exit> || loop_guard()`. The limiter is added below NIR (in gallivm's
 // LLVM IR), so to Mesa's NIR optimiser a loop whose only exit is `break if done` proves
-// `done` after it, and the check `if !done { loop_cut(); }` is dead code to it
-// (nir_opt_if replaces a condition's uses in the blocks its branch dominates). So it
-// was, for the loops whose check tested the exit's own boolean: cone marches of
-// `cones.step_factor = 1e-4` came back wrong on lavapipe with no cut reported, and are
-// refused since (tests/loop_limit.rs). With wgpu's loop counter (force_loop_bounding,
-// dropped in src/gpu/mod.rs) every loop had a second exit and the checks stood.
-// `params.loop_guard` is always 0 and a uniform, so no compiler can drop it, and a check
-// after the loop proves nothing it could fold.
+// `done` after it, and the check `if !done { loop_cut(); }` is dead code to it (likely
+// nir_opt_if, which replaces a condition's uses in the blocks its branch dominates;
+// release builds of Mesa print no NIR to show it). So it was for the cone marches,
+// whose check tests the exit's own boolean: at `cones.step_factor = 1e-4` they came
+// back wrong on lavapipe with no cut reported, and are refused since
+// (tests/loop_limit.rs). With wgpu's loop counter (force_loop_bounding, dropped in
+// src/gpu/mod.rs) every loop had a second exit and the checks stood.
+// `params.loop_guard` is always 0 but a uniform, so no compiler can drop it, and the
+// loop's exit no longer proves what the check after it tests.
 fn loop_guard() -> bool {
     return params.loop_guard != 0u;
 }
