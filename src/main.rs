@@ -522,12 +522,14 @@ fn open_session(backend: Backend) -> Session {
 
 /// An explicit output path's directory must exist: a mistyped directory is an error,
 /// not a new tree. Only voxlab's own `out/` (the default outputs' directory, which the
-/// README's commands name) is created.
+/// README's commands name) is created, by the write (which removes it again if it
+/// fails).
 fn output_dir_exists(out: &Path) -> Result<()> {
     match out.parent() {
-        Some(dir) if dir == Path::new("out") => {
-            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))
+        Some(dir) if dir == Path::new("out") && dir.exists() && !dir.is_dir() => {
+            bail!("--out {}: out is a file, not a directory", out.display())
         }
+        Some(dir) if dir == Path::new("out") => Ok(()),
         Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => bail!(
             "--out {}: the directory {} does not exist (voxlab creates only its default \
              out/; create it first)",
@@ -548,8 +550,14 @@ fn cmd_render_all(mut experiments: Vec<Experiment>, opts: &RenderOpts) -> Result
     if experiments.len() > 1 && opts.out.is_some() {
         bail!("--out names one output; with several experiments each goes to out/<name>.png");
     }
-    if let Some(out) = &opts.out {
-        output_dir_exists(out)?;
+    match &opts.out {
+        Some(out) => output_dir_exists(out)?,
+        // Refused before any render, not at the first write.
+        None if Path::new("out").exists() && !Path::new("out").is_dir() => bail!(
+            "out is a file, and without --out each image goes to out/<name>.png: move it \
+             or give --out"
+        ),
+        None => {}
     }
     let mut outs = Vec::new();
     for e in &mut experiments {

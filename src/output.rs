@@ -343,7 +343,7 @@ pub(crate) fn write_file(path: impl AsRef<Path>, bytes: &[u8]) -> Result<(), Out
 pub type Fill<'a> = Box<dyn FnOnce(&Path) -> Result<(), OutputError> + 'a>;
 
 /// A [`Fill`] that writes `bytes`, blaming `path` for a failure.
-pub(crate) fn bytes_fill<'a>(path: &Path, bytes: &'a [u8]) -> Fill<'a> {
+pub fn bytes_fill<'a>(path: &Path, bytes: &'a [u8]) -> Fill<'a> {
     let path = path.to_path_buf();
     Box::new(move |tmp: &Path| {
         std::fs::write(tmp, bytes).map_err(|error| OutputError::WriteFile { path, error })
@@ -352,27 +352,40 @@ pub(crate) fn bytes_fill<'a>(path: &Path, bytes: &'a [u8]) -> Fill<'a> {
 
 /// Writes several files as one output (an image and its record, an OBJ and its MTL):
 /// every name is checked first, each file is filled under a temporary name beside its
-/// own, and only when all are complete are they renamed into place. A failure at any
-/// point, or an interrupt (the handler of [`remove_temporaries_on_interrupt`] waits for
-/// the renames), leaves none of them: those already renamed are removed again.
+/// own, and only when all are complete are they renamed into place. Missing parent
+/// directories are created. A failure at any point, or an interrupt (the handler of
+/// [`remove_temporaries_on_interrupt`] waits for the renames), leaves none of them:
+/// those already renamed are removed again, and so are the directories this call
+/// created, where they are still empty.
 pub fn write_together(files: Vec<(PathBuf, Fill<'_>)>) -> Result<(), OutputError> {
     for (path, _) in &files {
         check_name(path)?;
     }
     let mut written = Vec::with_capacity(files.len());
     let mut guards = Vec::with_capacity(files.len());
-    let clean = |written: &[(PathBuf, PathBuf)]| {
+    // Deepest first, so they can be removed in order.
+    let mut made_dirs: Vec<PathBuf> = Vec::new();
+    let clean = |written: &[(PathBuf, PathBuf)], made_dirs: &[PathBuf]| {
         for (_, tmp) in written {
             let _ = std::fs::remove_file(tmp);
         }
+        remove_empty_dirs(made_dirs);
     };
     for (path, fill) in files {
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        if let Err(error) = std::fs::create_dir_all(&dir) {
-            clean(&written);
+        let missing = missing_dirs(&dir);
+        let created = std::fs::create_dir_all(&dir);
+        // Registered before the error is looked at: a failed create_dir_all may have made
+        // the upper ones.
+        for d in missing.into_iter().rev() {
+            guards.push(Pending::new_dir(&d));
+            made_dirs.insert(0, d);
+        }
+        if let Err(error) = created {
+            clean(&written, &made_dirs);
             return Err(OutputError::CreateDir { dir, path, error });
         }
         let tmp = temp_path(&dir, &path);
@@ -380,7 +393,7 @@ pub fn write_together(files: Vec<(PathBuf, Fill<'_>)>) -> Result<(), OutputError
         let filled = fill(&tmp);
         written.push((path, tmp));
         if let Err(e) = filled {
-            clean(&written);
+            clean(&written, &made_dirs);
             return Err(e);
         }
     }
@@ -392,7 +405,7 @@ pub fn write_together(files: Vec<(PathBuf, Fill<'_>)>) -> Result<(), OutputError
             for (done, _) in &written[..k] {
                 let _ = std::fs::remove_file(done);
             }
-            clean(&written[k..]);
+            clean(&written[k..], &made_dirs);
             return Err(OutputError::Rename {
                 path: path.clone(),
                 error,
@@ -402,6 +415,29 @@ pub fn write_together(files: Vec<(PathBuf, Fill<'_>)>) -> Result<(), OutputError
     drop(_renaming);
     drop(guards);
     Ok(())
+}
+
+/// The directories `dir` and its ancestors that do not exist, deepest first: what
+/// `create_dir_all(dir)` would make.
+fn missing_dirs(dir: &Path) -> Vec<PathBuf> {
+    let mut missing = Vec::new();
+    let mut d = Some(dir);
+    while let Some(p) = d.filter(|p| !p.as_os_str().is_empty()) {
+        if p.symlink_metadata().is_ok() {
+            break;
+        }
+        missing.push(p.to_path_buf());
+        d = p.parent();
+    }
+    missing
+}
+
+/// Removes `dirs` in order (deepest first), each only where it is empty: another
+/// writer's files in a directory keep it.
+fn remove_empty_dirs(dirs: &[PathBuf]) {
+    for d in dirs {
+        let _ = std::fs::remove_dir(d);
+    }
 }
 
 /// Refuses a file name longer than its directory's file system allows, before anything
@@ -448,39 +484,57 @@ fn name_max(dir: Option<&Path>) -> usize {
     255
 }
 
-/// Temporary files being written right now, removed by [`remove_temporaries_on_interrupt`]'s
-/// handler if the process is interrupted (Ctrl-C) before they are renamed.
-static PENDING: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+/// Temporary files being written right now, and the directories made for them (`true`),
+/// removed by [`remove_temporaries_on_interrupt`]'s handler if the process is
+/// interrupted (Ctrl-C) before they are renamed.
+static PENDING: std::sync::Mutex<Vec<(PathBuf, bool)>> = std::sync::Mutex::new(Vec::new());
 
-/// A temporary file registered in [`PENDING`] for as long as this lives.
-struct Pending(PathBuf);
+/// A temporary file or a directory made for one, registered in [`PENDING`] for as long
+/// as this lives.
+struct Pending((PathBuf, bool));
 
 impl Pending {
-    fn new(tmp: &Path) -> Self {
+    fn register(entry: (PathBuf, bool)) -> Self {
         if let Ok(mut p) = PENDING.lock() {
-            p.push(tmp.to_path_buf());
+            p.push(entry.clone());
         }
-        Self(tmp.to_path_buf())
+        Self(entry)
+    }
+
+    fn new(tmp: &Path) -> Self {
+        Self::register((tmp.to_path_buf(), false))
+    }
+
+    fn new_dir(dir: &Path) -> Self {
+        Self::register((dir.to_path_buf(), true))
     }
 }
 
 impl Drop for Pending {
     fn drop(&mut self) {
         if let Ok(mut p) = PENDING.lock() {
-            p.retain(|x| x != &self.0);
+            // One entry: two writers may have registered the same directory.
+            if let Some(k) = p.iter().rposition(|x| x == &self.0) {
+                p.remove(k);
+            }
         }
     }
 }
 
 /// Installs a SIGINT/SIGTERM handler (once per process; the binary calls it at start)
-/// that removes every temporary output file still being written and exits with status
-/// 130: an interrupted write leaves neither a half-written output nor a hidden
-/// temporary file. Err when another handler is already installed.
+/// that removes every temporary output file still being written, and the directories
+/// made for them where they are empty, and exits with status 130: an interrupted write
+/// leaves neither a half-written output, nor a hidden temporary file, nor a new empty
+/// directory. Err when another handler is already installed.
 pub fn remove_temporaries_on_interrupt() -> Result<(), String> {
     ctrlc::set_handler(|| {
         if let Ok(p) = PENDING.lock() {
-            for tmp in p.iter() {
+            for (tmp, _) in p.iter().filter(|(_, dir)| !dir) {
                 let _ = std::fs::remove_file(tmp);
+            }
+            // Registered from the top down: the deepest go first.
+            for (dir, _) in p.iter().rev().filter(|(_, dir)| *dir) {
+                let _ = std::fs::remove_dir(dir);
             }
         }
         eprintln!("voxlab: interrupted; no partial output left behind");

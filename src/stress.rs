@@ -19,7 +19,7 @@
 use std::fmt::Write as _;
 use std::time::Duration;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use glam::{DVec3, IVec3, UVec3};
 
 use crate::experiment::Experiment;
@@ -1106,7 +1106,8 @@ pub fn csv(rows: &[StressRow]) -> String {
     s
 }
 
-/// Writes `stress.md` and `stress.csv` into `dir` (created if missing); returns their paths.
+/// Writes `stress.md` and `stress.csv` into `dir` (created if missing, and removed again
+/// if the write fails); returns their paths.
 pub fn write_tables(
     dir: &std::path::Path,
     rows: &[StressRow],
@@ -1114,7 +1115,6 @@ pub fn write_tables(
     record: &serde_json::Value,
 ) -> Result<(std::path::PathBuf, std::path::PathBuf)> {
     use crate::output::{bytes_fill, sidecar_path, write_together};
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let md = dir.join("stress.md");
     let cs = dir.join("stress.csv");
     let (md_text, cs_text) = (markdown(rows, adapter), csv(rows));

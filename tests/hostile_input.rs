@@ -160,11 +160,19 @@ fn ablation_point_names_stay_short_and_unique() {
 }
 
 /// Ctrl-C while an image is being written leaves neither the image nor its hidden
-/// temporary file, and exits 130.
+/// temporary file, nor the default `out/` directory where the write made it, and exits
+/// 130.
 #[cfg(unix)]
 #[test]
 fn an_interrupted_write_leaves_nothing_behind() {
-    let dir = temp_dir("interrupt");
+    for out_exists in [true, false] {
+        interrupt_a_write(out_exists);
+    }
+}
+
+#[cfg(unix)]
+fn interrupt_a_write(out_exists: bool) {
+    let dir = temp_dir(&format!("interrupt-{out_exists}"));
     let exp = dir.join("empty.toml");
     // A one-voxel empty scene: the trace is instant, the 8000x8000 EXR takes a while.
     std::fs::write(
@@ -173,19 +181,28 @@ fn an_interrupted_write_leaves_nothing_behind() {
     )
     .unwrap();
     let out = dir.join("out");
-    std::fs::create_dir_all(&out).unwrap();
+    if out_exists {
+        std::fs::create_dir_all(&out).unwrap();
+    }
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_voxlab"))
-        .args(["render", exp.to_str().unwrap(), "--backend", "cpu", "--out"])
-        .arg(out.join("big.exr"))
+        .current_dir(&dir)
+        .args([
+            "render",
+            "empty.toml",
+            "--backend",
+            "cpu",
+            "--out",
+            "out/big.exr",
+        ])
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
     let start = std::time::Instant::now();
     let tmp_seen = loop {
-        let any = std::fs::read_dir(&out)
-            .unwrap()
-            .any(|e| e.unwrap().file_name().to_string_lossy().ends_with(".tmp"));
+        let any = std::fs::read_dir(&out).is_ok_and(|mut d| {
+            d.any(|e| e.unwrap().file_name().to_string_lossy().ends_with(".tmp"))
+        });
         if any || start.elapsed().as_secs() > 60 {
             break any;
         }
@@ -199,16 +216,22 @@ fn an_interrupted_write_leaves_nothing_behind() {
         .success();
     assert!(ok);
     let status = child.wait().unwrap();
-    let left: Vec<_> = std::fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap().file_name())
-        .collect();
+    let left = |d: &std::path::Path| -> Vec<_> {
+        std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect()
+    };
     // The write may have finished just before the signal: then the image is whole.
     if status.success() {
-        assert_eq!(left.len(), 1, "{left:?}");
+        assert_eq!(left(&out).len(), 1, "{:?}", left(&out));
     } else {
         assert_eq!(status.code(), Some(130), "{status:?}");
-        assert!(left.is_empty(), "left behind: {left:?}");
+        if out_exists {
+            assert!(left(&out).is_empty(), "left behind: {:?}", left(&out));
+        } else {
+            assert!(!out.exists(), "left behind: out/ holding {:?}", left(&out));
+        }
     }
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -1,6 +1,6 @@
 //! Output files as other tools read them, and outputs that fail: an EXR is a scanline
 //! file; an image whose record cannot be written leaves neither behind; an OBJ that
-//! cannot be written leaves no MTL.
+//! cannot be written leaves no MTL; a write that fails leaves no directory it made.
 
 use std::path::{Path, PathBuf};
 
@@ -118,4 +118,68 @@ fn an_obj_that_cannot_be_written_leaves_no_mtl() {
     std::fs::remove_dir(d.join("m.obj")).unwrap();
     voxlab::surface::write_mesh(&mesh, &materials, &d.join("m.obj")).unwrap();
     assert_eq!(names(&d), vec!["m.mtl".to_string(), "m.obj".to_string()]);
+}
+
+/// A write that fails removes the directories it created for its files (deepest and
+/// upper ones, whichever file made them), and keeps those that were there before and
+/// any that hold other files.
+#[test]
+fn a_failed_write_leaves_no_directory_it_made() {
+    use voxlab::output::{Fill, OutputError, bytes_fill, write_together};
+    let d = dir("output_dirs");
+    let fail = |path: &Path| -> Fill<'static> {
+        let path = path.to_path_buf();
+        Box::new(move |_tmp: &Path| {
+            Err(OutputError::WriteFile {
+                path,
+                error: std::io::Error::other("a full disk"),
+            })
+        })
+    };
+    // The first file makes a/b, the second a/b/c/d and fails: all four go.
+    let first = d.join("a/b/x.txt");
+    let second = d.join("a/b/c/d/y.txt");
+    let e = write_together(vec![
+        (first.clone(), bytes_fill(&first, b"x")),
+        (second.clone(), fail(&second)),
+    ])
+    .unwrap_err();
+    assert!(e.to_string().contains("a full disk"), "{e}");
+    assert!(names(&d).is_empty(), "left: {:?}", names(&d));
+
+    // The failure at the rename (the name is a directory) removes them too.
+    std::fs::create_dir_all(d.join("kept")).unwrap();
+    let good = d.join("kept/new/x.txt");
+    let blocked = d.join("kept/new2/y.txt");
+    std::fs::create_dir_all(d.join("kept/new2/y.txt/inside")).unwrap();
+    let e = write_together(vec![
+        (good.clone(), bytes_fill(&good, b"x")),
+        (blocked.clone(), bytes_fill(&blocked, b"y")),
+    ])
+    .unwrap_err();
+    assert!(e.to_string().contains("y.txt"), "{e}");
+    // kept/ was there, kept/new2 holds the blocking directory: both stay.
+    assert_eq!(names(&d.join("kept")), vec!["new2".to_string()], "{e}");
+
+    // A directory made by the call that another writer has put a file into stays.
+    let shared = d.join("shared/z.txt");
+    let other = d.join("shared/other.txt");
+    let e = write_together(vec![(
+        shared.clone(),
+        Box::new(move |_tmp: &Path| {
+            std::fs::write(&other, b"someone else's").unwrap();
+            Err(OutputError::WriteFile {
+                path: PathBuf::from("z.txt"),
+                error: std::io::Error::other("a full disk"),
+            })
+        }) as Fill<'static>,
+    )])
+    .unwrap_err();
+    assert!(e.to_string().contains("a full disk"), "{e}");
+    assert_eq!(names(&d.join("shared")), vec!["other.txt".to_string()]);
+
+    // And a write that succeeds keeps the directories it made.
+    let fine = d.join("p/q/r.txt");
+    write_together(vec![(fine.clone(), bytes_fill(&fine, b"r"))]).unwrap();
+    assert_eq!(std::fs::read(&fine).unwrap(), b"r");
 }

@@ -217,3 +217,30 @@ fn a_directory_output_that_is_a_file_is_refused_at_once() {
         );
     }
 }
+
+/// `render`'s default outputs' directory, `out/`, that is a file: refused before the
+/// render, with and without `--out out/NAME`, and the file kept.
+#[test]
+fn renders_default_out_that_is_a_file_is_refused_at_once() {
+    let d = dir("default_out_file");
+    std::fs::write(d.join("out"), b"keep me").unwrap();
+    let baseline = manifest().join("experiments/baseline.toml");
+    for extra in [&[][..], &["--out", "out/x.png"][..]] {
+        let o = Command::new(env!("CARGO_BIN_EXE_voxlab"))
+            .current_dir(&d)
+            .arg("render")
+            .arg(&baseline)
+            .args(["--backend", "cpu", "--width", "4", "--height", "4"])
+            .args(extra)
+            .output()
+            .expect("run voxlab");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{extra:?} succeeded:\n{err}");
+        assert!(
+            err.contains("out is a file") && !err.contains("rendered"),
+            "{extra:?}: {err}"
+        );
+        assert_eq!(std::fs::read(d.join("out")).unwrap(), b"keep me");
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1, "{extra:?}");
+    }
+}

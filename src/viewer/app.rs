@@ -744,11 +744,8 @@ impl ViewerApp {
             );
             return false;
         }
+        // Made by the write below, and removed again if it fails.
         let dir = PathBuf::from(self.save_dir.trim());
-        if let Err(e) = std::fs::create_dir_all(&dir) {
-            self.status = format!("save failed: cannot create {}: {e}", dir.display());
-            return false;
-        }
         let stem = self.save_stem(&dir);
         let sides = match Side::BOTH
             .into_iter()
