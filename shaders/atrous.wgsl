@@ -8,10 +8,17 @@
 
 #import voxlab::layers::{fp, guide, color_in, color_out, aux, setting, luminance, pixel_index, inside, filtered_at}
 
-// As atrous::TEMPORAL_FRAMES, EPS_DEPTH and EPS_LUMINANCE.
+// As atrous::TEMPORAL_FRAMES, EPS_DEPTH, EPS_LUMINANCE and VARIANCE_FLOOR.
 const TEMPORAL_FRAMES: f32 = 4.0;
 const EPS_DEPTH: f32 = 1e-6;
 const EPS_LUMINANCE: f32 = 1e-10;
+const VARIANCE_FLOOR: f32 = 1e-5;
+
+// atrous::moments_variance: f32's rounding of equal values' moments counts as zero.
+fn moments_variance(m1: f32, m2: f32) -> f32 {
+    let v = m2 - m1 * m1;
+    return select(0.0, v, v > VARIANCE_FLOOR * m2);
+}
 
 struct Guide {
     normal: vec3<f32>,
@@ -77,7 +84,7 @@ fn prepare_signal(x: i32, y: i32, i: u32, m: vec3<f32>, samples: f32) {
     aux[i] = gradient;
     var variance = 0.0;
     if m.z >= TEMPORAL_FRAMES {
-        variance = max(m.y - m.x * m.x, 0.0) / m.z;
+        variance = moments_variance(m.x, m.y) / m.z;
     } else {
         var sw = 0.0;
         var s1 = 0.0;
@@ -95,8 +102,7 @@ fn prepare_signal(x: i32, y: i32, i: u32, m: vec3<f32>, samples: f32) {
                 s2 += w * l * l;
             }
         }
-        let mean = s1 / sw;
-        variance = max(s2 / sw - mean * mean, 0.0) / samples;
+        variance = moments_variance(s1 / sw, s2 / sw) / samples;
     }
     color_out[i] = vec4<f32>(c, variance);
 }

@@ -197,8 +197,8 @@ fn an_image_too_large_for_its_planes_is_refused_with_the_reason() {
 /// exponential average) and the a-trous passes after it, on the device against the
 /// reference, the whole path rendered by a session on each backend. Generated cases:
 /// image sizes 8 to 256, paths of 1 to 6 frames, static and orbiting cameras both ways,
-/// alphas from the mean of all frames to mostly the new one, the tolerances across
-/// their ranges, 1 to 4 passes, 1 to 3 frames per pose, the sampling models.
+/// alphas from the mean of all frames to mostly the new one, the tolerances and the
+/// luminance stop across their ranges, 1 to 4 passes, 1 to 3 frames per pose, the sampling models.
 #[test]
 fn svgf_gpu_equals_cpu_over_generated_paths() {
     let mut gpu = voxlab::Session::new(voxlab::Backend::Gpu).expect("a GPU adapter");
@@ -246,6 +246,10 @@ fn svgf_gpu_equals_cpu_over_generated_paths() {
                 "techniques.svgf.normal_tolerance={}",
                 [-1.0, 0.9, 0.9999][rng.random_range(0..3)]
             ),
+            format!(
+                "techniques.svgf.sigma_luminance={}",
+                [1.0, 4.0, 1e6][rng.random_range(0..3)]
+            ),
         ];
         let e = with(path, &sets);
         let plan = Plan::new(&e.scene, &e.settings);
@@ -259,6 +263,47 @@ fn svgf_gpu_equals_cpu_over_generated_paths() {
         assert_agree(&name, &g.frame, &c.frame);
     }
     assert!(filtered >= 8, "only {filtered} cases kept the filter");
+}
+
+/// A wide luminance stop (`sigma_luminance` up to its 1e6) opens the luminance weight to
+/// whatever variance a pixel has, so the f32 rounding of equal values' moments (about
+/// 1e-7 of them: a pixel lit in every frame, the bilinear mixture of equal taps) must
+/// count as no variance, as the f64 reference's 1e-16 does (`atrous::VARIANCE_FLOOR`).
+/// Before the floor, `render --check` of `reconstruction.toml` at 16x16 and
+/// `sigma_luminance = 1e5` had pixels 1.4/255 off (3e-6 at 4), inside the tolerance of
+/// [`assert_agree`] but a thousand times the filter's own f32 error there: the largest
+/// difference is bounded here. Temporal variance of svgf's moments and of atrous'
+/// frames, and the spatial estimate (svgf before four frames).
+#[test]
+fn a_wide_luminance_stop_sees_no_rounding_as_variance() {
+    let mut gpu = voxlab::Session::new(voxlab::Backend::Gpu).expect("a GPU adapter");
+    let mut cpu = voxlab::Session::new(voxlab::Backend::Cpu).unwrap();
+    let cases: [&[&str]; 4] = [
+        &["render.path_frames=8"],
+        &["render.path_frames=8", "techniques.svgf.iterations=1"],
+        &["render.path_frames=3"],
+        &["features.reconstruction=atrous", "render.spp=8"],
+    ];
+    for case in cases {
+        for sigma in [4.0, 1e3, 1e5, 1e6] {
+            for (w, h) in [(16, 16), (24, 20)] {
+                let mut sets: Vec<String> = case.iter().map(|s| s.to_string()).collect();
+                sets.push(format!("render.width={w}"));
+                sets.push(format!("render.height={h}"));
+                for t in ["svgf", "atrous"] {
+                    sets.push(format!("techniques.{t}.sigma_luminance={sigma}"));
+                }
+                let e = with("reconstruction.toml", &sets);
+                let name = format!("{sets:?}");
+                let g = gpu.render(&e).unwrap_or_else(|err| panic!("{name}: {err}"));
+                let c = cpu.render(&e).unwrap();
+                let d = common::display(&g.frame, &c.frame, 2.0 / 255.0);
+                // At sigma 4 the filter's own f32 error reaches 1.7e-3 here; without the
+                // floor the wide stops gave 2.2e-3 to 5.6e-3, with it at most 1.6e-3.
+                assert!(d.max_abs < 2.5e-3, "{name}: GPU vs CPU {d}");
+            }
+        }
+    }
 }
 
 /// An `svgf` path seen from far out, with a view narrowed to the grid: the kernel

@@ -15,7 +15,9 @@
 //!   temporal one, `(m2 - m1^2) / N` from the frames' moments (the variance of a mean of
 //!   `N`); with fewer, the variance of `l` over the 7x7 pixels around `p`, weighted by
 //!   `w_z w_n w_m` below (Schied et al. 4.2, their bilateral estimate before four frames
-//!   of history), divided by `N`.
+//!   of history), divided by `N`. Either is `m2 - m1^2` of a mean `m1` and mean square
+//!   `m2`, taken as zero where it is at most [`VARIANCE_FLOOR`] `m2` (rounding, not
+//!   spread).
 //! - The depth gradient `g_p`: per axis, of the one-sided differences of `z` towards the
 //!   two neighbours the filter reads, the smaller in magnitude (0 where it reads none).
 //! - Iteration `i = 0 .. iterations - 1`, step `s = 2^i`, over `q = p + s (dx, dy)`,
@@ -105,6 +107,21 @@ const EPS_DEPTH: f64 = 1e-6;
 /// The luminance weight's floor: where the variance is zero only equal values pass.
 const EPS_LUMINANCE: f64 = 1e-10;
 
+/// The variance floor, relative to the mean square: `m2 - m1^2` below it is rounding,
+/// not spread, and counts as zero. In f32 the moments of equal values (a pixel lit in
+/// every frame, the bilinear mixture of equal taps) leave a few units in the last place
+/// of `m2`, about 1e-7 of it; under a large `sigma_luminance` that residue alone opened
+/// the luminance weight on the device (`sigma_luminance = 1e5`: pixels 1.4/255 off the
+/// f64 reference, whose residue is 1e-16). A real spread this small is a standard
+/// deviation of 0.3 % of the values' root mean square.
+pub(crate) const VARIANCE_FLOOR: f64 = 1e-5;
+
+/// The variance of values of mean `m1` and mean square `m2`, zero below the floor.
+pub(crate) fn moments_variance(m1: f64, m2: f64) -> f64 {
+    let v = m2 - m1 * m1;
+    if v > VARIANCE_FLOOR * m2 { v } else { 0.0 }
+}
+
 /// The B3 spline's taps.
 const B3: [f64; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
 
@@ -144,7 +161,7 @@ pub fn filter(
         let p = &layers.pixels[k];
         let temporal = (p.ratio_frames >= TEMPORAL_FRAMES).then(|| {
             let [m1, m2] = p.ratio_moments;
-            (m2 - m1 * m1).max(0.0) / p.ratio_frames as f64
+            moments_variance(m1, m2) / p.ratio_frames as f64
         });
         (temporal, frames)
     };
@@ -242,8 +259,7 @@ pub(crate) fn filter_signal(
                     s2 += wq * l * l;
                 }
             }
-            let mean = s1 / sw;
-            (s2 / sw - mean * mean).max(0.0) / samples
+            moments_variance(s1 / sw, s2 / sw) / samples
         })
         .collect();
 

@@ -35,7 +35,8 @@
 //!   back, so that what accumulates is the unbiased mean of the frames.
 //! - Variance: with `N = min(n', (2 - alpha) / alpha)` (the samples an exponential
 //!   moving average of weight `alpha` is worth; `n'` for `alpha = 0`), from
-//!   `N >= atrous::TEMPORAL_FRAMES` the temporal `(M'_2 - M'_1^2) / N`; before, the
+//!   `N >= atrous::TEMPORAL_FRAMES` the temporal `(M'_2 - M'_1^2) / N` (zero at most
+//!   `atrous::VARIANCE_FLOOR` `M'_2`); before, the
 //!   spatial estimate of the a-trous filter over the accumulated signal (not divided:
 //!   the accumulated values are the estimates whose spread it measures).
 //! - Then the a-trous passes of [`super::atrous`] (its contract) over `c'`, with this
@@ -231,7 +232,8 @@ pub fn filter(layers: &PrimaryLayers, values: &[f64], history: &mut Option<Histo
         let h = &accumulated.pixels[k];
         let n = effective_samples(h.length, alpha);
         let [m1, m2] = h.moments;
-        let temporal = (n >= atrous::TEMPORAL_FRAMES as f64).then(|| (m2 - m1 * m1).max(0.0) / n);
+        let temporal =
+            (n >= atrous::TEMPORAL_FRAMES as f64).then(|| atrous::moments_variance(m1, m2) / n);
         (temporal, 1.0)
     };
     let out = atrous::filter_signal(layers, signal, variance, &values[..4]);
