@@ -1456,6 +1456,9 @@ impl Meter {
 
 pub struct AblateOptions {
     pub out_dir: PathBuf,
+    /// How messages name the option that gave `out_dir`: `"--out"` (the command line),
+    /// `"out"` (Python's keyword argument).
+    pub out_option: &'static str,
     /// Where references are cached; default `<out_dir>/cache`.
     pub cache_dir: Option<PathBuf>,
     /// Show a progress bar when standard error is a terminal.
@@ -1515,9 +1518,11 @@ pub const OUTPUT_FILES: &[&str] = &[
 fn refuse_to_overwrite_inputs(
     e: &Experiment,
     source: Option<&str>,
-    out: &Path,
+    opts: &AblateOptions,
     cache_dir: &Path,
 ) -> Result<()> {
+    let out = &opts.out_dir;
+    let out_given = crate::output::given(opts.out_option, out);
     let Some(path) = &e.source_path else {
         return Ok(());
     };
@@ -1529,9 +1534,8 @@ fn refuse_to_overwrite_inputs(
     let outputs: Vec<PathBuf> = OUTPUT_FILES.iter().map(|f| out.join(f)).collect();
     if let Some((o, i)) = crate::experiment::write::overwrites(&outputs, &inputs) {
         bail!(
-            "--out {}: ablate would write {}, which is the experiment's input {}; \
+            "{out_given}: ablate would write {}, which is the experiment's input {}; \
              choose another output directory",
-            out.display(),
             o.display(),
             i.display()
         );
@@ -1545,9 +1549,8 @@ fn refuse_to_overwrite_inputs(
             .find(|i| std::fs::canonicalize(i).is_ok_and(|c| c.starts_with(&dir)))
         {
             bail!(
-                "--out {}: the experiment's input {} lies in {}, where ablate writes; \
+                "{out_given}: the experiment's input {} lies in {}, where ablate writes; \
                  choose another output directory",
-                out.display(),
                 i.display(),
                 dir.display()
             );

@@ -965,8 +965,9 @@ pub fn write_mitsuba(
     strict: bool,
 ) -> crate::Result<MitsubaScene> {
     use crate::error::{Error, ErrorKind};
+    // The directory is the command line's positional DIR and Python's `dir`: named alone.
     crate::output::check_directory_output(
-        "--to mitsuba",
+        "",
         dir,
         "export writes a directory (scene.xml and meshes/)",
     )

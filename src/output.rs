@@ -274,16 +274,29 @@ pub fn read_png_provenance(path: impl AsRef<Path>) -> Result<Option<String>, Out
 }
 
 /// Refuses a command's output directory that is an existing file, before the command
-/// does any work (a stress run takes minutes): `flag` names the option that gave it,
-/// `writes` what the command writes there.
-pub fn check_directory_output(flag: &str, dir: &Path, writes: &str) -> Result<(), String> {
+/// does any work (a stress run takes minutes): `option` names the option that gave it
+/// (as [`given`] writes it), `writes` what the command writes there.
+pub fn check_directory_output(option: &str, dir: &Path, writes: &str) -> Result<(), String> {
     if dir.exists() && !dir.is_dir() {
         return Err(format!(
-            "{flag} {}: {writes}, and this is a file",
-            dir.display()
+            "{}: {writes}, and this is a file",
+            given(option, dir)
         ));
     }
     Ok(())
+}
+
+/// An option and its value as the user wrote them, for messages: `--out DIR` on the
+/// command line, `out=DIR` for a keyword argument (an option not starting with `-`),
+/// `DIR` alone for a positional argument (no option).
+pub fn given(option: &str, value: &Path) -> String {
+    if option.is_empty() {
+        value.display().to_string()
+    } else if option.starts_with('-') {
+        format!("{option} {}", value.display())
+    } else {
+        format!("{option}={}", value.display())
+    }
 }
 
 /// `<path>.json`: where the provenance record of the output `path` goes.

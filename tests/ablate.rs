@@ -58,6 +58,7 @@ fn run(e: &Experiment, c: &AblateConfig, out: &Path, cache: &Path) -> AblateRepo
         Some("# test"),
         &AblateOptions {
             out_dir: out.to_path_buf(),
+            out_option: "--out",
             cache_dir: Some(cache.to_path_buf()),
             progress: false,
             log: false,
@@ -1117,6 +1118,7 @@ fn an_external_reference_is_checked_and_measured_against() {
             None,
             &AblateOptions {
                 out_dir: out.clone(),
+                out_option: "--out",
                 cache_dir: None,
                 progress: false,
                 log: false,
@@ -1175,6 +1177,7 @@ fn an_external_reference_is_checked_and_measured_against() {
         None,
         &AblateOptions {
             out_dir: clash.clone(),
+            out_option: "--out",
             cache_dir: None,
             progress: false,
             log: false,

@@ -54,6 +54,7 @@ fn load(dir: &Path) -> (Experiment, AblateConfig, PathBuf) {
 fn options(dir: &Path, cache: &str) -> AblateOptions {
     AblateOptions {
         out_dir: dir.join(format!("out-{cache}")),
+        out_option: "--out",
         cache_dir: Some(dir.join(cache)),
         progress: false,
         log: false,

@@ -183,7 +183,7 @@ fn a_directory_output_that_is_a_file_is_refused_at_once() {
                 "mitsuba".as_ref(),
                 file.as_os_str(),
             ],
-            "--to mitsuba",
+            "",
         ),
         (
             vec![
@@ -202,7 +202,7 @@ fn a_directory_output_that_is_a_file_is_refused_at_once() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success(), "{args:?} succeeded:\n{err}");
         assert!(
-            err.contains(&format!("{option} {}", file.display()))
+            err.contains(&voxlab::output::given(option, &file))
                 && err.contains("directory")
                 && err.contains("this is a file"),
             "{args:?}: {err}"

@@ -990,6 +990,7 @@ fn ablate(
             voxlab::ablate::load_with(&path, &set).map_err(voxlab::Error::from)?;
         let opts = voxlab::ablate::AblateOptions {
             out_dir: out,
+            out_option: "out",
             cache_dir: cache,
             progress: false,
             log: false,
@@ -1043,6 +1044,7 @@ impl AblateDriver {
         let (e, c, source) = voxlab::ablate::load_with(&path, &set).map_err(|e| to_py(e.into()))?;
         let opts = voxlab::ablate::AblateOptions {
             out_dir: out,
+            out_option: "out",
             cache_dir: cache,
             progress: false,
             log: false,

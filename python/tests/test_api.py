@@ -123,6 +123,18 @@ def test_ablate_returns_the_csvs_rows_and_its_files(tmp_path):
         vx.ablate(own / "experiment.toml", own)
     assert [p.name for p in own.iterdir()] == ["experiment.toml"]
     assert (own / "experiment.toml").read_text() == ABLATE
+    # Refusals name the keyword argument, not the command line's option.
+    with pytest.raises(vx.VoxlabError) as refused:
+        vx.ablate(own / "experiment.toml", own)
+    assert f"out={own}:" in str(refused.value) and "--out" not in str(refused.value)
+    with pytest.raises(vx.VoxlabError) as refused:
+        vx.ablate(src, own / "experiment.toml")
+    said = str(refused.value)
+    assert f"out={own / 'experiment.toml'}:" in said and "this is a file" in said, said
+    with pytest.raises(vx.VoxlabError) as refused:
+        vx.load(src).export_mitsuba(own / "experiment.toml")
+    said = str(refused.value)
+    assert said.startswith(f"{own / 'experiment.toml'}:") and "--to" not in said, said
 
 
 def test_the_type_stubs_cover_every_public_name():

@@ -608,7 +608,7 @@ impl Driver {
         opts: &AblateOptions,
     ) -> Result<Option<external::External>> {
         crate::output::check_directory_output(
-            "--out",
+            opts.out_option,
             &opts.out_dir,
             "ablate writes a directory (ablation.csv, plot.png, table.md, images/ and \
              the rest)",
@@ -624,7 +624,7 @@ impl Driver {
             );
         }
         let out = &opts.out_dir;
-        refuse_to_overwrite_inputs(e, source, out, &cache_dir(opts))?;
+        refuse_to_overwrite_inputs(e, source, opts, &cache_dir(opts))?;
         let Some(spec) = &c.external else {
             return Ok(None);
         };
@@ -638,9 +638,9 @@ impl Driver {
             crate::experiment::write::overwrites(&outputs, std::slice::from_ref(&x.spec.path))
         {
             bail!(
-                "--out {}: ablate would write {}, which is the external reference \
+                "{}: ablate would write {}, which is the external reference \
                  (ablate.reference); choose another output directory",
-                out.display(),
+                crate::output::given(opts.out_option, out),
                 o.display()
             );
         }

@@ -38,6 +38,7 @@ pub(crate) fn cmd_ablate(a: &AblateArgs) -> Result<()> {
         .unwrap_or_else(|| Path::new("out").join("ablate").join(&e.name));
     let opts = ablate::AblateOptions {
         out_dir: out.clone(),
+        out_option: "--out",
         cache_dir: a.cache.clone(),
         progress: true,
         log: a.progress,
