@@ -674,8 +674,18 @@ impl fmt::Display for Override {
     }
 }
 
-/// `text` with each override written in: existing keys are replaced, missing tables and
-/// keys are added. The error is located at the override that cannot be written.
+/// Keys that give one thing in two ways, of which a file gives one: an override of one
+/// replaces the file's other, as editing the file would (`--set scene.dims=[64, 1, 64]`
+/// on a file of `size = 16`, which was refused as giving both). Two overrides that give
+/// both are still refused.
+const ALTERNATIVE_KEYS: &[[&str; 2]] = &[
+    ["scene.size", "scene.dims"],
+    ["scene.resolution", "scene.voxel_size"],
+];
+
+/// `text` with each override written in: existing keys are replaced (with the file's
+/// alternative to the key, [`ALTERNATIVE_KEYS`]), missing tables and keys are added.
+/// The error is located at the override that cannot be written.
 pub fn apply_overrides(text: &str, overrides: &[Override]) -> Result<String, ExperimentError> {
     let Some(first) = overrides.first() else {
         return Ok(text.to_string());
@@ -729,6 +739,19 @@ pub fn apply_overrides(text: &str, overrides: &[Override]) -> Result<String, Exp
             return Err(fail(
                 "the last part of the key must be a plain name".to_string(),
             ));
+        }
+        for pair in ALTERNATIVE_KEYS {
+            let Some(k) = pair.iter().position(|key| *key == o.key) else {
+                continue;
+            };
+            let other = pair[1 - k];
+            let given_too = overrides
+                .iter()
+                .take_while(|earlier| !std::ptr::eq(*earlier, o))
+                .any(|earlier| earlier.key == other);
+            if !given_too {
+                table.remove(other.rsplit('.').next().expect("a key has a name"));
+            }
         }
         table.insert(last, toml_edit::Item::Value(value));
     }

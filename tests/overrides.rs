@@ -52,6 +52,39 @@ fn overrides_equal_editing_the_file() {
     assert_eq!(e.settings.spp, 5);
 }
 
+/// A key that gives the grid (or a mesh's voxels) another way replaces the file's: an
+/// override of `scene.dims` on a file of `size`, and back; `scene.voxel_size` on a mesh
+/// of `resolution`. Both given by overrides are still refused.
+#[test]
+fn an_alternative_key_replaces_the_files() {
+    let load = |file: &str, list: &[&str]| {
+        let path = root().join("experiments").join(file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        Experiment::from_str_with(&text, &path, &set(list))
+    };
+    let e = load("seed_rules.toml", &["scene.dims=[24, 2, 9]"]).unwrap();
+    assert_eq!(e.scene.grid.dims(), glam::UVec3::new(24, 2, 9));
+    let e = load("deer_smooth.toml", &["scene.size=60"]).unwrap();
+    assert_eq!(e.scene.grid.dims(), glam::UVec3::splat(60));
+    let coarse = load("bunny_mesh.toml", &["scene.resolution=12"]).unwrap();
+    let by_size = load("bunny_mesh.toml", &["scene.voxel_size=0.05"]).unwrap();
+    assert_ne!(coarse.scene.grid.dims(), by_size.scene.grid.dims());
+    for both in [
+        &["scene.size=4", "scene.dims=[4, 4, 4]"][..],
+        &["scene.dims=[4, 4, 4]", "scene.size=4"][..],
+    ] {
+        let err = load("seed_rules.toml", both).unwrap_err().to_string();
+        assert!(err.contains("not both"), "{both:?}: {err}");
+    }
+    let err = load(
+        "bunny_mesh.toml",
+        &["scene.voxel_size=0.05", "scene.resolution=8"],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("not both"), "{err}");
+}
+
 #[test]
 fn errors_name_the_override() {
     let path = root().join("experiments/baseline.toml");
