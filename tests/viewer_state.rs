@@ -121,6 +121,34 @@ fn zoom_moves_closer_and_stays_bounded() {
     assert!(d.is_finite() && d <= 1e3 * s.base.scene.grid.width() + 1e-9);
 }
 
+/// The limits of a zoom and a turn stop the user's motion; a file's valid camera beyond
+/// them (a distance of 1e6 grid widths, a pitch of 90 degrees) is moved from where it
+/// is, never to the limit.
+#[test]
+fn limits_stop_motion_and_never_move_a_files_camera() {
+    let mut e = Experiment::seed_default();
+    let w = e.scene.grid.width();
+    e.scene.camera.distance = 1e6 * w;
+    e.scene.camera.pitch = std::f64::consts::FRAC_PI_2;
+    let mut s = ViewerState::new(e, None, None).unwrap();
+    s.zoom(1.0).unwrap();
+    let d = s.base.scene.camera.distance;
+    assert!((d - 0.9e6 * w).abs() < 1e-6 * d, "zoomed in to {d}");
+    // Further out than the limit does not go (the home camera is one reset away).
+    s.zoom(-1.0).unwrap();
+    let d = s.base.scene.camera.distance;
+    assert!((d - 0.9e6 * w).abs() < 1e-6 * d, "zoomed out to {d}");
+    // A yaw turn and a turn further up leave the pole; a turn down leaves it.
+    s.orbit_degrees(30.0, 0.0).unwrap();
+    assert_eq!(s.base.scene.camera.pitch.to_degrees(), 90.0);
+    s.orbit_degrees(0.0, 5.0).unwrap();
+    assert_eq!(s.base.scene.camera.pitch.to_degrees(), 90.0);
+    s.orbit_degrees(0.0, -5.0).unwrap();
+    assert!((s.base.scene.camera.pitch.to_degrees() - 85.0).abs() < 1e-9);
+    s.orbit_degrees(0.0, 10.0).unwrap();
+    assert!((s.base.scene.camera.pitch.to_degrees() - 89.0).abs() < 1e-9);
+}
+
 #[test]
 fn side_feature_lists_parse_and_reject_with_the_allowed_items() {
     let mut side = SideSettings::from_settings(&Default::default(), 16);

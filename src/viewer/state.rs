@@ -160,6 +160,18 @@ pub const DEFAULT_VIEW_SPP: u32 = 256;
 /// Pitch stays short of the poles, where the orbit's "right" axis turns over.
 pub(crate) const MAX_PITCH_DEG: f64 = 89.0;
 
+/// `to`, moved from `from` by the user, kept within `lo..=hi` only where the move heads
+/// past them: a limit stops a drag or a zoom, and never moves a value the experiment
+/// file gave beyond it (the viewer once jumped a file's camera distance of 1e6 grid
+/// widths to 1e3 at the first notch of the wheel).
+pub(crate) fn towards_limits(from: f64, to: f64, lo: f64, hi: f64) -> f64 {
+    if to > from {
+        to.min(hi.max(from))
+    } else {
+        to.max(lo.min(from))
+    }
+}
+
 /// Orbit speed: degrees per pixel dragged.
 pub(crate) const DEGREES_PER_PIXEL: f64 = 0.4;
 
@@ -355,11 +367,18 @@ impl ViewerState {
         )
     }
 
-    /// Turns the camera by `yaw` and `pitch` degrees (pitch clamped short of the poles).
+    /// Turns the camera by `yaw` and `pitch` degrees (a turn towards a pole stops short of
+    /// it; a file's pitch past that limit, which the file may give, is kept until the
+    /// pitch is turned back).
     pub fn orbit_degrees(&mut self, yaw: f64, pitch: f64) -> Result<()> {
         let cam = &mut self.base.scene.camera;
         let yaw_deg = (cam.yaw.to_degrees() + yaw).rem_euclid(360.0);
-        let pitch_deg = (cam.pitch.to_degrees() + pitch).clamp(-MAX_PITCH_DEG, MAX_PITCH_DEG);
+        let pitch_deg = towards_limits(
+            cam.pitch.to_degrees(),
+            cam.pitch.to_degrees() + pitch,
+            -MAX_PITCH_DEG,
+            MAX_PITCH_DEG,
+        );
         // Rounded to a millionth of a degree so the file shows short numbers.
         cam.yaw = crate::settings::radians(round6(yaw_deg));
         cam.pitch = crate::settings::radians(round6(pitch_deg));
@@ -367,11 +386,13 @@ impl ViewerState {
     }
 
     /// Zooms by `steps` notches (positive: closer); each notch is 10 % of the distance.
+    /// A zoom stops at 1e-3 and 1e3 grid widths; a file's distance beyond them is
+    /// zoomed from where it is, not moved to the limit.
     pub fn zoom(&mut self, steps: f32) -> Result<()> {
         let cam = &mut self.base.scene.camera;
         let d = cam.distance * 0.9f64.powf(steps as f64);
         let w = self.base.scene.grid.width();
-        cam.distance = d.clamp(1e-3 * w, 1e3 * w);
+        cam.distance = towards_limits(cam.distance, d, 1e-3 * w, 1e3 * w);
         self.commit_shared()
     }
 
