@@ -584,6 +584,21 @@ pub fn load_with(
     Ok((experiment, config, text))
 }
 
+/// [`load_with`] for experiment text without a file (Python's text and dicts): `label`
+/// names it in messages and places the assets it names, as `Experiment::from_str_with`.
+pub fn load_text_with(
+    text: &str,
+    label: impl AsRef<Path>,
+    overrides: &[crate::experiment::Override],
+) -> Result<(Experiment, AblateConfig, String), ExperimentError> {
+    let label = label.as_ref();
+    let experiment = Experiment::from_str_with(text, label, overrides)?;
+    let text = crate::experiment::apply_overrides(text, overrides)?;
+    let mut config = AblateConfig::from_str(&text, label)?;
+    config.overrides = overrides.iter().map(|o| o.to_string()).collect();
+    Ok((experiment, config, text))
+}
+
 // ---------------------------------------------------------------------------------------
 // The sweep.
 
@@ -1523,14 +1538,12 @@ fn refuse_to_overwrite_inputs(
 ) -> Result<()> {
     let out = &opts.out_dir;
     let out_given = crate::output::given(opts.out_option, out);
-    let Some(path) = &e.source_path else {
-        return Ok(());
+    let text = match (source, &e.source_path) {
+        (Some(t), _) => t.to_string(),
+        (None, Some(path)) => crate::experiment::read_text(path).unwrap_or_default(),
+        (None, None) => return Ok(()),
     };
-    let text = match source {
-        Some(t) => t.to_string(),
-        None => crate::experiment::read_text(path).unwrap_or_default(),
-    };
-    let inputs = crate::experiment::write::input_files(&text, path);
+    let inputs = crate::experiment::write::experiment_inputs(e, &text);
     let outputs: Vec<PathBuf> = OUTPUT_FILES.iter().map(|f| out.join(f)).collect();
     if let Some((o, i)) = crate::experiment::write::overwrites(&outputs, &inputs) {
         bail!(

@@ -983,20 +983,7 @@ pub fn write_mitsuba(
     let xml = dir.join("scene.xml");
     let mut outputs: Vec<PathBuf> = scene.files.iter().map(|(p, _)| dir.join(p)).collect();
     outputs.push(crate::output::sidecar_path(&xml));
-    // Text parsed without a file (Python's dicts and text) reads its assets all the same,
-    // relative to where its label names it; the label itself is no file.
-    let inputs = match (&e.source_path, &e.source_record) {
-        (Some(p), _) => crate::experiment::write::input_files(text, p),
-        (None, Some(r)) => {
-            let label = r
-                .inputs
-                .first()
-                .and_then(|i| i["path"].as_str())
-                .unwrap_or("");
-            crate::experiment::write::input_files(text, std::path::Path::new(label)).split_off(1)
-        }
-        (None, None) => Vec::new(),
-    };
+    let inputs = crate::experiment::write::experiment_inputs(e, text);
     if let Some((o, i)) = crate::experiment::write::overwrites(&outputs, &inputs) {
         return Err(Error::new(
             ErrorKind::Output,

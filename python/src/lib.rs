@@ -271,6 +271,14 @@ impl Experiment {
         self.inner.description.clone()
     }
 
+    /// Text without a file (`voxlab.load` of text or a dict, the grid its own): the text
+    /// as given, before its overrides, and its label; `None` otherwise. What `ablate`
+    /// sweeps when there is no file to read.
+    fn _text_source(&self) -> Option<(String, String)> {
+        (!self.from_file && self.grid.is_none())
+            .then(|| (self.text.clone(), self.path.display().to_string()))
+    }
+
     #[getter]
     fn source(&self) -> Option<String> {
         self.inner
@@ -971,10 +979,24 @@ fn flip_default_ppd() -> f32 {
     voxlab::metrics::FLIP_PPD
 }
 
+/// An ablate sweep's experiment: the file at `path`, or `text` named by `path` (Python's
+/// text and dicts; `Experiment._text_source`).
+fn load_ablate(
+    path: &std::path::Path,
+    text: Option<&str>,
+    set: &[Override],
+) -> Result<(voxlab::Experiment, voxlab::ablate::AblateConfig, String), voxlab::Error> {
+    Ok(match text {
+        Some(t) => voxlab::ablate::load_text_with(t, path, set)?,
+        None => voxlab::ablate::load_with(path, set)?,
+    })
+}
+
 /// Runs `voxlab ablate` on an experiment file (its `[ablate]` table) on a worker thread
 /// (Ctrl-C stops it between renders): the files it wrote, relative to `out`.
 #[pyfunction]
-#[pyo3(signature = (path, set, out, cache=None, progress=None, resume=false))]
+#[pyo3(signature = (path, set, out, cache=None, progress=None, resume=false, text=None))]
+#[allow(clippy::too_many_arguments)]
 fn ablate(
     py: Python<'_>,
     path: PathBuf,
@@ -983,11 +1005,11 @@ fn ablate(
     cache: Option<PathBuf>,
     progress: Option<Py<PyAny>>,
     resume: bool,
+    text: Option<String>,
 ) -> PyResult<Vec<String>> {
     let set = overrides(&set)?;
     run_watched(py, progress.as_ref(), |watch| {
-        let (e, config, source) =
-            voxlab::ablate::load_with(&path, &set).map_err(voxlab::Error::from)?;
+        let (e, config, source) = load_ablate(&path, text.as_deref(), &set)?;
         let opts = voxlab::ablate::AblateOptions {
             out_dir: out,
             out_option: "out",
@@ -1031,7 +1053,7 @@ impl AblateDriver {
     /// `reference_label`: the reference's renderer as a worker names it
     /// (`AblateWorker.reference_label`), part of its cache key.
     #[new]
-    #[pyo3(signature = (path, set, out, reference_label, cache=None, resume=false))]
+    #[pyo3(signature = (path, set, out, reference_label, cache=None, resume=false, text=None))]
     fn new(
         path: PathBuf,
         set: Vec<String>,
@@ -1039,9 +1061,10 @@ impl AblateDriver {
         reference_label: &str,
         cache: Option<PathBuf>,
         resume: bool,
+        text: Option<String>,
     ) -> PyResult<Self> {
         let set = overrides(&set)?;
-        let (e, c, source) = voxlab::ablate::load_with(&path, &set).map_err(|e| to_py(e.into()))?;
+        let (e, c, source) = load_ablate(&path, text.as_deref(), &set).map_err(to_py)?;
         let opts = voxlab::ablate::AblateOptions {
             out_dir: out,
             out_option: "out",
@@ -1134,11 +1157,17 @@ struct AblateWorker {
 impl AblateWorker {
     /// `cpu_only`: no GPU is opened (a worker for the CPU reference's bands).
     #[new]
-    #[pyo3(signature = (path, set, cpu_only=false))]
-    fn new(py: Python<'_>, path: PathBuf, set: Vec<String>, cpu_only: bool) -> PyResult<Self> {
+    #[pyo3(signature = (path, set, cpu_only=false, text=None))]
+    fn new(
+        py: Python<'_>,
+        path: PathBuf,
+        set: Vec<String>,
+        cpu_only: bool,
+        text: Option<String>,
+    ) -> PyResult<Self> {
         let set = overrides(&set)?;
         py.detach(|| {
-            let (e, c, _) = voxlab::ablate::load_with(&path, &set)?;
+            let (e, c, _) = load_ablate(&path, text.as_deref(), &set)?;
             let worker = if cpu_only {
                 voxlab::ablate::tasks::Worker::cpu()
             } else {

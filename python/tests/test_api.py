@@ -1,13 +1,14 @@
 """The registry, the metrics, and ablate through Python."""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
 
 import voxlab as vx
 
-from conftest import cli, ctrl_c_after
+from conftest import EXPERIMENTS, cli, ctrl_c_after
 
 
 def test_techniques_are_the_command_lines_registry():
@@ -135,6 +136,46 @@ def test_ablate_returns_the_csvs_rows_and_its_files(tmp_path):
         vx.load(src).export_mitsuba(own / "experiment.toml")
     said = str(refused.value)
     assert said.startswith(f"{own / 'experiment.toml'}:") and "--to" not in said, said
+
+
+def test_ablate_sweeps_an_experiment_given_as_text_or_a_dict(tmp_path):
+    """An experiment without a file (text, a dict, with overrides) is swept as its file
+    would be: the same rows, errors and images, its text copied into the outputs; one
+    whose grid was replaced is refused, naming why."""
+    import tomllib
+
+    from PIL import Image
+
+    src = tmp_path / "tiny.toml"
+    src.write_text(ABLATE)
+    by_file = vx.ablate(src, tmp_path / "file", set={"ablate.seeds": 1})
+    by_text = vx.ablate(vx.load(ABLATE, set={"ablate.seeds": 1}), tmp_path / "text")
+    by_dict = vx.ablate(vx.load(tomllib.loads(ABLATE)), tmp_path / "dict", set={"ablate.seeds": 1})
+    errors = [c for c in by_file.rows.columns if c.startswith(("rmse", "flip"))]
+    assert errors, list(by_file.rows.columns)
+    for other in (by_text, by_dict):
+        assert [p.name for p in other.files] == [p.name for p in by_file.files]
+        assert other.rows[errors].equals(by_file.rows[errors])
+        pngs = sorted((other.out / "images").glob("*.png"))
+        assert pngs
+        for image in pngs:
+            # The pixels: the records beside them name where the experiment came from.
+            same = by_file.out / "images" / image.name
+            assert Image.open(image).tobytes() == Image.open(same).tobytes(), image.name
+    copied = tomllib.loads((tmp_path / "text" / "experiment.toml").read_text())
+    assert copied["ablate"]["seeds"] == 1 and copied["name"] == "tiny"
+    # Its inputs are as safe as a file's: a model kept where ablate writes its images.
+    kept = tmp_path / "kept"
+    (kept / "images").mkdir(parents=True)
+    shutil.copy(EXPERIMENTS / "data" / "deer.vox", kept / "images" / "deer.vox")
+    text = ABLATE.replace("size = 8\n", f'vox = "{kept / "images" / "deer.vox"}"\n')
+    with pytest.raises(vx.VoxlabError, match="lies in"):
+        vx.ablate(vx.load(text), kept)
+    assert sorted(p.name for p in kept.rglob("*")) == ["deer.vox", "images"]
+    grid = vx.load(ABLATE).grid
+    with pytest.raises(vx.VoxlabError, match="grid was replaced"):
+        vx.ablate(vx.load(ABLATE).with_grid(grid), tmp_path / "grid")
+    assert not (tmp_path / "grid").exists()
 
 
 def test_the_type_stubs_cover_every_public_name():

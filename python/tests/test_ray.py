@@ -161,6 +161,14 @@ def test_a_ray_sweep_equals_the_local_run_and_its_banded_reference_is_exact(clus
     assert "(ray, 2 workers)" in (d / "ray" / "run.txt").read_text()
 
 
+def test_a_text_experiment_runs_on_ray(cluster, sweep, tmp_path):
+    """An experiment given as text (no file for the workers to read) travels to them as
+    its text: the local file's sweep again, reference bands included."""
+    _, d = sweep
+    vx.ablate(vx.load(TINY), tmp_path / "text", executor="ray", workers=2, bands=3, progress=False)
+    assert_same_sweep(d / "local", tmp_path / "text")
+
+
 def worker_processes() -> list:
     """(pid, title) of the Ray point workers now running a task."""
     out = []

@@ -313,8 +313,9 @@ def ablate(
     bands: Optional[int] = None,
 ) -> AblateResult:
     """`voxlab ablate` on an experiment file (its [ablate] table; an Experiment loaded
-    from a file brings its overrides): error against time of every shadow model and
-    knob, written under `out` (images, grid, CSV, plot, tables). Returns the CSV's rows
+    from a file, text or a dict brings its overrides and is swept as its file would
+    be; one whose grid was replaced is refused): error against time of every shadow
+    model and knob, written under `out` (images, grid, CSV, plot, tables). Returns the CSV's rows
     and the paths of the files written. The GIL is released; Ctrl-C stops the sweep
     between renders (KeyboardInterrupt; the images and cached references done stay, no
     table is written). `progress` as for `Session.render` (units: estimated work; with
@@ -325,13 +326,18 @@ def ablate(
     or CPU; `bands` per reference half): the same rows and images as a local run,
     timings aside (each row records its worker's adapter). docs/ray.md."""
     sets = _overrides(set)
-    if isinstance(experiment, Experiment):
-        if experiment.source is None:
+    text = None
+    if isinstance(experiment, Experiment) and experiment.source is None:
+        given = experiment._text_source()
+        if given is None:
             raise _error(
-                "ablate(): the experiment was not loaded from a file (or its grid was "
-                "replaced): ablate reads the file's [ablate] table and copies it into "
-                "its outputs"
+                "ablate(): the experiment's grid was replaced (Experiment.with_grid): "
+                "ablate sweeps what an experiment's text describes; save the grid "
+                "(voxlab voxelize's .vox) and name it in the experiment"
             )
+        text, path = given
+        sets = list(experiment.overrides) + sets
+    elif isinstance(experiment, Experiment):
         path = experiment.source
         # ablate reads the file (its [ablate] table too): it must hold what was loaded.
         if experiment._source_changed():
@@ -370,10 +376,11 @@ def ablate(
                 bands=bands,
                 resume=resume,
                 progress=callback,
+                text=text,
             )
         else:
             files = _native.ablate(
-                path, sets, os.fspath(out), cache_path, callback, resume
+                path, sets, os.fspath(out), cache_path, callback, resume, text
             )
     finally:
         if bar is not None:

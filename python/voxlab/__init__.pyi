@@ -223,7 +223,8 @@ def ablate(
     bands: Optional[int] = None,
 ) -> AblateResult:
     """`voxlab ablate`: error against time of every shadow model and knob of the file's
-    [ablate] table, written under `out`. Ctrl-C stops it between renders. `resume`
+    [ablate] table (or an Experiment's text or dict's), written under `out`. Ctrl-C
+    stops it between renders. `resume`
     takes the points an earlier run left in the cache. `executor="ray"` spreads the
     reference's bands and the points over a Ray cluster (`address`, else a local one;
     `workers`, `bands`): the same rows and images, timings aside (docs/ray.md)."""

@@ -30,22 +30,22 @@ from . import _native
 # How often Ray restarts a dead worker and retries its task before the sweep fails.
 RETRIES = 3
 
-# Per (path, overrides): the CPU worker a process keeps for reference bands.
+# Per (path, overrides, text): the CPU worker a process keeps for reference bands.
 _band_workers: dict = {}
 
 
-def _band_worker(path: str, sets: tuple) -> Any:
-    key = (path, sets)
+def _band_worker(path: str, sets: tuple, text: Optional[str]) -> Any:
+    key = (path, sets, text)
     if key not in _band_workers:
-        _band_workers[key] = _native.AblateWorker(path, list(sets), cpu_only=True)
+        _band_workers[key] = _native.AblateWorker(path, list(sets), cpu_only=True, text=text)
     return _band_workers[key]
 
 
 class _PointWorker:
     """One Ray actor: a voxlab tracer kept across the tasks it is given."""
 
-    def __init__(self, path: str, sets: list, cpu_only: bool):
-        self.worker = _native.AblateWorker(path, sets, cpu_only=cpu_only)
+    def __init__(self, path: str, sets: list, cpu_only: bool, text: Optional[str] = None):
+        self.worker = _native.AblateWorker(path, sets, cpu_only=cpu_only, text=text)
         self.calls = 0
 
     def labels(self) -> tuple:
@@ -79,8 +79,8 @@ def actor_options(use_gpus: bool, threads: int) -> dict:
     return options
 
 
-def _run_band(path: str, sets: tuple, task: str) -> bytes:
-    return _band_worker(path, sets).run(task)
+def _run_band(path: str, sets: tuple, task: str, text: Optional[str] = None) -> bytes:
+    return _band_worker(path, sets, text).run(task)
 
 
 # Seconds to wait for a cluster's head to answer before saying it cannot be reached:
@@ -132,6 +132,7 @@ def ablate_on_ray(
     bands: Optional[int] = None,
     resume: bool = False,
     progress: Optional[Callable[[int, int], Any]] = None,
+    text: Optional[str] = None,
 ) -> tuple:
     """Runs the sweep on Ray: (files written, tasks done, points resumed). Connects to
     `address` (a running cluster, or "auto"), or starts a local cluster when Ray is not
@@ -164,7 +165,7 @@ def ablate_on_ray(
         # A point worker on a GPU when the sweep renders on one and the cluster has one;
         # a CPU sweep, or a cluster without GPUs (a software driver), uses CPU workers.
         # Read here first, the experiment's errors come before any worker starts.
-        probe = _native.AblateWorker(path, list(sets), cpu_only=True)
+        probe = _native.AblateWorker(path, list(sets), cpu_only=True, text=text)
         use_gpus = gpus > 0 and probe.backend != "cpu"
         # The f64 reference's bands go to CPU tasks beside GPU workers; a GPU reference
         # renders each half whole on a point worker.
@@ -174,7 +175,7 @@ def ablate_on_ray(
             raise _native.VoxlabError(f"workers = {n}: at least one worker is needed")
         threads = 1 if use_gpus else max(1, cpus // n)
         actor_class = ray.remote(_PointWorker).options(**actor_options(use_gpus, threads))
-        actors = [actor_class.remote(path, list(sets), False) for _ in range(n)]
+        actors = [actor_class.remote(path, list(sets), False, text) for _ in range(n)]
         labels = ray.get([a.labels.remote() for a in actors])
         adapters = sorted({a for a, _ in labels})
         reference_labels = {r for _, r in labels}
@@ -186,7 +187,8 @@ def ablate_on_ray(
                 )
             )
         driver = _native.AblateDriver(
-            path, list(sets), out, reference_labels.pop(), cache=cache, resume=resume
+            path, list(sets), out, reference_labels.pop(), cache=cache, resume=resume,
+            text=text,
         )
         # Bands: enough for every worker (or CPU) to take several, so a slow band does
         # not hold the reference up.
@@ -211,7 +213,7 @@ def ablate_on_ray(
                 is_band = json.loads(task)["kind"] == "reference-tile"
                 if is_band and cpu_bands:
                     queue.pop(0)
-                    pending[band.remote(path, sets_key, task)] = (task, None)
+                    pending[band.remote(path, sets_key, task, text)] = (task, None)
                     continue
                 free = [i for i in range(n) if busy[i] < depth]
                 if not free:

@@ -100,6 +100,25 @@ pub(crate) fn asset_hashes(text: &str, path: &Path) -> Vec<serde_json::Value> {
         .collect()
 }
 
+/// Every file experiment `e`, parsed from `text` (overrides applied), reads: from a file,
+/// [`input_files`]; from text without a file (Python's dicts and text), the assets it
+/// names, relative to where its label puts it (the label itself is no file); nothing
+/// for an experiment made in code.
+pub fn experiment_inputs(e: &crate::experiment::Experiment, text: &str) -> Vec<PathBuf> {
+    match (&e.source_path, &e.source_record) {
+        (Some(p), _) => input_files(text, p),
+        (None, Some(r)) => {
+            let label = r
+                .inputs
+                .first()
+                .and_then(|i| i["path"].as_str())
+                .unwrap_or("");
+            input_files(text, Path::new(label)).split_off(1)
+        }
+        (None, None) => Vec::new(),
+    }
+}
+
 /// Every file an experiment given as `text` (overrides applied) at `path` reads: the
 /// file itself, its scene's and its models' `vox` and `mesh` files, and each OBJ's
 /// material libraries (`mtllib`). What a command that writes must never overwrite.
