@@ -1088,6 +1088,49 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    /// A number 64 bits cannot hold (`1e400`, `99999999999999999999`), which toml refuses
+    /// as malformed, without its key: the text with that number quoted is TOML, and its
+    /// key is the one whose value covers the span. `None` for any other syntax error. The
+    /// key's range is asked of its check, as for a type error ([`allowed_range`]).
+    fn past_64_bits(
+        &self,
+        span: &Range<usize>,
+        msg: &str,
+        line: Option<usize>,
+    ) -> Option<ExperimentError> {
+        if !(msg.contains("number overflowed") || msg.contains(" as i128")) {
+            return None;
+        }
+        let number = self.text.get(span.clone())?.trim();
+        if number.is_empty() || number.contains(['"', '\'', '\n']) {
+            return None;
+        }
+        let start = span.start + self.text[span.clone()].find(number)?;
+        let quoted = format!(
+            "{}\"{number}\"{}",
+            &self.text[..start],
+            &self.text[start + number.len()..]
+        );
+        // A Document keeps the spans (a DocumentMut drops them).
+        let doc = toml_edit::Document::parse(quoted.as_str()).ok()?;
+        let key = path_at(doc.as_item(), &(start..start + number.len() + 2), "")?;
+        let mut message = format!(
+            " = {}: {PAST_64_BITS} (a number is at most 1.8e308 in size, an integer from \
+             -2^63 to 2^63 - 1)",
+            crate::input::excerpt(number, 120)
+        );
+        // Asked of the quoted text: the file itself is not TOML.
+        if let Some(r) = allowed_range(&key, PAST_64_BITS, &quoted, Path::new(&self.file)) {
+            message = format!("{message}; {r}");
+        }
+        Some(ExperimentError::Invalid {
+            file: self.file.clone(),
+            line,
+            key,
+            message,
+        })
+    }
+
     /// Converts serde's error (type mismatches, unknown or missing keys, bad syntax) into
     /// ours, naming the key at its span.
     pub(crate) fn serde_error(&self, e: &toml::de::Error) -> ExperimentError {
@@ -1142,6 +1185,9 @@ impl<'a> Ctx<'a> {
             );
         }
         let Some(doc) = self.doc.as_ref() else {
+            if let Some(e) = span.as_ref().and_then(|s| self.past_64_bits(s, &msg, line)) {
+                return e;
+            }
             return ExperimentError::Syntax {
                 file: self.file.clone(),
                 line,
@@ -1200,6 +1246,9 @@ fn with_allowed_range(e: ExperimentError, text: &str, path: &Path) -> Experiment
     e.with_requirement(|key, message| allowed_range(key, message, text, path))
 }
 
+/// What [`Ctx::past_64_bits`] says of a number toml cannot hold.
+const PAST_64_BITS: &str = "past what 64 bits hold";
+
 /// What `key` takes, asked of its check by a probe ([`with_allowed_range`]).
 fn allowed_range(key: &str, message: &str, text: &str, path: &Path) -> Option<String> {
     let numbers = |n: usize| {
@@ -1210,7 +1259,13 @@ fn allowed_range(key: &str, message: &str, text: &str, path: &Path) -> Option<St
     let stated_length = message
         .split_once("expected an array of length ")
         .and_then(|(_, n)| n.trim().parse::<usize>().ok());
-    let probes = if message.contains("expected an integer") {
+    let probes = if message.contains(PAST_64_BITS) {
+        // Whichever the key takes: the other probe is refused before its check.
+        vec![
+            (toml_edit::value(i64::MIN), None),
+            (toml_edit::value(-1e300), None),
+        ]
+    } else if message.contains("expected an integer") {
         vec![(toml_edit::value(i64::MIN), None)]
     } else if message.contains("expected a number") {
         vec![(toml_edit::value(-1e300), None)]

@@ -292,6 +292,50 @@ fn grid_larger_than_a_sparse_grid_allows() {
     );
 }
 
+/// A number 64 bits cannot hold is refused by toml as malformed, without its key: the
+/// message names the key, what 64 bits hold and the key's own range.
+#[test]
+fn a_number_past_64_bits_names_its_key_and_range() {
+    for (text, line_key, range) in [
+        (
+            "[camera]\ndistance = 1e400",
+            "x.toml:2: camera.distance = 1e400",
+            Some("finite number > 0"),
+        ),
+        (
+            "[render]\nwidth = 99999999999999999999",
+            "x.toml:2: render.width = 99999999999999999999",
+            Some("1..=16384"),
+        ),
+        (
+            "[render]\nheight = 8\nwidth = -9223372036854775809",
+            "x.toml:3: render.width = -9223372036854775809",
+            Some("1..=16384"),
+        ),
+        (
+            "[scene]\ndims = [4, 99999999999999999999, 4]",
+            "x.toml:2: scene.dims[1] = 99999999999999999999",
+            Some("1..=268435456"),
+        ),
+        (
+            "[[lights]]\ntype = \"point\"\nposition = [1, -2e999, 3]\nintensity = 1",
+            "x.toml:3: lights[0].position[1] = -2e999",
+            None,
+        ),
+    ] {
+        let e = err(text);
+        assert_has(&e, &[line_key, "past what 64 bits hold"]);
+        if let Some(r) = range {
+            assert_has(&e, &[r]);
+        }
+    }
+    // Any other syntax error stays one.
+    assert_has(
+        &err("[render]\nwidth = 1e"),
+        &["x.toml:2:", "malformed TOML"],
+    );
+}
+
 #[test]
 fn material_index_out_of_range() {
     let text = r#"
