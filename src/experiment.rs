@@ -683,9 +683,11 @@ const ALTERNATIVE_KEYS: &[[&str; 2]] = &[
     ["scene.resolution", "scene.voxel_size"],
 ];
 
-/// `text` with each override written in: existing keys are replaced (with the file's
-/// alternative to the key, [`ALTERNATIVE_KEYS`]), missing tables and keys are added.
-/// The error is located at the override that cannot be written.
+/// `text` with each override written in: existing keys are replaced, and so is the
+/// file's other way of giving the same thing (its `scene.size` under an override of
+/// `scene.dims`, its `scene.resolution` under one of `scene.voxel_size`, and back);
+/// missing tables and keys are added. The error is located at the override that cannot
+/// be written.
 pub fn apply_overrides(text: &str, overrides: &[Override]) -> Result<String, ExperimentError> {
     let Some(first) = overrides.first() else {
         return Ok(text.to_string());

@@ -114,7 +114,7 @@ const EPS_LUMINANCE: f64 = 1e-10;
 /// the luminance weight on the device (`sigma_luminance = 1e5`: pixels 1.4/255 off the
 /// f64 reference, whose residue is 1e-16). A real spread this small is a standard
 /// deviation of 0.3 % of the values' root mean square.
-pub(crate) const VARIANCE_FLOOR: f64 = 1e-5;
+pub const VARIANCE_FLOOR: f64 = 1e-5;
 
 /// The variance of values of mean `m1` and mean square `m2`, zero below the floor.
 pub(crate) fn moments_variance(m1: f64, m2: f64) -> f64 {
