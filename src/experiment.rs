@@ -1121,8 +1121,11 @@ impl<'a> Ctx<'a> {
              -2^63 to 2^63 - 1)",
             crate::input::excerpt(number, 120)
         );
-        // Asked of the quoted text: the file itself is not TOML.
-        if let Some(r) = allowed_range(&key, PAST_64_BITS, &quoted, Path::new(&self.file)) {
+        // Asked of the quoted text (the file itself is not TOML); `[ablate]`'s numbers,
+        // which the experiment's checks do not read, of their declarations.
+        if let Some(r) = allowed_range(&key, PAST_64_BITS, &quoted, Path::new(&self.file))
+            .or_else(|| crate::ablate::declared_range(&key))
+        {
             message = format!("{message}; {r}");
         }
         Some(ExperimentError::Invalid {

@@ -322,6 +322,11 @@ fn a_number_past_64_bits_names_its_key_and_range() {
             "x.toml:3: lights[0].position[1] = -2e999",
             None,
         ),
+        (
+            "[ablate]\nseeds = 1e999",
+            "x.toml:2: ablate.seeds = 1e999",
+            Some("1..=64"),
+        ),
     ] {
         let e = err(text);
         assert_has(&e, &[line_key, "past what 64 bits hold"]);
