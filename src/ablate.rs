@@ -267,25 +267,10 @@ impl<'a> Locator<'a> {
         self.0.serde_error(e).with_requirement(|key, message| {
             message
                 .contains("invalid type")
-                .then(|| declared_range(key))
+                .then(|| crate::settings::ablate::declared_range(key))
                 .flatten()
         })
     }
-}
-
-/// What a declared `[ablate]` number takes (`ablate.seeds`, an entry `ablate.spp[2]`), as
-/// its declaration says it; `None` for any other key.
-pub(crate) fn declared_range(key: &str) -> Option<String> {
-    let s = crate::settings::ablate::SETTINGS.iter().find(|s| {
-        key.strip_prefix("ablate.")
-            .and_then(|k| k.strip_prefix(s.key))
-            .is_some_and(|rest| rest.is_empty() || rest.starts_with('['))
-    })?;
-    Some(if s.key == SPP.key {
-        format!("every entry {}", s.range_text())
-    } else {
-        s.range_text()
-    })
 }
 
 impl AblateConfig {

@@ -701,7 +701,7 @@ pub fn apply_overrides(text: &str, overrides: &[Override]) -> Result<String, Exp
     let mut doc: toml_edit::DocumentMut = text
         .parse()
         .map_err(|e| at(first, format!("the experiment is not TOML: {e}")))?;
-    for o in overrides {
+    for (i, o) in overrides.iter().enumerate() {
         let fail = |message: String| at(o, message);
         let value = o
             .value
@@ -747,10 +747,7 @@ pub fn apply_overrides(text: &str, overrides: &[Override]) -> Result<String, Exp
                 continue;
             };
             let other = pair[1 - k];
-            let given_too = overrides
-                .iter()
-                .take_while(|earlier| !std::ptr::eq(*earlier, o))
-                .any(|earlier| earlier.key == other);
+            let given_too = overrides[..i].iter().any(|earlier| earlier.key == other);
             if !given_too {
                 table.remove(other.rsplit('.').next().expect("a key has a name"));
             }
@@ -1124,7 +1121,7 @@ impl<'a> Ctx<'a> {
         // Asked of the quoted text (the file itself is not TOML); `[ablate]`'s numbers,
         // which the experiment's checks do not read, of their declarations.
         if let Some(r) = allowed_range(&key, PAST_64_BITS, &quoted, Path::new(&self.file))
-            .or_else(|| crate::ablate::declared_range(&key))
+            .or_else(|| crate::settings::ablate::declared_range(&key))
         {
             message = format!("{message}; {r}");
         }

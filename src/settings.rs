@@ -709,6 +709,21 @@ pub mod ablate {
 
     /// Every one, in the order `voxlab settings` lists them.
     pub const SETTINGS: &[Setting] = &[REFERENCE_SPP, SPP, SEEDS, RUNS, WARMUP];
+
+    /// What a declared `[ablate]` number takes (`ablate.seeds`, an entry `ablate.spp[2]`),
+    /// as its declaration says it; `None` for any other key.
+    pub fn declared_range(key: &str) -> Option<String> {
+        let s = SETTINGS.iter().find(|s| {
+            key.strip_prefix("ablate.")
+                .and_then(|k| k.strip_prefix(s.key))
+                .is_some_and(|rest| rest.is_empty() || rest.starts_with('['))
+        })?;
+        Some(if s.key == SPP.key {
+            format!("every entry {}", s.range_text())
+        } else {
+            s.range_text()
+        })
+    }
 }
 
 /// Every declared table of the model, for listings and tests: (table, its numbers).
