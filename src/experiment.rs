@@ -701,12 +701,22 @@ pub fn apply_overrides(text: &str, overrides: &[Override]) -> Result<String, Exp
     let mut doc: toml_edit::DocumentMut = text
         .parse()
         .map_err(|e| at(first, format!("the experiment is not TOML: {e}")))?;
+    // Values written as the user wrote them ([`overflows_64_bits`]), by their marks.
+    let mut raw = Vec::new();
+    let taken: String = std::iter::once(text)
+        .chain(overrides.iter().map(|o| o.value.as_str()))
+        .collect();
     for (i, o) in overrides.iter().enumerate() {
         let fail = |message: String| at(o, message);
-        let value = o
-            .value
-            .parse::<toml_edit::Value>()
-            .unwrap_or_else(|_| toml_edit::Value::from(o.value.as_str()));
+        let value = match o.value.parse::<toml_edit::Value>() {
+            Ok(v) => v,
+            Err(e) if overflows_64_bits(&o.value, e.message()) => {
+                let mark = raw_mark(&taken, raw.len());
+                raw.push((mark.clone(), o.value.clone()));
+                toml_edit::Value::from(mark)
+            }
+            Err(_) => toml_edit::Value::from(o.value.as_str()),
+        };
         let mut parts: Vec<&str> = o.key.split('.').collect();
         let last = parts.pop().expect("a key has a name");
         let mut table = doc.as_table_mut();
@@ -754,7 +764,46 @@ pub fn apply_overrides(text: &str, overrides: &[Override]) -> Result<String, Exp
         }
         table.insert(last, toml_edit::Item::Value(value));
     }
-    Ok(doc.to_string())
+    Ok(write_raw(doc.to_string(), &raw))
+}
+
+/// Whether `value`, which toml_edit refused with `parse_error`, is TOML but for a number
+/// 64 bits cannot hold (`1e400`, `99999999999999999999`, `[4, 1e999]`). Taken as a bare
+/// word it would be a string, "invalid type: string" for what the user wrote as a
+/// number; written into the text as it is, the parse names its key and range as it does
+/// a file's ([`Ctx::past_64_bits`]). Only numbers, signs, brackets and commas: a value
+/// that could carry other TOML is never written raw.
+fn overflows_64_bits(value: &str, parse_error: &str) -> bool {
+    is_overflow(parse_error)
+        && value
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "_+-.[], ".contains(c))
+}
+
+/// Whether a message of toml or toml_edit is its refusal of a number past 64 bits.
+fn is_overflow(message: &str) -> bool {
+    message.contains("number overflowed")
+        || message.contains(" as i128")
+        || message.contains("value was too large")
+}
+
+/// A string that stands in a written document for the `n`th raw value and occurs nowhere
+/// in `text` (all that goes into the document).
+pub fn raw_mark(text: &str, n: usize) -> String {
+    let mut mark = format!("voxlab-raw-{n}");
+    while text.contains(&mark) {
+        mark.push('~');
+    }
+    mark
+}
+
+/// `text` with each quoted mark of `raw` replaced by its value as written: how a number
+/// past 64 bits, which no TOML writer takes, reaches the parser that names its key.
+pub fn write_raw(mut text: String, raw: &[(String, String)]) -> String {
+    for (mark, value) in raw {
+        text = text.replacen(&format!("\"{mark}\""), value, 1);
+    }
+    text
 }
 
 impl Experiment {
@@ -833,11 +882,11 @@ fn blame_override(e: ExperimentError, overrides: &[Override]) -> ExperimentError
         ExperimentError::Invalid { key, .. } | ExperimentError::UnknownKey { key, .. } => key,
         _ => return e,
     };
-    let Some(o) = overrides
-        .iter()
-        .rev()
-        .find(|o| key == &o.key || key.starts_with(&format!("{}.", o.key)))
-    else {
+    let Some(o) = overrides.iter().rev().find(|o| {
+        key == &o.key
+            || key.starts_with(&format!("{}.", o.key))
+            || key.starts_with(&format!("{}[", o.key))
+    }) else {
         let keys: Vec<String> = overrides.iter().map(|o| o.key.clone()).collect();
         return match e {
             ExperimentError::Invalid {
@@ -1097,7 +1146,7 @@ impl<'a> Ctx<'a> {
         msg: &str,
         line: Option<usize>,
     ) -> Option<ExperimentError> {
-        if !(msg.contains("number overflowed") || msg.contains(" as i128")) {
+        if !is_overflow(msg) {
             return None;
         }
         let number = self.text.get(span.clone())?.trim();
@@ -1188,6 +1237,14 @@ impl<'a> Ctx<'a> {
         }
         let Some(doc) = self.doc.as_ref() else {
             if let Some(e) = span.as_ref().and_then(|s| self.past_64_bits(s, &msg, line)) {
+                return e;
+            }
+            // serde may stop at a type error (`width = [1, 1e400]`) before the number
+            // the document's own parse refuses.
+            if let Err(p) = toml_edit::Document::parse(self.text)
+                && let Some(s) = p.span()
+                && let Some(e) = self.past_64_bits(&s, p.message(), Some(self.line_of(s.start)))
+            {
                 return e;
             }
             return ExperimentError::Syntax {

@@ -323,6 +323,17 @@ fn a_number_past_64_bits_names_its_key_and_range() {
             None,
         ),
         (
+            // serde stops at the type error first; the number is still what is wrong.
+            "[render]\nwidth = [1, 1e400]",
+            "x.toml:2: render.width[1] = 1e400",
+            None,
+        ),
+        (
+            "[render]\nwidth = 9223372036854775808",
+            "x.toml:2: render.width = 9223372036854775808",
+            Some("1..=16384"),
+        ),
+        (
             "[ablate]\nseeds = 1e999",
             "x.toml:2: ablate.seeds = 1e999",
             Some("1..=64"),

@@ -138,6 +138,65 @@ fn errors_name_the_override() {
     let deep = format!("{}=1", vec!["a"; 5_000].join("."));
     let e = deep.parse::<Override>().map(|_| ()).unwrap_err();
     assert!(e.contains("5000 dotted parts") && e.len() < 500, "{e}");
+    // An entry of an array override is the override's too.
+    let e = err(&["scene.dims=[4, 2.5, 4]"]);
+    assert!(
+        e.starts_with("--set scene.dims=[4, 2.5, 4]: scene.dims[1] = 2.5")
+            && e.contains("1..=268435456"),
+        "{e}"
+    );
+    // A number 64 bits cannot hold is the number the user wrote, named with its key and
+    // range as in a file, not a bare word taken as a string ("invalid type: string").
+    for (value, shown, range) in [
+        (
+            "99999999999999999999",
+            "render.width = 99999999999999999999",
+            "1..=16384",
+        ),
+        (
+            "9223372036854775808",
+            "render.width = 9223372036854775808",
+            "1..=16384",
+        ),
+        (
+            "-9223372036854775809",
+            "render.width = -9223372036854775809",
+            "1..=16384",
+        ),
+        ("1e400", "render.width = 1e400", "1..=16384"),
+        (
+            "0xFFFFFFFFFFFFFFFFFFFF",
+            "render.width = 0xFFFFFFFFFFFFFFFFFFFF",
+            "1..=16384",
+        ),
+        ("[1, 1e400]", "render.width[1] = 1e400", ""),
+    ] {
+        let e = err(&[format!("render.width={value}").as_str()]);
+        assert!(
+            e.starts_with(&format!(
+                "--set render.width={value}: {shown}: past what 64 bits hold"
+            )) && e.contains(range)
+                && !e.contains("string"),
+            "{e}"
+        );
+    }
+    let e = err(&["scene.dims=[4, 1e400, 4]"]);
+    assert!(
+        e.starts_with("--set scene.dims=[4, 1e400, 4]: scene.dims[1] = 1e400: past what 64 bits")
+            && e.contains("1..=268435456"),
+        "{e}"
+    );
+    // What is not a number stays a string, and another override that holds the mark's
+    // text keeps its own value.
+    let e = err(&["render.width=12abc"]);
+    assert!(e.contains("invalid type: string \"12abc\""), "{e}");
+    let e = err(&["name=voxlab-raw-0", "render.width=1e400"]);
+    assert!(
+        e.starts_with("--set render.width=1e400: render.width = 1e400"),
+        "{e}"
+    );
+    let ok = Experiment::from_str_with(&text, &path, &set(&["name=voxlab-raw-0"])).unwrap();
+    assert_eq!(ok.name, "voxlab-raw-0");
     // The file's own errors keep its line.
     let e = Experiment::from_str_with("[render]\nwidth = -1\n", "f.toml", &set(&["render.spp=2"]))
         .unwrap_err()

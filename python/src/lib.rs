@@ -76,7 +76,8 @@ fn json_to_toml(json: &str, what: &str) -> PyResult<String> {
             },
         )));
     }
-    let value = toml_of(value, String::new()).map_err(|(key, message)| {
+    let mut raw = Vec::new();
+    let value = toml_of(value, String::new(), json, &mut raw).map_err(|(key, message)| {
         to_py(voxlab::Error::from(
             voxlab::experiment::ExperimentError::Invalid {
                 file: what.to_string(),
@@ -86,12 +87,13 @@ fn json_to_toml(json: &str, what: &str) -> PyResult<String> {
             },
         ))
     })?;
-    toml::to_string(&value).map_err(|e| {
+    let text = toml::to_string(&value).map_err(|e| {
         err(
             ErrorKind::Invalid,
             format!("{what}: not expressible as TOML ({e}); None has no TOML value"),
         )
-    })
+    })?;
+    Ok(voxlab::experiment::write_raw(text, &raw))
 }
 
 /// What `voxlab._json_text` writes for the floats JSON has no word for and TOML has:
@@ -102,9 +104,20 @@ const NON_FINITE: [(&str, f64); 3] = [
     ("\u{0}voxlab:-inf", f64::NEG_INFINITY),
 ];
 
-/// `v` as TOML, at the dotted key `at`; `Err((key, message))` for an integer TOML
-/// cannot hold. Nulls are found before (`first_null`).
-fn toml_of(v: serde_json::Value, at: String) -> Result<toml::Value, (String, String)> {
+/// What `voxlab._json_text` puts before the digits of an integer past 64 bits, which a
+/// JSON reader would take as a float.
+const BIG_INT: &str = "\u{0}voxlab:int:";
+
+/// `v` as TOML, at the dotted key `at`. An integer TOML cannot hold stands as a mark
+/// pushed to `raw` with its digits ([`voxlab::experiment::write_raw`]), so the
+/// experiment's parser names its key and range as in a file; `json`, the whole text, is
+/// what the marks must not occur in. Nulls are found before (`first_null`).
+fn toml_of(
+    v: serde_json::Value,
+    at: String,
+    json: &str,
+    raw: &mut Vec<(String, String)>,
+) -> Result<toml::Value, (String, String)> {
     use serde_json::Value as J;
     let child = |k: &str| {
         if at.is_empty() {
@@ -113,38 +126,47 @@ fn toml_of(v: serde_json::Value, at: String) -> Result<toml::Value, (String, Str
             format!("{at}.{k}")
         }
     };
+    let mut written_raw = |digits: String| {
+        let mark = voxlab::experiment::raw_mark(json, raw.len());
+        raw.push((mark.clone(), digits));
+        toml::Value::String(mark)
+    };
     Ok(match v {
         J::Null => return Err((at, ": None has no TOML value".to_string())),
         J::Bool(b) => toml::Value::Boolean(b),
         J::Number(n) => match (n.as_i64(), n.as_f64()) {
             (Some(i), _) if !n.is_f64() => toml::Value::Integer(i),
             (_, Some(f)) if n.is_f64() => toml::Value::Float(f),
-            _ => {
-                return Err((
-                    at,
-                    format!(" = {n}: an integer past TOML's range (64-bit signed)"),
-                ));
-            }
+            _ => written_raw(n.to_string()),
         },
         J::String(s) => match NON_FINITE.iter().find(|(mark, _)| *mark == s) {
             Some(&(_, f)) => toml::Value::Float(f),
-            None => toml::Value::String(s),
+            None => match s.strip_prefix(BIG_INT) {
+                Some(digits) if is_digits(digits) => written_raw(digits.to_string()),
+                _ => toml::Value::String(s),
+            },
         },
         J::Array(a) => toml::Value::Array(
             a.into_iter()
                 .enumerate()
-                .map(|(i, v)| toml_of(v, format!("{at}[{i}]")))
+                .map(|(i, v)| toml_of(v, format!("{at}[{i}]"), json, raw))
                 .collect::<Result<_, _>>()?,
         ),
         J::Object(m) => toml::Value::Table(
             m.into_iter()
                 .map(|(k, v)| {
                     let key = child(&k);
-                    Ok::<_, (String, String)>((k, toml_of(v, key)?))
+                    Ok::<_, (String, String)>((k, toml_of(v, key, json, raw)?))
                 })
                 .collect::<Result<_, _>>()?,
         ),
     })
+}
+
+/// An optional minus and decimal digits: what Python's `str` writes of an integer.
+fn is_digits(s: &str) -> bool {
+    let d = s.strip_prefix('-').unwrap_or(s);
+    !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit())
 }
 
 /// The dotted key of the first `null` in `v` (TOML has none), `lights[1].color` style.

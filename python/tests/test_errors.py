@@ -55,6 +55,8 @@ OVERRIDES = [
     {"lights[7].intensity": 2.0},
     {"render.width": float("nan")},
     {"render.ray_cutoff": 1e300},
+    {"render.width": 2**70},
+    {"render.spp": -(2**63) - 1},
 ]
 
 
@@ -104,6 +106,35 @@ def test_a_non_finite_number_in_a_dict_is_named_by_its_key(d, key, says):
         with pytest.raises(vx.VoxlabError) as p:
             vx.Grid.from_numpy(np.ones((2, 2, 2), np.uint8), palette=d["materials"])
         assert p.value.key == key and says in str(p.value), str(p.value)
+
+
+BIG_INT_DICTS = [
+    ({"render": {"width": 2**70}}, "render.width", "= 1180591620717411303424: past what 64 bits hold", "1..=16384"),
+    ({"render": {"spp": 2**63}}, "render.spp", "= 9223372036854775808: past what 64 bits hold", "1..=65536"),
+    ({"render": {"spp": np.uint64(2**64 - 1)}}, "render.spp", "= 18446744073709551615: past", "1..=65536"),
+    ({"scene": {"generator": "empty", "dims": [4, -(2**80), 4]}}, "scene.dims[1]", "= -1208925819614629174706176: past", "1..=268435456"),
+    ({"materials": [{"name": "a"}, {"name": "b", "shininess": 10**30}]}, "materials[1].shininess", "= 1000000000000000000000000000000: past", ">= 0"),
+]
+
+
+@pytest.mark.parametrize("d,key,says,range_", BIG_INT_DICTS, ids=lambda c: str(c)[:40])
+def test_an_integer_past_64_bits_in_a_dict_is_named_with_its_range(d, key, says, range_):
+    """A JSON reader takes an integer past 64 bits as a float (2**70 was "invalid type:
+    floating point `1.18e21`"), and one past 63 bits was refused without its range: the
+    integer reaches the parser as written, which says what a file's would."""
+    with pytest.raises(vx.VoxlabError) as e:
+        vx.load(d)
+    assert e.value.key == key, str(e.value)
+    assert says in str(e.value) and range_ in str(e.value), str(e.value)
+    if "materials" in d:
+        with pytest.raises(vx.VoxlabError) as p:
+            vx.Grid.from_numpy(np.ones((2, 2, 2), np.uint8), palette=d["materials"])
+        assert p.value.key == key and says in str(p.value), str(p.value)
+
+
+def test_a_string_like_a_mark_stays_a_string():
+    e = vx.load({"name": "voxlab-raw-0", "render": {"width": 8, "height": 8}})
+    assert e.name == "voxlab-raw-0"
 
 
 def test_numpy_values_in_a_palette_are_numbers():

@@ -90,11 +90,12 @@ def _toml_value(key: str, v: Any) -> str:
 # experiment's own check names the key and its range ("must be a finite number in
 # [0, 1]") rather than the JSON encoder refusing the whole dict.
 _NON_FINITE = {"nan": "\x00voxlab:nan", "inf": "\x00voxlab:inf", "-inf": "\x00voxlab:-inf"}
+_BIG_INT = "\x00voxlab:int:"
 
 
 def _json_text(v: Any) -> str:
     """`v` (dicts, lists, numbers, numpy arrays and scalars) as JSON for the native
-    loader, non-finite floats marked."""
+    loader, non-finite floats and integers past 64 bits marked."""
 
     def walk(x: Any) -> Any:
         if isinstance(x, np.ndarray):
@@ -103,6 +104,10 @@ def _json_text(v: Any) -> str:
             return walk(x.item())
         if isinstance(x, float) and not math.isfinite(x):
             return _NON_FINITE["nan" if math.isnan(x) else "inf" if x > 0 else "-inf"]
+        if isinstance(x, int) and not -(2**63) <= x < 2**63:
+            # JSON readers take such an integer as a float (2**70 as 1.18e21): marked,
+            # it reaches the parser as written, which names its key and range.
+            return _BIG_INT + str(x)
         if isinstance(x, Mapping):
             return {k: walk(y) for k, y in x.items()}
         if isinstance(x, (list, tuple)):
