@@ -75,6 +75,14 @@ impl Error {
         self
     }
 
+    /// The error located in `file` (as its message names it), at `key` where known: for
+    /// the layers above this one, whose errors this module does not know.
+    pub(crate) fn located(mut self, file: String, key: Option<String>) -> Self {
+        self.file = Some(file);
+        self.key = key;
+        self
+    }
+
     pub fn kind(&self) -> ErrorKind {
         self.kind
     }

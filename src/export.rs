@@ -52,8 +52,9 @@ use std::path::PathBuf;
 use glam::{DVec3, IVec3};
 
 use crate::experiment::Experiment;
+use crate::input::short_number;
 use crate::render::PixelFilter;
-use crate::scene::{AreaShape, Dielectric, Emission, Grid, Light, Material, VOID};
+use crate::scene::{AreaLight, AreaShape, Dielectric, Emission, Grid, Light, Material, VOID};
 use crate::surface::SurfaceMesh;
 
 /// A part of the scene Mitsuba cannot hold exactly, and what the export does instead.
@@ -95,6 +96,23 @@ pub enum ExportError {
         key: String,
         what: String,
     },
+}
+
+/// An export's refusal as the facade's error, with its file and, for a value Mitsuba
+/// cannot hold, its key.
+impl From<ExportError> for crate::Error {
+    fn from(e: ExportError) -> Self {
+        use crate::error::ErrorKind;
+        let message = e.to_string();
+        let (kind, file, key) = match e {
+            ExportError::Strict { file, .. } => (ErrorKind::Invalid, file, None),
+            ExportError::Triangles { file, .. } | ExportError::TooLarge { file, .. } => {
+                (ErrorKind::Scene, file, None)
+            }
+            ExportError::OutOfRange { file, key, .. } => (ErrorKind::Invalid, file, Some(key)),
+        };
+        crate::Error::new(kind, message).located(file, key)
+    }
 }
 
 /// Voxels of the largest grid exported: the faces are found by visiting every voxel
@@ -494,32 +512,43 @@ impl Writer<'_> {
                 );
             }
         }
-        // Mitsuba reads 32-bit floats: a value beyond them would be infinite there.
-        let file = self.file.clone();
-        let too_bright = |v: DVec3, what: &str| {
-            if v.max_element() > f32::MAX as f64 {
-                Err(ExportError::OutOfRange {
-                    file: file.clone(),
-                    key: key("intensity"),
-                    what: format!(
-                        "the exported {what} {} is beyond Mitsuba's 32-bit floats (at most {:e})",
-                        v.max_element(),
-                        f32::MAX
-                    ),
-                })
-            } else {
-                Ok(())
-            }
+        self.within_f32(j, c, "intensity (pi I color)")?;
+        if let Light::Area(a) = light
+            && let AreaShape::Rect { width, height } = a.shape
+            && (width == 0.0) != (height == 0.0)
+        {
+            return Err(ExportError::OutOfRange {
+                file: self.file.clone(),
+                key: key("size"),
+                what: format!(
+                    "a rect of sides {} x {} is a line light, which Mitsuba has no emitter \
+                     for (give both sides > 0, or both 0 for a point light)",
+                    short_number(width),
+                    short_number(height)
+                ),
+            });
+        }
+        let below_floats = if light.is_area() {
+            self.below_mitsuba_floats(light, quads)
+        } else {
+            None
         };
-        too_bright(c, "intensity (pi I color)")?;
-        // A point light, or an area light of size 0, is Mitsuba's point light.
-        if !light.is_area() {
+        if let (Some(what), Light::Area(a)) = (&below_floats, light) {
+            let size = match a.shape {
+                AreaShape::Rect { .. } => "size",
+                AreaShape::Disk { .. } | AreaShape::Sphere { .. } => "radius",
+            };
+            self.approx(&key(size), format!("{what}; written as a point light"));
+        }
+        // A point light, an area light of size 0, or one below what Mitsuba's floats
+        // resolve, is Mitsuba's point light.
+        if !light.is_area() || below_floats.is_some() {
             if let Light::Area(a) = light
                 && a.emission == Emission::Lambertian
             {
                 self.approx(
                     &key("emission"),
-                    "a Lambertian light of size 0 (a cosine spot) as a point light".into(),
+                    "a Lambertian light (a cosine spot) as a point light".into(),
                 );
             }
             let _ = writeln!(
@@ -533,81 +562,172 @@ impl Writer<'_> {
         }
         match light {
             Light::Point(_) => unreachable!("a point light is not an area light"),
-            Light::Area(a) => {
-                let (u, v, n) = a.frame();
-                let (kind, area, su, sv) = match a.shape {
-                    AreaShape::Rect { width, height } => {
-                        ("rectangle", width * height, 0.5 * width, 0.5 * height)
-                    }
-                    AreaShape::Disk { radius } => (
-                        "disk",
-                        std::f64::consts::PI * radius * radius,
-                        radius,
-                        radius,
-                    ),
-                    AreaShape::Sphere { radius } => ("sphere", 0.0, radius, radius),
-                };
-                let radiance = match (a.shape, a.emission) {
-                    (AreaShape::Sphere { radius }, _) => {
-                        self.approx(
-                            &key("type"),
-                            "voxlab's sphere light emits isotropically from each point; \
-                         Mitsuba's sphere is Lambertian (the same unoccluded light, a \
-                         different penumbra)"
-                                .into(),
-                        );
-                        c / (radius * radius)
-                    }
-                    (_, Emission::Lambertian) => c / area,
-                    (_, Emission::Isotropic) => {
-                        self.approx(
-                            &key("emission"),
-                            "isotropic emission as a Lambertian emitter of the power its \
-                         front half sends (L = 2 I / A); nothing behind it"
-                                .into(),
-                        );
-                        2.0 * c / area
-                    }
-                };
-                too_bright(radiance, "radiance")?;
-                let transform = if kind == "sphere" {
-                    format!(
-                        "<point name=\"center\" value=\"{}\"/>\n    <float name=\"radius\" value=\"{}\"/>",
-                        v3(a.position),
-                        su
-                    )
-                } else {
-                    // Columns: u, v scaled to the half extents, the normal, the centre.
-                    let (x, y) = (u * su, v * sv);
-                    format!(
-                        "<transform name=\"to_world\">\n      <matrix value=\"{} {} {} {} {} {} {} {} {} {} {} {} 0 0 0 1\"/>\n    </transform>",
-                        x.x,
-                        y.x,
-                        n.x,
-                        a.position.x,
-                        x.y,
-                        y.y,
-                        n.y,
-                        a.position.y,
-                        x.z,
-                        y.z,
-                        n.z,
-                        a.position.z
-                    )
-                };
-                let _ = writeln!(
-                    self.xml,
-                    "  <shape type=\"{kind}\">\n    {transform}\n    <bsdf type=\"diffuse\">\n      \
-                 <rgb name=\"reflectance\" value=\"0, 0, 0\"/>\n    </bsdf>\n    \
-                 <emitter type=\"area\">\n      <rgb name=\"radiance\" value=\"{}\"/>\n    \
-                 </emitter>\n  </shape>",
-                    v3(radiance)
-                );
+            Light::Area(a) => self.area_light(j, a, c),
+        }
+    }
+
+    /// Area light `j` as Mitsuba's shape of its kind with an `area` emitter; `c` is its
+    /// `pi I color`.
+    fn area_light(&mut self, j: usize, a: &AreaLight, c: DVec3) -> Result<(), ExportError> {
+        let key = |k: &str| format!("lights[{j}].{k}");
+        let (u, v, n) = a.frame();
+        let (kind, area, su, sv) = match a.shape {
+            AreaShape::Rect { width, height } => {
+                ("rectangle", width * height, 0.5 * width, 0.5 * height)
             }
+            AreaShape::Disk { radius } => (
+                "disk",
+                std::f64::consts::PI * radius * radius,
+                radius,
+                radius,
+            ),
+            AreaShape::Sphere { radius } => ("sphere", 0.0, radius, radius),
+        };
+        let radiance = match (a.shape, a.emission) {
+            (AreaShape::Sphere { radius }, _) => {
+                self.approx(
+                    &key("type"),
+                    "voxlab's sphere light emits isotropically from each point; \
+                 Mitsuba's sphere is Lambertian (the same unoccluded light, a \
+                 different penumbra)"
+                        .into(),
+                );
+                // A Lambertian sphere of radiance L sends L pi R^2 in every
+                // direction: as a point of intensity pi I (the 1/pi of Mitsuba's
+                // diffuse BSDF undone), L = I / R^2.
+                c / (std::f64::consts::PI * radius * radius)
+            }
+            (_, Emission::Lambertian) => c / area,
+            (_, Emission::Isotropic) => {
+                self.approx(
+                    &key("emission"),
+                    "isotropic emission as a Lambertian emitter of the power its \
+                 front half sends (L = 2 I / A); nothing behind it"
+                        .into(),
+                );
+                2.0 * c / area
+            }
+        };
+        self.within_f32(j, radiance, "radiance")?;
+        let transform = if kind == "sphere" {
+            format!(
+                "<point name=\"center\" value=\"{}\"/>\n    <float name=\"radius\" value=\"{}\"/>",
+                v3(a.position),
+                su
+            )
+        } else {
+            // Columns: u, v scaled to the half extents, the normal, the centre.
+            let (x, y) = (u * su, v * sv);
+            format!(
+                "<transform name=\"to_world\">\n      <matrix value=\"{} {} {} {} {} {} {} {} {} {} {} {} 0 0 0 1\"/>\n    </transform>",
+                x.x,
+                y.x,
+                n.x,
+                a.position.x,
+                x.y,
+                y.y,
+                n.y,
+                a.position.y,
+                x.z,
+                y.z,
+                n.z,
+                a.position.z
+            )
+        };
+        let _ = writeln!(
+            self.xml,
+            "  <shape type=\"{kind}\">\n    {transform}\n    <bsdf type=\"diffuse\">\n      \
+         <rgb name=\"reflectance\" value=\"0, 0, 0\"/>\n    </bsdf>\n    \
+         <emitter type=\"area\">\n      <rgb name=\"radiance\" value=\"{}\"/>\n    \
+         </emitter>\n  </shape>",
+            v3(radiance)
+        );
+        Ok(())
+    }
+
+    /// Mitsuba reads 32-bit floats: a value of light `j` beyond them would be infinite
+    /// there.
+    fn within_f32(&self, j: usize, v: DVec3, what: &str) -> Result<(), ExportError> {
+        if v.max_element() > f32::MAX as f64 {
+            return Err(ExportError::OutOfRange {
+                file: self.file.clone(),
+                key: format!("lights[{j}].intensity"),
+                what: format!(
+                    "the exported {what} {} is beyond Mitsuba's 32-bit floats (at most {:e})",
+                    v.max_element(),
+                    f32::MAX
+                ),
+            });
         }
         Ok(())
     }
+
+    /// Why Mitsuba's 32-bit floats cannot hold area light `light` faithfully, if they
+    /// cannot; `quads` are the scene's triangles, which it lights. Measured on Mitsuba
+    /// 3.9.1 (docs/mitsuba.md, "Lights below Mitsuba's floats"): a rectangle turns into
+    /// a mesh in world space, whose corners merge once its sides near the spacing of
+    /// floats at its position (a side of 1e-6 at 18 from the origin fails to load), and a
+    /// disk fades from 3e-9; a sphere is sampled by the cone it subtends, whose
+    /// `1 - cos` is lost in f32 once `R / d` falls toward 1e-3 (10 % too bright at
+    /// `R / d = 7e-4`, black below), for `d` up to the farthest surface.
+    fn below_mitsuba_floats(&self, light: &Light, quads: &[[DVec3; 3]]) -> Option<String> {
+        let Light::Area(a) = light else {
+            return None;
+        };
+        let p = a.position;
+        let farthest = quads
+            .iter()
+            .flatten()
+            .map(|v| v.distance(p))
+            .fold(0.0, f64::max);
+        match a.shape {
+            AreaShape::Rect { width, height } => {
+                let floor = LIGHT_SPACING_FLOOR * p.abs().max_element().max(farthest);
+                (0.5 * width.min(height) < floor).then(|| {
+                    format!(
+                        "a rect of sides {} x {}: a half side below {floor:.3e} \
+                         (2^-17 of its distance from the origin or its farthest surface) \
+                         is lost in Mitsuba's 32-bit floats",
+                        short_number(width),
+                        short_number(height)
+                    )
+                })
+            }
+            AreaShape::Disk { radius } => {
+                let floor = LIGHT_SPACING_FLOOR * p.abs().max_element().max(farthest);
+                (radius < floor).then(|| {
+                    format!(
+                        "a disk of radius {}: below {floor:.3e} (2^-17 of its distance \
+                         from the origin or its farthest surface) it is lost in Mitsuba's \
+                         32-bit floats",
+                        short_number(radius)
+                    )
+                })
+            }
+            AreaShape::Sphere { radius } => {
+                let floor = SPHERE_CONE_FLOOR * farthest;
+                (radius < floor).then(|| {
+                    format!(
+                        "a sphere of radius {}: below {floor:.3e} (2^-8 of the distance \
+                         to its farthest surface) Mitsuba's sampling of the cone it subtends \
+                         loses its 1 - cos in 32-bit floats",
+                        short_number(radius)
+                    )
+                })
+            }
+        }
+    }
 }
+
+/// A rect's half side or a disk's radius, as a share of the light's distance from the
+/// origin or its farthest surface, below which Mitsuba's f32 loses the shape: 2^-17,
+/// 64 floats' spacing (`Writer::below_mitsuba_floats`).
+const LIGHT_SPACING_FLOOR: f64 = 1.0 / (1u64 << 17) as f64;
+
+/// A sphere light's radius, as a share of the distance to its farthest surface, below
+/// which Mitsuba's cone sampling loses `1 - cos` (about 1e-5 there: under 1 % of it in
+/// f32 rounding).
+const SPHERE_CONE_FLOOR: f64 = 1.0 / 256.0;
 
 fn v3(v: DVec3) -> String {
     format!("{}, {}, {}", v.x, v.y, v.z)
@@ -972,14 +1092,7 @@ pub fn write_mitsuba(
         "export writes a directory (scene.xml and meshes/)",
     )
     .map_err(|m| Error::new(ErrorKind::Output, m))?;
-    let scene = mitsuba(e, strict).map_err(|err| {
-        let kind = match err {
-            ExportError::Strict { .. } => ErrorKind::Invalid,
-            ExportError::Triangles { .. } | ExportError::TooLarge { .. } => ErrorKind::Scene,
-            ExportError::OutOfRange { .. } => ErrorKind::Invalid,
-        };
-        Error::new(kind, err.to_string())
-    })?;
+    let scene = mitsuba(e, strict)?;
     let xml = dir.join("scene.xml");
     let mut outputs: Vec<PathBuf> = scene.files.iter().map(|(p, _)| dir.join(p)).collect();
     outputs.push(crate::output::sidecar_path(&xml));

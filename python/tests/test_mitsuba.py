@@ -269,6 +269,57 @@ def test_export_writes_a_scene_mitsuba_and_xml_read(tmp_path):
     assert areas == sorted([floor, red_tall + red_small, blue]), areas
 
 
+def _with_light(name: str, light: dict, **render) -> vx.Experiment:
+    """A shipped Mitsuba scene with its light replaced, rendered small."""
+    import tomllib
+
+    d = tomllib.loads((EXPERIMENTS / "mitsuba" / name).read_text())
+    d["lights"] = [light]
+    d["render"].update({"width": 16, "height": 16, **render})
+    return vx.load(d, name=str(EXPERIMENTS / "mitsuba" / name))
+
+
+def _mitsuba_mean(exp: vx.Experiment, directory: Path) -> tuple[float, list]:
+    approximations = exp.export_mitsuba(directory)
+    image = np.array(mi.render(mi.load_file(str(directory / "scene.xml")), spp=32, seed=0))
+    assert np.isfinite(image).all()
+    return float(image[..., :3].mean()), [f"{a[0]}: {a[1]}" for a in approximations]
+
+
+def test_light_shapes_send_a_point_lights_power_in_mitsuba(tmp_path):
+    """Every light shape is exported with the power voxlab gives it: against the point
+    light of the same intensity at the same place, Mitsuba's image is as bright where the
+    shapes' unoccluded light is the point's (an isotropic sphere; any light too small for
+    Mitsuba's floats, written as that point). The sphere used to be pi times too bright
+    (its radiance pi I / R^2), a disk of radius 3e-9 rendered black and a rect of sides
+    1e-6 failed to load, each with no approximation listed."""
+    at = {"position": [6.0, 16.0, 18.0], "intensity": 260.0}
+    point, _ = _mitsuba_mean(_with_light("disk_blocks.toml", {"type": "point", **at}), tmp_path / "p")
+    assert point > 0.05
+    normal = {"normal": [0.4, -1.0, -0.5], "emission": "lambertian"}
+    for i, (light, key, says) in enumerate(
+        [
+            ({"type": "sphere", "radius": 0.3}, "lights[0].type", "isotropically"),
+            ({"type": "sphere", "radius": 1e-3}, "lights[0].radius", "cone"),
+            ({"type": "disk", "radius": 3e-9, **normal}, "lights[0].radius", "32-bit floats"),
+            ({"type": "rect", "size": [1e-6, 1e-6], **normal}, "lights[0].size", "32-bit floats"),
+        ]
+    ):
+        mean, approximations = _mitsuba_mean(
+            _with_light("disk_blocks.toml", {**light, **at}), tmp_path / f"l{i}"
+        )
+        print(light, mean, point, approximations)
+        assert abs(mean / point - 1) < 0.01, (light, mean, point)
+        assert any(a.startswith(key) and says in a for a in approximations), approximations
+    # A rect with one side 0 is a line light: refused, naming its size.
+    with pytest.raises(vx.VoxlabError) as e:
+        _with_light("disk_blocks.toml", {"type": "rect", "size": [0.0, 4.0], **normal, **at}).export_mitsuba(
+            tmp_path / "line"
+        )
+    assert e.value.key == "lights[0].size" and "line light" in str(e.value), str(e.value)
+    assert not (tmp_path / "line").exists()
+
+
 def test_export_refuses_hostile_targets(tmp_path):
     src = EXPERIMENTS / "mitsuba" / "rect_blocks.toml"
     # A directory that is a file.
