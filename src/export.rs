@@ -155,13 +155,14 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
     );
     let _ = writeln!(w.xml, "<scene version=\"3.0.0\">");
     w.integrator();
-    w.camera();
     w.materials()?;
     let meshes = w.geometry()?;
     let quads: Vec<[DVec3; 3]> = meshes
         .iter()
         .flat_map(|(_, t, _)| t.iter().copied())
         .collect();
+    // After the geometry: the sensor's clipping range is the scene's.
+    w.camera(&quads)?;
     for (j, light) in e.scene.lights.iter().enumerate() {
         w.light(j, light, &quads)?;
     }
@@ -315,9 +316,47 @@ impl Writer<'_> {
         );
     }
 
-    fn camera(&mut self) {
+    /// The sensor, which sees the triangles `tris`.
+    fn camera(&mut self, tris: &[[DVec3; 3]]) -> Result<(), ExportError> {
         let (scene, s) = (&self.e.scene, &self.e.settings);
         let f = scene.camera.frame();
+        let (near, far, nearest) = clip_range(f.eye, tris);
+        let clipped = nearest < near;
+        let eye = f.eye.abs().max_element();
+        if eye.max(far) > f32::MAX as f64 {
+            return Err(ExportError::OutOfRange {
+                file: self.file.clone(),
+                key: "camera.distance".into(),
+                what: format!(
+                    "the eye, {eye:.3e} from the origin and {far:.3e} from the farthest \
+                     surface, is beyond Mitsuba's 32-bit floats (at most {:e})",
+                    f32::MAX
+                ),
+            });
+        }
+        if clipped {
+            self.approx(
+                "camera.distance",
+                format!(
+                    "a surface lies nearer the eye than {near:.3e}, where Mitsuba's sensor \
+                     starts (near_clip, {CLIP_RATIO:e} of the farthest surface's distance)"
+                ),
+            );
+        }
+        // The eye in f32 is off by up to half a float's spacing: against a pixel's width
+        // at the nearest surface, the image Mitsuba renders is shifted by that much.
+        let off = eye * f64::from(f32::EPSILON) / 2.0;
+        let pixel = 2.0 * nearest * f.tan_half_vfov / f64::from(s.height);
+        if off > EYE_SHIFT_PIXELS * pixel {
+            self.approx(
+                "camera.distance",
+                format!(
+                    "the eye, {eye:.3e} from the origin, is held to {off:.1e} in Mitsuba's \
+                     32-bit floats: up to {:.2} of a pixel at the nearest surface",
+                    off / pixel
+                ),
+            );
+        }
         match s.pixel_filter {
             PixelFilter::Box if s.filter_width == 0.5 => {}
             other => self.approx(
@@ -331,7 +370,8 @@ impl Writer<'_> {
         let _ = writeln!(
             self.xml,
             "  <sensor type=\"perspective\">\n    <string name=\"fov_axis\" value=\"y\"/>\n    \
-         <float name=\"fov\" value=\"{}\"/>\n    <transform name=\"to_world\">\n      \
+         <float name=\"fov\" value=\"{}\"/>\n    <float name=\"near_clip\" value=\"{near}\"/>\n    \
+         <float name=\"far_clip\" value=\"{far}\"/>\n    <transform name=\"to_world\">\n      \
          <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n    </transform>\n    \
          <sampler type=\"independent\">\n      <integer name=\"sample_count\" value=\"{}\"/>\n    \
          </sampler>\n    <film type=\"hdrfilm\">\n      <integer name=\"width\" value=\"{}\"/>\n      \
@@ -366,6 +406,7 @@ impl Writer<'_> {
                 "falloff off: Mitsuba's lights always fall off as 1/d^2".into(),
             );
         }
+        Ok(())
     }
 
     fn materials(&mut self) -> Result<(), ExportError> {
@@ -1033,6 +1074,40 @@ fn ply(tris: &[[DVec3; 3]], normals: &[[DVec3; 3]]) -> Vec<u8> {
         }
     }
     out
+}
+
+/// The shift of Mitsuba's image, in pixels at the camera's target, from its eye's
+/// rounding to f32, above which the export is approximated.
+const EYE_SHIFT_PIXELS: f64 = 0.01;
+
+/// The nearest surface's distance over the farthest's below which Mitsuba's sensor
+/// stops seeing (its own defaults, 0.01 and 1e4, are this ratio).
+const CLIP_RATIO: f64 = 1e-6;
+
+/// Mitsuba's sensor clips its rays to `[near_clip, far_clip]`, by default 0.01 to 1e4
+/// world units, where voxlab's camera rays have no bounds: a scene farther than 1e4 from
+/// the eye (a camera 1e5 out with a narrow field of view, a grid of `voxel_size = 1e3`)
+/// rendered black there, and one nearer than 0.01 lost its near surfaces. The range
+/// here holds every triangle of `tris` seen from `eye`: far past the farthest vertex
+/// (by 1 %, for f32 rounding), near at half the nearest surface, but no nearer than
+/// [`CLIP_RATIO`] of far. Returns near, far and the nearest surface's distance (infinite
+/// without surfaces).
+fn clip_range(eye: DVec3, tris: &[[DVec3; 3]]) -> (f64, f64, f64) {
+    if tris.is_empty() {
+        return (1e-2, 1e4, f64::INFINITY);
+    }
+    let farthest = tris
+        .iter()
+        .flatten()
+        .map(|v| v.distance(eye))
+        .fold(0.0, f64::max);
+    let nearest = tris
+        .iter()
+        .map(|t| point_triangle_distance(eye, t))
+        .fold(f64::INFINITY, f64::min);
+    let far = 1.01 * farthest;
+    let floor = CLIP_RATIO * far;
+    (f64::max(0.5 * nearest, floor), far, nearest)
 }
 
 /// Distance from `p` to the triangle `t` (Ericson, "Real-Time Collision Detection",

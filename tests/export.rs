@@ -241,6 +241,64 @@ fn approximations_are_listed_and_strict_refuses_them() {
     }
 }
 
+/// Mitsuba's sensor clips its rays to [near_clip, far_clip], by default 0.01 to 1e4: a
+/// camera 1e5 away rendered black there. The export writes the range that holds the
+/// scene, says when f32 cannot hold the eye well (a shifted image) or at all (refused).
+#[test]
+fn the_sensor_sees_the_scene_at_any_distance() {
+    let clip = |xml: &str, name: &str| -> f64 {
+        let at = xml
+            .find(&format!("name=\"{name}\" value=\""))
+            .unwrap_or_else(|| panic!("no {name} in {xml}"));
+        let rest = &xml[at + name.len() + 15..];
+        rest[..rest.find('"').unwrap()].parse().unwrap()
+    };
+    for (distance, vfov) in [(20.0, 40.0), (1e5, 1.0), (0.05, 40.0)] {
+        let text = format!(
+            "{DIFFUSE}\n[camera]\ntarget = [4.0, 1.0, 4.0]\ndistance = {distance}\nvfov_deg = {vfov}\n"
+        );
+        let e = Experiment::from_str(&text, "far.toml").unwrap();
+        let out = mitsuba(&e, true).unwrap();
+        let xml = String::from_utf8(out.files[0].1.clone()).unwrap();
+        let (near, far) = (clip(&xml, "near_clip"), clip(&xml, "far_clip"));
+        // The floor's box holds the target, so its farthest corner is at least
+        // `distance` from the eye and at most its diagonal farther.
+        let diagonal = (8.0f64 * 8.0 + 1.0 + 8.0 * 8.0).sqrt();
+        assert!(far >= distance, "{distance}: far_clip {far}");
+        assert!(
+            far <= 1.01 * (distance + diagonal),
+            "{distance}: far_clip {far}"
+        );
+        // The floor under the eye (the eye is above it at every distance here).
+        assert!(
+            near > 0.0 && near < distance.max(0.5),
+            "{distance}: near_clip {near}"
+        );
+    }
+    let at = |distance: f64| {
+        let text = format!(
+            "{DIFFUSE}\n[camera]\ntarget = [4.0, 1.0, 4.0]\ndistance = {distance:e}\nvfov_deg = 1e-6\n"
+        );
+        mitsuba(&Experiment::from_str(&text, "far.toml").unwrap(), false)
+    };
+    let keys: Vec<String> = at(1e9)
+        .unwrap()
+        .approximations
+        .into_iter()
+        .map(|a| format!("{}: {}", a.key, a.mapping))
+        .collect();
+    assert!(
+        keys.iter()
+            .any(|k| k.starts_with("camera.distance") && k.contains("of a pixel")),
+        "{keys:?}"
+    );
+    let e = at(1e39).map(|_| ()).unwrap_err();
+    assert!(
+        matches!(&e, voxlab::export::ExportError::OutOfRange { key, .. } if key == "camera.distance"),
+        "{e}"
+    );
+}
+
 /// The `scene.xml` the export writes for an experiment's text (approximations allowed).
 fn scene_xml(text: &str) -> String {
     let e = Experiment::from_str(text, "scene.toml").unwrap();

@@ -320,6 +320,21 @@ def test_light_shapes_send_a_point_lights_power_in_mitsuba(tmp_path):
     assert not (tmp_path / "line").exists()
 
 
+def test_a_far_camera_sees_the_scene_in_mitsuba(gpu, tmp_path):
+    """Mitsuba's sensor clips at 1e4 by default: a camera 1e5 away with a narrow field
+    of view (the same framing as the shipped one) rendered black there, exported as
+    exact. The export now writes the clipping range of the scene."""
+    exp = vx.load(
+        EXPERIMENTS / "mitsuba" / "rect_blocks.toml",
+        set={"camera.distance": 1e5, "camera.vfov_deg": 0.036, "render.width": 16, "render.height": 16},
+    )
+    assert exp.export_mitsuba(tmp_path / "far", strict=True) == []
+    m = np.array(mi.render(mi.load_file(str(tmp_path / "far" / "scene.xml")), spp=256, seed=0))[..., :3]
+    v = gpu.render(exp, spp=64).radiance
+    print("far camera: mitsuba", m.mean(), "voxlab", v.mean())
+    assert v.mean() > 0.01 and abs(m.mean() / v.mean() - 1) < 0.03, (m.mean(), v.mean())
+
+
 def test_export_refuses_hostile_targets(tmp_path):
     src = EXPERIMENTS / "mitsuba" / "rect_blocks.toml"
     # A directory that is a file.
