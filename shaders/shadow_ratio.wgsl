@@ -17,7 +17,14 @@
 // crate::technique::ratio::SMALL_LIGHT
 const SMALL_LIGHT: f32 = 1e-3;
 
-// The clipped polygon, relative to p: a rectangle cut by a plane has at most 5 corners.
+// The clipped polygon: its corners as offsets from the light's centre, which lies at
+// `poly_centre` from p. The closed forms below sum edge terms that cancel down to the
+// light's solid angle; a cross product of two corners seen from p (long, nearly parallel
+// vectors when the light is small or far) loses in f32 the digits that survive the sum,
+// so each is expanded about the centre, `(C + a) x (C + b) = C x (b - a) + a x b`, whose
+// terms hold them: a rect of side 0.01 some 15 voxels away was 0.64 off the reference's
+// image (tests/gpu_extremes.rs, `a_small_rect_light_under_the_ratio_estimator`).
+// A rectangle cut by a plane has at most 5 corners.
 // Five variables at constant slots, not an array: an array read or written at the
 // per-lane index poly_len is a loop over the SIMD vector's lanes with a branch a lane on
 // a software driver, as the ray stack's was. A push is a select into every slot and a
@@ -30,6 +37,7 @@ var<private> poly2: vec3<f32>;
 var<private> poly3: vec3<f32>;
 var<private> poly4: vec3<f32>;
 var<private> poly_len: u32;
+var<private> poly_centre: vec3<f32>;
 
 // Appends v where `on`.
 fn poly_push(v: vec3<f32>, on: bool) {
@@ -41,7 +49,7 @@ fn poly_push(v: vec3<f32>, on: bool) {
     poly_len += select(0u, 1u, on);
 }
 
-// Corner i < 5.
+// Corner i < 5, as an offset from the centre.
 fn poly_at(i: u32) -> vec3<f32> {
     var v = poly0;
     v = select(v, poly1, i == 1u);
@@ -51,58 +59,94 @@ fn poly_at(i: u32) -> vec3<f32> {
     return v;
 }
 
-// One edge of Sutherland-Hodgman against n . x >= 0 (relative coordinates). The
+// (C + a) x (C + b) for offsets a, b, expanded so that no term cancels.
+fn corner_cross(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
+    return cross(poly_centre, b - a) + cross(a, b);
+}
+
+// One edge of Sutherland-Hodgman against n . x >= 0, x = C + offset; `nc` is n . C. The
 // crossing is computed either way and kept only where the edge crosses.
-fn clip_edge(a: vec3<f32>, b: vec3<f32>, n: vec3<f32>) {
-    let da = dot(n, a);
-    let db = dot(n, b);
+fn clip_edge(a: vec3<f32>, b: vec3<f32>, n: vec3<f32>, nc: f32) {
+    let da = nc + dot(n, a);
+    let db = nc + dot(n, b);
     poly_push(a, da >= 0.0);
     poly_push(a + da / (da - db) * (b - a), (da >= 0.0) != (db >= 0.0));
 }
 
+// The solid angle of the triangle C + a, C + b, C + c (Van Oosterom and Strackee), its
+// triple product expanded about the centre: C . ((b - a) x (c - a)) + a . (b x c).
 fn triangle_solid_angle(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> f32 {
-    let la = length(a);
-    let lb = length(b);
-    let lc = length(c);
-    let num = abs(dot(a, cross(b, c)));
-    let den = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la;
+    let ca = poly_centre + a;
+    let cb = poly_centre + b;
+    let cc = poly_centre + c;
+    let la = length(ca);
+    let lb = length(cb);
+    let lc = length(cc);
+    let num = abs(dot(poly_centre, cross(b - a, c - a)) + dot(a, cross(b, c)));
+    let den = la * lb * lc + dot(ca, cb) * lc + dot(ca, cc) * lb + dot(cb, cc) * la;
     return 2.0 * atan2(num, den);
 }
 
-// The in-plane field of edge i: -m_e ln((r_a + r_b + L) / (r_a + r_b - L)).
+// ln(1 + x) for x >= 0 to f32's relative precision where x is small (WGSL has no
+// log1p): 2 atanh(z), z = x / (2 + x), by its series below 0.1, where four terms leave
+// z^8 / 9 < 1e-11. Not Goldberg's `log(u) x / (u - 1)`: the driver may fold (1 + x) - 1
+// into x (Mesa's NIR rewrites inexact float arithmetic), which left a rect of side 0.01
+// 15 voxels away 10 % off.
+fn log1p_small(x: f32) -> f32 {
+    if x >= 0.1 {
+        return log(1.0 + x);
+    }
+    let z = x / (2.0 + x);
+    let z2 = z * z;
+    return 2.0 * z * (1.0 + z2 * (1.0 / 3.0 + z2 * (0.2 + z2 / 7.0)));
+}
+
+// The in-plane field of edge i: -m_e ln((r_a + r_b + L) / (r_a + r_b - L)), the
+// logarithm as ln(1 + 2 L / g) with g = r_a + r_b - L, which cancels only where a and b
+// point apart (p near the edge's line); there g = 2 |a x b|^2 / ((r_a r_b - a . b)
+// (r_a + r_b + L)).
 fn edge_field(i: u32, normal: vec3<f32>) -> vec3<f32> {
     if i >= poly_len {
         return vec3<f32>(0.0);
     }
-    let a = poly_at(i);
-    let b = poly_at((i + 1u) % poly_len);
-    let e = b - a;
+    let oa = poly_at(i);
+    let ob = poly_at((i + 1u) % poly_len);
+    let e = ob - oa;
     let len = length(e);
     if !(len > 0.0) {
         return vec3<f32>(0.0);
     }
+    let a = poly_centre + oa;
+    let b = poly_centre + ob;
     let ra = length(a);
     let rb = length(b);
-    let gap = max(2.0 * (ra * rb + dot(a, b)), 1e-30);
-    let l = 2.0 * log(ra + rb + len) - log(gap);
+    let ab = dot(a, b);
+    var g = ra + rb - len;
+    if ab < 0.0 {
+        let axb = corner_cross(oa, ob);
+        g = 2.0 * dot(axb, axb) / ((ra * rb - ab) * (ra + rb + len));
+    }
+    let l = log1p_small(2.0 * len / max(g, 1e-30));
     return -(cross(e, normal) / len) * l;
 }
 
 // n . F over the rectangle (centre c, axes au, av, unit normal ne) clipped to the
 // half-space in front of p (module notes of src/technique/ratio.rs). No loops: at most
 // 5 corners, 3 fan triangles and 5 edges, written out.
-// The rectangle (centre c, axes au, av) relative to p, clipped to the half-space in
-// front of p, into `poly`.
+// The rectangle (centre c, axes au, av) seen from p, clipped to the half-space in front
+// of p, into `poly` (offsets) and `poly_centre`.
 fn clip_rect(p: vec3<f32>, n: vec3<f32>, c: vec3<f32>, au: vec3<f32>, av: vec3<f32>) {
-    let c0 = c - 0.5 * au - 0.5 * av - p;
-    let c1 = c + 0.5 * au - 0.5 * av - p;
-    let c2 = c + 0.5 * au + 0.5 * av - p;
-    let c3 = c - 0.5 * au + 0.5 * av - p;
+    poly_centre = c - p;
+    let nc = dot(n, poly_centre);
+    let c0 = -0.5 * au - 0.5 * av;
+    let c1 = 0.5 * au - 0.5 * av;
+    let c2 = 0.5 * au + 0.5 * av;
+    let c3 = -0.5 * au + 0.5 * av;
     poly_len = 0u;
-    clip_edge(c0, c1, n);
-    clip_edge(c1, c2, n);
-    clip_edge(c2, c3, n);
-    clip_edge(c3, c0, n);
+    clip_edge(c0, c1, n, nc);
+    clip_edge(c1, c2, n, nc);
+    clip_edge(c2, c3, n, nc);
+    clip_edge(c3, c0, n, nc);
 }
 
 fn clipped_field(p: vec3<f32>, n: vec3<f32>, c: vec3<f32>, au: vec3<f32>, av: vec3<f32>, ne: vec3<f32>) -> f32 {
@@ -117,7 +161,7 @@ fn clipped_field(p: vec3<f32>, n: vec3<f32>, c: vec3<f32>, au: vec3<f32>, av: ve
     if poly_len > 4u {
         omega += triangle_solid_angle(poly0, poly3, poly4);
     }
-    let h = dot(ne, poly0);
+    let h = dot(ne, poly_centre + poly0);
     var field = select(-1.0, 1.0, h >= 0.0) * omega * ne;
     field += edge_field(0u, ne) + edge_field(1u, ne) + edge_field(2u, ne);
     field += edge_field(3u, ne) + edge_field(4u, ne);
@@ -129,14 +173,14 @@ fn lambert_edge(i: u32, n: vec3<f32>) -> f32 {
     if i >= poly_len {
         return 0.0;
     }
-    let a = poly_at(i);
-    let b = poly_at((i + 1u) % poly_len);
-    let g = cross(a, b);
+    let oa = poly_at(i);
+    let ob = poly_at((i + 1u) % poly_len);
+    let g = corner_cross(oa, ob);
     let len = length(g);
     if !(len > 0.0) {
         return 0.0;
     }
-    return atan2(len, dot(a, b)) * dot(n, g) / len;
+    return atan2(len, dot(poly_centre + oa, poly_centre + ob)) * dot(n, g) / len;
 }
 
 // The projected solid angle of the rectangle clipped to the hemisphere of n, for a

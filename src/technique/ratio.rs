@@ -156,9 +156,11 @@ impl CpuShadow for Ratio {
 }
 
 /// Size over distance below which a rectangle light is shaded by its samples' mean
-/// instead of the closed form: the edge terms are differences of logarithms, whose f32
-/// rounding (~2e-7) would swamp a light this small, while the samples' mean differs
-/// from the integral by the relative variation of `1/r^2` across the light, ~1e-3.
+/// instead of the closed form: the edge terms cancel down to the light's solid angle,
+/// and f32 (the kernel, which expands them about the light's centre to keep what it
+/// can: shaders/shadow_ratio.wgsl) would lose the rest on a light this small, while the
+/// samples' mean differs from the integral by the relative variation of `1/r^2` across
+/// the light, ~1e-3.
 pub const SMALL_LIGHT: f64 = 1e-3;
 
 /// `n . int (x - p) / |x - p|^3 dA` over the convex polygon `corners` (counter-clockwise
