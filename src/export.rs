@@ -344,10 +344,11 @@ impl Writer<'_> {
             );
         }
         // The eye in f32 is off by up to half a float's spacing: against a pixel's width
-        // at the nearest surface, the image Mitsuba renders is shifted by that much.
+        // at the nearest surface, the image Mitsuba renders is shifted by that much. (A
+        // surface through the eye has no such width; the near clip above says so.)
         let off = eye * f64::from(f32::EPSILON) / 2.0;
         let pixel = 2.0 * nearest * f.tan_half_vfov / f64::from(s.height);
-        if off > EYE_SHIFT_PIXELS * pixel {
+        if pixel > 0.0 && off > EYE_SHIFT_PIXELS * pixel {
             self.approx(
                 "camera.distance",
                 format!(

@@ -292,6 +292,20 @@ fn the_sensor_sees_the_scene_at_any_distance() {
             .any(|k| k.starts_with("camera.distance") && k.contains("of a pixel")),
         "{keys:?}"
     );
+    // An eye on the floor's top (in its plane, inside it): the near clip is listed, and
+    // no shift of "inf" pixels.
+    let text =
+        format!("{DIFFUSE}\n[camera]\ntarget = [4.0, 1.0, 4.0]\ndistance = 2\npitch_deg = 0\n");
+    let listed: Vec<String> = mitsuba(&Experiment::from_str(&text, "on.toml").unwrap(), false)
+        .unwrap()
+        .approximations
+        .into_iter()
+        .map(|a| format!("{}: {}", a.key, a.mapping))
+        .collect();
+    assert!(
+        listed.iter().any(|k| k.contains("near_clip")) && !listed.iter().any(|k| k.contains("inf")),
+        "{listed:?}"
+    );
     let e = at(1e39).map(|_| ()).unwrap_err();
     assert!(
         matches!(&e, voxlab::export::ExportError::OutOfRange { key, .. } if key == "camera.distance"),
