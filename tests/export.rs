@@ -281,12 +281,14 @@ fn the_sensor_sees_the_scene_at_any_distance() {
         );
         mitsuba(&Experiment::from_str(&text, "far.toml").unwrap(), false)
     };
-    let keys: Vec<String> = at(1e9)
-        .unwrap()
-        .approximations
-        .into_iter()
-        .map(|a| format!("{}: {}", a.key, a.mapping))
-        .collect();
+    // Each approximation as `key: mapping`.
+    let listed = |out: voxlab::export::MitsubaScene| -> Vec<String> {
+        out.approximations
+            .into_iter()
+            .map(|a| format!("{}: {}", a.key, a.mapping))
+            .collect()
+    };
+    let keys = listed(at(1e9).unwrap());
     assert!(
         keys.iter()
             .any(|k| k.starts_with("camera.distance") && k.contains("of a pixel")),
@@ -296,15 +298,10 @@ fn the_sensor_sees_the_scene_at_any_distance() {
     // no shift of "inf" pixels.
     let text =
         format!("{DIFFUSE}\n[camera]\ntarget = [4.0, 1.0, 4.0]\ndistance = 2\npitch_deg = 0\n");
-    let listed: Vec<String> = mitsuba(&Experiment::from_str(&text, "on.toml").unwrap(), false)
-        .unwrap()
-        .approximations
-        .into_iter()
-        .map(|a| format!("{}: {}", a.key, a.mapping))
-        .collect();
+    let on = listed(mitsuba(&Experiment::from_str(&text, "on.toml").unwrap(), false).unwrap());
     assert!(
-        listed.iter().any(|k| k.contains("near_clip")) && !listed.iter().any(|k| k.contains("inf")),
-        "{listed:?}"
+        on.iter().any(|k| k.contains("near_clip")) && !on.iter().any(|k| k.contains("inf")),
+        "{on:?}"
     );
     let e = at(1e39).map(|_| ()).unwrap_err();
     assert!(
