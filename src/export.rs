@@ -20,7 +20,9 @@
 //!   isotropic rect or disk has no Mitsuba equivalent: it becomes the Lambertian
 //!   emitter with the power its front half sends (`L = 2 pi I c / A`); a sphere light
 //!   (isotropic in voxlab) a Lambertian `sphere` that lights an unoccluded point alike
-//!   (`L = pi I c / R^2`) but casts a different penumbra.
+//!   (`L = pi I c / R^2`) but casts a different penumbra. Mitsuba's emitter shapes stop
+//!   shadow rays, voxlab's lights do not: a light whose shape may stand between the
+//!   scene and another light is approximated (`emitter_shapes`).
 //! - Materials: diffuse (`kr = kt = 0`) is `diffuse`; a mirror (`kd = 0`, `kt = 0`) a
 //!   `conductor` of `specular_reflectance = kr`; diffuse plus mirror a `blendbsdf` of
 //!   the two when `kd + kr <= 1`. Exact. A Phong highlight (`ks > 0`) is dropped, and a
@@ -56,6 +58,8 @@ use crate::input::short_number;
 use crate::render::PixelFilter;
 use crate::scene::{AreaLight, AreaShape, Dielectric, Emission, Grid, Light, Material, VOID};
 use crate::surface::SurfaceMesh;
+
+mod emitter_shapes;
 
 /// A part of the scene Mitsuba cannot hold exactly, and what the export does instead.
 #[derive(Clone, Debug, PartialEq)]
@@ -144,6 +148,7 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
     let mut w = Writer {
         e,
         used: used_materials(&e.scene.grid),
+        emitter_shapes: Vec::new(),
         file,
         xml: String::new(),
         out: MitsubaScene::default(),
@@ -166,6 +171,7 @@ pub fn mitsuba(e: &Experiment, strict: bool) -> Result<MitsubaScene, ExportError
     for (j, light) in e.scene.lights.iter().enumerate() {
         w.light(j, light, &quads)?;
     }
+    w.emitters_in_the_way(&quads);
     let Writer {
         file,
         mut xml,
@@ -208,6 +214,8 @@ struct Writer<'a> {
     file: String,
     /// Which materials some voxel holds.
     used: [bool; 256],
+    /// The lights written as Mitsuba shapes (rectangle, disk, sphere), by index.
+    emitter_shapes: Vec<usize>,
     xml: String,
     out: MitsubaScene,
 }
@@ -651,6 +659,7 @@ impl Writer<'_> {
             }
         };
         self.within_f32(j, radiance, "radiance")?;
+        self.emitter_shapes.push(j);
         let transform = if kind == "sphere" {
             format!(
                 "<point name=\"center\" value=\"{}\"/>\n    <float name=\"radius\" value=\"{}\"/>",
@@ -685,6 +694,45 @@ impl Writer<'_> {
             v3(radiance)
         );
         Ok(())
+    }
+
+    /// The lights whose Mitsuba shape may stop another light's shadow rays, which pass
+    /// through voxlab's lights: each an approximation (module `emitter_shapes`); `tris`
+    /// are the scene's triangles.
+    fn emitters_in_the_way(&mut self, tris: &[[DVec3; 3]]) {
+        if self.emitter_shapes.is_empty() {
+            return;
+        }
+        let scene = &self.e.scene;
+        let surfaces = emitter_shapes::Bounds::of(tris.iter().flatten().copied());
+        // A touch within the rounding of the coordinates involved counts as a meeting.
+        let scale = tris
+            .iter()
+            .flatten()
+            .copied()
+            .chain(scene.lights.iter().flat_map(emitter_shapes::outline))
+            .map(|p| p.abs().max_element())
+            .fold(0.0, f64::max);
+        let slack = 1e-9 * scale;
+        for j in self.emitter_shapes.clone() {
+            let others = emitter_shapes::in_the_way(j, &scene.lights, &surfaces, slack);
+            if others.is_empty() {
+                continue;
+            }
+            let list = others
+                .iter()
+                .map(|k| format!("lights[{k}]"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            self.approx(
+                &format!("lights[{j}].position"),
+                format!(
+                    "Mitsuba's emitter is a shape, which may stop the shadow rays toward \
+                     {list}; voxlab's lights are not surfaces, and shadow rays pass through \
+                     them (as under voxlab.mitsuba.Whitted)"
+                ),
+            );
+        }
     }
 
     /// Mitsuba reads 32-bit floats: a value of light `j` beyond them would be infinite

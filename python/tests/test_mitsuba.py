@@ -320,6 +320,53 @@ def test_light_shapes_send_a_point_lights_power_in_mitsuba(tmp_path):
     assert not (tmp_path / "line").exists()
 
 
+def test_light_shapes_stand_in_no_ray_of_voxlabs(gpu, tmp_path):
+    """voxlab's lights are not surfaces; Mitsuba's emitters are shapes that rays meet.
+    voxlab.mitsuba.Whitted passes through them: in disk_blocks.toml the camera sees the
+    disk in front of the floor (Whitted rendered it black there), and in a scene whose
+    disk stands between the floor and a rect light, Mitsuba's shadow rays stop at the
+    disk. The export lists that disk (`lights[1].position`; it was exported as exact,
+    and Mitsuba's image was 19 % darker than voxlab's), Mitsuba's path tracer is told
+    apart from voxlab, and Whitted agrees with it."""
+    exp = vx.load(EXPERIMENTS / "mitsuba" / "disk_blocks.toml", set={"render.width": 24, "render.height": 24})
+    assert exp.export_mitsuba(tmp_path / "disk", strict=True) == []
+    r = compare(voxlab_runs(gpu, exp), whitted_runs(tmp_path / "disk"))
+    print("disk_blocks, Whitted paths", r)
+    assert agrees(r), r
+
+    light = {"intensity": 300.0, "emission": "lambertian"}
+    exp = vx.load(
+        {
+            "scene": {
+                "generator": "empty",
+                "dims": [15, 14, 12],
+                "boxes": [
+                    {"min": [0, 0, 0], "max": [15, 1, 12], "material": "matte"},
+                    {"min": [3, 1, 10], "max": [6, 13, 12], "material": "matte"},
+                ],
+            },
+            "materials": [{"name": "matte", "albedo": [0.8, 0.8, 0.75], "kd": 1.0, "ks": 0.0, "kr": 0.0, "kt": 0.0}],
+            "camera": {"yaw_deg": 128.3, "pitch_deg": 69.46, "distance": 36.12, "vfov_deg": 30.71},
+            "lights": [
+                {"type": "rect", "position": [9.8, 39.8, 3.8], "normal": [0.05, -1.0, 0.02], "size": [0.8, 4.2], **light},
+                {"type": "disk", "position": [6.0, 31.9, 2.2], "normal": [0.1, -1.0, 0.2], "radius": 3.7, **light},
+            ],
+            "render": {"width": 16, "height": 16, "ambient": [0, 0, 0], "pixel_filter": "box", "light_samples": 4},
+            "features": {"shadow_model": "area"},
+        }
+    )
+    approximations = exp.export_mitsuba(tmp_path / "two")
+    assert [k for k, _ in approximations] == ["lights[1].position"], approximations
+    assert "lights[0]" in approximations[0][1], approximations
+    v = voxlab_runs(gpu, exp)
+    r = compare(v, whitted_runs(tmp_path / "two", spp=64))
+    print("two lights, Whitted paths", r)
+    assert agrees(r), r
+    r_path = compare(v, mitsuba_runs(tmp_path / "two" / "scene.xml"))
+    print("two lights, Mitsuba's path integrator", r_path)
+    assert not agrees(r_path) and r_path["mean_diff"] > 0, r_path
+
+
 def test_a_far_camera_sees_the_scene_in_mitsuba(gpu, tmp_path):
     """Mitsuba's sensor clips at 1e4 by default: a camera 1e5 away with a narrow field
     of view (the same framing as the shipped one) rendered black there, exported as

@@ -17,7 +17,9 @@ reflection and refraction) traced on its own with its weight, within voxlab's de
 limits (read from the export's scene.xml.json). Everything physical in it is
 Mitsuba's: the intersections, the BSDFs (the dielectric's Fresnel equations, its
 refracted direction and radiance scaling), the emitters' sampling and the visibility
-test. Only the tree's shape comes from voxlab (docs/mitsuba.md).
+test. Only the tree's shape comes from voxlab, and that its lights are not surfaces:
+every ray passes through Mitsuba's emitter shapes, as through voxlab's lights
+(docs/mitsuba.md, "Light shapes in the way").
 
 The integrator is Python called once per sample, so it is meant for Mitsuba's scalar
 variants (a 48 x 48 image at 16 spp takes about a second); a vectorised variant is
@@ -99,8 +101,32 @@ def Whitted(
         def sample(self, scene, sampler, ray, medium=None, active=True):
             return self._trace(scene, sampler, mi.Ray3f(ray), 0, 0), True, []
 
-        def _trace(self, scene, sampler, ray, a: int, b: int):
+        # voxlab's lights are not surfaces: nothing meets them, and they hide nothing.
+        # Mitsuba's area emitters are shapes that rays meet, so the camera's rays, the
+        # reflected and refracted rays and the shadow rays pass through them here, as
+        # they do in voxlab. A ray crosses a rectangle or a disk once and a sphere at
+        # most twice, so two crossings an emitter bound the loop.
+        def _hit(self, scene, ray):
             si = scene.ray_intersect(ray)
+            for _ in range(2 * len(scene.emitters())):
+                if not (si.is_valid() and si.shape is not None and si.shape.is_emitter()):
+                    break
+                si = scene.ray_intersect(si.spawn_ray(ray.d))
+            return si
+
+        def _unoccluded(self, scene, si, p) -> bool:
+            ray = si.spawn_ray_to(p)
+            for _ in range(2 * len(scene.emitters()) + 1):
+                hit = scene.ray_intersect(ray)
+                if not hit.is_valid():
+                    return True
+                if hit.shape is None or not hit.shape.is_emitter():
+                    return False
+                ray = hit.spawn_ray_to(p)
+            return True
+
+        def _trace(self, scene, sampler, ray, a: int, b: int):
+            si = self._hit(scene, ray)
             radiance = mi.Color3f(0.0)
             if not si.is_valid():
                 return radiance
@@ -112,7 +138,7 @@ def Whitted(
                     ds, weight = emitter.sample_direction(si, sampler.next_2d())
                     if ds.pdf <= 0.0 or max(weight) <= 0.0:
                         continue
-                    if scene.ray_test(si.spawn_ray_to(ds.p)):
+                    if not self._unoccluded(scene, si, ds.p):
                         continue
                     radiance += weight * bsdf.eval(ctx, si, si.to_local(ds.d))
             for component in range(bsdf.component_count()):
