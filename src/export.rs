@@ -1255,6 +1255,12 @@ pub fn write_mitsuba(
                 "max_refraction_depth": e.settings.max_refraction_depth,
                 "max_depth": e.settings.max_depth,
                 "seed_rules": e.settings.rules == crate::render::Rules::Seed,
+                // Under the seed's rules a ray that leaves the grid is a miss, also from
+                // inside glass on its boundary, where Mitsuba splits it.
+                "grid_bounds": [
+                    e.scene.grid.world_min().to_array(),
+                    e.scene.grid.world_max().to_array(),
+                ],
             },
         }),
     );

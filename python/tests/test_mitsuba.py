@@ -123,6 +123,7 @@ def test_glass_block_agrees_with_mitsuba_under_whitted_paths(gpu, tmp_path):
         "max_refraction_depth": 4,
         "max_depth": None,
         "seed_rules": False,
+        "grid_bounds": [[0.0, 0.0, 0.0], [24.0, 12.0, 24.0]],
     }
     m = whitted_runs(tmp_path / "scene")
     v = voxlab_runs(gpu, exp)
@@ -142,6 +143,46 @@ def test_glass_block_agrees_with_mitsuba_under_whitted_paths(gpu, tmp_path):
         r_other = compare(voxlab_runs(gpu, exp, runs=4, **change), m)
         print("glass,", name, r_other)
         assert not agrees(r_other), (name, r_other)
+
+
+def test_whitted_follows_the_seeds_one_way_boundary(gpu, tmp_path):
+    """Under the seed's rules a ray that leaves the grid is a miss, also from inside
+    glass that lies on the grid's boundary, where Mitsuba's dielectric reflects and
+    refracts it. A Fresnel slab on the boundary, seen through its inner face: Whitted
+    with the grid's bounds from the export agrees with voxlab; without them (as before)
+    it is told apart, as is voxlab under its own rules."""
+    import tomllib
+
+    d = tomllib.loads((EXPERIMENTS / "mitsuba" / "glass_block.toml").read_text())
+    d.pop("ablate", None)
+    d["scene"]["boxes"][1] = {"min": [18, 1, 0], "max": [24, 10, 24], "material": "glass"}
+    d["camera"] = {"yaw_deg": -70.0, "pitch_deg": 25.0, "distance": 40.0}
+    d["lights"] = [{"type": "point", "position": [4.0, 16.0, 12.0], "intensity": 250.0}]
+    d["render"].update(width=24, height=24, rules="seed")
+    exp = vx.load(d)
+    exp.export_mitsuba(tmp_path / "slab")
+    limits = voxlab.mitsuba.limits(tmp_path / "slab")
+    assert limits["seed_rules"] and limits["grid_bounds"] == [[0.0, 0.0, 0.0], [24.0, 12.0, 24.0]], limits
+    scene = mi.load_file(str(tmp_path / "slab" / "scene.xml"))
+
+    def runs(integrator, spp=16):
+        return np.array(
+            [np.array(mi.render(scene, integrator=integrator, spp=spp, seed=k))[..., :3] for k in range(RUNS)]
+        )
+
+    v = voxlab_runs(gpu, exp, spp=16)
+    r = compare(v, runs(voxlab.mitsuba.Whitted(**limits)))
+    print("slab under the seed's rules, Whitted", r)
+    assert agrees(r), r
+    two_way = voxlab.mitsuba.Whitted(**{**limits, "grid_bounds": None})
+    r_two_way = compare(v, runs(two_way))
+    print("slab, Whitted splitting rays on the boundary", r_two_way)
+    assert not agrees(r_two_way) and r_two_way["mean_diff"] < 0, r_two_way
+    # voxlab's own rules split the ray there too (and count the depths apart).
+    own = voxlab.mitsuba.Whitted(**{**limits, "grid_bounds": None, "seed_rules": False})
+    r_own = compare(voxlab_runs(gpu, exp, spp=16, **{"render.rules": "consistent"}), runs(own))
+    print("slab under voxlab's rules, Whitted splitting rays on the boundary", r_own)
+    assert agrees(r_own), r_own
 
 
 def test_whitted_is_mitsubas_path_tracer_where_there_is_one_bounce(tmp_path):

@@ -74,16 +74,35 @@ def Whitted(
     max_refraction_depth: int = 4,
     max_depth: int | None = None,
     seed_rules: bool = False,
+    grid_bounds: list | None = None,
 ):
     """A Mitsuba integrator of Whitted's model with voxlab's depth rule
     (`RenderSettings::may_spawn`): a reflection may be spawned while the path has made
     fewer than `max_reflection_depth` reflections, a refraction while it has made fewer
     than `max_refraction_depth` refractions (under the seed's rules both count the
     path's whole depth), and neither once reflections and refractions together reach
-    `max_depth` (absent: their sum)."""
+    `max_depth` (absent: their sum). Under the seed's rules the grid's boundary is
+    one-way (docs/rules.md): a ray that meets it from inside, leaving glass that lies
+    on it, is a miss; `grid_bounds` (`[min, max]`, world units) is where it lies."""
     mi = _mi()
     total = max_reflection_depth + max_refraction_depth
     total = total if max_depth is None else min(max_depth, total)
+    if seed_rules and grid_bounds is not None:
+        lo, hi = (np.asarray(b, dtype=np.float64) for b in grid_bounds)
+        # Mitsuba's hit points are 32-bit: a face on the boundary is met within a few of
+        # their spacings there.
+        near = 1e-5 * max(float(np.abs(lo).max()), float(np.abs(hi).max()), float((hi - lo).max()))
+    else:
+        lo = hi = None
+
+    def leaves_grid(p, d) -> bool:
+        """Whether a ray of direction `d` meets the grid's boundary at `p` from inside."""
+        if lo is None:
+            return False
+        return any(
+            (abs(p[a] - hi[a]) <= near and d[a] > 0) or (abs(p[a] - lo[a]) <= near and d[a] < 0)
+            for a in range(3)
+        )
 
     def may_spawn(a: int, b: int, reflection: bool) -> bool:
         if a + b >= total:
@@ -128,7 +147,7 @@ def Whitted(
         def _trace(self, scene, sampler, ray, a: int, b: int):
             si = self._hit(scene, ray)
             radiance = mi.Color3f(0.0)
-            if not si.is_valid():
+            if not si.is_valid() or leaves_grid(si.p, ray.d):
                 return radiance
             bsdf = si.bsdf(ray)
             if has(bsdf.flags(), mi.BSDFFlags.Smooth):
@@ -163,7 +182,11 @@ def Whitted(
             return radiance
 
         def to_string(self):
-            return f"Whitted[max_reflection_depth={max_reflection_depth}, max_refraction_depth={max_refraction_depth}, max_depth={max_depth}]"
+            return (
+                f"Whitted[max_reflection_depth={max_reflection_depth}, "
+                f"max_refraction_depth={max_refraction_depth}, max_depth={max_depth}, "
+                f"seed_rules={seed_rules}]"
+            )
 
     # Mitsuba warns that a Python integrator is slow in scalar variants, which this one
     # is by design (the module's note); the warning says nothing the caller can act on.
