@@ -303,6 +303,46 @@ fn obj_and_mtl_errors_name_their_line() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// The OBJ format continues a line that ends in a backslash (trimesh reads it so);
+/// voxlab refused it ("position parse error"). Continued lines read as one, LF or CRLF,
+/// a comment's continuation stays comment, and later lines keep their numbers in errors.
+#[test]
+fn an_obj_line_ending_in_a_backslash_continues() {
+    let dir = temp_dir("objcont");
+    let read = |name: &str, text: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        voxlab::scene::load_mesh(&p).map_err(|e| e.to_string())
+    };
+    for (name, text) in [
+        ("lf.obj", "v 0 0 0\nv 2 0 \\\n0\nv 0 3 0\nf 1 \\\n2 3\n"),
+        (
+            "crlf.obj",
+            "v 0 0 0\r\nv 2 0 \\\r\n0\r\nv 0 3 0\r\nf 1 2 3\r\n",
+        ),
+        (
+            "comment.obj",
+            "# v 9 9 9 as part of a comment \\\nv 9 9 9\nv 0 0 0\nv 2 0 0\nv 0 3 0\nf 1 2 3\n",
+        ),
+    ] {
+        let mesh = read(name, text).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(mesh.triangles.len(), 1, "{name}");
+        let t = mesh.triangles[0];
+        assert_eq!(
+            [t[0].to_array(), t[1].to_array(), t[2].to_array()],
+            [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 3.0, 0.0]],
+            "{name}"
+        );
+    }
+    let e = read(
+        "bad.obj",
+        "v 0 0 0\nv 1 0 \\\n0\nv 0 1 0\nf 1 2 3\nv 1 x 1\n",
+    )
+    .unwrap_err();
+    assert!(e.contains("line 6 (\"v 1 x 1\")"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// An OBJ whose `mtllib` cannot be read (missing, a directory, a device, a FIFO) is
 /// refused with the library's path and why: dropping it would lose every material.
 #[test]

@@ -151,6 +151,9 @@ pub fn load_mesh(path: impl AsRef<Path>) -> Result<TriangleMesh, LoadError> {
 /// which face corners name a normal all follow the one file in order (each step's
 /// comment below says what it guards against).
 fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
+    // tobj reads a line ending in `\` as it stands; the format continues it (below).
+    let joined = join_continued_lines(bytes);
+    let bytes: &[u8] = &joined;
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: false,
@@ -333,6 +336,45 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
 /// Per triangle of an OBJ's faces, in the file's order and triangulated as tobj does (a
 /// fan from the first corner), whether each corner names a normal (`v//vn`, `v/vt/vn`).
 /// `None` where a face line does not read as one (tobj then refuses the file).
+/// `bytes` with each line that ends in a backslash joined to the next: the OBJ format
+/// continues such a line (Wavefront, "Object Files (.obj)", Appendix B1: "a backslash
+/// (\\) at the end of a line continues it"; trimesh reads it so). The newlines removed
+/// are put back after the joined line, so every later line keeps its number in errors.
+fn join_continued_lines(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
+    let continued = |i: usize| -> Option<usize> {
+        // The index past a backslash's line end, if the backslash at `i` ends its line.
+        let j = if bytes.get(i + 1) == Some(&b'\r') {
+            i + 2
+        } else {
+            i + 1
+        };
+        (bytes.get(j) == Some(&b'\n')).then_some(j + 1)
+    };
+    if !(0..bytes.len()).any(|i| bytes[i] == b'\\' && continued(i).is_some()) {
+        return std::borrow::Cow::Borrowed(bytes);
+    }
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut owed = 0;
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'\\'
+            && let Some(next) = continued(i)
+        {
+            out.push(b' ');
+            owed += 1;
+            i = next;
+            continue;
+        }
+        out.push(bytes[i]);
+        if bytes[i] == b'\n' {
+            out.extend(std::iter::repeat_n(b'\n', owed));
+            owed = 0;
+        }
+        i += 1;
+    }
+    std::borrow::Cow::Owned(out)
+}
+
 fn obj_corner_normals(bytes: &[u8]) -> Option<Vec<[bool; 3]>> {
     let mut out = Vec::new();
     for line in bytes.split(|&b| b == b'\n') {
