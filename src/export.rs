@@ -562,6 +562,16 @@ impl Writer<'_> {
                 );
             }
         }
+        if let Some(glass) = self.transparent_around(light) {
+            self.approx(
+                &key("position"),
+                format!(
+                    "the light lies (in part) in {glass}'s voxels: voxlab's shadow rays \
+                     that start in a transparent voxel stop there under opaque shadows (the \
+                     start voxel counts), Mitsuba's reach a light inside the same glass"
+                ),
+            );
+        }
         self.within_f32(j, c, "intensity (pi I color)")?;
         if let Light::Area(a) = light
             && let AreaShape::Rect { width, height } = a.shape
@@ -694,6 +704,40 @@ impl Writer<'_> {
             v3(radiance)
         );
         Ok(())
+    }
+
+    /// The name of a transparent material (`kt > 0`, not void) among the voxels that light
+    /// `light`'s bounding box (widened by a millionth of a voxel, so a light on a face
+    /// counts both sides) overlaps.
+    fn transparent_around(&self, light: &Light) -> Option<String> {
+        let (scene, grid) = (&self.e.scene, &self.e.scene.grid);
+        let points = emitter_shapes::outline(light);
+        let pad = DVec3::splat(1e-6 * grid.voxel_size());
+        let lo = points.iter().fold(DVec3::INFINITY, |a, &p| a.min(p)) - pad;
+        let hi = points.iter().fold(DVec3::NEG_INFINITY, |a, &p| a.max(p)) + pad;
+        let top = grid.dims().as_dvec3() - 1.0;
+        let cell = |p: DVec3| {
+            ((p - grid.world_min()) / grid.voxel_size())
+                .floor()
+                .clamp(DVec3::splat(-1.0), top + 1.0)
+        };
+        let (a, b) = (cell(lo).max(DVec3::ZERO), cell(hi).min(top));
+        if a.cmpgt(b).any() {
+            return None;
+        }
+        let (a, b) = (a.as_ivec3(), b.as_ivec3());
+        for z in a.z..=b.z {
+            for y in a.y..=b.y {
+                for x in a.x..=b.x {
+                    let id = grid.get(IVec3::new(x, y, z));
+                    let m = &scene.materials[id as usize];
+                    if id != VOID && m.kt > 0.0 {
+                        return Some(m.name.clone());
+                    }
+                }
+            }
+        }
+        None
     }
 
     /// The lights whose Mitsuba shape may stop another light's shadow rays, which pass

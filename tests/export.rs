@@ -479,6 +479,55 @@ fn a_light_shape_in_the_way_of_another_lights_shadow_rays_is_approximated() {
     assert!(out.approximations.is_empty(), "{:?}", out.approximations);
 }
 
+/// voxlab's shadow rays that start in a transparent voxel stop there under opaque
+/// shadows (the transmittance counts the start voxel); Mitsuba's reach a light inside
+/// the same glass. A light in glass, or an area light reaching into it, is listed under
+/// its position; one beside the glass, or in void, is not.
+#[test]
+fn a_light_inside_glass_is_approximated() {
+    let glass = DIFFUSE.replace(
+        "[[lights]]",
+        "[[scene.boxes]]\nmin = [2, 1, 2]\nmax = [6, 4, 6]\nmaterial = \"glass\"\n\n\
+         [[materials]]\nname = \"glass\"\nkd = 0.0\nks = 0.0\nkr = 1.0\nkt = 0.9\nior = 1.5\n\
+         dielectric = \"fresnel\"\n\n[[lights]]",
+    );
+    let listed = |light: &str| -> bool {
+        let text = glass.replace("position = [4.0, 6.0, 4.0]", light);
+        let e = Experiment::from_str(&text, "glass.toml").unwrap();
+        mitsuba(&e, false)
+            .unwrap()
+            .approximations
+            .iter()
+            .any(|a| a.key == "lights[0].position" && a.mapping.contains("glass's voxels"))
+    };
+    assert!(
+        !listed("position = [4.0, 6.0, 4.0]"),
+        "above the glass, in void"
+    );
+    assert!(
+        listed("position = [4.0, 2.5, 4.0]"),
+        "a rect inside the glass"
+    );
+    // The rect (2 x 1, facing +y) at the glass's top reaches into it; lifted clear of
+    // it by a hair, it does not (its box widened by a millionth of a voxel).
+    assert!(
+        listed("position = [4.0, 4.0, 4.0]"),
+        "a rect on the glass's top face"
+    );
+    assert!(
+        !listed("position = [4.0, 4.00001, 4.0]"),
+        "a rect just above the glass"
+    );
+    assert!(
+        listed("position = [6.4, 3.0, 4.0]"),
+        "a rect whose side reaches into it"
+    );
+    assert!(
+        !listed("position = [7.1, 3.0, 4.0]"),
+        "a rect beside the glass"
+    );
+}
+
 /// The `scene.xml` the export writes for an experiment's text (approximations allowed).
 fn scene_xml(text: &str) -> String {
     let e = Experiment::from_str(text, "scene.toml").unwrap();

@@ -185,6 +185,30 @@ def test_whitted_follows_the_seeds_one_way_boundary(gpu, tmp_path):
     assert agrees(r_own), r_own
 
 
+def test_whitted_weighs_refraction_as_voxlab_does(gpu, tmp_path):
+    """voxlab weighs a refraction by kt and Fresnel's share alone; Mitsuba's dielectric
+    also scales radiance by the squared ratio of indices, which cancels on a path that
+    enters and leaves glass. With the eye inside the glass block a path crosses once:
+    Whitted (its delta lobes in importance mode, without the scaling) agrees with voxlab,
+    where it was 2.24x as bright (0.207 against 0.092). A light inside the glass is
+    listed: voxlab's shadow rays that start in glass stop there, Mitsuba's reach it."""
+    import tomllib
+
+    d = tomllib.loads((EXPERIMENTS / "mitsuba" / "glass_block.toml").read_text())
+    d.pop("ablate", None)
+    d["render"].update(width=20, height=20)
+    inside = {**d, "camera": {"target": [11.0, 3.5, 11.0], "distance": 1.5, "yaw_deg": 30.0, "pitch_deg": 20.0, "vfov_deg": 70.0}}
+    exp = vx.load(inside)
+    assert [k for k, _ in exp.export_mitsuba(tmp_path / "eye")] == ["materials"]
+    r = compare(voxlab_runs(gpu, exp), whitted_runs(tmp_path / "eye", spp=32))
+    print("the eye inside glass, Whitted", r)
+    assert agrees(r), r
+
+    lit = {**d, "lights": [{"type": "point", "position": [11.0, 4.0, 11.0], "intensity": 60.0}]}
+    approximations = dict(vx.load(lit).export_mitsuba(tmp_path / "light"))
+    assert "glass" in approximations.get("lights[0].position", ""), approximations
+
+
 def test_whitted_is_mitsubas_path_tracer_where_there_is_one_bounce(tmp_path):
     """Without mirrors or glass Whitted's paths are the direct light, which Mitsuba's
     path integrator at max_depth 2 computes: the integrator's own check."""

@@ -170,7 +170,11 @@ def Whitted(
                     continue
                 if not may_spawn(a, b, reflection):
                     continue
-                ctx = mi.BSDFContext()
+                # Importance mode: Mitsuba's dielectric then leaves out the radiance
+                # scaling by the squared ratio of indices at a refraction, which voxlab's
+                # model does not have (it cancels on a path that enters and leaves glass;
+                # an eye or a light inside glass would be 2.25x off at ior 1.5).
+                ctx = mi.BSDFContext(mi.TransportMode.Importance)
                 ctx.component = component
                 # One lobe alone: its weight (Fresnel's share for a dielectric), pdf 1.
                 bs, weight = bsdf.sample(ctx, si, 0.5, mi.Point2f(0.5, 0.5))
