@@ -479,17 +479,31 @@ fn a_light_shape_in_the_way_of_another_lights_shadow_rays_is_approximated() {
     assert!(out.approximations.is_empty(), "{:?}", out.approximations);
 }
 
+/// `DIFFUSE` with a box from (2, 1, 2) to `max` of the material `material` (its
+/// `[[materials]]` keys, `name` first) on the floor.
+fn with_glass_box(max: [u32; 3], material: &str) -> String {
+    let name = material
+        .strip_prefix("name = \"")
+        .and_then(|rest| rest.split('"').next())
+        .expect("the material's name first");
+    DIFFUSE.replace(
+        "[[lights]]",
+        &format!(
+            "[[scene.boxes]]\nmin = [2, 1, 2]\nmax = {max:?}\nmaterial = \"{name}\"\n\n\
+             [[materials]]\n{material}\n\n[[lights]]"
+        ),
+    )
+}
+
 /// voxlab's shadow rays that start in a transparent voxel stop there under opaque
 /// shadows (the transmittance counts the start voxel); Mitsuba's reach a light inside
 /// the same glass. A light in glass, or an area light reaching into it, is listed under
 /// its position; one beside the glass, or in void, is not.
 #[test]
 fn a_light_inside_glass_is_approximated() {
-    let glass = DIFFUSE.replace(
-        "[[lights]]",
-        "[[scene.boxes]]\nmin = [2, 1, 2]\nmax = [6, 4, 6]\nmaterial = \"glass\"\n\n\
-         [[materials]]\nname = \"glass\"\nkd = 0.0\nks = 0.0\nkr = 1.0\nkt = 0.9\nior = 1.5\n\
-         dielectric = \"fresnel\"\n\n[[lights]]",
+    let glass = with_glass_box(
+        [6, 4, 6],
+        "name = \"glass\"\nkd = 0.0\nks = 0.0\nkr = 1.0\nkt = 0.9\nior = 1.5\ndielectric = \"fresnel\"",
     );
     let listed = |light: &str| -> bool {
         let text = glass.replace("position = [4.0, 6.0, 4.0]", light);
@@ -746,11 +760,9 @@ fn the_command_writes_all_or_nothing() {
 /// A sigma beyond 32-bit floats is refused with its key.
 #[test]
 fn beer_lambert_glass_gets_an_absorbing_interior() {
-    let glass = DIFFUSE.replace(
-        "[[lights]]",
-        "[[scene.boxes]]\nmin = [2, 1, 2]\nmax = [4, 3, 4]\nmaterial = \"clear\"\n\n\
-         [[materials]]\nname = \"clear\"\nkd = 0.0\nks = 0.0\nkr = 0.1\nkt = 0.9\nior = 1.5\n\
-         sigma = [0.5, 0.25, 0.125]\n\n[[lights]]",
+    let glass = with_glass_box(
+        [4, 3, 4],
+        "name = \"clear\"\nkd = 0.0\nks = 0.0\nkr = 0.1\nkt = 0.9\nior = 1.5\nsigma = [0.5, 0.25, 0.125]",
     );
     let e = Experiment::from_str(
         &format!("{glass}\n[features]\ntransmittance = \"beer-lambert\"\n"),
