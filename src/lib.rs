@@ -68,6 +68,7 @@ pub mod error;
 pub mod experiment;
 pub mod export;
 pub mod frame;
+pub mod geometry;
 pub mod gpu;
 pub mod info;
 pub mod input;

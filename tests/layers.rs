@@ -11,8 +11,8 @@ const LAYERS: &[(&str, &[&str])] = &[
     (
         "model",
         &[
-            "scene", "frame", "sampling", "sparse", "surface", "input", "output", "metrics",
-            "progress", "revision",
+            "scene", "frame", "geometry", "sampling", "sparse", "surface", "input", "output",
+            "metrics", "progress", "revision",
         ],
     ),
     ("walks", &["dda", "triangles", "device"]),

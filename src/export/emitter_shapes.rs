@@ -131,8 +131,8 @@ pub(super) fn outline(light: &Light) -> Vec<DVec3> {
 }
 
 /// Whether light `light`'s shape may meet the polytope of `planes` (`n . x <= m`): a
-/// rectangle's or disk's polygon clipped by each half-space in turn (Sutherland and
-/// Hodgman, "Reentrant polygon clipping", CACM 1974) keeps some part; a sphere is within
+/// rectangle's or disk's polygon clipped by each half-space in turn
+/// (`geometry::clip_convex`) keeps some part; a sphere is within
 /// every plane's reach of its centre (which a sphere near an edge of the polytope passes
 /// without meeting it: conservative).
 pub(super) fn may_meet(light: &Light, planes: &[(DVec3, f64)]) -> bool {
@@ -146,21 +146,10 @@ pub(super) fn may_meet(light: &Light, planes: &[(DVec3, f64)]) -> bool {
     }
     let mut polygon = outline(light);
     for &(n, m) in planes {
-        let mut kept = Vec::with_capacity(polygon.len() + 1);
-        for (i, &p) in polygon.iter().enumerate() {
-            let q = polygon[(i + 1) % polygon.len()];
-            let (dp, dq) = (n.dot(p) - m, n.dot(q) - m);
-            if dp <= 0.0 {
-                kept.push(p);
-            }
-            if (dp <= 0.0) != (dq <= 0.0) {
-                kept.push(p + (q - p) * (dp / (dp - dq)));
-            }
-        }
-        if kept.is_empty() {
+        polygon = crate::geometry::clip_convex(&polygon, |x| m - n.dot(x));
+        if polygon.is_empty() {
             return false;
         }
-        polygon = kept;
     }
     true
 }

@@ -189,21 +189,10 @@ pub fn clipped_field(p: DVec3, n: DVec3, corners: &[DVec3], normal: DVec3) -> f6
     n.dot(field)
 }
 
-/// The convex polygon `corners`, relative to `p`, clipped to `n . x >= 0`
-/// (Sutherland-Hodgman against one plane; the order is kept).
+/// The convex polygon `corners`, relative to `p`, clipped to `n . x >= 0`.
 fn clip_to_hemisphere(p: DVec3, n: DVec3, corners: &[DVec3]) -> Vec<DVec3> {
-    let mut poly: Vec<DVec3> = Vec::with_capacity(corners.len() + 1);
-    for (i, &c) in corners.iter().enumerate() {
-        let (a, b) = (c - p, corners[(i + 1) % corners.len()] - p);
-        let (da, db) = (n.dot(a), n.dot(b));
-        if da >= 0.0 {
-            poly.push(a);
-        }
-        if (da >= 0.0) != (db >= 0.0) {
-            poly.push(a + da / (da - db) * (b - a));
-        }
-    }
-    poly
+    let relative: Vec<DVec3> = corners.iter().map(|&c| c - p).collect();
+    crate::geometry::clip_convex(&relative, |a| n.dot(a))
 }
 
 /// `int cos_e max(n . l, 0) / r^2 dA` over the convex polygon `corners` as seen from `p`
