@@ -73,7 +73,7 @@ impl Bounds {
         b
     }
 
-    pub(super) fn add(&mut self, p: DVec3) {
+    fn add(&mut self, p: DVec3) {
         for (k, d) in self.dirs.iter().enumerate() {
             let t = d.dot(p);
             self.lo[k] = self.lo[k].min(t);
@@ -135,7 +135,7 @@ pub(super) fn outline(light: &Light) -> Vec<DVec3> {
 /// (`geometry::clip_convex`) keeps some part; a sphere is within
 /// every plane's reach of its centre (which a sphere near an edge of the polytope passes
 /// without meeting it: conservative).
-pub(super) fn may_meet(light: &Light, planes: &[(DVec3, f64)]) -> bool {
+fn may_meet(light: &Light, planes: &[(DVec3, f64)]) -> bool {
     let Light::Area(a) = light else {
         return false;
     };
