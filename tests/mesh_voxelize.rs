@@ -459,3 +459,191 @@ fn in_memory_mesh_with_material_indices_out_of_order() {
     assert_eq!(v.grid.get(IVec3::ZERO), 1);
     assert_eq!(v.materials[1].name, "m");
 }
+
+/// `cube_gltf`'s cube with its positions stored as glTF component type `ctype` (5120
+/// BYTE to 5126 FLOAT), as `KHR_mesh_quantization` stores them (each element padded to
+/// 4 bytes, the buffer view's `byteStride`): normalized integers hold the corner 1 as
+/// the type's largest value, plain integers as 1. `required` lists the extension.
+fn quantized_cube_gltf(ctype: u32, normalized: bool, required: bool) -> String {
+    let (size, one): (usize, f64) = match ctype {
+        5120 => (1, 127.0),
+        5121 => (1, 255.0),
+        5122 => (2, 32767.0),
+        5123 => (2, 65535.0),
+        _ => (4, 1.0),
+    };
+    let one = if normalized { one } else { 1.0 };
+    let stride = (3 * size).div_ceil(4) * 4;
+    let mut buf = Vec::new();
+    for i in 0..8u32 {
+        let corner = [i & 1, (i >> 1) & 1, (i >> 2) & 1].map(|c| c as f64 * one);
+        for c in corner {
+            match size {
+                1 => buf.push(c as u8),
+                2 => buf.extend((c as u16).to_le_bytes()),
+                _ => buf.extend((c as f32).to_le_bytes()),
+            }
+        }
+        buf.resize(buf.len() + stride - 3 * size, 0);
+    }
+    let positions = buf.len();
+    // The 12 faces over corners numbered x + 2y + 4z.
+    let idx: [u16; 36] = [
+        0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4, 2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2,
+        1, 3, 7, 1, 7, 5,
+    ];
+    buf.extend(idx.iter().flat_map(|i| i.to_le_bytes()));
+    let ext = if required {
+        r#""extensionsUsed": ["KHR_mesh_quantization"],
+  "extensionsRequired": ["KHR_mesh_quantization"],"#
+    } else {
+        ""
+    };
+    format!(
+        r#"{{
+  "asset": {{"version": "2.0"}}, {ext}
+  "scene": 0,
+  "scenes": [{{"nodes": [0]}}],
+  "nodes": [
+    {{"scale": [2, 2, 2], "children": [1]}},
+    {{"translation": [10, 20, 30], "mesh": 0}}
+  ],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1}}]}}],
+  "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{b64}"}}],
+  "bufferViews": [
+    {{"buffer": 0, "byteOffset": 0, "byteLength": {positions}, "byteStride": {stride}}},
+    {{"buffer": 0, "byteOffset": {positions}, "byteLength": 72}}
+  ],
+  "accessors": [
+    {{"bufferView": 0, "componentType": {ctype}, "normalized": {normalized}, "count": 8,
+      "type": "VEC3", "min": [0, 0, 0], "max": [{one}, {one}, {one}]}},
+    {{"bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR"}}
+  ]
+}}"#,
+        len = buf.len(),
+        b64 = base64(&buf)
+    )
+}
+
+/// gltfpack writes positions as integers and normals as normalized bytes
+/// (`KHR_mesh_quantization`); every integer type, normalized or not, with the extension
+/// required or (as some exporters do) not declared, gives the float cube's voxels.
+/// Before, a required extension was refused and an undeclared one gave no triangles.
+#[test]
+fn quantized_gltf_positions_give_the_float_cubes_voxels() {
+    let dir = temp_dir("gltf-quantized");
+    let float = voxelize_mesh(
+        write(&dir, "f.gltf", &quantized_cube_gltf(5126, false, false)),
+        &VoxelizeOptions::count(8),
+    )
+    .unwrap();
+    assert_eq!(solid_count(&float.grid), 512);
+    for ctype in [5120, 5121, 5122, 5123] {
+        for normalized in [false, true] {
+            for required in [false, true] {
+                let case = format!("{ctype} normalized {normalized} required {required}");
+                let p = write(
+                    &dir,
+                    "q.gltf",
+                    &quantized_cube_gltf(ctype, normalized, required),
+                );
+                let v = voxelize_mesh(&p, &VoxelizeOptions::count(8))
+                    .unwrap_or_else(|e| panic!("{case}: {e}"));
+                assert_eq!(v.triangle_count, 12, "{case}");
+                assert!(
+                    (v.grid.origin() - float.grid.origin()).length() < 1e-12,
+                    "{case}: origin {}",
+                    v.grid.origin()
+                );
+                assert!(
+                    (v.grid.voxel_size() - float.grid.voxel_size()).abs() < 1e-12,
+                    "{case}"
+                );
+                assert_eq!(v.grid.data(), float.grid.data(), "{case}");
+            }
+        }
+    }
+}
+
+/// Normalized normals by the glTF specification's rules (3.11): a signed byte c is
+/// max(c / 127, -1), so -128 and -127 are both -1; then the node's inverse transpose.
+#[test]
+fn quantized_gltf_normals_are_dequantized() {
+    let dir = temp_dir("gltf-quantized-normals");
+    let normals: [[i8; 3]; 3] = [[0, 0, 127], [0, -128, 0], [90, 90, -128]];
+    for (ctype, size) in [(5120u32, 1usize), (5122, 2)] {
+        let mut buf: Vec<u8> = [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.]]
+            .iter()
+            .flatten()
+            .flat_map(|x| x.to_le_bytes())
+            .collect();
+        for n in normals {
+            for c in n {
+                if size == 1 {
+                    buf.push(c as u8);
+                } else {
+                    // The same directions in shorts: 127 -> 32767, -128 -> -32768.
+                    let s = if c == -128 {
+                        -32768i16
+                    } else {
+                        (c as i32 * 32767 / 127) as i16
+                    };
+                    buf.extend(s.to_le_bytes());
+                }
+            }
+            buf.resize(buf.len() + 4 - (3 * size) % 4, 0);
+        }
+        let nlen = buf.len() - 36;
+        let text = format!(
+            r#"{{"asset": {{"version": "2.0"}},
+  "extensionsUsed": ["KHR_mesh_quantization"], "extensionsRequired": ["KHR_mesh_quantization"],
+  "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0, "scale": [1, 1, 4]}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "NORMAL": 1}}}}]}}],
+  "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{b64}"}}],
+  "bufferViews": [{{"buffer": 0, "byteLength": 36}},
+    {{"buffer": 0, "byteOffset": 36, "byteLength": {nlen}, "byteStride": {stride}}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+      "min": [0, 0, 0], "max": [1, 1, 0]}},
+    {{"bufferView": 1, "componentType": {ctype}, "normalized": true, "count": 3,
+      "type": "VEC3"}}]}}"#,
+            len = buf.len(),
+            b64 = base64(&buf),
+            stride = nlen / 3,
+        );
+        let mesh = load_mesh(write(&dir, "n.gltf", &text)).unwrap();
+        let got = mesh.normals[0];
+        // The third: (90/127, 90/127, -1), not -128/127, under the inverse transpose of scale (1, 1, 4).
+        let a = 90.0 / 127.0;
+        let want = [DVec3::Z, -DVec3::Y, DVec3::new(a, a, -0.25).normalize()];
+        for (g, w) in got.iter().zip(want) {
+            // The shorts hold the bytes' directions to within 1/32767 a component.
+            assert!((*g - w).length() < 1e-4, "type {ctype}: {g} against {w}");
+        }
+    }
+}
+
+/// Vertex attributes that are not three numbers of a byte, short or float are refused
+/// with the accessor and what is allowed, not read as something else.
+#[test]
+fn gltf_positions_of_a_wrong_type_are_refused() {
+    let dir = temp_dir("gltf-wrong-type");
+    let good = quantized_cube_gltf(5126, false, false);
+    for (from, to, says) in [
+        (
+            r#""componentType": 5126, "normalized""#,
+            r#""componentType": 5125, "normalized""#,
+            "POSITION accessor 0 is UNSIGNED_INT",
+        ),
+        (
+            r#""type": "VEC3", "min""#,
+            r#""type": "VEC4", "min""#,
+            "POSITION accessor 0 is VEC4; it must be VEC3",
+        ),
+    ] {
+        assert!(good.contains(from), "{from}");
+        let p = write(&dir, "bad.gltf", &good.replace(from, to));
+        let e = err_of(voxelize_mesh(&p, &VoxelizeOptions::count(4)));
+        assert!(e.contains("bad.gltf") && e.contains(says), "{e}");
+    }
+}

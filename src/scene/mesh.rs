@@ -394,6 +394,9 @@ fn obj_corner_normals(bytes: &[u8]) -> Option<Vec<[bool; 3]>> {
     Some(out)
 }
 
+/// glTF's extension for vertex attributes stored as integers, read by `gltf_vec3s`.
+const QUANTIZATION: &str = "KHR_mesh_quantization";
+
 fn load_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
     let invalid = |what: String| LoadErrorKind::InvalidMesh(format!("glTF: {what}"));
     // The gltf crate panics on some hostile documents (an index into a missing
@@ -401,24 +404,29 @@ fn load_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
     let panicked = |p: String| invalid(format!("the glTF parser (gltf) failed on it: {p}"));
     // A required extension the reader lacks (Draco compression, say) is the reason to
     // give, before any validation error its missing data would cause.
-    if let Ok(Ok(raw)) = crate::input::guarded(|| gltf::Gltf::from_slice_without_validation(bytes))
-    {
-        let missing: Vec<&str> = raw
-            .document
-            .extensions_required()
-            .filter(|e| !gltf::json::extensions::ENABLED_EXTENSIONS.contains(e))
-            .collect();
-        if !missing.is_empty() {
-            return Err(invalid(format!(
-                "it requires the extension(s) {}, which voxlab's glTF reader does not \
-                 support",
-                missing.join(", ")
-            )));
-        }
-    }
-    let gltf = crate::input::guarded(|| gltf::Gltf::from_slice(bytes))
+    let raw = crate::input::guarded(|| gltf::Gltf::from_slice_without_validation(bytes))
         .map_err(panicked)?
         .map_err(|e| invalid(e.to_string()))?;
+    let missing: Vec<&str> = raw
+        .document
+        .extensions_required()
+        .filter(|e| !gltf::json::extensions::ENABLED_EXTENSIONS.contains(e) && *e != QUANTIZATION)
+        .collect();
+    if !missing.is_empty() {
+        return Err(invalid(format!(
+            "it requires the extension(s) {}, which voxlab's glTF reader does not support",
+            missing.join(", ")
+        )));
+    }
+    // The gltf crate validates everything but does not know the quantization extension,
+    // which voxlab reads itself (`gltf_vec3s`): validated without it in the list.
+    let gltf::Gltf { document, blob } = raw;
+    let mut json = document.into_json();
+    json.extensions_required.retain(|e| e != QUANTIZATION);
+    let document = crate::input::guarded(|| gltf::Document::from_json(json))
+        .map_err(panicked)?
+        .map_err(|e| invalid(e.to_string()))?;
+    let gltf = gltf::Gltf { document, blob };
     let buffers = gltf_buffers(&gltf, path).map_err(invalid)?;
     crate::input::guarded(|| gltf_triangles(&gltf.document, &buffers))
         .map_err(panicked)?
@@ -549,21 +557,24 @@ fn gltf_triangles(
                 }
             }
             let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-            let Some(pos) = reader.read_positions() else {
+            let Some(pos) = prim.get(&gltf::Semantic::Positions) else {
                 continue;
             };
-            let pos: Vec<DVec3> = pos
-                .map(|p| xf.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)))
+            let pos: Vec<DVec3> = gltf_vec3s(&pos, buffers, "POSITION")
+                .map_err(|e| format!("mesh {}: {e}", m.index()))?
+                .into_iter()
+                .map(|p| xf.transform_point3(p))
                 .collect();
             // Normals go through the inverse transpose of the node's transform.
             let normal_xf = glam::DMat3::from_mat4(xf).inverse().transpose();
-            let normals: Vec<DVec3> = reader.read_normals().map_or_else(Vec::new, |n| {
-                n.map(|v| {
-                    (normal_xf * DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64))
-                        .normalize_or_zero()
-                })
-                .collect()
-            });
+            let normals: Vec<DVec3> = match prim.get(&gltf::Semantic::Normals) {
+                Some(acc) => gltf_vec3s(&acc, buffers, "NORMAL")
+                    .map_err(|e| format!("mesh {}: {e}", m.index()))?
+                    .into_iter()
+                    .map(|v| (normal_xf * v).normalize_or_zero())
+                    .collect(),
+                None => Vec::new(),
+            };
             let normals = if normals.len() == pos.len() {
                 normals
             } else {
@@ -667,6 +678,57 @@ fn gltf_triangles(
         }
     }
     Ok(mesh)
+}
+
+/// A vertex attribute's VEC3 elements as f64. Besides floats, the integer types of
+/// `KHR_mesh_quantization` (what gltfpack writes): signed and unsigned bytes and shorts,
+/// normalized or not, dequantized by the glTF 2.0 specification's rules (section 3.11:
+/// `max(c / 127, -1)`, `c / 255`, `max(c / 32767, -1)`, `c / 65535`); the offset and scale
+/// that map them back to the model's units are in the node's transform. An accessor whose
+/// buffer view holds fewer elements than it claims gives fewer; the caller compares.
+fn gltf_vec3s(
+    acc: &gltf::Accessor,
+    buffers: &[gltf::buffer::Data],
+    semantic: &str,
+) -> Result<Vec<DVec3>, String> {
+    use gltf::accessor::{DataType, Dimensions, Iter};
+    if acc.dimensions() != Dimensions::Vec3 {
+        return Err(format!(
+            "{semantic} accessor {} is {}; it must be VEC3",
+            acc.index(),
+            format!("{:?}", acc.dimensions()).to_uppercase()
+        ));
+    }
+    fn read<T: gltf::accessor::Item + Copy>(
+        acc: &gltf::Accessor,
+        buffers: &[gltf::buffer::Data],
+        to_f64: impl Fn(T) -> f64,
+    ) -> Vec<DVec3> {
+        let data = |b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]);
+        Iter::<[T; 3]>::new(acc.clone(), data).map_or_else(Vec::new, |it| {
+            it.map(|v| DVec3::new(to_f64(v[0]), to_f64(v[1]), to_f64(v[2])))
+                .collect()
+        })
+    }
+    let normalized = acc.normalized();
+    Ok(match acc.data_type() {
+        DataType::F32 => read(acc, buffers, |c: f32| c as f64),
+        DataType::I8 if normalized => read(acc, buffers, |c: i8| (c as f64 / 127.0).max(-1.0)),
+        DataType::U8 if normalized => read(acc, buffers, |c: u8| c as f64 / 255.0),
+        DataType::I16 if normalized => read(acc, buffers, |c: i16| (c as f64 / 32767.0).max(-1.0)),
+        DataType::U16 if normalized => read(acc, buffers, |c: u16| c as f64 / 65535.0),
+        DataType::I8 => read(acc, buffers, |c: i8| c as f64),
+        DataType::U8 => read(acc, buffers, |c: u8| c as f64),
+        DataType::I16 => read(acc, buffers, |c: i16| c as f64),
+        DataType::U16 => read(acc, buffers, |c: u16| c as f64),
+        DataType::U32 => {
+            return Err(format!(
+                "{semantic} accessor {} is UNSIGNED_INT; a vertex attribute is FLOAT, or \
+                 under KHR_mesh_quantization a byte or short",
+                acc.index()
+            ));
+        }
+    })
 }
 
 /// The first line (1-based, with its text) at which the prefix of `bytes` ending there
