@@ -538,6 +538,7 @@ fn quantized_gltf_positions_give_the_float_cubes_voxels() {
     )
     .unwrap();
     assert_eq!(solid_count(&float.grid), 512);
+    assert!(float.warnings.is_empty(), "{:?}", float.warnings);
     for ctype in [5120, 5121, 5122, 5123] {
         for normalized in [false, true] {
             for required in [false, true] {
@@ -560,6 +561,12 @@ fn quantized_gltf_positions_give_the_float_cubes_voxels() {
                     "{case}"
                 );
                 assert_eq!(v.grid.data(), float.grid.data(), "{case}");
+                // A file that uses the integers without declaring the extension breaks
+                // the specification: read, and said so.
+                let warned = v.warnings.iter().any(|w| {
+                    w.contains("POSITION accessor 0 holds") && w.contains("does not declare")
+                });
+                assert_eq!(warned, !required, "{case}: {:?}", v.warnings);
             }
         }
     }

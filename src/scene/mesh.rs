@@ -428,9 +428,39 @@ fn load_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
         .map_err(|e| invalid(e.to_string()))?;
     let gltf = gltf::Gltf { document, blob };
     let buffers = gltf_buffers(&gltf, path).map_err(invalid)?;
-    crate::input::guarded(|| gltf_triangles(&gltf.document, &buffers))
+    let mut mesh = crate::input::guarded(|| gltf_triangles(&gltf.document, &buffers))
         .map_err(panicked)?
-        .map_err(invalid)
+        .map_err(invalid)?;
+    // Integer attributes in a file that does not declare the extension break the
+    // specification (its validator refuses them); read as the extension reads them, and
+    // said so, since another reader may refuse or misread the file.
+    if !gltf.document.extensions_used().any(|e| e == QUANTIZATION) {
+        let integer = gltf
+            .document
+            .meshes()
+            .flat_map(|m| m.primitives())
+            .find_map(|p| {
+                p.attributes().find(|(semantic, acc)| {
+                    matches!(
+                        semantic,
+                        gltf::Semantic::Positions | gltf::Semantic::Normals
+                    ) && acc.data_type() != gltf::accessor::DataType::F32
+                })
+            });
+        if let Some((semantic, acc)) = integer {
+            let semantic = match semantic {
+                gltf::Semantic::Positions => "POSITION",
+                _ => "NORMAL",
+            };
+            mesh.warnings.push(format!(
+                "glTF: {semantic} accessor {} holds {} numbers, which only {QUANTIZATION} \
+                 allows, and the file does not declare it; read as that extension reads them",
+                acc.index(),
+                component_name(acc.data_type())
+            ));
+        }
+    }
+    Ok(mesh)
 }
 
 /// The glTF's buffers: the GLB's binary chunk, `data:` URIs (base64), or files
@@ -724,11 +754,24 @@ fn gltf_vec3s(
         DataType::U32 => {
             return Err(format!(
                 "{semantic} accessor {} is UNSIGNED_INT; a vertex attribute is FLOAT, or \
-                 under KHR_mesh_quantization a byte or short",
+                 under {QUANTIZATION} a byte or short",
                 acc.index()
             ));
         }
     })
+}
+
+/// A component type as the glTF specification spells it.
+fn component_name(t: gltf::accessor::DataType) -> &'static str {
+    use gltf::accessor::DataType;
+    match t {
+        DataType::I8 => "BYTE",
+        DataType::U8 => "UNSIGNED_BYTE",
+        DataType::I16 => "SHORT",
+        DataType::U16 => "UNSIGNED_SHORT",
+        DataType::U32 => "UNSIGNED_INT",
+        DataType::F32 => "FLOAT",
+    }
 }
 
 /// The first line (1-based, with its text) at which the prefix of `bytes` ending there
