@@ -574,6 +574,9 @@ fn quantized_gltf_positions_give_the_float_cubes_voxels() {
 
 /// Normalized normals by the glTF specification's rules (3.11): a signed byte c is
 /// max(c / 127, -1), so -128 and -127 are both -1; then the node's inverse transpose.
+/// The third normal is not of unit length (the validator would say so): the loader
+/// normalizes after the transform, and only a component of -128 beside others shows
+/// the clamp.
 #[test]
 fn quantized_gltf_normals_are_dequantized() {
     let dir = temp_dir("gltf-quantized-normals");
@@ -653,4 +656,143 @@ fn gltf_positions_of_a_wrong_type_are_refused() {
         let e = err_of(voxelize_mesh(&p, &VoxelizeOptions::count(4)));
         assert!(e.contains("bad.gltf") && e.contains(says), "{e}");
     }
+}
+
+/// `cube_gltf`'s unit cube (no node transform) with one morph target that moves every
+/// vertex by (1, 0, 0) and, optionally, one that moves it by (0, 0, -1) stored as
+/// normalized bytes; `mesh_weights` and `node_weights` as given.
+fn morphed_cube_gltf(mesh_weights: &str, node_weights: &str, byte_target: bool) -> String {
+    let mut buf = Vec::new();
+    for i in 0..8u32 {
+        for c in [i & 1, (i >> 1) & 1, (i >> 2) & 1] {
+            buf.extend((c as f32).to_le_bytes());
+        }
+    }
+    for _ in 0..8 {
+        for c in [1f32, 0., 0.] {
+            buf.extend(c.to_le_bytes());
+        }
+    }
+    let bytes_at = buf.len();
+    for _ in 0..8 {
+        buf.extend([0u8, 0, (-127i8) as u8, 0]);
+    }
+    let idx_at = buf.len();
+    let idx: [u16; 36] = [
+        0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4, 2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2,
+        1, 3, 7, 1, 7, 5,
+    ];
+    buf.extend(idx.iter().flat_map(|i| i.to_le_bytes()));
+    let targets = if byte_target {
+        r#"[{"POSITION": 1}, {"POSITION": 2}]"#
+    } else {
+        r#"[{"POSITION": 1}]"#
+    };
+    let ext = if byte_target {
+        r#""extensionsUsed": ["KHR_mesh_quantization"],
+  "extensionsRequired": ["KHR_mesh_quantization"],"#
+    } else {
+        ""
+    };
+    format!(
+        r#"{{"asset": {{"version": "2.0"}}, {ext}
+  "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0 {node_weights}}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 3,
+    "targets": {targets}}}] {mesh_weights}}}],
+  "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{b64}"}}],
+  "bufferViews": [
+    {{"buffer": 0, "byteOffset": 0, "byteLength": 96}},
+    {{"buffer": 0, "byteOffset": 96, "byteLength": 96}},
+    {{"buffer": 0, "byteOffset": {bytes_at}, "byteLength": 32, "byteStride": 4}},
+    {{"buffer": 0, "byteOffset": {idx_at}, "byteLength": 72}}
+  ],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
+      "min": [0, 0, 0], "max": [1, 1, 1]}},
+    {{"bufferView": 1, "componentType": 5126, "count": 8, "type": "VEC3",
+      "min": [1, 0, 0], "max": [1, 0, 0]}},
+    {{"bufferView": 2, "componentType": 5120, "normalized": true, "count": 8,
+      "type": "VEC3", "min": [0, 0, -127], "max": [0, 0, -127]}},
+    {{"bufferView": 3, "componentType": 5123, "count": 36, "type": "SCALAR"}}
+  ]
+}}"#,
+        len = buf.len(),
+        b64 = base64(&buf)
+    )
+}
+
+/// A mesh's shape is its base plus its morph targets by their weights (glTF 2.0,
+/// 3.7.2.2): the node's weights over the mesh's, none meaning 0. Before, the targets
+/// were left out and a file exported with shape keys set lost its shape, silently.
+#[test]
+fn gltf_morph_targets_move_the_shape_by_their_weights() {
+    let dir = temp_dir("gltf-morph");
+    let lower = |text: String| {
+        let mesh = load_mesh(write(&dir, "m.gltf", &text)).unwrap();
+        let mut lo = DVec3::splat(f64::INFINITY);
+        for t in &mesh.triangles {
+            for v in t {
+                lo = lo.min(*v);
+            }
+        }
+        lo
+    };
+    let w = |s: &str| format!(r#", "weights": {s}"#);
+    for (mesh_weights, node_weights, byte, want) in [
+        (String::new(), String::new(), false, DVec3::ZERO),
+        (w("[0.5]"), String::new(), false, DVec3::new(0.5, 0.0, 0.0)),
+        (w("[0.5]"), w("[-2]"), false, DVec3::new(-2.0, 0.0, 0.0)),
+        (
+            w("[0.25, 1]"),
+            String::new(),
+            true,
+            DVec3::new(0.25, 0.0, -1.0),
+        ),
+        (
+            String::new(),
+            w("[0, 0.5]"),
+            true,
+            DVec3::new(0.0, 0.0, -0.5),
+        ),
+    ] {
+        let got = lower(morphed_cube_gltf(&mesh_weights, &node_weights, byte));
+        assert!(
+            (got - want).length() < 1e-12,
+            "mesh {mesh_weights:?} node {node_weights:?}: {got} against {want}"
+        );
+    }
+}
+
+/// Skinning is not applied: the mesh is read under its node's transform, and the loader
+/// says so, since a skinning viewer ignores that transform and poses the mesh.
+#[test]
+fn a_skinned_gltf_mesh_is_read_with_a_warning() {
+    let dir = temp_dir("gltf-skin");
+    let good = cube_gltf();
+    let from = r#"{"translation": [10, 20, 30], "mesh": 0}"#;
+    assert!(good.contains(from));
+    let text = good
+        .replace(
+            from,
+            r#"{"translation": [10, 20, 30], "mesh": 0, "skin": 0}, {"translation": [0, 1, 0]}"#,
+        )
+        .replace(
+            r#""scene": 0,"#,
+            r#""scene": 0, "skins": [{"joints": [2]}],"#,
+        );
+    let mesh = load_mesh(write(&dir, "s.gltf", &text)).unwrap();
+    assert_eq!(mesh.triangles.len(), 12);
+    assert!(
+        mesh.warnings
+            .iter()
+            .any(|w| w.contains("node 1's mesh 0 is skinned")),
+        "{:?}",
+        mesh.warnings
+    );
+    assert!(
+        load_mesh(write(&dir, "c.gltf", &good))
+            .unwrap()
+            .warnings
+            .is_empty()
+    );
 }

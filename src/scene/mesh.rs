@@ -553,7 +553,11 @@ fn gltf_triangles(
 ) -> Result<TriangleMesh, String> {
     let mut mesh = TriangleMesh::default();
     let mut slots = HashMap::new();
-    let mut add = |m: gltf::Mesh, xf: DMat4, mesh: &mut TriangleMesh| -> Result<(), String> {
+    let mut add = |m: gltf::Mesh,
+                   xf: DMat4,
+                   weights: &[f32],
+                   mesh: &mut TriangleMesh|
+     -> Result<(), String> {
         for prim in m.primitives() {
             use gltf::mesh::Mode;
             let mode = prim.mode();
@@ -590,21 +594,49 @@ fn gltf_triangles(
             let Some(pos) = prim.get(&gltf::Semantic::Positions) else {
                 continue;
             };
-            let pos: Vec<DVec3> = gltf_vec3s(&pos, buffers, "POSITION")
-                .map_err(|e| format!("mesh {}: {e}", m.index()))?
-                .into_iter()
-                .map(|p| xf.transform_point3(p))
-                .collect();
-            // Normals go through the inverse transpose of the node's transform.
-            let normal_xf = glam::DMat3::from_mat4(xf).inverse().transpose();
-            let normals: Vec<DVec3> = match prim.get(&gltf::Semantic::Normals) {
-                Some(acc) => gltf_vec3s(&acc, buffers, "NORMAL")
-                    .map_err(|e| format!("mesh {}: {e}", m.index()))?
-                    .into_iter()
-                    .map(|v| (normal_xf * v).normalize_or_zero())
-                    .collect(),
+            let at = |e: String| format!("mesh {}: {e}", m.index());
+            let mut pos = gltf_vec3s(&pos, buffers, "POSITION").map_err(at)?;
+            let mut normals = match prim.get(&gltf::Semantic::Normals) {
+                Some(acc) => gltf_vec3s(&acc, buffers, "NORMAL").map_err(at)?,
                 None => Vec::new(),
             };
+            // Morph targets (glTF 2.0, 3.7.2.2): the shape shown is the base plus each
+            // target's displacement times its weight (the node's, else the mesh's, else
+            // 0); a file exported with shape keys set holds its shape this way.
+            for (k, target) in prim.morph_targets().enumerate() {
+                let w = weights.get(k).map_or(0.0, |&w| w as f64);
+                if w == 0.0 {
+                    continue;
+                }
+                for (acc, base, what) in [
+                    (target.positions(), &mut pos, "POSITION"),
+                    (target.normals(), &mut normals, "NORMAL"),
+                ] {
+                    let (Some(acc), false) = (acc, base.is_empty()) else {
+                        continue;
+                    };
+                    let what = format!("morph target {k}'s {what}");
+                    let d = gltf_vec3s(&acc, buffers, &what).map_err(at)?;
+                    if d.len() != base.len() {
+                        return Err(at(format!(
+                            "{what} accessor {} holds {} elements for {} vertices",
+                            acc.index(),
+                            d.len(),
+                            base.len()
+                        )));
+                    }
+                    for (b, d) in base.iter_mut().zip(d) {
+                        *b += w * d;
+                    }
+                }
+            }
+            let pos: Vec<DVec3> = pos.into_iter().map(|p| xf.transform_point3(p)).collect();
+            // Normals go through the inverse transpose of the node's transform.
+            let normal_xf = glam::DMat3::from_mat4(xf).inverse().transpose();
+            let normals: Vec<DVec3> = normals
+                .into_iter()
+                .map(|v| (normal_xf * v).normalize_or_zero())
+                .collect();
             let normals = if normals.len() == pos.len() {
                 normals
             } else {
@@ -694,7 +726,17 @@ fn gltf_triangles(
                 let local = DMat4::from_cols_array_2d(&m.map(|c| c.map(|x| x as f64)));
                 let xf = parent * local;
                 if let Some(m) = node.mesh() {
-                    add(m, xf, &mut mesh)?;
+                    if node.skin().is_some() {
+                        mesh.warnings.push(format!(
+                            "glTF: node {}'s mesh {} is skinned; it is read without its \
+                             skin, under the node's transform (which skinning ignores), so \
+                             its pose and place may differ from a skinning viewer's",
+                            node.index(),
+                            m.index()
+                        ));
+                    }
+                    let weights = node.weights().or(m.weights()).unwrap_or(&[]);
+                    add(m, xf, weights, &mut mesh)?;
                 }
                 for c in node.children() {
                     stack.push((c, xf, depth + 1));
@@ -703,7 +745,8 @@ fn gltf_triangles(
         }
         None => {
             for m in doc.meshes() {
-                add(m, DMat4::IDENTITY, &mut mesh)?;
+                let weights = m.weights().unwrap_or(&[]);
+                add(m, DMat4::IDENTITY, weights, &mut mesh)?;
             }
         }
     }
