@@ -594,3 +594,73 @@ fn check(p: &Path) {
         Err(e) => assert!(e.to_string().contains("h.vox"), "{e}"),
     }
 }
+
+/// Nodes and layers marked hidden leave their models out, as in MagicaVoxel (and as
+/// ogt_vox reads them); a file whose graph hides every model is refused for that
+/// reason (it was called "every model placed has an empty size").
+#[test]
+fn hidden_nodes_and_layers_leave_their_models_out() {
+    let dir = temp_dir("hidden");
+    let hide = |d: &mut DotVoxData, node: usize| {
+        if let SceneNode::Transform { attributes, .. } = &mut d.scenes[node] {
+            attributes.insert("_hidden".into(), "1".into());
+        }
+    };
+    // A second model (a single voxel) beside the bar, under its own transform node.
+    let two = || {
+        let mut d = one_model_file(bar(), &[]);
+        d.models.push(Model {
+            size: Size { x: 1, y: 1, z: 1 },
+            voxels: vec![Voxel {
+                x: 0,
+                y: 0,
+                z: 0,
+                i: 1,
+            }],
+        });
+        let mut f = Dict::new();
+        f.insert("_t".into(), "0 0 5".into());
+        d.scenes.push(SceneNode::Transform {
+            attributes: Dict::new(),
+            frames: vec![Frame::new(f)],
+            child: 5,
+            layer_id: 1,
+        });
+        d.scenes.push(SceneNode::Shape {
+            attributes: Dict::new(),
+            models: vec![ShapeModel {
+                model_id: 1,
+                attributes: Dict::new(),
+            }],
+        });
+        if let SceneNode::Group { children, .. } = &mut d.scenes[1] {
+            children.push(4);
+        }
+        d.layers.push(Layer {
+            attributes: Dict::new(),
+        });
+        d
+    };
+    let both = load_vox(save(&dir, "both.vox", &two()), None).unwrap();
+    assert_eq!(solid(&both.grid), 3);
+    // The single voxel's node hidden, or its layer: the bar alone.
+    let mut d = two();
+    hide(&mut d, 4);
+    let s = load_vox(save(&dir, "node.vox", &d), None).unwrap();
+    assert_eq!((s.grid.dims(), solid(&s.grid)), (UVec3::new(3, 1, 1), 2));
+    let mut d = two();
+    d.layers[1].attributes.insert("_hidden".into(), "1".into());
+    let s = load_vox(save(&dir, "layer.vox", &d), None).unwrap();
+    assert_eq!((s.grid.dims(), solid(&s.grid)), (UVec3::new(3, 1, 1), 2));
+    // The group's node hidden: nothing shows.
+    let mut d = two();
+    hide(&mut d, 0);
+    let p = save(&dir, "none.vox", &d);
+    let e = load_vox(&p, None).unwrap_err().to_string();
+    assert!(
+        e.contains("none.vox") && e.contains("shows none of its 2 model(s)"),
+        "{e}"
+    );
+    // A model chosen by index is loaded whatever the graph hides.
+    assert_eq!(solid(&load_vox(&p, Some(0)).unwrap().grid), 2);
+}

@@ -613,6 +613,14 @@ fn vox_from_data(
         None => {
             let mut out = Vec::new();
             walk_graph(data, 0, IDENTITY, [0; 3], 0, &mut out).map_err(invalid)?;
+            if out.is_empty() {
+                // MagicaVoxel shows an empty scene; voxlab has no grid to make of it.
+                return Err(invalid(format!(
+                    "its scene graph shows none of its {count} model(s): every shape node \
+                     is under a node or layer marked hidden, or there is none (one model \
+                     can be loaded alone with `scene.model`)"
+                )));
+            }
             out
         }
     };
