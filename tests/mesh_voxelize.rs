@@ -796,3 +796,90 @@ fn a_skinned_gltf_mesh_is_read_with_a_warning() {
             .is_empty()
     );
 }
+
+/// A GLB whose one mesh (a strip of 2^20 triangles, one byte an index) is placed by
+/// `nodes` nodes: a 1 MiB file that asks for nodes x 2^20 triangles. `claim`, if given,
+/// is the index accessor's count in place of the strip's.
+fn many_placements_glb(nodes: usize, claim: Option<usize>) -> Vec<u8> {
+    let strip = (1usize << 20) + 2;
+    let mut bin: Vec<u8> = [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.]]
+        .iter()
+        .flatten()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    bin.extend((0..strip).map(|i| (i % 3) as u8));
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let node_list: Vec<String> = (0..nodes)
+        .map(|k| format!(r#"{{"mesh": 0, "translation": [0, 0, {k}]}}"#))
+        .collect();
+    let mut json = format!(
+        r#"{{"asset": {{"version": "2.0"}},
+  "scenes": [{{"nodes": [{roots}]}}], "nodes": [{node_list}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1, "mode": 5}}]}}],
+  "buffers": [{{"byteLength": {len}}}],
+  "bufferViews": [{{"buffer": 0, "byteLength": 36}},
+    {{"buffer": 0, "byteOffset": 36, "byteLength": {strip}}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+      "min": [0, 0, 0], "max": [1, 1, 0]}},
+    {{"bufferView": 1, "componentType": 5121, "count": {count}, "type": "SCALAR"}}]}}"#,
+        roots = (0..nodes)
+            .map(|k| k.to_string())
+            .collect::<Vec<_>>()
+            .join(","),
+        node_list = node_list.join(","),
+        len = bin.len(),
+        count = claim.unwrap_or(strip),
+    );
+    while json.len() % 4 != 0 {
+        json.push(' ');
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut glb = Vec::new();
+    glb.extend(b"glTF");
+    glb.extend(2u32.to_le_bytes());
+    glb.extend((total as u32).to_le_bytes());
+    glb.extend((json.len() as u32).to_le_bytes());
+    glb.extend(b"JSON");
+    glb.extend(json.as_bytes());
+    glb.extend((bin.len() as u32).to_le_bytes());
+    glb.extend(b"BIN\0");
+    glb.extend(bin);
+    glb
+}
+
+/// Nodes that place one mesh many times could ask a small file for more triangles than
+/// memory holds (a 1.2 MB glTF asking for 2e8 aborted voxlab at 8 GB): the count is
+/// taken from the accessors before any triangle is read, and bounded.
+#[test]
+fn a_gltf_placing_too_many_triangles_is_refused_before_reading() {
+    let dir = temp_dir("gltf-placements");
+    let p = dir.join("few.glb");
+    std::fs::write(&p, many_placements_glb(2, None)).unwrap();
+    assert_eq!(load_mesh(&p).unwrap().triangles.len(), 2 << 20);
+    let over = voxlab::scene::mesh::MAX_MESH_TRIANGLES / (1 << 20) + 1;
+    let p = dir.join("many.glb");
+    std::fs::write(&p, many_placements_glb(over, None)).unwrap();
+    let e = load_mesh(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("many.glb")
+            && e.contains(&format!("places {} triangles", over << 20))
+            && e.contains("at most 67108864"),
+        "{e}"
+    );
+    // Refused from the declared counts, before reading: an index accessor that claims
+    // more than its buffer view holds gets the count's error, not the short read's.
+    let claim = voxlab::scene::mesh::MAX_MESH_TRIANGLES + 3;
+    std::fs::write(&p, many_placements_glb(1, Some(claim))).unwrap();
+    let e = load_mesh(&p).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("places {} triangles", claim - 2)),
+        "{e}"
+    );
+    // Below the bound, the same lie is the short read's.
+    std::fs::write(&p, many_placements_glb(1, Some(3 << 20))).unwrap();
+    let e = load_mesh(&p).unwrap_err().to_string();
+    assert!(e.contains("claims more elements"), "{e}");
+}

@@ -253,6 +253,9 @@ fn load_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, LoadErrorKind> {
     // Which face corners name a normal, per triangle in the file's order: tobj's models
     // are runs of the file's faces in order, each triangulated as a fan.
     let emitted: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
+    if emitted > MAX_MESH_TRIANGLES {
+        return Err(LoadErrorKind::InvalidMesh(too_many_triangles(emitted)));
+    }
     let corner_normals = obj_corner_normals(bytes).filter(|c| c.len() == emitted);
     if corner_normals.is_none() && models.iter().any(|m| !m.mesh.normals.is_empty()) {
         mesh.warnings.push(format!(
@@ -392,6 +395,14 @@ fn obj_corner_normals(bytes: &[u8]) -> Option<Vec<[bool; 3]>> {
         }
     }
     Some(out)
+}
+
+/// Most triangles a mesh file may give, after a glTF's nodes have placed its meshes
+/// (each takes 76 to 148 bytes in memory).
+pub const MAX_MESH_TRIANGLES: usize = 1 << 26;
+
+fn too_many_triangles(n: usize) -> String {
+    format!("it places {n} triangles; at most {MAX_MESH_TRIANGLES} are read")
 }
 
 /// glTF's extension for vertex attributes stored as integers, read by `gltf_vec3s`.
@@ -710,6 +721,8 @@ fn gltf_triangles(
         Ok(())
     };
 
+    // Where each mesh is placed, with its morph weights, before any is read.
+    let mut placed: Vec<(gltf::Mesh, DMat4, &[f32])> = Vec::new();
     let scene = doc.default_scene().or_else(|| doc.scenes().next());
     match scene {
         Some(scene) => {
@@ -736,7 +749,7 @@ fn gltf_triangles(
                         ));
                     }
                     let weights = node.weights().or(m.weights()).unwrap_or(&[]);
-                    add(m, xf, weights, &mut mesh)?;
+                    placed.push((m, xf, weights));
                 }
                 for c in node.children() {
                     stack.push((c, xf, depth + 1));
@@ -746,9 +759,33 @@ fn gltf_triangles(
         None => {
             for m in doc.meshes() {
                 let weights = m.weights().unwrap_or(&[]);
-                add(m, DMat4::IDENTITY, weights, &mut mesh)?;
+                placed.push((m, DMat4::IDENTITY, weights));
             }
         }
+    }
+    // Nodes may place one mesh many times: a small file can ask for more triangles
+    // than memory holds. Counted from the accessors' declared counts, before reading.
+    let triangles = placed
+        .iter()
+        .flat_map(|(m, _, _)| m.primitives())
+        .map(|p| {
+            use gltf::mesh::Mode;
+            let corners = p
+                .indices()
+                .or_else(|| p.get(&gltf::Semantic::Positions))
+                .map_or(0, |a| a.count());
+            match p.mode() {
+                Mode::Triangles => corners / 3,
+                Mode::TriangleStrip | Mode::TriangleFan => corners.saturating_sub(2),
+                _ => 0,
+            }
+        })
+        .fold(0usize, usize::saturating_add);
+    if triangles > MAX_MESH_TRIANGLES {
+        return Err(too_many_triangles(triangles));
+    }
+    for (m, xf, weights) in placed {
+        add(m, xf, weights, &mut mesh)?;
     }
     Ok(mesh)
 }
