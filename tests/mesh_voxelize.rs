@@ -808,7 +808,7 @@ fn many_placements_glb(nodes: usize, claim: Option<usize>) -> Vec<u8> {
         .flat_map(|x| x.to_le_bytes())
         .collect();
     bin.extend((0..strip).map(|i| (i % 3) as u8));
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let node_list: Vec<String> = (0..nodes)
@@ -833,7 +833,7 @@ fn many_placements_glb(nodes: usize, claim: Option<usize>) -> Vec<u8> {
         len = bin.len(),
         count = claim.unwrap_or(strip),
     );
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(' ');
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();
